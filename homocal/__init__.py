@@ -1,0 +1,1 @@
+"""homocal: homography ground-plane mapping, its error model and corrections."""

@@ -1,0 +1,1 @@
+"""simgen: MuJoCo synthetic traffic scenes and dataset generator."""
