@@ -1,0 +1,150 @@
+"""Homographies from four point pairs, and the ViewTransformer built on them.
+
+The homography is computed in closed form in float64 without fixing h33 = 1 (the projective basis
+construction: each quad is the image of the standard basis e1, e2, e3 and (1, 1, 1)), so it stays exact
+when the horizon passes through the image origin, where OpenCV's getPerspectiveTransform breaks.
+"""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+QUAD_ORDER = "TL, TR, BR, BL"
+
+
+def as_points(points: np.ndarray, name: str = "points") -> np.ndarray:
+    """Return points of shape (N, 2) or (N, 1, 2), any real dtype, as a new (N, 2) float64 array."""
+    arr = np.asarray(points)
+    if arr.dtype.kind not in "fiu":
+        raise ValueError(f"{name}: expected numbers, got dtype {arr.dtype}")
+    if arr.ndim == 3 and arr.shape[1:] == (1, 2):
+        arr = arr[:, 0, :]
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise ValueError(f"{name}: expected shape (N, 2) or (N, 1, 2), got {arr.shape}")
+    return arr.astype(np.float64, copy=True)
+
+
+def validate_quad(quad: np.ndarray, name: str = "quad") -> np.ndarray:
+    """Check a quadrilateral (4, 2) is a usable convex quad in order TL, TR, BR, BL; return it as float64.
+
+    Raises ValueError naming the problem: wrong shape, NaN/inf, a repeated vertex, three collinear
+    vertices (which includes zero area), self-intersection, or a non-convex quad.
+    """
+    q = as_points(quad, name)
+    if q.shape != (4, 2):
+        raise ValueError(f"{name}: a trapezoid needs exactly 4 vertices ({QUAD_ORDER}), got {len(q)}")
+    if not np.isfinite(q).all():
+        raise ValueError(f"{name}: vertices contain NaN or inf: {q.tolist()}")
+    scale = max(float(np.ptp(q, axis=0).max()), 1e-300)
+    for i, j in itertools.combinations(range(4), 2):
+        if np.hypot(*(q[i] - q[j])) <= 1e-12 * scale:
+            raise ValueError(f"{name}: vertices {i} and {j} are the same point {q[i].tolist()}")
+    for i, j, k in itertools.combinations(range(4), 3):
+        if abs(_cross(q[j] - q[i], q[k] - q[i])) <= 1e-9 * scale * scale:
+            raise ValueError(f"{name}: vertices {i}, {j}, {k} are collinear (zero-area or degenerate trapezoid)")
+    if _segments_cross(q[0], q[1], q[2], q[3]) or _segments_cross(q[1], q[2], q[3], q[0]):
+        raise ValueError(f"{name}: the trapezoid is self-intersecting; give the vertices in order {QUAD_ORDER}")
+    turns = [_cross(q[(i + 1) % 4] - q[i], q[(i + 2) % 4] - q[(i + 1) % 4]) for i in range(4)]
+    if not (all(t > 0 for t in turns) or all(t < 0 for t in turns)):
+        raise ValueError(f"{name}: the trapezoid is not convex")
+    return q
+
+
+def homography_from_quads(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """The (3, 3) homography H with H [s_i, 1]^T ~ [t_i, 1]^T for 4 point pairs (4, 2), float64.
+
+    Closed form: B_q = [q1 q2 q3] diag(lambda) with [q1 q2 q3] lambda = q4 (homogeneous) maps the
+    projective basis to quad q; H = B_target B_source^-1. Scaled to unit Frobenius norm with the sign
+    that makes the homogeneous scale w = H[2] . [s, 1] positive on the source vertices. Raises ValueError
+    if the vertices are in a degenerate configuration.
+    """
+    Bs, Bt = _basis_map(source), _basis_map(target)
+    H = Bt @ np.linalg.inv(Bs)
+    H /= np.linalg.norm(H)
+    w = np.column_stack([source, np.ones(4)]) @ H[2]
+    if np.all(w < 0):
+        H = -H
+    elif not np.all(w > 0):
+        raise ValueError("the trapezoids imply a horizon that crosses the source trapezoid")
+    return H
+
+
+def apply_homography(H: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Map (N, 2) points through H; points on or beyond its horizon (w <= 0, relative 1e-12) give NaN."""
+    p = np.column_stack([points, np.ones(len(points))])
+    xyw = p @ H.T
+    w = xyw[:, 2]
+    scale = np.abs(p) @ np.abs(H[2])
+    valid = w > 1e-12 * scale
+    out = np.full((len(points), 2), np.nan)
+    out[valid] = xyw[valid, :2] / w[valid, None]
+    return out
+
+
+class ViewTransformer:
+    """Image-to-ground mapping from a trapezoid clicked on the image and its 4 points on the ground/site map.
+
+    Same method names as supervision's ViewTransformer, so its users can switch; unlike it, computed in
+    float64 without fixing h33 = 1, never casting to int, and giving NaN (not a huge or zero value) for a
+    point on or above the horizon.
+
+    Args:
+        source: (4, 2) image trapezoid, pixels, order TL, TR, BR, BL.
+        target: (4, 2) the same 4 points on the ground (metres) or site map (pixels).
+
+    Attributes:
+        m: (3, 3) image-to-target homography (unit Frobenius norm, w > 0 on the ground side).
+        m_inv: (3, 3) target-to-image homography (unit Frobenius norm, w > 0 in front of the camera).
+    """
+
+    def __init__(self, source: np.ndarray, target: np.ndarray) -> None:
+        self.source = validate_quad(source, "source")
+        self.target = validate_quad(target, "target")
+        self.m = homography_from_quads(self.source, self.target)
+        self.m_inv = homography_from_quads(self.target, self.source)
+
+    def transform_points(self, points: np.ndarray) -> np.ndarray:
+        """Map image points (N, 2) or (N, 1, 2), pixels, to target points (N, 2) float64; NaN on/above the horizon."""
+        return apply_homography(self.m, as_points(points))
+
+    def inverse_transform_points(self, points: np.ndarray) -> np.ndarray:
+        """Map target points (N, 2) or (N, 1, 2) to image pixels (N, 2) float64; NaN behind the camera."""
+        return apply_homography(self.m_inv, as_points(points))
+
+    @property
+    def horizon(self) -> np.ndarray:
+        """(3,) image line (a, b, c) with a^2 + b^2 = 1: a u + b v + c = 0 on the horizon, > 0 on the ground side."""
+        line = self.m[2]
+        return line / np.hypot(line[0], line[1])
+
+    def horizon_row(self, u: float | np.ndarray) -> float | np.ndarray:
+        """Image row v of the horizon at column(s) u, pixels (paper eq. (4): v_h = -D / C)."""
+        a, b, c = self.horizon
+        return -(a * np.asarray(u, dtype=np.float64) + c) / b
+
+    def __repr__(self) -> str:
+        return f"ViewTransformer(source={self.source.tolist()}, target={self.target.tolist()})"
+
+
+def _basis_map(quad: np.ndarray) -> np.ndarray:
+    """(3, 3) matrix mapping e1, e2, e3, (1, 1, 1) to the quad's 4 homogeneous vertices."""
+    P = np.vstack([quad[:3].T, np.ones(3)])
+    try:
+        lam = np.linalg.solve(P, np.array([quad[3, 0], quad[3, 1], 1.0]))
+    except np.linalg.LinAlgError:
+        raise ValueError("degenerate trapezoid: three vertices are collinear") from None
+    if not np.all(np.isfinite(lam)) or np.any(lam == 0):
+        raise ValueError("degenerate trapezoid: three vertices are collinear")
+    return P * lam
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> float:
+    return float(a[0] * b[1] - a[1] * b[0])
+
+
+def _segments_cross(p1, p2, p3, p4) -> bool:
+    """True if the open segments p1p2 and p3p4 properly intersect."""
+    d1, d2 = _cross(p2 - p1, p3 - p1), _cross(p2 - p1, p4 - p1)
+    d3, d4 = _cross(p4 - p3, p1 - p3), _cross(p4 - p3, p2 - p3)
+    return d1 * d2 < 0 and d3 * d4 < 0

@@ -1,0 +1,56 @@
+"""Site-map units: a top-down map image with a scale and an origin ("after homography projection
+and scaling", paper Section 4.1).
+
+Convention (data_schema.md): map pixels px right, py down; world metres x right, y forward (map up):
+    px = ox + s x,   py = oy - s y,   s = scale_px_per_m, (ox, oy) = origin_px (the world origin on the map).
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from homocal.geometry.homography import as_points
+
+
+@dataclass(frozen=True)
+class SiteMap:
+    """Scale (px per metre, > 0) and origin (map pixel of the world origin) of a site-map image."""
+
+    scale_px_per_m: float
+    origin_px: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.scale_px_per_m) and self.scale_px_per_m > 0):
+            raise ValueError(f"site map: scale_px_per_m must be a positive number, got {self.scale_px_per_m}")
+        if len(self.origin_px) != 2 or not np.all(np.isfinite(self.origin_px)):
+            raise ValueError(f"site map: origin_px must be two finite numbers, got {self.origin_px}")
+
+    @property
+    def to_metres_matrix(self) -> np.ndarray:
+        """(3, 3) affine map from map pixels to world metres, for composing with a homography."""
+        s, (ox, oy) = self.scale_px_per_m, self.origin_px
+        return np.array([[1 / s, 0.0, -ox / s], [0.0, -1 / s, oy / s], [0.0, 0.0, 1.0]])
+
+    def to_metres(self, points_px: np.ndarray) -> np.ndarray:
+        """Map pixels (N, 2) to world metres (N, 2)."""
+        p = as_points(points_px, "map points")
+        ox, oy = self.origin_px
+        return np.column_stack([(p[:, 0] - ox), (oy - p[:, 1])]) / self.scale_px_per_m
+
+    def to_pixels(self, points_m: np.ndarray) -> np.ndarray:
+        """World metres (N, 2) to map pixels (N, 2)."""
+        p = as_points(points_m, "ground points")
+        ox, oy = self.origin_px
+        return np.column_stack([ox + p[:, 0] * self.scale_px_per_m, oy - p[:, 1] * self.scale_px_per_m])
+
+    @classmethod
+    def from_json(cls, path: str | Path) -> "SiteMap":
+        """Read a dataset's site_map.json ({"scale_px_per_m": s, "origin_px": [ox, oy], ...})."""
+        d = json.loads(Path(path).read_text())
+        try:
+            return cls(float(d["scale_px_per_m"]), (float(d["origin_px"][0]), float(d["origin_px"][1])))
+        except (KeyError, TypeError, IndexError) as e:
+            raise ValueError(f"{path}: site map needs scale_px_per_m and origin_px [ox, oy] ({e})") from None
