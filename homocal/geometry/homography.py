@@ -71,11 +71,11 @@ def homography_from_quads(source: np.ndarray, target: np.ndarray) -> np.ndarray:
 
 
 def apply_homography(H: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Map (N, 2) points through H; points on or beyond its horizon (w <= 0, relative 1e-12) give NaN."""
+    """Map (N, 2) points through H; points on or beyond its horizon (w <= 1e-12 (|x|+|y|+1) |H[2]|) give NaN."""
     p = np.column_stack([points, np.ones(len(points))])
     xyw = p @ H.T
     w = xyw[:, 2]
-    scale = np.abs(p) @ np.abs(H[2])
+    scale = np.abs(p).sum(axis=1) * np.linalg.norm(H[2])
     valid = w > 1e-12 * scale
     out = np.full((len(points), 2), np.nan)
     out[valid] = xyw[valid, :2] / w[valid, None]
