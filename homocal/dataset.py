@@ -1,0 +1,143 @@
+"""Reading a simgen dataset folder through data_schema.md only (homocal never imports simgen or mujoco)."""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
+
+from homocal.geometry import SiteMap, validate_quad
+
+EXACT = "exact"
+REQUIRED_COLUMNS = {
+    "gt.parquet": ["t", "agent_id", "x", "y", "u", "v", "in_frame"],
+    "detections.parquet": ["detector", "frame", "agent_id", "u", "v", "gt_x", "gt_y"],
+    "calibration.parquet": ["index", "distance_m", "x", "y", "u", "v", "u_exact", "v_exact"],
+}
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """One simgen dataset: the scene's calibration set, its trapezoids and its test trajectories.
+
+    Attributes:
+        path: the dataset folder. name: the scene name (manifest.json).
+        camera: camera.json as a dict. camera_origin: (2,) world metres.
+        site_map: scale and origin of the site map.
+        trapezoid_image: (4, 2) hand-placed image trapezoid, px (TL, TR, BR, BL).
+        trapezoid_map: (4, 2) hand-placed site-map trapezoid, map px.
+        trapezoids: trapezoids.json as a dict (hand-placed and exact).
+    """
+
+    path: Path
+    name: str
+    manifest: dict
+    camera: dict
+    camera_origin: np.ndarray
+    site_map: SiteMap
+    trapezoid_image: np.ndarray
+    trapezoid_map: np.ndarray
+    trapezoids: dict
+
+    def calibration_points(self, source: str = EXACT) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Calibration objects in index order: image (M, 2) px, ground (M, 2) m, distance (M,) m.
+
+        source "exact" takes the exact projection of each contact point; any other value takes the
+        foot point the segmentation detector found (the only detector calibration objects carry).
+        """
+        table = self.table("calibration.parquet")
+        cols = ("u_exact", "v_exact") if source == EXACT else ("u", "v")
+        image = _columns(table, cols)
+        ground = _columns(table, ("x", "y"))
+        distance = table.column("distance_m").to_numpy().astype(np.float64)
+        bad = ~np.isfinite(image).all(axis=1)
+        if bad.any():
+            raise ValueError(f"{self.path}: calibration objects {np.flatnonzero(bad).tolist()} have no {source} foot point")
+        return image, ground, distance
+
+    def test_points(self, source: str = EXACT, n: int | None = None, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Test trajectory points: image (N, 2) px and true ground (N, 2) m, optionally a seeded subsample of n.
+
+        source "exact": the exact projections (u, v) of in-frame agents' contact points (gt.parquet);
+        a detector name: that detector's detections matched to an agent (detections.parquet, with the
+        temporally nearest ground truth gt_x, gt_y).
+        """
+        if source == EXACT:
+            table = self.table("gt.parquet")
+            table = table.filter(table.column("in_frame"))
+            image, ground = _columns(table, ("u", "v")), _columns(table, ("x", "y"))
+        else:
+            table = self.table("detections.parquet")
+            detectors = set(table.column("detector").unique().to_pylist())
+            if source not in detectors:
+                raise ValueError(f"{self.path}: no detections from detector {source!r} (have {sorted(detectors)})")
+            table = table.filter(pc.and_(pc.equal(table.column("detector"), source), pc.greater_equal(table.column("agent_id"), 0)))
+            image, ground = _columns(table, ("u", "v")), _columns(table, ("gt_x", "gt_y"))
+        keep = np.isfinite(image).all(axis=1) & np.isfinite(ground).all(axis=1)
+        image, ground = image[keep], ground[keep]
+        if len(image) == 0:
+            raise ValueError(f"{self.path}: no {source} test points")
+        if n is not None and n < len(image):
+            pick = np.sort(np.random.default_rng(seed).choice(len(image), size=n, replace=False))
+            image, ground = image[pick], ground[pick]
+        return image, ground
+
+    def table(self, filename: str):
+        """A Parquet table of the dataset (its columns were checked by load_dataset)."""
+        return pq.read_table(self.path / filename)
+
+
+def load_dataset(path: str | Path) -> Dataset:
+    """Open a dataset folder; ValueError naming the missing file, key or column, or an incomplete run."""
+    path = Path(path)
+    if not path.is_dir():
+        raise ValueError(f"{path}: not a dataset folder")
+    manifest = _json(path, "manifest.json")
+    if not manifest.get("complete", False):
+        raise ValueError(f"{path}: the run is not complete (manifest.json complete = false); finish it with simgen generate --resume")
+    camera = _json(path, "camera.json")
+    trapezoids = _json(path, "trapezoids.json")
+    try:
+        hand = trapezoids["hand_placed"]
+        image = validate_quad(np.asarray(hand["image"], dtype=np.float64), f"{path}/trapezoids.json hand_placed.image")
+        site_map_quad = validate_quad(np.asarray(hand["map"], dtype=np.float64), f"{path}/trapezoids.json hand_placed.map")
+        origin = np.asarray(camera["camera_origin"], dtype=np.float64)
+    except KeyError as e:
+        raise ValueError(f"{path}: missing key {e} in camera.json or trapezoids.json") from None
+    if not (path / "site_map.json").is_file():
+        raise ValueError(f"{path}: missing site_map.json")
+    dataset = Dataset(
+        path=path,
+        name=str(manifest.get("scene", path.name)),
+        manifest=manifest,
+        camera=camera,
+        camera_origin=origin,
+        site_map=SiteMap.from_json(path / "site_map.json"),
+        trapezoid_image=image,
+        trapezoid_map=site_map_quad,
+        trapezoids=trapezoids,
+    )
+    for filename, columns in REQUIRED_COLUMNS.items():
+        if not (path / filename).is_file():
+            raise ValueError(f"{path}: missing {filename}")
+        missing = [c for c in columns if c not in pq.read_schema(path / filename).names]
+        if missing:
+            raise ValueError(f"{path / filename}: missing column(s) {', '.join(missing)}")
+    return dataset
+
+
+def _json(path: Path, filename: str) -> dict:
+    file = path / filename
+    if not file.is_file():
+        raise ValueError(f"{path}: missing {filename}")
+    try:
+        return json.loads(file.read_text())
+    except json.JSONDecodeError as e:
+        raise ValueError(f"{file}: not valid JSON ({e})") from None
+
+
+def _columns(table, names: tuple[str, str]) -> np.ndarray:
+    return np.column_stack([table.column(n).to_numpy().astype(np.float64) for n in names])
