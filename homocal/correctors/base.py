@@ -1,0 +1,222 @@
+"""The shared base of the correctors: calibration input checks, errors before/after, JSON save/load.
+
+Every corrector is fitted from calibration pairs (paper Section 4: three reference measurements, or more)::
+
+    corrector.fit(transformer, image_points, ground_points, camera_origin)
+    corrector.transform_points(image_points)   # corrected ground positions (N, 2)
+    corrector.calibration_improvement_         # percent, 100 (E_before - E_after) / E_before
+
+and saved to / loaded from a JSON file (format in ``homocal.correctors.serialization``).
+"""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from homocal.correctors.serialization import (
+    FORMAT,
+    FORMAT_VERSION,
+    float_or_none,
+    none_to_nan,
+    read_json,
+    write_text_atomic,
+)
+from homocal.geometry import ViewTransformer, as_points
+
+
+def mean_error(points: np.ndarray, ground_points: np.ndarray) -> float:
+    """Mean Euclidean distance between (N, 2) points and their (N, 2) ground truth (mean of eq. (18))."""
+    return float(np.mean(np.linalg.norm(points - ground_points, axis=1)))
+
+
+def improvement_percent(error_before: float, error_after: float) -> float:
+    """Calibration improvement 100 (E_before - E_after) / E_before, percent; NaN if E_before == 0."""
+    return math.nan if error_before == 0 else 100.0 * (error_before - error_after) / error_before
+
+
+def check_calibration(
+    transformer: ViewTransformer, image_points: np.ndarray, ground_points: np.ndarray, camera_origin: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Validate calibration input; return q (N, 2) px, p = transformer(q) (N, 2), g (N, 2), o (2,), float64.
+
+    Raises ValueError naming the problem: fewer than 3 pairs, mismatched shapes, a NaN/inf (with the
+    point's index), or an image point on or above the horizon of the transformer (it maps to NaN).
+    """
+    if not isinstance(transformer, ViewTransformer):
+        raise TypeError(f"transformer: expected a homocal.ViewTransformer, got {type(transformer).__name__}")
+    q = as_points(image_points, "image_points")
+    g = as_points(ground_points, "ground_points")
+    o = np.asarray(camera_origin, dtype=np.float64)
+    if len(q) != len(g):
+        raise ValueError(f"image_points has {len(q)} points but ground_points has {len(g)}")
+    if len(q) < 3:
+        raise ValueError(f"need at least 3 calibration points, got {len(q)}")
+    if o.shape != (2,):
+        raise ValueError(f"camera_origin: expected shape (2,), got {o.shape}")
+    if not np.isfinite(o).all():
+        raise ValueError(f"camera_origin is not finite: {o.tolist()}")
+    for name, arr in (("image_points", q), ("ground_points", g)):
+        bad = np.flatnonzero(~np.isfinite(arr).all(axis=1))
+        if bad.size:
+            raise ValueError(f"{name}[{bad[0]}] is not finite: {arr[bad[0]].tolist()}")
+    p = transformer.transform_points(q)
+    bad = np.flatnonzero(np.isnan(p).any(axis=1))
+    if bad.size:
+        raise ValueError(
+            f"image_points[{bad[0]}] = {q[bad[0]].tolist()} is on or above the horizon of the trapezoid mapping "
+            "(it maps to no ground point)"
+        )
+    return q, p, g, o
+
+
+class Corrector:
+    """Base of the correctors. Subclasses set ``method`` (the JSON "method" key) and ``param_names`` (their
+    constructor arguments) and implement ``_fit``, ``_transform``, ``_fitted_state`` and ``_set_fitted_state``.
+
+    Attributes after fit (or load):
+        base_transformer_: the ViewTransformer being corrected.
+        camera_origin_: (2,) camera ground point, target units.
+        error_before_, error_after_: mean Euclidean calibration error of the mapped / corrected points.
+        calibration_improvement_: 100 (error_before_ - error_after_) / error_before_, percent (NaN if 0 before).
+    """
+
+    method: ClassVar[str]
+    param_names: ClassVar[tuple[str, ...]]
+    _registry: ClassVar[dict[str, type[Corrector]]] = {}
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        Corrector._registry[cls.method] = cls
+
+    # ---- fitting and applying ---------------------------------------------------------------
+    def fit(
+        self, transformer: ViewTransformer, image_points: np.ndarray, ground_points: np.ndarray, camera_origin
+    ) -> Corrector:
+        """Fit from N >= 3 calibration pairs.
+
+        Args:
+            transformer: the image-to-ground ViewTransformer to correct.
+            image_points: (N, 2) image foot points of the calibration objects, pixels.
+            ground_points: (N, 2) their true ground positions, the transformer's target units (metres).
+            camera_origin: (2,) ground point under the camera, same units.
+        Returns self.
+        """
+        q, p, g, o = check_calibration(transformer, image_points, ground_points, camera_origin)
+        self.base_transformer_ = transformer
+        self.camera_origin_ = o
+        self.error_before_ = mean_error(p, g)
+        self._fit(q, p, g)
+        self.error_after_ = mean_error(self.transform_points(q), g)
+        self.calibration_improvement_ = improvement_percent(self.error_before_, self.error_after_)
+        return self
+
+    def transform_points(self, image_points: np.ndarray) -> np.ndarray:
+        """Corrected ground positions (N, 2) float64 of image points (N, 2) or (N, 1, 2), pixels.
+
+        Points on or above the horizon give NaN.
+        """
+        if not hasattr(self, "camera_origin_"):
+            raise RuntimeError(f"{type(self).__name__} is not fitted: call fit() or load() first")
+        return self._transform(as_points(image_points, "image_points"))
+
+    def _fit(self, q: np.ndarray, p: np.ndarray, g: np.ndarray) -> None:
+        """Fit from validated image points q, their mapping p and ground truth g, all (N, 2)."""
+        raise NotImplementedError
+
+    def _transform(self, q: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def _fitted_state(self) -> dict:
+        raise NotImplementedError
+
+    def _set_fitted_state(self, state: dict) -> None:
+        raise NotImplementedError
+
+    def get_params(self) -> dict:
+        """The constructor arguments."""
+        return {name: getattr(self, name) for name in self.param_names}
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v!r}" for k, v in self.get_params().items())
+        return f"{type(self).__name__}({args})"
+
+    # ---- JSON -----------------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        """Everything needed to apply the correction later, as a JSON-ready dict (see serialization.py)."""
+        if not hasattr(self, "camera_origin_"):
+            raise RuntimeError(f"{type(self).__name__} is not fitted: nothing to save")
+        return {
+            "format": FORMAT,
+            "format_version": FORMAT_VERSION,
+            "method": self.method,
+            "params": self.get_params(),
+            "transformer": {
+                "source": self.base_transformer_.source.tolist(),
+                "target": self.base_transformer_.target.tolist(),
+            },
+            "camera_origin": self.camera_origin_.tolist(),
+            "error_before": self.error_before_,
+            "error_after": self.error_after_,
+            "calibration_improvement": float_or_none(self.calibration_improvement_),
+            "fitted": self._fitted_state(),
+        }
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n"
+
+    def save(self, path: str | Path) -> None:
+        """Write the JSON to path (through a temporary file and a rename)."""
+        write_text_atomic(path, self.to_json())
+
+    @classmethod
+    def from_dict(cls, data: dict, where: str = "correction") -> Corrector:
+        """Rebuild a fitted corrector from ``to_dict`` output. On ``Corrector`` it dispatches on "method";
+        on a subclass, a file of another method is a ValueError. Bad content: ValueError naming ``where``."""
+        if data.get("format") != FORMAT:
+            raise ValueError(f"{where}: not a homocal correction (format is {data.get('format')!r}, not {FORMAT!r})")
+        if data.get("format_version") != FORMAT_VERSION:
+            raise ValueError(f"{where}: unsupported format_version {data.get('format_version')!r} (expected 1)")
+        method = data.get("method")
+        if method not in Corrector._registry:
+            raise ValueError(f"{where}: unknown method {method!r} (known: {', '.join(Corrector._registry)})")
+        target_cls = Corrector._registry[method]
+        if cls is not Corrector and target_cls is not cls:
+            raise ValueError(f"{where}: holds a {method!r} correction, not {cls.method!r}")
+        try:
+            obj = target_cls(**data["params"])
+            obj.base_transformer_ = ViewTransformer(data["transformer"]["source"], data["transformer"]["target"])
+            obj.camera_origin_ = np.array(data["camera_origin"], dtype=np.float64)
+            if obj.camera_origin_.shape != (2,) or not np.isfinite(obj.camera_origin_).all():
+                raise ValueError(f"camera_origin must be 2 finite numbers, got {data['camera_origin']!r}")
+            obj.error_before_ = float(data["error_before"])
+            obj.error_after_ = float(data["error_after"])
+            obj.calibration_improvement_ = none_to_nan(data["calibration_improvement"])
+            obj._set_fitted_state(data["fitted"])
+        except (KeyError, TypeError, ValueError) as e:
+            detail = f"missing key {e}" if isinstance(e, KeyError) else str(e)
+            raise ValueError(f"{where}: bad {method} correction ({detail})") from None
+        return obj
+
+    @classmethod
+    def from_json(cls, text: str, where: str = "correction") -> Corrector:
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise ValueError(f"{where}: not JSON ({e})") from None
+        if not isinstance(data, dict):
+            raise ValueError(f"{where}: expected a JSON object")
+        return cls.from_dict(data, where)
+
+    @classmethod
+    def load(cls, path: str | Path) -> Corrector:
+        """Read a correction JSON file (see ``from_dict``)."""
+        return cls.from_dict(read_json(path), str(path))
+
+
+def load_corrector(path: str | Path) -> Corrector:
+    """Load a correction JSON file of any method (dispatches on its "method" key)."""
+    return Corrector.load(path)

@@ -1,0 +1,53 @@
+"""The hybrid strategy of the paper's Discussion (Section 7): regression when it fits the calibration
+points well, gradient descent otherwise."""
+from __future__ import annotations
+
+import numpy as np
+
+from homocal.correctors.base import Corrector
+from homocal.correctors.descent import DescentCorrector
+from homocal.correctors.regression import RegressionCorrector
+
+
+class HybridCorrector(Corrector):
+    """Fit both methods; keep regression if its calibration improvement is >= threshold (percent), else descent.
+
+    A NaN regression improvement (zero error before correction) fails the test, so descent is kept.
+
+    Args:
+        threshold: percent, 75 in the paper.
+        signed: passed to RegressionCorrector.
+        **descent_params: passed to DescentCorrector (delta_max, grid_offsets, initial_step, min_step,
+            max_evals, seed).
+    Attributes after fit: regression_, descent_ (the fitted correctors), chosen_ ("regression" or
+    "descent"); calibration_improvement_, error_before_, error_after_ are the chosen one's.
+    """
+
+    method = "hybrid"
+    param_names = ("threshold", "signed", *DescentCorrector.param_names)
+
+    def __init__(self, threshold: float = 75.0, signed: bool = False, **descent_params) -> None:
+        self.threshold = float(threshold)
+        self.signed = RegressionCorrector(signed=signed).signed
+        for name, value in DescentCorrector(**descent_params).get_params().items():
+            setattr(self, name, value)
+
+    def _fit(self, q: np.ndarray, p: np.ndarray, g: np.ndarray) -> None:
+        calibration = (self.base_transformer_, q, g, self.camera_origin_)
+        self.regression_ = RegressionCorrector(signed=self.signed).fit(*calibration)
+        descent_params = {name: getattr(self, name) for name in DescentCorrector.param_names}
+        self.descent_ = DescentCorrector(**descent_params).fit(*calibration)
+        self.chosen_ = "regression" if self.regression_.calibration_improvement_ >= self.threshold else "descent"
+
+    def _transform(self, q: np.ndarray) -> np.ndarray:
+        return (self.regression_ if self.chosen_ == "regression" else self.descent_).transform_points(q)
+
+    def _fitted_state(self) -> dict:
+        return {"chosen": self.chosen_, "regression": self.regression_.to_dict(), "descent": self.descent_.to_dict()}
+
+    def _set_fitted_state(self, state: dict) -> None:
+        if state["chosen"] not in ("regression", "descent"):
+            raise ValueError(f"chosen must be 'regression' or 'descent', got {state['chosen']!r}")
+        self.chosen_ = state["chosen"]
+        self.regression_ = RegressionCorrector.from_dict(state["regression"], "hybrid regression")
+        self.descent_ = DescentCorrector.from_dict(state["descent"], "hybrid descent")
