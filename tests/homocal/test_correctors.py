@@ -1,0 +1,307 @@
+"""homocal.correctors against independent computations: np.linalg.lstsq for eq. (22), geometry for eq. (24),
+a brute-force grid for descent phase 1, a pinhole camera for recovery; checks, hybrid choice, JSON."""
+import json
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from homocal.correctors import (
+    Corrector,
+    DescentCorrector,
+    HybridCorrector,
+    RegressionCorrector,
+    fit_quadratic_error,
+    load_corrector,
+    radial_correction,
+)
+from homocal.geometry import PinholeCamera, ViewTransformer
+
+CAM = PinholeCamera()  # the paper's camera: 1280x720, 95 deg hfov, 4 m high, 15 deg down
+GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])  # TL, TR, BR, BL (far edge on top)
+IMAGE = CAM.project_ground(GROUND)  # the exact image trapezoid
+CALIB_G = np.array([[0.0, 10.0], [0.0, 20.0], [0.0, 35.0]])  # calibration objects in front of the camera
+CALIB_Q = CAM.project_ground(CALIB_G)
+ORIGIN = np.zeros(2)
+HAND_ERROR = np.array([[2.0, -1.0], [-1.0, 2.0], [3.0, 1.0], [-2.0, -2.0]])  # px, a plausible clicking error
+TEST_G = np.stack(np.meshgrid(np.linspace(-3.0, 3.0, 7), np.linspace(6.0, 40.0, 18)), -1).reshape(-1, 2)
+TEST_Q = CAM.project_ground(TEST_G)
+# An identity mapping (pixels = ground units) on which the mapped calibration points p_i are chosen freely.
+SQUARE = np.array([[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]])
+IDENTITY = ViewTransformer(SQUARE, SQUARE)
+
+
+def perturbed(offsets: np.ndarray) -> ViewTransformer:
+    return ViewTransformer(IMAGE + np.asarray(offsets, dtype=float).reshape(4, 2), GROUND)
+
+
+def mean_error(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.mean(np.hypot(*(a - b).T)))
+
+
+def radial_ground(p: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """Ground points at distance e_i from p_i, radially outwards from the origin (so ||p - g|| = |e|)."""
+    return p + p / np.linalg.norm(p, axis=1)[:, None] * e[:, None]
+
+
+class TestFitQuadraticError:
+    @pytest.mark.parametrize("seed", range(8))
+    @pytest.mark.parametrize("n", [3, 5])
+    def test_eq22_matches_lstsq(self, seed, n):
+        rng = np.random.default_rng(seed)
+        d, e = rng.uniform(5.0, 50.0, n), rng.normal(0.0, 2.0, n)
+        a, b, degenerate = fit_quadratic_error(d, e)
+        (a_ref, b_ref), *_ = np.linalg.lstsq(np.column_stack([d**2, d]), e, rcond=None)
+        assert not degenerate
+        assert a == pytest.approx(a_ref, rel=1e-7, abs=1e-12) and b == pytest.approx(b_ref, rel=1e-7, abs=1e-10)
+
+    def test_exact_quadratic_is_recovered(self):
+        d = np.array([10.0, 20.0, 35.0])
+        assert fit_quadratic_error(d, 0.002 * d**2 + 0.01 * d)[:2] == pytest.approx((0.002, 0.01), rel=1e-9)
+
+    @pytest.mark.parametrize("d", [[20.0, 20.0, 20.0], [20.0, 20.0 + 1e-7, 20.0 - 1e-7]])
+    def test_equal_distances_fall_back_to_linear(self, d):
+        d, e = np.array(d), np.array([0.5, 0.7, 0.6])
+        a, b, degenerate = fit_quadratic_error(d, e)
+        (b_ref,), *_ = np.linalg.lstsq(d[:, None], e, rcond=None)
+        assert degenerate and a == 0.0 and b == pytest.approx(b_ref, rel=1e-12)
+
+
+class TestRadialCorrection:
+    @pytest.mark.parametrize("a,b", [(0.002, 0.01), (-0.003, 0.02), (0.0, -0.05)])
+    def test_moves_points_radially_by_c(self, a, b):
+        rng = np.random.default_rng(0)
+        o = np.array([1.0, -2.0])
+        p = rng.uniform(-40.0, 40.0, (20, 2))
+        out = radial_correction(p, o, a, b)
+        r_before, r_after = np.linalg.norm(p - o, axis=1), np.linalg.norm(out - o, axis=1)
+        np.testing.assert_allclose(r_after, np.abs(r_before + a * r_before**2 + b * r_before), rtol=1e-12)
+        np.testing.assert_allclose(  # the bearing from o is kept (eq. (24) moves along (o - p))
+            np.arctan2(*(out - o).T[::-1]), np.arctan2(*(p - o).T[::-1]), atol=1e-12
+        )
+
+    def test_origin_and_nan_stay(self):
+        p = np.array([[1.0, 2.0], [np.nan, np.nan]])
+        np.testing.assert_array_equal(radial_correction(p, np.array([1.0, 2.0]), 0.1, 0.1), p)
+
+
+class TestRegressionCorrector:
+    def test_fit_uses_eq18_errors_and_eq22(self):
+        p = np.array([[3.0, 10.0], [-2.0, 25.0], [5.0, 40.0]])
+        e = np.array([0.3, 1.1, 3.0])
+        reg = RegressionCorrector().fit(IDENTITY, p, radial_ground(p, e), ORIGIN)
+        d = np.linalg.norm(p, axis=1)
+        (a_ref, b_ref), *_ = np.linalg.lstsq(np.column_stack([d**2, d]), e, rcond=None)
+        assert (reg.a_, reg.b_) == pytest.approx((max(a_ref, 0), max(b_ref, 0)), rel=1e-9)
+        assert reg.error_before_ == pytest.approx(e.mean(), rel=1e-12)
+
+    @pytest.mark.parametrize(
+        "a,b,expected",  # unclamped law e = a d^2 + b d; each coefficient is clamped on its own
+        [(0.002, 0.01, (0.002, 0.01)), (-0.0005, 0.08, (0.0, 0.08)), (0.004, -0.02, (0.004, 0.0))],
+    )
+    def test_faithful_clamps_each_coefficient(self, a, b, expected):
+        p = np.array([[0.0, 10.0], [0.0, 20.0], [0.0, 35.0]])
+        reg = RegressionCorrector().fit(IDENTITY, p, radial_ground(p, a * p[:, 1] ** 2 + b * p[:, 1]), ORIGIN)
+        assert (reg.a_, reg.b_) == pytest.approx(expected, rel=1e-7, abs=1e-12) and not reg.degenerate_
+
+    def test_degenerate_distances_use_linear_fallback(self):
+        p = 20.0 * np.array([[0.0, 1.0], [0.6, 0.8], [-0.8, 0.6]])  # all at 20 from the origin
+        reg = RegressionCorrector().fit(IDENTITY, p, radial_ground(p, np.array([0.4, 0.5, 0.6])), ORIGIN)
+        assert reg.degenerate_ and reg.a_ == 0.0 and reg.b_ == pytest.approx(0.5 / 20.0, rel=1e-12)
+
+    def test_signed_corrects_overestimated_range_faithful_cannot(self):
+        # Top corners clicked 3 px too low: the far edge is assigned to nearer pixels, so range is overestimated.
+        vt = perturbed([[0, 3], [0, 3], [0, 0], [0, 0]])
+        p = vt.transform_points(CALIB_Q)
+        assert np.all(np.linalg.norm(p, axis=1) > np.linalg.norm(CALIB_G, axis=1))
+        faithful = RegressionCorrector().fit(vt, CALIB_Q, CALIB_G, ORIGIN)
+        signed = RegressionCorrector(signed=True).fit(vt, CALIB_Q, CALIB_G, ORIGIN)
+        assert faithful.calibration_improvement_ < 0  # pushed further away
+        assert signed.calibration_improvement_ > 90
+        path_before = mean_error(vt.transform_points(TEST_Q), TEST_G)
+        assert mean_error(signed.transform_points(TEST_Q), TEST_G) < 0.5 * path_before
+
+    def test_improvement_definition(self):
+        reg = RegressionCorrector(signed=True).fit(perturbed(HAND_ERROR), CALIB_Q, CALIB_G, ORIGIN)
+        after = mean_error(reg.transform_points(CALIB_Q), CALIB_G)
+        assert reg.error_after_ == pytest.approx(after, rel=1e-12)
+        assert reg.calibration_improvement_ == pytest.approx(100 * (reg.error_before_ - after) / reg.error_before_)
+
+    def test_exact_mapping_has_nan_improvement(self):
+        reg = RegressionCorrector().fit(ViewTransformer(IMAGE, GROUND), CALIB_Q, CALIB_G, ORIGIN)
+        assert reg.error_before_ == pytest.approx(0.0, abs=1e-9)
+
+
+class TestDescentCorrector:
+    @settings(max_examples=12, deadline=None)
+    @given(st.lists(st.integers(-3, 3), min_size=8, max_size=8), st.integers(0, 2**64 - 1))
+    def test_never_ends_above_initial_loss(self, offsets, seed):
+        desc = DescentCorrector(seed=seed).fit(perturbed(offsets), CALIB_Q, CALIB_G, ORIGIN)
+        assert desc.loss_final_ <= desc.loss_initial_ == desc.error_before_
+        assert desc.error_after_ == pytest.approx(desc.loss_final_, rel=1e-12)
+        assert desc.calibration_improvement_ >= 0 or math.isnan(desc.calibration_improvement_)
+        assert np.abs(desc.transformer_.source - perturbed(offsets).source).max() <= desc.delta_max
+
+    @pytest.mark.parametrize("delta_max,grid", [(1.0, (-1.0, 0.0, 1.0)), (0.5, (0.0,)), (3.0, (-2.0, 0.0, 2.0))])
+    def test_respects_delta_max(self, delta_max, grid):
+        vt = perturbed(HAND_ERROR * 2)
+        desc = DescentCorrector(delta_max=delta_max, grid_offsets=grid).fit(vt, CALIB_Q, CALIB_G, ORIGIN)
+        assert np.abs(desc.transformer_.source - vt.source).max() <= delta_max
+
+    def test_phase1_is_the_first_best_grid_point(self):
+        vt = perturbed(HAND_ERROR)
+        desc = DescentCorrector(max_evals=0).fit(vt, CALIB_Q, CALIB_G, ORIGIN)
+        best, best_offsets = math.inf, None
+        for dtl_u in desc.grid_offsets:  # the documented order: dTL.u, dTL.v, dBR.u, dBR.v
+            for dtl_v in desc.grid_offsets:
+                for dbr_u in desc.grid_offsets:
+                    for dbr_v in desc.grid_offsets:
+                        quad = vt.source + [[dtl_u, dtl_v], [0, 0], [dbr_u, dbr_v], [0, 0]]
+                        err = mean_error(ViewTransformer(quad, GROUND).transform_points(CALIB_Q), CALIB_G)
+                        if err < best:
+                            best, best_offsets = err, quad
+        assert desc.evaluations_ == 0
+        np.testing.assert_array_equal(desc.transformer_.source, best_offsets)
+        assert desc.loss_final_ == pytest.approx(best, rel=1e-12)
+
+    @pytest.mark.parametrize("max_evals", [1, 7, 30])
+    def test_budget(self, max_evals):
+        desc = DescentCorrector(max_evals=max_evals).fit(perturbed(HAND_ERROR * 1.5), CALIB_Q, CALIB_G, ORIGIN)
+        assert desc.evaluations_ == max_evals
+
+    def test_deterministic_for_a_seed(self):
+        fits = [DescentCorrector(seed=7).fit(perturbed(HAND_ERROR), CALIB_Q, CALIB_G, ORIGIN) for _ in range(2)]
+        np.testing.assert_array_equal(fits[0].transformer_.source, fits[1].transformer_.source)
+        assert fits[0].evaluations_ == fits[1].evaluations_
+
+    @pytest.mark.parametrize("offsets", [HAND_ERROR, [[1, -3], [-2, 0], [3, 2], [0, -1]], [[0, 3], [0, 3], [0, 0], [0, 0]]])
+    def test_recovers_most_of_the_error_along_the_calibration_line(self, offsets):
+        # Three calibration objects on x = 0 constrain the mapping there; off that line the paper's caveat
+        # holds (descent may overfit: it can trade lateral error elsewhere for a perfect centre line).
+        vt = perturbed(offsets)
+        desc = DescentCorrector().fit(vt, CALIB_Q, CALIB_G, ORIGIN)
+        line_g = np.column_stack([np.zeros(18), np.linspace(6.0, 40.0, 18)])
+        line_q = CAM.project_ground(line_g)
+        assert desc.calibration_improvement_ > 80
+        assert mean_error(desc.transform_points(line_q), line_g) < 0.3 * mean_error(vt.transform_points(line_q), line_g)
+
+    @pytest.mark.parametrize(
+        "kwargs,match",
+        [
+            ({"grid_offsets": (-10.0, 0.0)}, "delta_max"),
+            ({"delta_max": 0.0}, "delta_max"),
+            ({"min_step": 2.0}, "min_step"),
+            ({"max_evals": -1}, "max_evals"),
+            ({"seed": -1}, "seed"),
+        ],
+    )
+    def test_bad_parameters(self, kwargs, match):
+        with pytest.raises(ValueError, match=match):
+            DescentCorrector(**kwargs)
+
+
+class TestHybridCorrector:
+    @pytest.mark.parametrize("threshold,chosen", [(-math.inf, "regression"), (math.inf, "descent"), (75.0, None)])
+    def test_choice_follows_threshold(self, threshold, chosen):
+        vt = perturbed(HAND_ERROR)
+        hyb = HybridCorrector(threshold=threshold, signed=True).fit(vt, CALIB_Q, CALIB_G, ORIGIN)
+        reg = RegressionCorrector(signed=True).fit(vt, CALIB_Q, CALIB_G, ORIGIN)
+        expected = chosen or ("regression" if reg.calibration_improvement_ >= 75.0 else "descent")
+        assert hyb.chosen_ == expected
+        picked = hyb.regression_ if expected == "regression" else hyb.descent_
+        assert hyb.calibration_improvement_ == picked.calibration_improvement_
+        np.testing.assert_array_equal(hyb.transform_points(TEST_Q), picked.transform_points(TEST_Q))
+
+    def test_threshold_is_inclusive(self):
+        vt = perturbed(HAND_ERROR)
+        reg = RegressionCorrector(signed=True).fit(vt, CALIB_Q, CALIB_G, ORIGIN)
+        hyb = HybridCorrector(threshold=reg.calibration_improvement_, signed=True).fit(vt, CALIB_Q, CALIB_G, ORIGIN)
+        assert hyb.chosen_ == "regression"
+
+
+FITTED = {
+    "regression": lambda: RegressionCorrector(),
+    "regression-signed": lambda: RegressionCorrector(signed=True),
+    "descent": lambda: DescentCorrector(seed=3, max_evals=100),
+    "hybrid": lambda: HybridCorrector(threshold=50.0, max_evals=50),
+}
+
+
+class TestJson:
+    @pytest.mark.parametrize("name", FITTED)
+    def test_round_trip_gives_identical_mapping(self, name, tmp_path):
+        c = FITTED[name]().fit(perturbed(HAND_ERROR), CALIB_Q, CALIB_G, ORIGIN)
+        c.save(tmp_path / "c.json")
+        for loaded in (load_corrector(tmp_path / "c.json"), type(c).load(tmp_path / "c.json")):
+            assert type(loaded) is type(c) and loaded.get_params() == c.get_params()
+            np.testing.assert_array_equal(loaded.transform_points(TEST_Q), c.transform_points(TEST_Q))
+            assert loaded.calibration_improvement_ == c.calibration_improvement_
+        assert [p.name for p in tmp_path.iterdir()] == ["c.json"]  # no temporary file left
+
+    def test_nan_improvement_is_strict_json(self):
+        zero = np.zeros((3, 2))  # maps exactly onto itself: no error before correction
+        c = RegressionCorrector().fit(IDENTITY, zero, zero, [-1.0, -1.0])
+        assert c.error_before_ == 0.0 and math.isnan(c.calibration_improvement_)
+        assert json.loads(c.to_json())["calibration_improvement"] is None
+        assert math.isnan(Corrector.from_json(c.to_json()).calibration_improvement_)
+
+    def test_other_method_is_refused(self, tmp_path):
+        RegressionCorrector().fit(IDENTITY, SQUARE[1:], SQUARE[1:] + 1, ORIGIN).save(tmp_path / "r.json")
+        with pytest.raises(ValueError, match="'regression' correction, not 'descent'"):
+            DescentCorrector.load(tmp_path / "r.json")
+
+    @pytest.mark.parametrize(
+        "edit,match",
+        [
+            (lambda d: d.update(format="other"), "not a homocal correction"),
+            (lambda d: d.update(format_version=99), "format_version"),
+            (lambda d: d.update(method="magic"), "unknown method"),
+            (lambda d: d.pop("fitted"), "missing key 'fitted'"),
+            (lambda d: d["transformer"].update(source=[[0, 0]] * 4), "same point"),
+            (lambda d: d.update(params={"signed": "yes"}), "signed"),
+        ],
+    )
+    def test_bad_content(self, edit, match, tmp_path):
+        d = RegressionCorrector().fit(IDENTITY, SQUARE[1:], SQUARE[1:] + 1, ORIGIN).to_dict()
+        edit(d)
+        (tmp_path / "c.json").write_text(json.dumps(d))
+        with pytest.raises(ValueError, match=match):
+            load_corrector(tmp_path / "c.json")
+
+    @pytest.mark.parametrize("text,match", [(None, "no such file"), ("{not json", "not a JSON"), ("[1]", "object")])
+    def test_bad_file(self, text, match, tmp_path):
+        if text is not None:
+            (tmp_path / "c.json").write_text(text)
+        with pytest.raises(ValueError, match=match):
+            load_corrector(tmp_path / "c.json")
+
+
+class TestFitInputChecks:
+    @pytest.mark.parametrize("cls", [RegressionCorrector, DescentCorrector, HybridCorrector])
+    @pytest.mark.parametrize(
+        "q,g,o,match",
+        [
+            (CALIB_Q[:2], CALIB_G[:2], ORIGIN, "at least 3"),
+            (CALIB_Q, CALIB_G[:2], ORIGIN, "3 points but ground_points has 2"),
+            (np.vstack([CALIB_Q[:1], [[np.nan, 400.0]], CALIB_Q[2:]]), CALIB_G, ORIGIN, r"image_points\[1\]"),
+            (CALIB_Q, np.vstack([CALIB_G[:2], [[0.0, np.inf]]]), ORIGIN, r"ground_points\[2\]"),
+            (np.vstack([CALIB_Q[:2], [[640.0, 100.0]]]), CALIB_G, ORIGIN, r"image_points\[2\].*horizon"),
+            (CALIB_Q, CALIB_G, [0.0, np.nan], "camera_origin"),
+            (CALIB_Q, CALIB_G, [0.0, 0.0, 0.0], "camera_origin"),
+            (CALIB_Q.ravel(), CALIB_G, ORIGIN, "shape"),
+        ],
+    )
+    def test_bad_input_names_the_problem(self, cls, q, g, o, match):
+        with pytest.raises(ValueError, match=match):
+            cls().fit(perturbed(HAND_ERROR), q, g, o)
+
+    def test_not_fitted(self):
+        with pytest.raises(RuntimeError, match="not fitted"):
+            RegressionCorrector().transform_points(CALIB_Q)
+
+    def test_accepts_n12_and_beyond_horizon_gives_nan(self):
+        reg = RegressionCorrector().fit(perturbed(HAND_ERROR), CALIB_Q.reshape(-1, 1, 2), CALIB_G, ORIGIN)
+        out = reg.transform_points([[640.0, 100.0], [640.0, 600.0]])
+        assert np.isnan(out[0]).all() and np.isfinite(out[1]).all()
