@@ -1,0 +1,151 @@
+"""MOTChallenge text files: import an external detector's output, export the ground truth.
+
+Lines hold comma-separated values; the first seven are
+``frame, id, bb_left, bb_top, bb_width, bb_height, conf``, followed by either ``x, y, z``
+(10 values: MOT15 files and MOT17 det.txt, as detectors write them) or ``class, visibility``
+(9 values: MOT16/17 gt.txt, as `write_mot_gt` writes them). Reading uses the first seven only.
+frame is 1-based: MOT frame n is our frame n - 1, at time t = (n - 1) / fps.
+MOT pixel coordinates are 1-based: the top-left pixel is (1, 1) and a box covers pixels
+bb_left .. bb_left + bb_width - 1. Ours put that pixel's centre at (0, 0) and a box's edges half a
+pixel outside its outermost pixel centres, so
+    x1 = bb_left - 1.5, y1 = bb_top - 1.5, x2 = x1 + bb_width, y2 = y1 + bb_height,
+and back: bb_left = x1 + 1.5, bb_top = y1 + 1.5, bb_width = x2 - x1, bb_height = y2 - y1.
+(A detector whose boxes have pixel edges at integers, the image's top-left corner at (0, 0), and
+which adds 1 when writing MOT, as MOTChallenge exporters do, lands exactly on our convention.)
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
+
+from simgen.detection.association import TIE_TOLERANCE_S, box_iou, greedy_assign, match_to_gt, nearest_sample
+from simgen.detection.core import DetectionBatch, detections_table
+
+MOT_COLUMNS = (9, 10)
+MOT_OFFSET = 1.5
+"""bb_left = x1 + MOT_OFFSET, bb_top = y1 + MOT_OFFSET (module docstring)."""
+
+
+def read_mot(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Parse a MOTChallenge text file -> frame (N,) int64 1-based, xyxy (N, 4) our pixels, conf (N,) float64.
+
+    Blank lines are skipped. Raises ValueError naming the file and 1-based line number of the first bad line.
+    """
+    frames, boxes, confs = [], [], []
+    with open(path, encoding="utf-8") as f:
+        for number, line in enumerate(f, start=1):
+            if not line.strip():
+                continue
+            fields = line.split(",")
+            if len(fields) not in MOT_COLUMNS:
+                raise ValueError(f"{path}: line {number}: expected 9 or 10 comma-separated values, got {len(fields)}")
+            try:
+                values = [float(v) for v in fields]
+            except ValueError:
+                raise ValueError(f"{path}: line {number}: not a number in {line.strip()!r}") from None
+            frame, _, left, top, width, height, conf = values[:7]
+            if not all(math.isfinite(v) for v in values[:7]):
+                raise ValueError(f"{path}: line {number}: non-finite value in {line.strip()!r}")
+            if frame != int(frame) or frame < 1:
+                raise ValueError(f"{path}: line {number}: frame must be an integer >= 1, got {fields[0].strip()}")
+            if width <= 0 or height <= 0:
+                raise ValueError(f"{path}: line {number}: box width and height must be > 0, got {width}, {height}")
+            frames.append(int(frame))
+            boxes.append((left - MOT_OFFSET, top - MOT_OFFSET, left - MOT_OFFSET + width, top - MOT_OFFSET + height))
+            confs.append(conf)
+    return np.array(frames, dtype=np.int64), np.array(boxes, dtype=np.float64).reshape(-1, 4), np.array(confs)
+
+
+def import_mot(dataset_dir: str | os.PathLike, mot_txt_path: str | os.PathLike, name: str, min_iou: float = 0.5) -> pa.Table:
+    """An external detector's MOTChallenge output as a matched detections table (detector = name).
+
+    Each MOT frame n is taken at t = (n - 1) / fps (fps from manifest.json) and compared with the
+    ground-truth boxes (gt.parquet x1, y1, x2, y2; rows with a NaN box are skipped) of the nearest
+    ground-truth time: boxes are associated with agents by IoU, greedy one-to-one, IoU >= min_iou,
+    else agent_id -1; then matched to ground truth as by match_to_gt. The MOT id column is ignored.
+    """
+    dataset_dir = Path(dataset_dir)
+    fps = float(json.loads((dataset_dir / "manifest.json").read_text())["fps"])
+    gt = pq.read_table(dataset_dir / "gt.parquet")
+    frames, xyxy, conf = read_mot(mot_txt_path)
+
+    gt_box = np.column_stack([gt.column(c).to_numpy() for c in ("x1", "y1", "x2", "y2")])
+    visible = np.isfinite(gt_box).all(axis=1)
+    gt_t, gt_agent, gt_box = gt.column("t").to_numpy()[visible], gt.column("agent_id").to_numpy()[visible], gt_box[visible]
+    times = np.unique(gt_t)
+
+    order = np.argsort(frames, kind="stable")
+    numbers, starts, counts = np.unique(frames[order], return_index=True, return_counts=True)
+    batches = []
+    for n, start, count in zip(numbers, starts, counts):
+        rows = order[start : start + count]
+        t = (n - 1) / fps
+        agent_id = np.full(len(rows), -1, dtype=np.int32)
+        if times.size:
+            at_t = gt_t == times[nearest_sample(times, [t])[0]]
+            det_rows, gt_rows = greedy_assign(box_iou(xyxy[rows], gt_box[at_t]), min_iou)
+            agent_id[det_rows] = gt_agent[at_t][gt_rows]
+        batches.append(DetectionBatch(name, int(n - 1), t, xyxy[rows], conf[rows], agent_id))
+    return match_to_gt(detections_table(batches), gt)
+
+
+def append_detections(dataset_dir: str | os.PathLike, table: pa.Table) -> None:
+    """Add `table` to the dataset's detections.parquet atomically (temporary file, then rename).
+
+    Rows of the existing file whose detector name occurs in `table` are replaced, so importing
+    the same detector twice does not duplicate it. Columns must match the existing file's.
+    """
+    path = Path(dataset_dir) / "detections.parquet"
+    if path.exists():
+        existing = pq.read_table(path)
+        keep = pc.invert(pc.is_in(existing.column("detector"), value_set=pc.unique(table.column("detector"))))
+        table = pa.concat_tables([existing.filter(keep), table.select(existing.column_names).cast(existing.schema)])
+    _write_atomically(path, lambda tmp: pq.write_table(table, tmp))
+
+
+def write_mot_gt(gt: pa.Table, fps: float, path: str | os.PathLike) -> None:
+    """Write the ground truth as a MOT16/17 gt.txt (mot/gt.txt), atomically.
+
+    gt: columns t (s), agent_id, x1, y1, x2, y2 (px, NaN when not visible), visible_fraction.
+    One line per video frame n = 1 .. floor(t_max * fps) + 1 and agent visible (finite box) in the
+    ground-truth sample nearest to t = (n - 1) / fps, ordered by frame, then agent_id:
+    ``n, agent_id, bb_left, bb_top, bb_width, bb_height, 1, 1, visible_fraction``
+    (conf 1: evaluate this box; class 1: pedestrian).
+    """
+    box = np.column_stack([gt.column(c).to_numpy() for c in ("x1", "y1", "x2", "y2")])
+    t, agent = gt.column("t").to_numpy(), gt.column("agent_id").to_numpy()
+    visibility = gt.column("visible_fraction").to_numpy()
+    visible = np.flatnonzero(np.isfinite(box).all(axis=1))
+    visible = visible[np.lexsort((agent[visible], t[visible]))]
+    times, starts, counts = np.unique(t[visible], return_index=True, return_counts=True)
+    lines = []
+    if times.size:
+        n_frames = int(math.floor((times[-1] + TIE_TOLERANCE_S) * fps)) + 1
+        for n, s in enumerate(nearest_sample(times, np.arange(n_frames) / fps), start=1):
+            for i in visible[starts[s] : starts[s] + counts[s]]:
+                x1, y1, x2, y2 = box[i]
+                lines.append(
+                    f"{n},{agent[i]},{x1 + MOT_OFFSET:.10g},{y1 + MOT_OFFSET:.10g},{x2 - x1:.10g},{y2 - y1:.10g},"
+                    f"1,1,{visibility[i]:.6g}\n"
+                )
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    _write_atomically(path, lambda tmp: Path(tmp).write_text("".join(lines), encoding="utf-8"))
+
+
+def _write_atomically(path: Path, write) -> None:
+    """Call write(tmp_path) on a temporary file beside `path`, then rename it to `path`."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
