@@ -5,7 +5,7 @@ Conventions (also in data_schema.md): image pixels with the centre of the top-le
 (rows likewise); the foot point is the bottom centre (u, v) = ((x1 + x2) / 2, y2); frames are
 0-based; times in seconds.
 """
-from simgen.detection.association import box_iou, greedy_assign, match_to_gt, nearest_sample
+from simgen.detection.association import associate, box_iou, greedy_assign, match_to_gt, nearest_sample
 from simgen.detection.background import BackgroundSubtractionDetector
 from simgen.detection.core import DETECTIONS_SCHEMA, DetectionBatch, Detector, detections_table, foot_points
 from simgen.detection.masks import SegmentationDetector, id_boxes, mask_boxes
@@ -18,6 +18,7 @@ __all__ = [
     "Detector",
     "SegmentationDetector",
     "append_detections",
+    "associate",
     "box_iou",
     "detections_table",
     "foot_points",

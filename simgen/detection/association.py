@@ -39,6 +39,15 @@ def greedy_assign(score: np.ndarray, min_score: float) -> tuple[np.ndarray, np.n
     return np.array([p[0] for p in pairs], dtype=np.intp), np.array([p[1] for p in pairs], dtype=np.intp)
 
 
+def associate(xyxy: np.ndarray, ref_ids: np.ndarray, ref_xyxy: np.ndarray, min_iou: float) -> np.ndarray:
+    """Agent of each of (N, 4) boxes: greedy one-to-one by IoU with (M, 4) reference boxes of agents
+    (M,) ref_ids, IoU >= min_iou -> (N,) int32 agent ids, -1 where unmatched."""
+    agent_id = np.full(len(xyxy), -1, dtype=np.int32)
+    rows, cols = greedy_assign(box_iou(xyxy, ref_xyxy), min_iou)
+    agent_id[rows] = ref_ids[cols]
+    return agent_id
+
+
 def nearest_sample(times: np.ndarray, query: np.ndarray) -> np.ndarray:
     """Index of the nearest of ascending (M,) `times` (M >= 1) for each of (N,) `query` times, seconds.
 

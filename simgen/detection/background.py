@@ -25,7 +25,7 @@ from collections import deque
 import cv2
 import numpy as np
 
-from simgen.detection.association import box_iou, greedy_assign
+from simgen.detection.association import associate
 from simgen.detection.core import DetectionBatch
 from simgen.detection.masks import id_boxes
 
@@ -106,9 +106,6 @@ class BackgroundSubtractionDetector:
         keep = area * sx * sy >= self.min_area
         left, top, width, height, area = left[keep], top[keep], width[keep], height[keep], area[keep]
         xyxy = np.column_stack([left * sx, top * sy, (left + width) * sx, (top + height) * sy]) - 0.5
-
-        agent_id = np.full(len(xyxy), -1, dtype=np.int32)
         ids, mask_xyxy, _ = id_boxes(agent_ids)
-        rows, cols = greedy_assign(box_iou(xyxy, mask_xyxy), self.min_iou)
-        agent_id[rows] = ids[cols]
+        agent_id = associate(xyxy, ids, mask_xyxy, self.min_iou)
         return DetectionBatch(self.name, frame, t, xyxy, area / (width * height), agent_id)

@@ -25,7 +25,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from simgen.detection.association import TIE_TOLERANCE_S, box_iou, greedy_assign, match_to_gt, nearest_sample
+from simgen.detection.association import TIE_TOLERANCE_S, associate, match_to_gt, nearest_sample
 from simgen.detection.core import DetectionBatch, detections_table
 
 MOT_COLUMNS = (9, 10)
@@ -76,23 +76,19 @@ def import_mot(dataset_dir: str | os.PathLike, mot_txt_path: str | os.PathLike, 
     gt = pq.read_table(dataset_dir / "gt.parquet")
     frames, xyxy, conf = read_mot(mot_txt_path)
 
-    gt_box = np.column_stack([gt.column(c).to_numpy() for c in ("x1", "y1", "x2", "y2")])
-    visible = np.isfinite(gt_box).all(axis=1)
-    gt_t, gt_agent, gt_box = gt.column("t").to_numpy()[visible], gt.column("agent_id").to_numpy()[visible], gt_box[visible]
-    times = np.unique(gt_t)
+    gt_box, gt_agent = _boxes(gt), gt.column("agent_id").to_numpy()
+    rows, times, starts, counts = _visible_by_time(gt)
 
     order = np.argsort(frames, kind="stable")
-    numbers, starts, counts = np.unique(frames[order], return_index=True, return_counts=True)
+    numbers, first, count = np.unique(frames[order], return_index=True, return_counts=True)
+    t = (numbers - 1) / fps
+    samples = nearest_sample(times, t) if times.size else np.zeros(len(numbers), dtype=np.intp)
     batches = []
-    for n, start, count in zip(numbers, starts, counts):
-        rows = order[start : start + count]
-        t = (n - 1) / fps
-        agent_id = np.full(len(rows), -1, dtype=np.int32)
-        if times.size:
-            at_t = gt_t == times[nearest_sample(times, [t])[0]]
-            det_rows, gt_rows = greedy_assign(box_iou(xyxy[rows], gt_box[at_t]), min_iou)
-            agent_id[det_rows] = gt_agent[at_t][gt_rows]
-        batches.append(DetectionBatch(name, int(n - 1), t, xyxy[rows], conf[rows], agent_id))
+    for n, t_n, s, i, c in zip(numbers, t, samples, first, count):
+        ref = rows[starts[s] : starts[s] + counts[s]] if times.size else rows
+        det = order[i : i + c]
+        agent_id = associate(xyxy[det], gt_agent[ref], gt_box[ref], min_iou)
+        batches.append(DetectionBatch(name, int(n - 1), float(t_n), xyxy[det], conf[det], agent_id))
     return match_to_gt(detections_table(batches), gt)
 
 
@@ -119,17 +115,13 @@ def write_mot_gt(gt: pa.Table, fps: float, path: str | os.PathLike) -> None:
     ``n, agent_id, bb_left, bb_top, bb_width, bb_height, 1, 1, visible_fraction``
     (conf 1: evaluate this box; class 1: pedestrian).
     """
-    box = np.column_stack([gt.column(c).to_numpy() for c in ("x1", "y1", "x2", "y2")])
-    t, agent = gt.column("t").to_numpy(), gt.column("agent_id").to_numpy()
-    visibility = gt.column("visible_fraction").to_numpy()
-    visible = np.flatnonzero(np.isfinite(box).all(axis=1))
-    visible = visible[np.lexsort((agent[visible], t[visible]))]
-    times, starts, counts = np.unique(t[visible], return_index=True, return_counts=True)
+    box, agent, visibility = _boxes(gt), gt.column("agent_id").to_numpy(), gt.column("visible_fraction").to_numpy()
+    rows, times, starts, counts = _visible_by_time(gt)
     lines = []
     if times.size:
         n_frames = int(math.floor((times[-1] + TIE_TOLERANCE_S) * fps)) + 1
         for n, s in enumerate(nearest_sample(times, np.arange(n_frames) / fps), start=1):
-            for i in visible[starts[s] : starts[s] + counts[s]]:
+            for i in rows[starts[s] : starts[s] + counts[s]]:
                 x1, y1, x2, y2 = box[i]
                 lines.append(
                     f"{n},{agent[i]},{x1 + MOT_OFFSET:.10g},{y1 + MOT_OFFSET:.10g},{x2 - x1:.10g},{y2 - y1:.10g},"
@@ -138,6 +130,24 @@ def write_mot_gt(gt: pa.Table, fps: float, path: str | os.PathLike) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     _write_atomically(path, lambda tmp: Path(tmp).write_text("".join(lines), encoding="utf-8"))
+
+
+def _boxes(table: pa.Table) -> np.ndarray:
+    """(N, 4) float64 columns x1, y1, x2, y2 of a table."""
+    return np.column_stack([table.column(c).to_numpy() for c in ("x1", "y1", "x2", "y2")]).astype(np.float64)
+
+
+def _visible_by_time(gt: pa.Table) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Ground-truth rows with a finite box, grouped by time.
+
+    Returns rows (V,) sorted by (t, agent_id), times (T,) ascending, and starts, counts (T,):
+    the rows at times[j] are rows[starts[j] : starts[j] + counts[j]].
+    """
+    t, agent = gt.column("t").to_numpy(), gt.column("agent_id").to_numpy()
+    rows = np.flatnonzero(np.isfinite(_boxes(gt)).all(axis=1))
+    rows = rows[np.lexsort((agent[rows], t[rows]))]
+    times, starts, counts = np.unique(t[rows], return_index=True, return_counts=True)
+    return rows, times, starts, counts
 
 
 def _write_atomically(path: Path, write) -> None:
