@@ -1,0 +1,212 @@
+"""``homocal fit`` and ``homocal apply``: fit a correction from reference points, apply it to foot points.
+
+The input formats are in the --help texts below (FIT_FORMATS, APPLY_FORMATS).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+
+from homocal.correctors.base import Corrector, load_corrector
+from homocal.correctors.descent import DescentCorrector
+from homocal.correctors.hybrid import HybridCorrector
+from homocal.correctors.regression import RegressionCorrector
+from homocal.correctors.serialization import read_json, write_text_atomic
+from homocal.geometry import SiteMap, ViewTransformer, validate_quad
+
+METHODS = {
+    "regression": lambda args: RegressionCorrector(),
+    "regression-signed": lambda args: RegressionCorrector(signed=True),
+    "descent": lambda args: DescentCorrector(seed=args.seed),
+    "hybrid": lambda args: HybridCorrector(threshold=args.threshold, seed=args.seed),
+}
+
+FIT_FORMATS = """\
+TRAP.json, the trapezoid (vertices in the order TL, TR, BR, BL as seen in the image):
+  {"image": [[u, v], x4],          image pixels (OpenCV: x right, y down, pixel centres at integers)
+   "map":   [[x, y], x4]}          the same 4 points on the ground, metres (x right, y forward)
+  or, when "map" is in site-map pixels, add their scale and origin (the map pixel of the ground origin):
+  {"image": ..., "map": [[px, py], x4], "site_map": {"scale_px_per_m": 10, "origin_px": [ox, oy]}}
+  A simgen dataset's trapezoids.json is accepted too: its "hand_placed" trapezoid is used, with the
+  site_map.json beside it.
+REF.csv, three or more reference points, a header line then one row per point:
+  u,v,x,y        u, v: the image foot point (pixels); x, y: its true ground position (metres)
+  Other columns are ignored. Points are counted from 0 in error messages.
+The camera origin (--camera-origin, metres, default 0,0) is the ground point under the camera; write
+a negative value as --camera-origin=-1.5,0.
+The correction JSON holds everything needed to apply it later (homocal apply)."""
+
+APPLY_FORMATS = """\
+FEET.csv: a header line then one row per point; columns u, v (image foot point, pixels) are required,
+other columns are carried through to the output. The output has the same rows and columns plus x, y,
+the corrected ground position in metres (replacing any x, y of the input); a point on or above the
+horizon gets x, y = nan."""
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``fit`` and ``apply``."""
+    fmt = argparse.RawDescriptionHelpFormatter
+    fit = subparsers.add_parser(
+        "fit", help="fit a correction from reference points", epilog=FIT_FORMATS, formatter_class=fmt,
+        description="Fit a correction of a trapezoid homography from three or more reference points.",
+    )
+    fit.add_argument("--trapezoid", required=True, type=Path, metavar="TRAP.json", help="the trapezoid (see below)")
+    fit.add_argument("--points", required=True, type=Path, metavar="REF.csv", help="reference points u,v,x,y")
+    fit.add_argument("--method", required=True, choices=METHODS, help="regression (the paper's, clamped), "
+                     "regression-signed (also corrects overestimated range), descent, hybrid")
+    fit.add_argument("-o", "--output", required=True, type=Path, metavar="CORRECTION.json", help="the correction to write")
+    fit.add_argument("--camera-origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
+                     help="ground point under the camera, metres (default 0,0)")
+    fit.add_argument("--threshold", type=float, default=75.0, help="hybrid: keep regression at or above this "
+                     "calibration improvement, percent (default 75)")
+    fit.add_argument("--seed", type=int, default=0, help="descent, hybrid: seed of the coordinate order (default 0)")
+    fit.set_defaults(handler=run_fit)
+
+    apply = subparsers.add_parser(
+        "apply", help="map image foot points to corrected ground positions", epilog=APPLY_FORMATS,
+        formatter_class=fmt, description="Map image foot points to corrected ground positions with a fitted correction.",
+    )
+    apply.add_argument("correction", type=Path, metavar="CORRECTION.json", help="written by homocal fit")
+    apply.add_argument("--points", required=True, type=Path, metavar="FEET.csv", help="image foot points u,v")
+    apply.add_argument("-o", "--output", required=True, type=Path, metavar="CORRECTED.csv", help="the CSV to write")
+    apply.set_defaults(handler=run_apply)
+
+
+def run_fit(args: argparse.Namespace) -> int:
+    transformer = load_trapezoid(args.trapezoid)
+    _, _, cols = read_points_csv(args.points, ("u", "v", "x", "y"), finite=True)
+    _check_output_folder(args.output)
+    corrector = METHODS[args.method](args)
+    try:
+        corrector.fit(transformer, np.column_stack([cols["u"], cols["v"]]), np.column_stack([cols["x"], cols["y"]]),
+                      args.camera_origin)
+    except ValueError as e:
+        raise ValueError(f"{args.points}: {e}") from None
+    corrector.save(args.output)
+    print(f"homocal fit: {args.method} correction from {len(cols['u'])} reference points written to {args.output}: "
+          f"{_quality(corrector)}.{_method_note(corrector)}")
+    return 0
+
+
+def run_apply(args: argparse.Namespace) -> int:
+    corrector = load_corrector(args.correction)
+    fields, rows, cols = read_points_csv(args.points, ("u", "v"), finite=False)
+    _check_output_folder(args.output)
+    xy = corrector.transform_points(np.column_stack([cols["u"], cols["v"]]))
+    out_fields = [f for f in fields if f not in ("x", "y")] + ["x", "y"]
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(out_fields)
+    for row, (x, y) in zip(rows, xy):
+        row = {**row, "x": repr(float(x)), "y": repr(float(y))}
+        writer.writerow([row[f] for f in out_fields])
+    write_text_atomic(args.output, buffer.getvalue())
+    beyond = int(np.isnan(xy).any(axis=1).sum())
+    print(f"homocal apply: {len(rows)} points mapped with the {_label(corrector)} correction of {args.correction} "
+          f"and written to {args.output}; {beyond} on or above the horizon (x, y = nan). "
+          f"The correction was fitted with {_quality(corrector)}.")
+    return 0
+
+
+def load_trapezoid(path: Path) -> ViewTransformer:
+    """A ViewTransformer from TRAP.json (see FIT_FORMATS); ValueError naming the file for bad content."""
+    data = read_json(path)
+    try:
+        if "hand_placed" in data:  # a simgen dataset's trapezoids.json: map in site-map pixels
+            entry, site_map_path = data["hand_placed"], path.parent / "site_map.json"
+            if not site_map_path.is_file():
+                raise ValueError(f"a dataset's trapezoids.json needs the site_map.json beside it ({site_map_path})")
+            site_map = SiteMap.from_json(site_map_path)
+        else:
+            entry = data
+            sm = data.get("site_map")
+            site_map = None if sm is None else SiteMap(float(sm["scale_px_per_m"]), tuple(map(float, sm["origin_px"])))
+        image, ground = validate_quad(entry["image"], "image"), validate_quad(entry["map"], "map")
+        if site_map is not None:
+            ground = site_map.to_metres(ground)
+        return ViewTransformer(image, ground)
+    except KeyError as e:
+        raise ValueError(f"{path}: missing key {e} (expected \"image\" and \"map\", see homocal fit --help)") from None
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{path}: {e}") from None
+
+
+def read_points_csv(
+    path: Path, required: tuple[str, ...], finite: bool
+) -> tuple[list[str], list[dict[str, str]], dict[str, np.ndarray]]:
+    """Read a CSV with a header; return (column names, rows as dicts of text, required columns as float64).
+
+    ValueError naming the file (and line) for: a missing file or column, a row of the wrong length, a value
+    that is not a number (or not finite, if ``finite``).
+    """
+    if not path.is_file():
+        raise ValueError(f"{path}: no such file")
+    with path.open(newline="", encoding="utf-8-sig") as f:
+        reader = csv.reader(f)
+        header = [name.strip() for name in next(reader, [])]
+        missing = [c for c in required if c not in header]
+        if missing:
+            raise ValueError(f"{path}: missing column(s) {', '.join(missing)} in the header line "
+                             f"(found: {', '.join(header) or 'nothing'}; expected {','.join(required)})")
+        rows, values = [], {c: [] for c in required}
+        for fields in reader:
+            if not fields:
+                continue
+            if len(fields) != len(header):
+                raise ValueError(f"{path}, line {reader.line_num}: {len(fields)} fields, the header has {len(header)}")
+            row = dict(zip(header, fields))
+            for c in required:
+                try:
+                    value = float(row[c])
+                except ValueError:
+                    raise ValueError(f"{path}, line {reader.line_num}: column {c}: {row[c]!r} is not a number") from None
+                if finite and not math.isfinite(value):
+                    raise ValueError(f"{path}, line {reader.line_num}: column {c}: {row[c]!r} is not a finite number")
+                values[c].append(value)
+            rows.append(row)
+    return header, rows, {c: np.array(v, dtype=np.float64) for c, v in values.items()}
+
+
+def _xy(text: str) -> tuple[float, float]:
+    try:
+        x, y = (float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected two numbers X,Y, got {text!r}") from None
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise argparse.ArgumentTypeError(f"expected two finite numbers X,Y, got {text!r}")
+    return x, y
+
+
+def _check_output_folder(path: Path) -> None:
+    if not path.parent.is_dir():
+        raise ValueError(f"{path}: the folder {path.parent} does not exist")
+
+
+def _label(corrector: Corrector) -> str:
+    if isinstance(corrector, HybridCorrector):
+        return f"hybrid ({corrector.chosen_})"
+    return "regression-signed" if isinstance(corrector, RegressionCorrector) and corrector.signed else corrector.method
+
+
+def _quality(corrector: Corrector) -> str:
+    return (f"mean calibration error {corrector.error_before_:.3f} m before, {corrector.error_after_:.3f} m after "
+            f"(improvement {corrector.calibration_improvement_:.1f} %)")
+
+
+def _method_note(corrector: Corrector) -> str:
+    if isinstance(corrector, HybridCorrector):
+        reg = corrector.regression_.calibration_improvement_
+        relation = ">=" if corrector.chosen_ == "regression" else "<"
+        return (f" The hybrid chose {corrector.chosen_}: regression's improvement {reg:.1f} % {relation} "
+                f"threshold {corrector.threshold:g} %.")
+    if isinstance(corrector, DescentCorrector):
+        return f" Descent used {corrector.evaluations_} phase-2 evaluations."
+    if isinstance(corrector, RegressionCorrector):
+        note = " (linear-only fallback: the reference distances are nearly equal)" if corrector.degenerate_ else ""
+        return f" Error law e(d) = {corrector.a_:.6g} d^2 + {corrector.b_:.6g} d{note}."
+    return ""

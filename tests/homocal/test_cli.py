@@ -1,0 +1,155 @@
+"""``homocal fit`` / ``homocal apply`` end to end in a subprocess: formats, results, and bad input that
+ends with one "homocal: error:" line, exit code 2 and no output file."""
+import csv
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from homocal.correctors import DescentCorrector, RegressionCorrector, load_corrector
+from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer
+
+REPO = Path(__file__).resolve().parents[2]
+CAM = PinholeCamera()
+GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])
+IMAGE = np.round(CAM.project_ground(GROUND)) + [[2, -1], [-1, 2], [3, 1], [-2, -2]]  # hand-placed, integers
+REF_G = np.array([[0.0, 10.0], [0.0, 20.0], [0.0, 35.0]])
+REF_Q = CAM.project_ground(REF_G)
+FEET_Q = np.vstack([CAM.project_ground([[1.0, 7.0], [-2.0, 15.0], [0.5, 33.0]]), [[640.0, 100.0]]])  # last: sky
+SITE_MAP = SiteMap(10.0, (200.0, 500.0))
+
+
+def homocal(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    return subprocess.run([sys.executable, "-m", "homocal.cli", *args], cwd=cwd, env=env, capture_output=True,
+                          text=True, timeout=60)
+
+
+def write_csv(path: Path, header: list[str], rows) -> None:
+    path.write_text(",".join(header) + "\n" + "".join(",".join(map(str, r)) + "\n" for r in rows))
+
+
+@pytest.fixture
+def work(tmp_path: Path) -> Path:
+    (tmp_path / "trap.json").write_text(json.dumps({"image": IMAGE.tolist(), "map": GROUND.tolist()}))
+    write_csv(tmp_path / "ref.csv", ["u", "v", "x", "y"], np.column_stack([REF_Q, REF_G]))
+    write_csv(tmp_path / "feet.csv", ["id", "u", "v", "label"],
+              [(i, u, v, f"p{i}") for i, (u, v) in enumerate(FEET_Q)])
+    return tmp_path
+
+
+@pytest.mark.parametrize("method,expected", [
+    ("regression", lambda: RegressionCorrector()),
+    ("regression-signed", lambda: RegressionCorrector(signed=True)),
+    ("descent", lambda: DescentCorrector()),
+])
+def test_fit_and_apply_match_the_library(work, method, expected):
+    fit = homocal("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "--method", method, "-o", "c.json",
+                  cwd=work)
+    assert fit.returncode == 0, fit.stderr
+    reference = expected().fit(ViewTransformer(IMAGE, GROUND), REF_Q, REF_G, (0.0, 0.0))
+    assert f"{reference.calibration_improvement_:.1f} %" in fit.stdout and method in fit.stdout
+    app = homocal("apply", "c.json", "--points", "feet.csv", "-o", "out.csv", cwd=work)
+    assert app.returncode == 0, app.stderr
+    assert "1 on or above the horizon" in app.stdout
+    with (work / "out.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0]) == ["id", "u", "v", "label", "x", "y"]  # extra columns carried through
+    assert [r["label"] for r in rows] == ["p0", "p1", "p2", "p3"]
+    xy = np.array([[float(r["x"]), float(r["y"])] for r in rows])
+    np.testing.assert_array_equal(xy, reference.transform_points(FEET_Q))  # full precision, NaN beyond horizon
+    assert sorted(p.name for p in work.iterdir()) == ["c.json", "feet.csv", "out.csv", "ref.csv", "trap.json"]
+
+
+def test_hybrid_reports_its_choice(work):
+    fit = homocal("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "--method", "hybrid",
+                  "--threshold", "50", "-o", "c.json", cwd=work)
+    assert fit.returncode == 0, fit.stderr
+    chosen = load_corrector(work / "c.json").chosen_
+    assert f"hybrid chose {chosen}" in fit.stdout
+
+
+@pytest.mark.parametrize("layout", ["site_map_inline", "simgen_dataset"])
+def test_site_map_pixels_and_simgen_trapezoids(work, layout):
+    map_px = SITE_MAP.to_pixels(GROUND).tolist()
+    scale = {"scale_px_per_m": SITE_MAP.scale_px_per_m, "origin_px": list(SITE_MAP.origin_px)}
+    if layout == "site_map_inline":
+        (work / "trap.json").write_text(json.dumps({"image": IMAGE.tolist(), "map": map_px, "site_map": scale}))
+    else:
+        exact = {"image": CAM.project_ground(GROUND).tolist(), "map": map_px}
+        (work / "trap.json").write_text(json.dumps({"order": "TL,TR,BR,BL", "exact": exact, "ground_m": GROUND.tolist(),
+                                                    "hand_placed": {"image": IMAGE.tolist(), "map": map_px}}))
+        (work / "site_map.json").write_text(json.dumps({"file": "site_map.png", **scale, "width": 400, "height": 600}))
+    fit = homocal("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "--method", "regression-signed",
+                  "-o", "c.json", cwd=work)
+    assert fit.returncode == 0, fit.stderr
+    reference = RegressionCorrector(signed=True).fit(ViewTransformer(IMAGE, GROUND), REF_Q, REF_G, (0.0, 0.0))
+    np.testing.assert_allclose(load_corrector(work / "c.json").transform_points(FEET_Q),
+                               reference.transform_points(FEET_Q), atol=1e-9)
+
+
+def _bad_fit_inputs():
+    """(name, files to write {name: text}, extra args, expected message fragment)."""
+    ref_header = "u,v,x,y\n"
+    rows = "".join(f"{u},{v},{x},{y}\n" for (u, v), (x, y) in zip(REF_Q, REF_G))
+    return [
+        ("missing trapezoid", {"trap.json": None}, [], "trap.json: no such file"),
+        ("trapezoid not JSON", {"trap.json": "{oops"}, [], "trap.json: not a JSON file"),
+        ("trapezoid without map", {"trap.json": json.dumps({"image": IMAGE.tolist()})}, [], "missing key 'map'"),
+        ("degenerate trapezoid", {"trap.json": json.dumps({"image": [[0, 0], [1, 1], [2, 2], [0, 5]],
+                                                            "map": GROUND.tolist()})}, [], "collinear"),
+        ("dataset without site map", {"trap.json": json.dumps({"hand_placed": {"image": IMAGE.tolist(),
+                                                                               "map": GROUND.tolist()}})},
+         [], "site_map.json"),
+        ("missing points", {"ref.csv": None}, [], "ref.csv: no such file"),
+        ("missing column", {"ref.csv": "u,v,x\n1,2,3\n"}, [], "missing column(s) y"),
+        ("unparsable number", {"ref.csv": ref_header + rows + "640,abc,0,40\n"}, [], "line 5: column v: 'abc'"),
+        ("non-finite number", {"ref.csv": ref_header + "nan,400,0,12\n" + rows}, [], "line 2: column u"),
+        ("ragged row", {"ref.csv": ref_header + rows + "1,2,3\n"}, [], "line 5: 3 fields"),
+        ("too few points", {"ref.csv": ref_header + rows.split("\n", 1)[1].split("\n", 1)[1]}, [], "at least 3"),
+        ("point above horizon", {"ref.csv": ref_header + rows + "640,100,0,80\n"}, [], "image_points[3]"),
+        ("bad camera origin", {}, ["--camera-origin", "1;2"], "X,Y"),
+        ("unknown method", {}, ["--method", "magic"], "invalid choice"),
+        ("missing output folder", {}, ["-o", "no/such/dir/c.json"], "does not exist"),
+    ]
+
+
+@pytest.mark.parametrize("name,files,extra,message", _bad_fit_inputs(), ids=[c[0] for c in _bad_fit_inputs()])
+def test_bad_fit_input(work, name, files, extra, message):
+    for file, text in files.items():
+        (work / file).unlink()
+        if text is not None:
+            (work / file).write_text(text)
+    before = sorted(p.name for p in work.rglob("*"))
+    args = ["--trapezoid", "trap.json", "--points", "ref.csv", "--method", "descent", "-o", "c.json"]
+    result = homocal("fit", *args, *extra, cwd=work)
+    assert result.returncode == 2
+    assert result.stderr.startswith("homocal: error:") and result.stderr.count("\n") == 1, result.stderr
+    assert message in result.stderr
+    assert sorted(p.name for p in work.rglob("*")) == before  # no output, no temporary file
+
+
+@pytest.mark.parametrize("name,correction,feet,message", [
+    ("missing correction", None, None, "c.json: no such file"),
+    ("correction of another kind", '{"format": "x"}', None, "not a homocal correction"),
+    ("feet without v", "ok", "u,w\n1,2\n", "missing column(s) v"),
+    ("unparsable foot point", "ok", "u,v\n640,500\n640,x5\n", "line 3: column v: 'x5'"),
+])
+def test_bad_apply_input(work, name, correction, feet, message):
+    if correction == "ok":
+        fitted = RegressionCorrector().fit(ViewTransformer(IMAGE, GROUND), REF_Q, REF_G, (0.0, 0.0))
+        fitted.save(work / "c.json")
+    elif correction is not None:
+        (work / "c.json").write_text(correction)
+    if feet is not None:
+        (work / "feet.csv").write_text(feet)
+    before = sorted(p.name for p in work.iterdir())
+    result = homocal("apply", "c.json", "--points", "feet.csv", "-o", "out.csv", cwd=work)
+    assert result.returncode == 2
+    assert result.stderr.startswith("homocal: error:") and result.stderr.count("\n") == 1, result.stderr
+    assert message in result.stderr
+    assert sorted(p.name for p in work.iterdir()) == before
