@@ -29,14 +29,14 @@ def greedy_assign(score: np.ndarray, min_score: float) -> tuple[np.ndarray, np.n
     """
     rows, cols = np.nonzero(score >= min_score)
     order = np.lexsort((cols, rows, -score[rows, cols]))
-    taken_rows, taken_cols = set(), set()
-    pairs = []
-    for r, c in zip(rows[order], cols[order]):
+    taken_rows, taken_cols, pairs = set(), set(), []
+    for r, c in zip(rows[order].tolist(), cols[order].tolist()):
         if r not in taken_rows and c not in taken_cols:
             taken_rows.add(r)
             taken_cols.add(c)
             pairs.append((r, c))
-    return np.array([p[0] for p in pairs], dtype=np.intp), np.array([p[1] for p in pairs], dtype=np.intp)
+    pairs = np.array(pairs, dtype=np.intp).reshape(-1, 2)
+    return pairs[:, 0], pairs[:, 1]
 
 
 def associate(xyxy: np.ndarray, ref_ids: np.ndarray, ref_xyxy: np.ndarray, min_iou: float) -> np.ndarray:

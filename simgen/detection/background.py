@@ -102,9 +102,8 @@ class BackgroundSubtractionDetector:
         _, _, stats, _ = cv2.connectedComponentsWithStats(foreground, connectivity=8)
         sx = rgb.shape[1] / foreground.shape[1]
         sy = rgb.shape[0] / foreground.shape[0]
-        left, top, width, height, area = stats[1:].T.astype(np.float64)
-        keep = area * sx * sy >= self.min_area
-        left, top, width, height, area = left[keep], top[keep], width[keep], height[keep], area[keep]
+        stats = stats[1:].astype(np.float64)  # row 0 is the background
+        left, top, width, height, area = stats[stats[:, cv2.CC_STAT_AREA] * sx * sy >= self.min_area].T
         xyxy = np.column_stack([left * sx, top * sy, (left + width) * sx, (top + height) * sy]) - 0.5
         ids, mask_xyxy, _ = id_boxes(agent_ids)
         agent_id = associate(xyxy, ids, mask_xyxy, self.min_iou)
