@@ -135,6 +135,25 @@ class TestBackgroundSubtraction:
                 iou = box_iou(batch.xyxy[batch.agent_id == agent], box).item()
                 assert iou >= 0.6, (frame, agent, iou)
 
+    @pytest.mark.parametrize(
+        "downscale, rows, cols, expected",
+        [
+            (1, slice(10, 30), slice(7, 19), (6.5, 9.5, 18.5, 29.5)),
+            (2, slice(10, 30), slice(8, 20), (7.5, 9.5, 19.5, 29.5)),  # on the 2x2 grid: exact
+            (2, slice(11, 30), slice(7, 19), (5.5, 9.5, 19.5, 29.5)),  # off it: grown to the grid
+        ],
+    )
+    def test_box_convention_after_rescaling(self, downscale, rows, cols, expected):
+        grey = np.full((40, 60, 3), 100, np.uint8)
+        appeared = grey.copy()
+        appeared[rows, cols] = 250
+        ids = id_map((40, 60), (3, rows, cols))
+        detector = BackgroundSubtractionDetector(downscale=downscale, min_area=1)
+        detector.detect(0, 0.0, grey, np.full((40, 60), -1, np.int32))
+        batch = detector.detect(1, 0.05, appeared, ids)
+        np.testing.assert_array_equal(batch.xyxy, [expected])
+        np.testing.assert_array_equal(batch.agent_id, [3])
+
     @pytest.mark.parametrize("resume_at", [7, 16, 29, 33])
     def test_resume_reproduces_state(self, resume_at):
         frames = list(moving_scene(40))
