@@ -5,12 +5,18 @@ import numpy as np
 
 from simgen.detection.core import DetectionBatch
 
+MAX_AGENT_ID = 2**24
+
 
 def id_boxes(agent_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Box and pixel count of every agent id present in an id map, in one pass.
+    """Box and pixel count of every agent id present in an id map, without a loop over ids.
+
+    Bincounts over the agent pixels give, per id, its pixel count and which rows and columns it
+    touches; the first and last of those are the box. About 1 ms at 1280x720.
 
     Args:
-        agent_ids: (H, W) int agent id at each pixel, -1 (any negative) where no agent.
+        agent_ids: (H, W) int agent id at each pixel, -1 (any negative) where no agent; ids below
+            MAX_AGENT_ID (they size a lookup table).
     Returns:
         ids: (K,) int32 ids present, ascending; xyxy: (K, 4) float64 boxes, continuous pixels
         (columns c0..c1 give x1 = c0 - 0.5, x2 = c1 + 0.5; rows likewise); counts: (K,) int64 pixels.
@@ -19,6 +25,8 @@ def id_boxes(agent_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     flat = agent_ids.ravel()
     pixels = np.flatnonzero(flat >= 0)
     values = flat[pixels]
+    if values.size and values.max() >= MAX_AGENT_ID:
+        raise ValueError(f"agent ids must be below {MAX_AGENT_ID}, got {values.max()}")
     counts = np.bincount(values)
     ids = np.flatnonzero(counts)
     slot = np.zeros(counts.size, dtype=np.intp)

@@ -62,6 +62,10 @@ class TestMaskBoxes:
             expected[int(agent)] = (cols.min() - 0.5, rows.min() - 0.5, cols.max() + 0.5, rows.max() + 0.5, rows.size)
         assert mask_boxes(ids) == expected
 
+    def test_refuses_huge_ids(self):
+        with pytest.raises(ValueError, match="agent ids must be below"):
+            mask_boxes(id_map((2, 2), (2**30, slice(0, 1), slice(0, 1))))
+
     def test_segmentation_detector_foot_points(self):
         ids = id_map((8, 12), (4, slice(2, 7), slice(3, 6)), (1, slice(0, 1), slice(11, 12)))
         batch = SegmentationDetector().detect(3, 0.15, np.zeros((8, 12, 3), np.uint8), ids)
