@@ -1,0 +1,224 @@
+"""The study's figures as PNG files (matplotlib's object API with the Agg canvas; no pyplot state).
+
+- error against distance with the fitted quadratic e = a d^2 + b d (paper Section 3), per scene;
+- the distance distribution of the test points (paper Fig. 2);
+- the calibration and path improvement distributions per method;
+- mean path improvement against the sum and the spread of the three calibration distances (paper Fig. 4).
+
+The first two need the datasets (study.json names them); the others read only the shards.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+from matplotlib.figure import Figure
+
+from homocal.correctors import fit_quadratic_error
+from homocal.dataset import Dataset, load_dataset
+from homocal.geometry import ViewTransformer
+from homocal.study.metrics import METHODS, read_columns
+
+DPI = 110
+
+
+@dataclass(frozen=True)
+class FigureFile:
+    """A written figure: its PNG path, a title and a caption with the numbers worth knowing."""
+
+    path: Path
+    title: str
+    caption: str
+
+
+def make_figures(results_dir: Path, study: dict, shards: dict[str, list[Path]], out_dir: Path) -> tuple[list[FigureFile], list[str]]:
+    """Write every figure the results allow into out_dir; return them and notes on the ones left out."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    figures = [
+        FigureFile(out_dir / "improvement_histograms.png", "Improvement distributions",
+                   improvement_histograms(shards, out_dir / "improvement_histograms.png")),
+        FigureFile(out_dir / "path_heatmaps.png", "Mean path improvement against calibration distances",
+                   path_heatmaps(shards, out_dir / "path_heatmaps.png")),
+    ]
+    datasets, notes = {}, []
+    for entry in study["datasets"]:
+        try:
+            datasets[entry["scene"]] = load_dataset(_dataset_path(results_dir, entry.get("path", "")))
+        except ValueError as e:
+            notes.append(f"scene {entry['scene']}: dataset not available, its error and distance figures are left out ({e})")
+    source, n_test, seed = study.get("foot_source", "exact"), study.get("n_test"), study.get("seed", 0)
+    for scene, ds in datasets.items():
+        path = out_dir / f"error_distance_{scene}.png"
+        variants = Path(results_dir) / "variants" / f"{scene}.parquet"
+        caption = error_vs_distance(ds, variants, source, path, n_test=n_test, seed=seed)
+        figures.append(FigureFile(path, f"Ground error against distance: {scene}", caption))
+    if datasets:
+        path = out_dir / "test_distance.png"
+        caption = test_distance_distribution(list(datasets.values()), source, path, n_test=n_test, seed=seed)
+        figures.append(FigureFile(path, "Distance distribution of the test points", caption))
+    return figures, notes
+
+
+def pooled_columns(shards: dict[str, list[Path]], columns: list[str]) -> dict[str, np.ndarray]:
+    """The named columns over all scenes' shards: {name: (N,) array}."""
+    per_scene = [read_columns(files, columns) for files in shards.values()]
+    return {c: np.concatenate([cols[c] for cols in per_scene]) for c in columns}
+
+
+def improvement_histograms(shards: dict[str, list[Path]], out: Path, lo: float = -200.0, hi: float = 100.0, width: float = 2.0) -> str:
+    """Histograms of calibration and path improvement (percent) per method, all scenes pooled, shown on [lo, hi]."""
+    edges = np.arange(lo, hi + width / 2, width)
+    fig = Figure(figsize=(10, 2.6 * len(METHODS)), layout="constrained")
+    axes = fig.subplots(len(METHODS), 2, sharex=True)
+    for row, method in zip(axes, METHODS):
+        cols = pooled_columns(shards, [f"cal_{method}", f"path_{method}"])
+        for ax, kind, values in zip(row, ("calibration", "path"), cols.values()):
+            values = values[np.isfinite(values)]
+            n = max(values.size, 1)
+            ax.stairs(100 * np.histogram(values, edges)[0] / n, edges, fill=True, color=f"tab:{'blue' if kind == 'path' else 'green'}")
+            ax.axvline(0, color="k", lw=0.8)
+            below, above = 100 * np.count_nonzero(values < lo) / n, 100 * np.count_nonzero(values > hi) / n
+            median = np.median(values) if values.size else np.nan
+            ax.text(0.02, 0.95, f"median {median:.1f} %\nbelow {lo:g} %: {below:.2f} % (not shown)"
+                    + (f"\nabove {hi:g} %: {above:.2f} %" if above else ""),
+                    transform=ax.transAxes, va="top", fontsize=8)
+            ax.set_title(f"{method}: {kind} improvement", fontsize=10)
+            ax.set_ylabel(f"samples per {width:g} pp bin (%)")
+    for ax in axes[-1]:
+        ax.set_xlabel("improvement (%) = 100 (E_before - E_after) / E_before")
+    fig.savefig(out, dpi=DPI)
+    return (f"Share of samples per {width:g} percentage-point bin, all scenes pooled; the display is clipped to "
+            f"[{lo:g}, {hi:g}] % and each panel gives the share of samples outside it.")
+
+
+def path_heatmaps(shards: dict[str, list[Path]], out: Path, bins: int = 24, vmin_floor: float = -100.0) -> str:
+    """Mean path improvement (percent) per bin of the sum (m) and the spread (max - min, m) of the three
+    calibration distances, per method, all scenes pooled (paper Fig. 4)."""
+    cols = pooled_columns(shards, ["d_sum", "d_spread", *(f"path_{m}" for m in METHODS)])
+    x_edges = np.linspace(*_range(cols["d_sum"]), bins + 1)
+    y_edges = np.linspace(*_range(cols["d_spread"]), bins + 1)
+    cell = _bin(cols["d_sum"], x_edges) * bins + _bin(cols["d_spread"], y_edges)
+    located = np.isfinite(cols["d_sum"]) & np.isfinite(cols["d_spread"])
+    means = {}
+    for method in METHODS:
+        path = cols[f"path_{method}"]
+        ok = located & np.isfinite(path)
+        counts = np.bincount(cell[ok], minlength=bins * bins)
+        sums = np.bincount(cell[ok], weights=path[ok], minlength=bins * bins)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            means[method] = np.ma.masked_invalid(sums / counts).reshape(bins, bins).T
+    filled = [m for m in means.values() if m.count()]
+    lowest = float(min((m.min() for m in filled), default=0.0))
+    vmin = max(lowest, vmin_floor)
+    vmax = max(float(max((m.max() for m in filled), default=100.0)), vmin)
+    fig = Figure(figsize=(11, 9), layout="constrained")
+    axes = fig.subplots(2, 2, sharex=True, sharey=True).ravel()
+    for ax, (method, mean) in zip(axes, means.items()):
+        mesh = ax.pcolormesh(x_edges, y_edges, mean, vmin=vmin, vmax=vmax, cmap="viridis")
+        ax.set_title(method)
+        ax.set_xlabel("sum of the three calibration distances (m)")
+        ax.set_ylabel("spread of the three calibration distances (m)")
+    fig.colorbar(mesh, ax=axes.tolist(), label="mean path improvement (%)", extend="min" if lowest < vmin else "neither")
+    fig.savefig(out, dpi=DPI)
+    return (f"Mean path improvement per cell of {bins} x {bins} bins of the calibration triple's distance sum and "
+            f"spread (max - min), all scenes and variants pooled; empty cells are blank"
+            + (f"; cell means below {vmin:g} % share the lowest colour." if lowest < vmin else "."))
+
+
+def ground_error(image_quad: np.ndarray, map_quad: np.ndarray, ds: Dataset, image: np.ndarray, ground: np.ndarray) -> np.ndarray:
+    """Euclidean ground error (N,), metres, of image points (N, 2) px mapped through the trapezoid pair
+    (image px, map px) and the site map, against their true ground positions (N, 2) m; NaN beyond the horizon."""
+    mapped = ds.site_map.to_metres(ViewTransformer(image_quad, map_quad).transform_points(image))
+    return np.linalg.norm(mapped - ground, axis=1)
+
+
+def error_vs_distance(ds: Dataset, variants_file: Path, source: str, out: Path, n_variants: int = 3,
+                      n_test: int | None = 2000, seed: int = 0) -> str:
+    """Ground error (m) against true distance from the camera (m) for the hand-placed trapezoid (calibration
+    and test points) and the first n_variants perturbed, non-degenerate variants (calibration points), each
+    with the least-squares fit e = a d^2 + b d over its calibration points (paper eqs. (17), (19))."""
+    cal_img, cal_ground, _ = ds.calibration_points(source)
+    test_img, test_ground = ds.test_points(source, n=n_test, seed=seed)
+    fig = Figure(figsize=(8, 5.5), layout="constrained")
+    ax = fig.subplots()
+    e_test = ground_error(ds.trapezoid_image, ds.trapezoid_map, ds, test_img, test_ground)
+    ax.scatter(_distance(ds, test_ground), e_test, s=3, color="0.7", label=f"test points ({len(e_test)}), hand-placed")
+    trapezoids = [("hand-placed", np.zeros(8), np.zeros(8))] + _perturbed_variants(variants_file, n_variants)
+    d_cal = _distance(ds, cal_ground)
+    d_line = np.linspace(0, max(d_cal.max(), np.nanmax(_distance(ds, test_ground))), 200)
+    for (name, img, mp), color in zip(trapezoids, ["k", "tab:red", "tab:orange", "tab:purple", "tab:cyan"]):
+        try:
+            e_cal = ground_error(ds.trapezoid_image + img.reshape(4, 2), ds.trapezoid_map + mp.reshape(4, 2), ds, cal_img, cal_ground)
+        except ValueError:
+            continue
+        ok = np.isfinite(e_cal)
+        a, b, _ = fit_quadratic_error(d_cal[ok], e_cal[ok])
+        ax.scatter(d_cal, e_cal, s=18, color=color, marker="o" if name == "hand-placed" else "x")
+        ax.plot(d_line, a * d_line**2 + b * d_line, color=color, ls="-" if name == "hand-placed" else "--",
+                label=f"{name}: e = {a:.2e} d² {b:+.2e} d")
+    ax.set_xlabel("true distance from the camera (m)")
+    ax.set_ylabel("ground error of the mapped point (m)")
+    ax.set_title(f"{ds.name}: ground error against distance ({source} foot points)")
+    ax.legend(fontsize=8)
+    fig.savefig(out, dpi=DPI)
+    return (f"Euclidean ground error of the calibration points (markers) and the test points (grey) mapped through the "
+            f"hand-placed trapezoid and {len(trapezoids) - 1} perturbed variants, with the least-squares fit "
+            f"e = a d² + b d over all {len(d_cal)} calibration points of each.")
+
+
+def test_distance_distribution(datasets: list[Dataset], source: str, out: Path, n_test: int | None = None, seed: int = 0,
+                               width: float = 1.0) -> str:
+    """Histogram of the test points' true distance from the camera (m) per scene, calibration distances as ticks."""
+    fig = Figure(figsize=(8, 4.5), layout="constrained")
+    ax = fig.subplots()
+    sizes = []
+    for ds, color in zip(datasets, ["tab:blue", "tab:orange", "tab:green", "tab:red"]):
+        d = _distance(ds, ds.test_points(source, n=n_test, seed=seed)[1])
+        sizes.append(f"{ds.name}: {len(d)}")
+        ax.hist(d, bins=np.arange(0, d.max() + width, width), histtype="step", color=color, lw=1.5, label=f"{ds.name} test points")
+        cal = ds.calibration_points(source)[2]
+        ax.plot(cal, np.zeros_like(cal), "|", color=color, ms=14, mew=1.5, label=f"{ds.name} calibration distances")
+    ax.set_xlabel("distance from the camera (m)")
+    ax.set_ylabel(f"test points per {width:g} m bin")
+    ax.set_title("Distance distribution of the test points")
+    ax.legend(fontsize=8)
+    fig.savefig(out, dpi=DPI)
+    return f"True distance from the camera of the test points ({', '.join(sizes)}); ticks on the axis: calibration distances."
+
+
+def _perturbed_variants(variants_file: Path, n: int) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """The first n non-degenerate variants with perturbed coordinates: (name, image offsets (8,), map offsets (8,)) px."""
+    if not variants_file.is_file():
+        return []
+    t = pq.read_table(variants_file).to_pydict()
+    out = []
+    for row in range(len(t["variant"])):
+        if len(out) == n:
+            break
+        img, mp = (np.array([t[f"{side}_{k}"][row] for k in range(8)]) for side in ("img", "map"))
+        if not t["degenerate"][row] and (img.any() or mp.any()):
+            out.append((f"variant {t['variant'][row]}", img, mp))
+    return out
+
+
+def _distance(ds: Dataset, ground: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(ground - ds.camera_origin, axis=1)
+
+
+def _dataset_path(results_dir: Path, path: str) -> Path:
+    """A dataset path from study.json: as given, or relative to the results directory."""
+    p = Path(path)
+    return p if p.is_absolute() or p.exists() else Path(results_dir) / p
+
+
+def _range(values: np.ndarray) -> tuple[float, float]:
+    ok = values[np.isfinite(values)]
+    lo, hi = (float(ok.min()), float(ok.max())) if ok.size else (0.0, 1.0)
+    return (lo, hi) if hi > lo else (lo - 0.5, hi + 0.5)
+
+
+def _bin(values: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Bin index (N,) of values in edges (bins + 1,), the last bin closed."""
+    return np.clip(np.searchsorted(edges, values, side="right") - 1, 0, len(edges) - 2)
