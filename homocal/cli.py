@@ -11,8 +11,9 @@ import argparse
 import sys
 
 from homocal.correctors import commands as corrector_commands
+from homocal.study import report as study_report
 
-SUBCOMMANDS = (corrector_commands,)
+SUBCOMMANDS = (corrector_commands, study_report)
 
 
 class _Parser(argparse.ArgumentParser):

@@ -1,0 +1,209 @@
+"""Tests of homocal.study.metrics, figures and report on small hand-made results directories.
+
+Expected statistics come from the standard library (statistics, exact rational arithmetic) on the
+float32-rounded values, never from numpy.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import itertools
+import json
+import math
+import random
+import statistics
+import struct
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+from matplotlib.image import imread
+
+from homocal.cli import main
+from homocal.study import metrics
+
+METHODS = metrics.METHODS
+SCENES = {"alpha": (5.0, 9.0, 14.0, 20.0, 27.0, 35.0), "beta": (6.0, 11.0, 17.0, 24.0, 32.0)}  # calibration distances, m
+VARIANTS = {"alpha": 3, "beta": 2}
+
+
+def f32(x: float) -> float:
+    """x rounded to float32 as the shards store it, in plain Python."""
+    return struct.unpack("f", struct.pack("f", x))[0]
+
+
+def write_results(root: Path, datasets: dict[str, str] | None = None, seed: int = 7) -> dict:
+    """A results directory after the contract; returns {scene: {column: [values]}} of what the shards hold."""
+    rng = random.Random(seed)
+    stored = {}
+    for scene, dist in SCENES.items():
+        triples = list(itertools.combinations(range(len(dist)), 3))
+        rows = {c: [] for c in ["variant", "i", "j", "k", "d_sum", "d_spread", "cal_before", "path_before", "hybrid_regression"]
+                + [f"{kind}_{m}" for m in METHODS for kind in ("cal", "path")]}
+        (root / "shards" / scene).mkdir(parents=True)
+        for variant in range(VARIANTS[scene]):
+            shard = {c: [] for c in rows}
+            for i, j, k in triples:
+                d = [dist[i], dist[j], dist[k]]
+                shard["variant"].append(variant)
+                for name, value in zip("ijk", (i, j, k)):
+                    shard[name].append(value)
+                shard["d_sum"].append(f32(sum(d)))
+                shard["d_spread"].append(f32(max(d) - min(d)))
+                shard["cal_before"].append(f32(rng.uniform(0.1, 2)))
+                shard["path_before"].append(f32(rng.uniform(0.1, 2)))
+                shard["hybrid_regression"].append(rng.random() < 0.7)
+                for m in METHODS:
+                    cal = 100 - rng.expovariate(1 / 15)
+                    shard[f"cal_{m}"].append(f32(cal))
+                    shard[f"path_{m}"].append(f32(0.8 * cal + rng.gauss(0, 30) - (200 if rng.random() < 0.03 else 0)))
+            types = {"variant": pa.int32(), "i": pa.int16(), "j": pa.int16(), "k": pa.int16(), "hybrid_regression": pa.bool_()}
+            table = pa.table({c: pa.array(v, type=types.get(c, pa.float32())) for c, v in shard.items()})
+            pq.write_table(table, root / "shards" / scene / f"variant_{variant:05d}.parquet")
+            for c in rows:
+                rows[c] += shard[c]
+        stored[scene] = rows
+    (root / "shards" / "alpha" / "variant_00009.parquet.tmp").write_bytes(b"half-written")  # must be ignored
+    n = sum(len(r["variant"]) for r in stored.values())
+    study = {
+        "preset": "test", "seed": 3, "n_variants": 2, "foot_source": "exact", "n_test": 300, "threshold": 75.0,
+        "datasets": [{"scene": s, "path": (datasets or {}).get(s, f"/nonexistent/{s}"), "config_hash": "0" * 64} for s in SCENES],
+        "samples_total": n, "samples_done": n, "degenerate": [{"scene": "beta", "variant": 2, "reason": "collinear vertices"}],
+        "complete": True, "elapsed": 1.5, "versions": {"homocal": "0.1.0"},
+    }
+    (root / "study.json").write_text(json.dumps(study))
+    return stored
+
+
+def expected_stats(path: list[float], cal: list[float], chose: list[bool] | None) -> dict[str, float]:
+    """The table's statistics by the standard library (population std, numpy-compatible 'inclusive' quantiles)."""
+    pct = statistics.quantiles(path, n=100, method="inclusive")
+    quart = statistics.quantiles(cal, n=4, method="inclusive")
+    out = {
+        "n": len(path), "nonfinite": 0,
+        "pos_path": 100 * sum(p > 0 for p in path) / len(path),
+        "pos_cal": 100 * sum(c > 0 for c in cal) / len(cal),
+        "mean_path": statistics.fmean(path), "median_path": statistics.median(path),
+        "corr": statistics.correlation(path, cal), "std_path": statistics.pstdev(path), "p1_path": pct[0],
+        "median_cal": statistics.median(cal), "iqr_cal": quart[2] - quart[0], "std_cal": statistics.pstdev(cal),
+    }
+    if chose is not None:
+        out["chose_regression"] = 100 * sum(chose) / len(chose)
+    return out
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory):
+    root = tmp_path_factory.mktemp("results")
+    return root, write_results(root)
+
+
+@pytest.fixture(scope="module")
+def table(results):
+    root, _ = results
+    return metrics.build_table(metrics.shard_files(root, metrics.load_study(root)))
+
+
+class TestMethodStats:
+    def test_by_hand(self):
+        # path = 5 cal - 100 exactly: correlation 1; sorted path -50, 0, 50, 100
+        s = metrics.method_stats(np.array([0, -50, 100, 50], np.float32), np.array([20, 10, 40, 30], np.float32))
+        expected = {"n": 4, "nonfinite": 0, "pos_path": 50.0, "pos_cal": 100.0, "mean_path": 25.0, "median_path": 25.0,
+                    "corr": 1.0, "std_path": math.sqrt(3125), "p1_path": -48.5,  # -50 + 0.03 * 50
+                    "median_cal": 25.0, "iqr_cal": 15.0, "std_cal": math.sqrt(125)}  # quartiles 17.5 and 32.5
+        assert s == pytest.approx(expected)
+
+    def test_non_finite_samples_are_counted_and_left_out(self):
+        s = metrics.method_stats(np.array([10, np.nan, 30, 50], np.float32), np.array([1, 2, np.inf, 3], np.float32))
+        assert (s["n"], s["nonfinite"], s["mean_path"], s["median_cal"]) == (2, 2, 30.0, 2.0)
+
+    def test_no_samples_gives_nan(self):
+        s = metrics.method_stats(np.empty(0, np.float32), np.empty(0, np.float32), np.empty(0, bool))
+        assert s["n"] == 0 and math.isnan(s["median_path"]) and math.isnan(s["chose_regression"])
+
+
+class TestTable:
+    @pytest.mark.parametrize("method", METHODS)
+    @pytest.mark.parametrize("scope", [*SCENES, metrics.OVERALL])
+    def test_matches_standard_library(self, results, table, method, scope):
+        _, stored = results
+        scenes = list(SCENES) if scope == metrics.OVERALL else [scope]
+        col = lambda name: [v for s in scenes for v in stored[s][name]]  # noqa: E731
+        chose = col("hybrid_regression") if method == "hybrid" else None
+        expected = expected_stats(col(f"path_{method}"), col(f"cal_{method}"), chose)
+        got = {key: table.value(method, key, scope) for key in expected}
+        assert got == pytest.approx(expected, rel=1e-9, abs=1e-9)
+
+    def test_scopes_and_overall_counts(self, results, table):
+        _, stored = results
+        assert table.scopes == ("alpha", "beta", "overall")
+        for method in METHODS:
+            n = [table.value(method, "n", s) for s in SCENES]
+            assert n == [len(stored[s]["variant"]) for s in SCENES]
+            assert table.value(method, "n") == sum(n)
+            shares = [table.value(method, "pos_path", s) for s in SCENES]
+            assert table.value(method, "pos_path") == pytest.approx(np.dot(shares, n) / sum(n))
+
+    def test_paper_column_only_for_regression_and_descent(self, table):
+        papers = {(r.method, r.metric): r.paper for r in table.rows if r.paper is not None}
+        assert papers[("regression", "pos_path")] == 93.0 and papers[("descent", "p1_path")] == -3.8
+        assert {m for m, _ in papers} == {"regression", "descent"}
+
+    def test_csv_holds_the_table_at_full_precision(self, table):
+        rows = list(csv.DictReader(io.StringIO(metrics.to_csv(table))))
+        assert len(rows) == len(table.rows)
+        for row, r in zip(rows, table.rows):
+            assert (row["method"], row["metric"]) == (r.method, r.metric)
+            assert [float(row[s]) for s in table.scopes] == list(r.values)
+            assert row["paper"] == ("" if r.paper is None else str(r.paper if r.metric != "n" else int(r.paper)))
+
+    def test_text_and_markdown_show_every_row(self, table):
+        text, md = metrics.to_text(table), metrics.to_markdown(table)
+        for label, _ in metrics.METRICS.values():
+            assert label in text and f"| {label} |" in md
+        line = next(x for x in md.splitlines() if x.startswith("| median path improvement"))
+        assert line.endswith("| 90.0 |")  # regression's paper value comes first
+
+
+class TestReportCommand:
+    def test_end_to_end(self, results, tmp_path, capsys):
+        root, _ = results
+        out = tmp_path / "page"
+        assert main(["report", str(root), "--out", str(out)]) == 0
+        printed = capsys.readouterr().out.strip().splitlines()
+        page = Path(printed[-1])
+        assert page == out / "report.html" and page.is_file()
+        html = page.read_text()
+        for label, _ in metrics.METRICS.values():
+            assert label in html
+        assert "Degenerate trapezoid variants: 1" in html and "collinear vertices" in html
+        assert "dataset not available" in html  # the datasets of this study do not exist: figures left out, said so
+        pngs = sorted((out / "figures").glob("*.png"))
+        assert [p.name for p in pngs] == ["improvement_histograms.png", "path_heatmaps.png"]
+        for png in pngs:
+            assert f"figures/{png.name}" in html
+            assert_nontrivial_png(png)
+        assert (out / "table.md").read_text().count("### ") == len(METHODS)
+        assert (out / "table.csv").read_text().startswith("method,metric,alpha,beta,overall,paper")
+
+    @pytest.mark.parametrize("make", [
+        lambda d: d / "missing",
+        lambda d: d,  # a folder without study.json
+        lambda d: (d / "study.json").write_text("{not json") and d,
+        lambda d: (d / "study.json").write_text('{"datasets": [{"scene": "a"}]}') and d,  # no shards
+    ])
+    def test_bad_input_exits_2_with_one_line(self, tmp_path, capsys, make):
+        assert main(["report", str(make(tmp_path))]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("homocal: error: ") and err.count("\n") == 1
+        assert not (tmp_path / "report").exists()
+
+
+def assert_nontrivial_png(path: Path) -> None:
+    """A readable PNG of reasonable size whose pixels are not all one colour."""
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    image = imread(path)
+    assert image.shape[0] > 300 and image.shape[1] > 300
+    assert image[..., :3].std() > 0.05
