@@ -1,0 +1,140 @@
+"""Regenerate the scenes' generated assets: ground textures and the hand-placed trapezoids.
+
+    python scenes/make_scene_assets.py            # rewrite scenes/*/ground.png and the trapezoid blocks
+
+The ground texture is painted here from a list of rectangles in world metres (x right, y forward),
+at RES px per metre, over the extent of the scene's ``ground`` plane. MuJoCo stretches it once over
+the plane (``texrepeat="1 1" texuniform="false"``): image top = +y, image left = -x, like a site map.
+
+The hand-placed trapezoids are drawn ONCE (seeded) and fixed in each ``scene.toml`` between the
+BEGIN/END markers: the exact vertices (camera model, ``trapezoid.ground_m``) moved by 1 to 2 px in a
+random direction and rounded to integers, as a person clicks them.
+"""
+from __future__ import annotations
+
+import re
+import sys
+import tomllib
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+from simgen.rng import keyed_rng  # noqa: E402
+from simgen.scene import load_scene  # noqa: E402
+
+RES = 20  # texture px per metre
+
+ASPHALT, LINE, SIDEWALK, CURB, GRASS = (62, 62, 66), (232, 232, 228), (168, 165, 158), (128, 126, 122), (86, 118, 68)
+
+
+def stripes(x0, x1, y0, y1, along: str, bar=0.5, gap=0.5):
+    """Zebra bars inside the rectangle; bars elongated along ``along`` ("x" or "y")."""
+    out, (a0, a1) = [], ((y0, y1) if along == "x" else (x0, x1))
+    s = a0 + gap / 2
+    while s + bar <= a1:
+        out.append((x0, x1, s, s + bar) if along == "x" else (s, s + bar, y0, y1))
+        s += bar + gap
+    return [(r, LINE) for r in out]
+
+
+def dashes(x, y0, y1, dash=3.0, period=9.0, w=0.12, skip=()):
+    """A dashed line along y at x, leaving out the y-intervals in ``skip``."""
+    out, y = [], y0
+    while y < y1:
+        if not any(a < y + dash and y < b for a, b in skip):
+            out.append(((x - w / 2, x + w / 2, y, y + dash), LINE))
+        y += period
+    return out
+
+
+def scene1():
+    """Straight two-lane street, 7 m road, 4 m sidewalks, a zebra crossing at y = 22..26 m."""
+    xw = (22.0, 26.0)
+    r = [((-40, 40, -20, 140), GRASS), ((-3.5, 3.5, -20, 140), ASPHALT)]
+    for s in (-1, 1):
+        r += [((min(s * 3.5, s * 7.5), max(s * 3.5, s * 7.5), -20, 140), SIDEWALK)]
+        r += [((min(s * 3.5, s * 3.7), max(s * 3.5, s * 3.7), -20, 140), CURB)]
+        for ya, yb in ((-20, xw[0] - 1), (xw[1] + 1, 140)):
+            r += [((s * 3.25 - 0.075, s * 3.25 + 0.075, ya, yb), LINE)]
+    r += dashes(0.0, -20, 140, skip=[(xw[0] - 1, xw[1] + 1)])
+    r += stripes(-3.2, 3.2, *xw, along="y")
+    return r
+
+
+def scene2():
+    """Four-lane avenue (14 m) with a side street (y = 40..52 m) crossing it; zebras on every arm."""
+    side = (40.0, 52.0)
+    cross = [(side[0] - 7, side[0] - 3), (side[1] + 3, side[1] + 7)]  # zebras across the avenue
+    r = [((-50, 50, -20, 140), GRASS), ((-11, 11, -20, 140), SIDEWALK)]
+    r += [((-50, 50, side[0] - 4, side[0]), SIDEWALK), ((-50, 50, side[1], side[1] + 4), SIDEWALK)]
+    r += [((-7.2, 7.2, -20, 140), CURB), ((-50, 50, side[0] - 0.2, side[1] + 0.2), CURB)]
+    r += [((-7, 7, -20, 140), ASPHALT), ((-50, 50, *side), ASPHALT)]
+    for s in (-1, 1):
+        for ya, yb in ((-20, cross[0][0] - 1), (cross[1][1] + 1, 140)):
+            r += [((s * 6.75 - 0.075, s * 6.75 + 0.075, ya, yb), LINE)]
+            r += [((s * 0.15 - 0.06, s * 0.15 + 0.06, ya, yb), LINE)]  # double centre line
+        r += dashes(s * 3.5, -20, 140, skip=[(cross[0][0] - 1, cross[1][1] + 1)])
+        r += stripes(min(s * 7, s * 11), max(s * 7, s * 11), side[0] + 0.5, side[1] - 0.5, along="x")
+    for ya, yb in cross:
+        r += stripes(-6.7, 6.7, ya, yb, along="y")
+    return r
+
+
+def paint(rects, extent) -> np.ndarray:
+    """Paint rectangles (x0, x1, y0, y1) over the plane extent (x0, x1, y0, y1) -> (H, W, 3) uint8 RGB."""
+    ex0, ex1, ey0, ey1 = extent
+    img = np.zeros((round((ey1 - ey0) * RES), round((ex1 - ex0) * RES), 3), np.uint8)
+    for (x0, x1, y0, y1), colour in rects:
+        c0, c1 = round((x0 - ex0) * RES), round((x1 - ex0) * RES)
+        r0, r1 = round((ey1 - y1) * RES), round((ey1 - y0) * RES)
+        img[max(r0, 0) : max(r1, 0), max(c0, 0) : max(c1, 0)] = colour
+    return img
+
+
+def hand_placed(exact: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """(4, 2) float -> (4, 2) int: each vertex rounded after a 1-2 px offset, kept only if still 1-2 px off."""
+    out = []
+    for p in exact:
+        while True:
+            a, d = rng.uniform(0, 2 * np.pi), rng.uniform(1.0, 2.0)
+            q = np.round(p + d * np.array([np.cos(a), np.sin(a)]))
+            if 1.0 <= np.hypot(*(q - p)) <= 2.0:
+                out.append(q.astype(int))
+                break
+    return np.array(out)
+
+
+def write_trapezoid_block(scene_dir: Path, seed: int) -> None:
+    """Replace the BEGIN/END block of scene.toml with seeded hand-placed trapezoid vertices."""
+    toml_path = scene_dir / "scene.toml"
+    scene = load_scene(scene_dir, check_trapezoid=False)
+    rng = keyed_rng(seed, scene.name, "hand-placed trapezoid")
+    img, mp = hand_placed(scene.trapezoid_exact_image, rng), hand_placed(scene.trapezoid_exact_map, rng)
+    fmt = lambda q: "[" + ", ".join(f"[{a}, {b}]" for a, b in q) + "]"  # noqa: E731
+    block = (
+        "# BEGIN hand-placed (scenes/make_scene_assets.py, seed %d)\n" % seed
+        + f"hand_placed_image = {fmt(img)}\nhand_placed_map = {fmt(mp)}\n"
+        + "# END hand-placed"
+    )
+    text = re.sub(r"# BEGIN hand-placed.*?# END hand-placed", block, toml_path.read_text(), flags=re.S)
+    tomllib.loads(text)
+    toml_path.write_text(text)
+
+
+def main() -> None:
+    for name, rects in (("scene1", scene1()), ("scene2", scene2())):
+        d = HERE / name
+        xml = (d / "scene.xml").read_text()
+        m = re.search(r'name="ground"[^>]*size="([\d.]+) ([\d.]+)[^"]*"[^>]*pos="([-\d.]+) ([-\d.]+)', xml)
+        hx, hy, cx, cy = map(float, m.groups())
+        img = paint(rects, (cx - hx, cx + hx, cy - hy, cy + hy))
+        cv2.imwrite(str(d / "ground.png"), img[:, :, ::-1])
+        write_trapezoid_block(d, seed=2024)
+        print(f"{name}: ground.png {img.shape[1]}x{img.shape[0]}, trapezoid block written")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,89 @@
+"""Offscreen rendering with MuJoCo's classic renderer: RGB and segmentation passes of the run camera.
+
+The backend is ``MUJOCO_GL`` (egl by default, osmesa supported). When it cannot work, a
+``BackendError`` carries one line naming the Debian packages to install.
+"""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+import simgen  # noqa: F401  (sets the MUJOCO_GL default before mujoco is imported)
+
+PACKAGES = {"egl": "libegl1 libgl1-mesa-dri libopengl0", "osmesa": "libosmesa6"}
+
+
+class BackendError(RuntimeError):
+    """No usable OpenGL backend; the message is one line."""
+
+
+def backend() -> str:
+    return os.environ.get("MUJOCO_GL", "egl")
+
+
+def backend_message(err: BaseException) -> str:
+    """One line: which backend failed, why (first line of the error), what to install."""
+    b = backend()
+    reason = (str(err).strip().splitlines() or [type(err).__name__])[0][:160]
+    if b in PACKAGES:
+        fix = f"apt-get install {PACKAGES[b]}"
+    else:
+        fix = f"set MUJOCO_GL=egl (apt-get install {PACKAGES['egl']}) or MUJOCO_GL=osmesa (apt-get install {PACKAGES['osmesa']})"
+    return f"cannot render offscreen with MUJOCO_GL={b} ({type(err).__name__}: {reason}); fix: {fix}"
+
+
+try:
+    import mujoco
+except Exception as e:  # osmesa without libosmesa6 fails here with an AttributeError from ctypes
+    raise BackendError(backend_message(e)) from e
+
+from simgen.model import CAMERA, RunModel  # noqa: E402
+
+
+class FrameRenderer:
+    """The RGB and segmentation passes of the run camera; a context manager (closes the GL context)."""
+
+    def __init__(self, run_model: RunModel, width: int, height: int) -> None:
+        try:
+            self._r = mujoco.Renderer(run_model.model, height, width)
+        except Exception as e:  # EGL without Mesa's DRI driver, no DISPLAY for glfw, ...
+            raise BackendError(backend_message(e)) from e
+
+    def update(self, data: mujoco.MjData) -> None:
+        """Take the current poses (after mj_kinematics) into the scene."""
+        self._r.update_scene(data, camera=CAMERA)
+
+    def rgb(self) -> np.ndarray:
+        """(H, W, 3) uint8, row 0 at the top."""
+        return self._r.render()
+
+    def segmentation(self) -> np.ndarray:
+        """(H, W) int32 geom id at each pixel, -1 where no geom (background or other objects)."""
+        self._r.enable_segmentation_rendering()
+        try:
+            seg = self._r.render()
+        finally:
+            self._r.disable_segmentation_rendering()
+        return np.where(seg[:, :, 1] == int(mujoco.mjtObj.mjOBJ_GEOM), seg[:, :, 0], -1)
+
+    def close(self) -> None:
+        self._r.close()
+
+    def __enter__(self) -> "FrameRenderer":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def id_map(geom_ids: np.ndarray, geom_value: np.ndarray) -> np.ndarray:
+    """Per-pixel value of the geom seen there: ``geom_value[geom_ids]``, -1 where geom_ids == -1.
+
+    Args:
+        geom_ids: (H, W) int32 from ``FrameRenderer.segmentation``.
+        geom_value: (ngeom,) int32, e.g. the agent_id of each geom (-1 for scenery).
+    Returns:
+        (H, W) int32.
+    """
+    return np.append(geom_value.astype(np.int32), np.int32(-1))[geom_ids]

@@ -1,0 +1,303 @@
+"""A scene folder (``scene.toml`` + MJCF + ground texture) read and validated into one ``Scene``.
+
+Everything a run needs is checked here, before any output exists: a bad field raises ``ConfigError``
+whose one-line message names the field (``scene.toml: camera.tilt_deg: ...``).
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from homocal.geometry.camera import PinholeCamera
+
+GT_DT = 0.05  # ground-truth period, seconds (paper Section 5.1)
+GT_RATE = 20  # 1 / GT_DT, samples per second, for exact integer time arithmetic
+DETECTORS = ("segmentation", "rgb")
+
+
+class ConfigError(ValueError):
+    """A scene config or run option that cannot work; the message is one line naming the field."""
+
+
+@dataclass(frozen=True)
+class Route:
+    """A walking route: polyline ``points`` (N, 2) world metres, lateral spread, direction, weight."""
+
+    name: str
+    points: np.ndarray
+    width_m: float
+    both_ways: bool
+    weight: float
+
+
+@dataclass(frozen=True)
+class Ground:
+    """The MJCF plane named ``ground``: extent (x0, x1, y0, y1) in world metres and its texture file."""
+
+    extent: tuple[float, float, float, float]
+    texture: Path
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated scene config; array fields are float64 unless noted."""
+
+    name: str
+    folder: Path
+    model_path: Path
+    camera: PinholeCamera
+    seconds: float
+    fps: int
+    chunk_seconds: float
+    detectors: tuple[str, ...]
+    rgb_warmup_frames: int
+    map_scale: float
+    agent_count: int
+    speed_mps: tuple[float, float]
+    gap_s: tuple[float, float]
+    routes: tuple[Route, ...]
+    calibration_distances: np.ndarray  # (M,) metres
+    trapezoid_ground: np.ndarray  # (4, 2) metres, TL TR BR BL
+    hand_placed_image: np.ndarray  # (4, 2) int64 px
+    hand_placed_map: np.ndarray  # (4, 2) int64 map px
+    ground: Ground
+    raw: dict = field(repr=False)
+
+    # ---- derived numbers ---------------------------------------------------------------
+    @property
+    def frames_total(self) -> int:
+        return round(self.seconds * self.fps)
+
+    @property
+    def steps_total(self) -> int:
+        return round(self.seconds * GT_RATE)
+
+    @property
+    def map_origin(self) -> tuple[float, float]:
+        """Site-map pixel (ox, oy) of the world origin; map pixel centres at integers."""
+        x0, _, _, y1 = self.ground.extent
+        return (-self.map_scale * x0 - 0.5, self.map_scale * y1 - 0.5)
+
+    def to_map(self, xy: np.ndarray) -> np.ndarray:
+        """World metres (N, 2) -> site-map pixels (N, 2): px = ox + s x, py = oy - s y."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        ox, oy = self.map_origin
+        return np.column_stack([ox + self.map_scale * xy[:, 0], oy - self.map_scale * xy[:, 1]])
+
+    @property
+    def trapezoid_exact_image(self) -> np.ndarray:
+        """(4, 2) exact image vertices of ``trapezoid_ground``, px."""
+        return self.camera.project_ground(self.trapezoid_ground)
+
+    @property
+    def trapezoid_exact_map(self) -> np.ndarray:
+        """(4, 2) exact site-map vertices of ``trapezoid_ground``, map px."""
+        return self.to_map(self.trapezoid_ground)
+
+    def config_hash(self) -> str:
+        """sha256 over the resolved config, the run options and the bytes of the scene's files."""
+        h = hashlib.sha256()
+        run = {"seconds": self.seconds, "fps": self.fps, "detectors": list(self.detectors)}
+        h.update(json.dumps([self.raw, run], sort_keys=True).encode())
+        for p in (self.model_path, self.ground.texture):
+            h.update(p.read_bytes())
+        return h.hexdigest()
+
+    def with_run(self, seconds: float | None = None, fps: int | None = None, detectors=None) -> "Scene":
+        """The same scene with run options overridden (from the command line), re-validated."""
+        s = dataclasses.replace(
+            self,
+            seconds=self.seconds if seconds is None else seconds,
+            fps=self.fps if fps is None else fps,
+            detectors=self.detectors if detectors is None else tuple(detectors),
+        )
+        _check_run(s)
+        return s
+
+
+def _get(d: dict, key: str, kind=float):
+    """d["a.b.c"] converted by ``kind``; ConfigError naming the key when missing or wrong."""
+    cur = d
+    for part in key.split("."):
+        if not isinstance(cur, dict) or part not in cur:
+            raise ConfigError(f"scene.toml: {key}: missing")
+        cur = cur[part]
+    accepted = (int, float) if kind is float else kind
+    if not isinstance(cur, accepted) or (isinstance(cur, bool) and kind is not bool):
+        raise ConfigError(f"scene.toml: {key}: expected {kind.__name__}, got {cur!r}")
+    return kind(cur)
+
+
+def _points(d: dict, key: str, n: int | None = None, integer: bool = False) -> np.ndarray:
+    """d[key] as an (N, 2) array (N == n if given)."""
+    try:
+        a = np.array(_get(d, key, list), dtype=np.float64)
+    except ValueError:
+        raise ConfigError(f"scene.toml: {key}: expected a list of [x, y] pairs") from None
+    if a.ndim != 2 or a.shape[1] != 2 or (n is not None and len(a) != n) or len(a) < 2:
+        raise ConfigError(f"scene.toml: {key}: expected {n or 'at least 2'} [x, y] pairs, got shape {a.shape}")
+    if integer:
+        if not np.all(a == np.round(a)):
+            raise ConfigError(f"scene.toml: {key}: vertices must be integer pixels")
+        return a.astype(np.int64)
+    return a
+
+
+def _range(d: dict, key: str, low: float = 0.0) -> tuple[float, float]:
+    """d[key] as a (min, max) pair with low <= min <= max."""
+    v = _get(d, key, list)
+    if len(v) != 2 or not all(isinstance(x, (int, float)) for x in v) or not low <= v[0] <= v[1]:
+        raise ConfigError(f"scene.toml: {key}: expected [min, max] with {low} <= min <= max, got {v!r}")
+    return float(v[0]), float(v[1])
+
+
+def _read_ground(model_path: Path) -> Ground:
+    """Find the plane named ``ground`` and its texture in the MJCF (compiling it on the way)."""
+    import mujoco  # noqa: PLC0415  (simgen/__init__ chose the GL backend)
+
+    try:
+        spec = mujoco.MjSpec.from_file(str(model_path))
+        spec.compile()
+    except Exception as e:  # noqa: BLE001  (mujoco raises ValueError or its own errors)
+        raise ConfigError(f"scene.toml: model: {model_path.name} does not compile: {str(e).splitlines()[0]}") from None
+    g = spec.geom("ground")
+    if g is None or g.type != mujoco.mjtGeom.mjGEOM_PLANE or g.size[0] <= 0 or g.size[1] <= 0:
+        raise ConfigError(f"scene.toml: model: {model_path.name} needs a finite plane geom named 'ground'")
+    mat = spec.material(g.material) if g.material else None
+    tex_names = [t for t in (mat.textures if mat else []) if t]
+    tex = spec.texture(tex_names[0]) if tex_names else None
+    if tex is None or not tex.file:
+        raise ConfigError(f"scene.toml: model: the 'ground' plane in {model_path.name} needs a material with a 2d texture file")
+    (hx, hy), (cx, cy) = g.size[:2], g.pos[:2]
+    return Ground((cx - hx, cx + hx, cy - hy, cy + hy), model_path.parent / spec.texturedir / tex.file)
+
+
+def _check_run(s: Scene) -> None:
+    """Run options: durations on the 50 ms grid, integer frame counts, known detectors."""
+    for key, v in (("run.seconds", s.seconds), ("run.chunk_seconds", s.chunk_seconds)):
+        if not (v > 0 and abs(v * GT_RATE - round(v * GT_RATE)) < 1e-9):
+            raise ConfigError(f"scene.toml: {key}: must be a positive multiple of {GT_DT} s, got {v}")
+    if not (isinstance(s.fps, int) and s.fps > 0):
+        raise ConfigError(f"scene.toml: run.fps: must be a positive integer, got {s.fps!r}")
+    for key, v in (("run.seconds", s.seconds), ("run.chunk_seconds", s.chunk_seconds)):
+        if abs(v * s.fps - round(v * s.fps)) > 1e-9:
+            raise ConfigError(f"scene.toml: {key}: {v} s is not a whole number of frames at {s.fps} fps")
+    unknown = [d for d in s.detectors if d not in DETECTORS]
+    if unknown or not s.detectors or len(set(s.detectors)) != len(s.detectors):
+        raise ConfigError(f"scene.toml: detection.detectors: expected distinct names from {DETECTORS}, got {list(s.detectors)}")
+
+
+def _visible(cam: PinholeCamera, xy: np.ndarray) -> np.ndarray:
+    """(N,) bool: ground points project inside the image and below the horizon."""
+    uv = cam.project_ground(xy)
+    below = uv @ cam.horizon[:2] + cam.horizon[2] > 0
+    inside = (uv[:, 0] >= -0.5) & (uv[:, 0] < cam.width - 0.5) & (uv[:, 1] >= -0.5) & (uv[:, 1] < cam.height - 0.5)
+    return np.isfinite(uv).all(axis=1) & inside & below
+
+
+def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
+    """Read and validate ``folder/scene.toml`` and the MJCF it names. Raises ConfigError."""
+    folder = Path(folder)
+    path = folder / "scene.toml"
+    if not path.is_file():
+        raise ConfigError(f"{path}: no such scene config")
+    try:
+        raw = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"scene.toml: not valid TOML: {e}") from None
+
+    model_path = folder / _get(raw, "model", str)
+    if not model_path.is_file():
+        raise ConfigError(f"scene.toml: model: {model_path} does not exist")
+    try:
+        camera = PinholeCamera(
+            width=_get(raw, "camera.width", int),
+            height=_get(raw, "camera.height", int),
+            hfov_deg=_get(raw, "camera.hfov_deg"),
+            mount_height_m=_get(raw, "camera.mount_height_m"),
+            tilt_deg=_get(raw, "camera.tilt_deg"),
+        )
+    except ConfigError:
+        raise
+    except ValueError as e:
+        raise ConfigError(f"scene.toml: {e}") from None
+    if camera.width % 2 or camera.height % 2:
+        raise ConfigError(f"scene.toml: camera.width, camera.height: must be even (yuv420p video), got {camera.width}x{camera.height}")
+
+    routes = []
+    for i, r in enumerate(_get(raw, "agents.routes", list)):
+        key = f"agents.routes[{i}]"
+        rd = {"agents": {f"routes[{i}]": r}}
+        route = Route(
+            name=str(r.get("name", f"route {i}")) if isinstance(r, dict) else "",
+            points=_points(rd, f"{key}.points"),
+            width_m=_get(rd, f"{key}.width_m"),
+            both_ways=_get(rd, f"{key}.both_ways", bool),
+            weight=_get(rd, f"{key}.weight"),
+        )
+        if route.weight <= 0 or route.width_m < 0 or np.any(np.hypot(*np.diff(route.points, axis=0).T) == 0):
+            raise ConfigError(f"scene.toml: {key}: needs weight > 0, width_m >= 0 and no repeated points")
+        routes.append(route)
+
+    key = "calibration.distances_m"
+    calib = np.linspace(_get(raw, key + ".start"), _get(raw, key + ".stop"), _get(raw, key + ".count", int))
+    if len(calib) < 3:
+        raise ConfigError(f"scene.toml: {key}.count: must be >= 3")
+
+    scene = Scene(
+        name=folder.resolve().name,
+        folder=folder,
+        model_path=model_path,
+        camera=camera,
+        seconds=_get(raw, "run.seconds"),
+        fps=_get(raw, "run.fps", int),
+        chunk_seconds=_get(raw, "run.chunk_seconds"),
+        detectors=tuple(_get(raw, "detection.detectors", list)),
+        rgb_warmup_frames=_get(raw, "detection.rgb_warmup_frames", int),
+        map_scale=_get(raw, "site_map.scale_px_per_m"),
+        agent_count=_get(raw, "agents.count", int),
+        speed_mps=_range(raw, "agents.speed_mps", low=1e-3),
+        gap_s=_range(raw, "agents.gap_s"),
+        routes=tuple(routes),
+        calibration_distances=calib,
+        trapezoid_ground=_points(raw, "trapezoid.ground_m", 4),
+        hand_placed_image=_points(raw, "trapezoid.hand_placed_image", 4, integer=True),
+        hand_placed_map=_points(raw, "trapezoid.hand_placed_map", 4, integer=True),
+        ground=_read_ground(model_path),
+        raw=raw,
+    )
+    _check_run(scene)
+    if scene.agent_count < 0 or scene.rgb_warmup_frames < 0:
+        raise ConfigError("scene.toml: agents.count and detection.rgb_warmup_frames must be >= 0")
+    if not routes and scene.agent_count:
+        raise ConfigError("scene.toml: agents.routes: at least one route is needed when agents.count > 0")
+    if not scene.map_scale > 0:
+        raise ConfigError(f"scene.toml: site_map.scale_px_per_m: must be > 0, got {scene.map_scale}")
+    if not scene.ground.texture.is_file():
+        raise ConfigError(f"scene.toml: model: ground texture {scene.ground.texture} does not exist")
+
+    x0, x1, y0, y1 = scene.ground.extent
+    calib_xy = np.column_stack([np.zeros_like(calib), calib])
+    bad = ~_visible(camera, calib_xy) | (calib <= 0) | (calib > y1)
+    if bad.any():
+        raise ConfigError(
+            f"scene.toml: calibration.distances_m: {calib[bad][0]:g} m is outside the view of the camera "
+            f"(visible ground straight ahead starts at {camera.mount_height_m / math.tan(math.radians(camera.tilt_deg + camera.vfov_deg / 2)):.2f} m)"
+        )
+    if not _visible(camera, scene.trapezoid_ground).all():
+        raise ConfigError("scene.toml: trapezoid.ground_m: a vertex is outside the view of the camera")
+    if check_trapezoid:
+        for key, q, (w, h) in (
+            ("trapezoid.hand_placed_image", scene.hand_placed_image, (camera.width, camera.height)),
+            ("trapezoid.hand_placed_map", scene.hand_placed_map, (round((x1 - x0) * scene.map_scale), round((y1 - y0) * scene.map_scale))),
+        ):
+            if np.any(q < 0) or np.any(q[:, 0] > w - 1) or np.any(q[:, 1] > h - 1):
+                raise ConfigError(f"scene.toml: {key}: a vertex lies outside the {w}x{h} image")
+    return scene

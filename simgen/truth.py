@@ -1,0 +1,116 @@
+"""Ground truth of one 50 ms step: positions, exact projections, visible boxes and visible fractions.
+
+The visible fraction divides an agent's visible pixels (segmentation render) by the pixels of its
+unoccluded, unclipped silhouette, which is computed here from the geometry (``model.PERSON``): a
+sphere projects to the projection of its tangent circle, a capsule (the convex hull of two spheres)
+to the convex hull of its two end spheres' silhouettes; polygons are filled with OpenCV.
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pyarrow as pa
+
+from homocal.geometry.camera import PinholeCamera
+from simgen.detection import id_boxes
+from simgen.model import PERSON
+from simgen.stage import AgentState
+
+GT_SCHEMA = pa.schema([
+    ("t", pa.float64()), ("step", pa.int64()), ("agent_id", pa.int32()),
+    ("x", pa.float64()), ("y", pa.float64()), ("heading", pa.float64()), ("speed", pa.float64()),
+    ("u", pa.float64()), ("v", pa.float64()), ("in_frame", pa.bool_()),
+    ("x1", pa.float64()), ("y1", pa.float64()), ("x2", pa.float64()), ("y2", pa.float64()),
+    ("visible_fraction", pa.float64()), ("visible_pixels", pa.int32()),
+])  # fmt: skip
+
+_ANGLES = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
+_SHIFT = 4  # cv2 fixed-point bits: polygons are filled at 1/16 px precision
+_SUPER = 4  # silhouettes are filled on a 4x finer grid and their area counted in image pixels
+
+
+def in_frame(camera: PinholeCamera, uv: np.ndarray) -> np.ndarray:
+    """(N, 2) pixels -> (N,) bool: inside the image (pixel centres at integers) and below the horizon."""
+    a, b, c = camera.horizon
+    with np.errstate(invalid="ignore"):
+        inside = (uv[:, 0] >= -0.5) & (uv[:, 0] < camera.width - 0.5) & (uv[:, 1] >= -0.5) & (uv[:, 1] < camera.height - 0.5)
+        return inside & (a * uv[:, 0] + b * uv[:, 1] + c > 0)
+
+
+def _sphere_outline(camera: PinholeCamera, centres: np.ndarray, radius: float) -> np.ndarray:
+    """(N, 3) world sphere centres -> (N, 24, 2) pixel outline of their silhouettes (NaN if not in front)."""
+    cc = centres @ camera.R.T + camera.t  # camera frame
+    d2 = np.einsum("ij,ij->i", cc, cc)
+    centre = cc * (1.0 - radius**2 / d2)[:, None]  # the tangent circle, in the plane normal to cc
+    rad = radius * np.sqrt(np.maximum(d2 - radius**2, 0.0) / d2)
+    axis = cc / np.sqrt(d2)[:, None]
+    e1 = np.cross(axis, [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(axis, e1)
+    ring = centre[:, None] + rad[:, None, None] * (np.cos(_ANGLES)[None, :, None] * e1[:, None] + np.sin(_ANGLES)[None, :, None] * e2[:, None])
+    uvw = ring @ camera.K.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        uv = uvw[..., :2] / uvw[..., 2:]
+    uv[~(ring[..., 2] > radius)] = np.nan
+    return uv
+
+
+def silhouette_pixels(camera: PinholeCamera, xy: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    """Pixel count of each agent's unoccluded, unclipped silhouette.
+
+    Args:
+        xy: (A, 2) contact points, metres; heading: (A,) radians.
+    Returns:
+        (A,) float64 pixels; NaN for an agent partly behind the camera.
+    """
+    c, s = np.cos(heading), np.sin(heading)
+    outlines = []  # per geom: (A, 48, 2)
+    for p0, p1, r, _ in PERSON:
+        ends = []
+        for p in (p0, p1):
+            world = np.column_stack([xy[:, 0] + c * p[0] - s * p[1], xy[:, 1] + s * p[0] + c * p[1], np.full(len(xy), p[2])])
+            ends.append(_sphere_outline(camera, world, r))
+        outlines.append(np.concatenate(ends, axis=1))
+    outlines = np.stack(outlines, axis=1)  # (A, G, 48, 2)
+    out = np.full(len(xy), np.nan)
+    for a, geoms in enumerate(outlines):
+        if not np.isfinite(geoms).all():
+            continue
+        lo = np.floor(geoms.reshape(-1, 2).min(axis=0)) - 1
+        size = ((np.ceil(geoms.reshape(-1, 2).max(axis=0)) + 2 - lo) * _SUPER).astype(int)
+        canvas = np.zeros((size[1], size[0]), np.uint8)
+        for g in geoms:  # fine-grid pixel centres at (i + 0.5) / _SUPER - 0.5 in image pixels
+            fine = ((g - lo + 0.5) * _SUPER - 0.5) * (1 << _SHIFT)
+            cv2.fillConvexPoly(canvas, cv2.convexHull(np.round(fine).astype(np.int32)), 1, lineType=cv2.LINE_8, shift=_SHIFT)
+        out[a] = np.count_nonzero(canvas) / _SUPER**2
+    return out
+
+
+def gt_columns(step: int, camera: PinholeCamera, state: AgentState, agent_ids: np.ndarray) -> dict[str, np.ndarray]:
+    """The gt.parquet columns (GT_SCHEMA) of one step: one entry per active agent, sorted by agent_id.
+
+    Args:
+        step: ground-truth step; t = step * 0.05.
+        state: the active agents at t = step / 20.
+        agent_ids: (H, W) int32 agent-id map of the segmentation render at that time.
+    """
+    order = np.argsort(state.agent_id, kind="stable")
+    ids, xy = state.agent_id[order], state.xy[order]
+    uv = camera.project_ground(xy)
+    box = np.full((len(ids), 4), np.nan)
+    pixels = np.zeros(len(ids), np.int32)
+    seen, xyxy, counts = id_boxes(agent_ids)
+    hit = np.isin(ids, seen)
+    where = np.searchsorted(seen, ids[hit])
+    box[hit], pixels[hit] = xyxy[where], counts[where]
+    area = silhouette_pixels(camera, xy, state.heading[order])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fraction = np.where(np.isfinite(area), np.clip(pixels / area, 0.0, 1.0), 1.0)
+    fraction[pixels == 0] = 0.0
+    return {
+        "t": np.full(len(ids), step * 0.05), "step": np.full(len(ids), step, np.int64), "agent_id": ids,
+        "x": xy[:, 0], "y": xy[:, 1], "heading": state.heading[order], "speed": state.speed[order],
+        "u": uv[:, 0], "v": uv[:, 1], "in_frame": in_frame(camera, uv),
+        "x1": box[:, 0], "y1": box[:, 1], "x2": box[:, 2], "y2": box[:, 3],
+        "visible_fraction": fraction, "visible_pixels": pixels,
+    }  # fmt: skip
