@@ -164,7 +164,7 @@ def error_vs_distance(ds: Dataset, variants_file: Path, source: str, out: Path, 
     ax.legend(fontsize=8)
     fig.savefig(out, dpi=DPI)
     return (f"Euclidean ground error of the calibration points (markers) and the test points (grey) mapped through the "
-            f"hand-placed trapezoid and {len(trapezoids) - 1} perturbed variants, with the least-squares fit "
+            f"hand-placed trapezoid and the first {len(trapezoids) - 1} perturbed variant(s), with the least-squares fit "
             f"e = a d² + b d over all {len(d_cal)} calibration points of each.")
 
 

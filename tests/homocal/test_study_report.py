@@ -22,7 +22,8 @@ import pytest
 from matplotlib.image import imread
 
 from homocal.cli import main
-from homocal.study import metrics
+from homocal.dataset import load_dataset
+from homocal.study import figures, metrics, report
 
 METHODS = metrics.METHODS
 SCENES = {"alpha": (5.0, 9.0, 14.0, 20.0, 27.0, 35.0), "beta": (6.0, 11.0, 17.0, 24.0, 32.0)}  # calibration distances, m
@@ -199,6 +200,53 @@ class TestReportCommand:
         err = capsys.readouterr().err
         assert err.startswith("homocal: error: ") and err.count("\n") == 1
         assert not (tmp_path / "report").exists()
+
+
+@pytest.fixture
+def dataset_dir(request) -> Path:
+    """The lead's tiny simgen dataset (tests/conftest.py), skipped while it does not exist."""
+    try:
+        value = request.getfixturevalue("tiny_dataset")
+    except pytest.FixtureLookupError:
+        pytest.skip("no tiny_dataset fixture in tests/conftest.py yet")
+    return Path(getattr(value, "path", value))
+
+
+def write_variants(path: Path) -> None:
+    """variants/<scene>.parquet: variant 0 unperturbed, 1 degenerate, 2 and 3 perturbed (offsets in px)."""
+    offsets = np.zeros((4, 16))
+    offsets[1, 0], offsets[2, [1, 9]], offsets[3, [4, 5, 14]] = 3, (2, -1), (-3, 1, 2)
+    cols = {"variant": pa.array(range(4), pa.int32())}
+    cols |= {f"{side}_{k}": offsets[:, 8 * s + k] for s, side in enumerate(("img", "map")) for k in range(8)}
+    cols |= {"n_perturbed": pa.array((offsets != 0).sum(1), pa.int8()), "degenerate": [False, True, False, False],
+             "reason": ["", "collinear vertices", "", ""]}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    pq.write_table(pa.table(cols), path)
+
+
+class TestDatasetFigures:
+    def test_exact_trapezoid_maps_exact_foot_points_without_error(self, dataset_dir):
+        ds = load_dataset(dataset_dir)
+        image, ground, _ = ds.calibration_points("exact")
+        exact = ds.trapezoids["exact"]
+        error = figures.ground_error(np.array(exact["image"]), np.array(exact["map"]), ds, image, ground)
+        assert np.nanmax(error) < 1e-6
+
+    def test_perturbed_variants_skip_unperturbed_and_degenerate(self, tmp_path):
+        write_variants(tmp_path / "v.parquet")
+        picked = figures._perturbed_variants(tmp_path / "v.parquet", 5)
+        assert [name for name, _, _ in picked] == ["variant 2", "variant 3"]
+        assert picked[0][1].tolist() == [0, 2, 0, 0, 0, 0, 0, 0] and picked[0][2].tolist() == [0, -1, 0, 0, 0, 0, 0, 0]
+
+    def test_report_draws_them(self, dataset_dir, tmp_path):
+        write_results(tmp_path, datasets={s: str(dataset_dir) for s in SCENES})
+        write_variants(tmp_path / "variants" / "alpha.parquet")
+        page, _ = report.write_report(tmp_path)
+        html = page.read_text()
+        assert "dataset not available" not in html
+        for name in ["error_distance_alpha.png", "error_distance_beta.png", "test_distance.png"]:
+            assert f"figures/{name}" in html
+            assert_nontrivial_png(tmp_path / "report" / "figures" / name)
 
 
 def assert_nontrivial_png(path: Path) -> None:
