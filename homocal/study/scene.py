@@ -1,0 +1,142 @@
+"""One scene of the study: its inputs, the per-variant tables hoisted out of the sample loop, and the
+shard (every calibration triple of one trapezoid variant) that both engine paths compute."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pyarrow as pa
+
+from homocal.dataset import EXACT, load_dataset
+from homocal.geometry import SiteMap, ViewTransformer, apply_homography
+from homocal.keyed_rng import seed_from_key
+from homocal.study import kernels
+from homocal.study.perturb import draw_variant, perturbed_quads
+from homocal.study.triples import distance_features, triples
+
+SHARD_SCHEMA = pa.schema(
+    [("variant", pa.int32()), ("i", pa.int16()), ("j", pa.int16()), ("k", pa.int16()),
+     ("d_sum", pa.float32()), ("d_spread", pa.float32()), ("cal_before", pa.float32()), ("path_before", pa.float32())]
+    + [(f"{kind}_{m}", pa.float32()) for m in kernels.METHODS for kind in ("cal", "path")]
+    + [("hybrid_regression", pa.bool_())]
+)
+
+
+@dataclass(frozen=True)
+class StudyParams:
+    """Everything that determines a study's numbers (written to study.json)."""
+
+    seed: int = 0
+    n_variants: int = 1000
+    foot_source: str = EXACT  # "exact", "segmentation" or another detector's name
+    n_test: int = 2000
+    threshold: float = 75.0
+    descent: dict = field(default_factory=lambda: dict(
+        delta_max=8.0, grid_offsets=(-4.0, -2.0, 0.0, 2.0, 4.0), initial_step=1.0, min_step=0.0625, max_evals=400))
+
+
+@dataclass
+class Scene:
+    """A scene's study inputs: hand-placed quads (4, 2), calibration q (M, 2) px, g (M, 2) m, distance (M,) m,
+    test points (N, 2) px and (N, 2) m, camera origin (2,) m, and the triples (S, 3)."""
+
+    name: str
+    site_map: SiteMap
+    image_quad: np.ndarray
+    map_quad: np.ndarray
+    origin: np.ndarray
+    cal_image: np.ndarray
+    cal_ground: np.ndarray
+    distance: np.ndarray
+    test_image: np.ndarray
+    test_ground: np.ndarray
+    triples: np.ndarray
+
+    @classmethod
+    def from_dataset(cls, path, params: StudyParams) -> "Scene":
+        """Load a dataset folder; calibration points from the exact or segmentation foot points (a detector's
+        test points use segmentation calibration points, the only detector calibration objects carry)."""
+        ds = load_dataset(path)
+        cal_image, cal_ground, distance = ds.calibration_points(EXACT if params.foot_source == EXACT else "segmentation")
+        if len(cal_image) < 3:
+            raise ValueError(f"{path}: need at least 3 calibration points, got {len(cal_image)}")
+        test_image, test_ground = ds.test_points(params.foot_source, n=params.n_test, seed=params.seed)
+        return cls(ds.name, ds.site_map, ds.trapezoid_image, ds.trapezoid_map, np.asarray(ds.camera_origin, float),
+                   cal_image, cal_ground, distance, test_image, test_ground, triples(len(cal_image)))
+
+
+@dataclass
+class VariantTables:
+    """Per-variant work hoisted out of the sample loop (inputs of kernels.run_variant)."""
+
+    v0: np.ndarray
+    Bt: np.ndarray
+    H0: np.ndarray
+    F: np.ndarray
+    cal: np.ndarray
+    test: np.ndarray
+    path_before: float
+
+
+def prepare_variant(scene: Scene, offsets: np.ndarray) -> VariantTables | str:
+    """The variant's tables, or the reason (str) it is degenerate: a quad validate_quad rejects, a homography
+    that cannot be formed, or a calibration or test point beyond the horizon."""
+    image, map_quad = perturbed_quads(scene.image_quad, scene.map_quad, offsets)
+    try:
+        target = ViewTransformer(image, scene.site_map.to_metres(map_quad)).target
+    except ValueError as e:
+        return str(e)
+    v0 = image.ravel()
+    Bt = kernels.target_basis(target)
+    H0 = kernels.homography(v0, Bt)
+    p = apply_homography(H0, scene.cal_image)
+    pt = apply_homography(H0, scene.test_image)
+    for what, mapped in (("calibration", p), ("test", pt)):
+        bad = np.flatnonzero(np.isnan(mapped).any(axis=1))
+        if bad.size:
+            return f"{what} point {bad[0]} maps beyond the horizon"
+    o, g, gt = scene.origin, scene.cal_ground, scene.test_ground
+    d = np.linalg.norm(p - o, axis=1)
+    r = p - g
+    cal = np.vstack([d, r.T, ((p - o) / d[:, None]).T, np.linalg.norm(r, axis=1), np.linalg.norm(g - o, axis=1) - d])
+    dt = np.linalg.norm(pt - o, axis=1)
+    rt = pt - gt
+    ut = (pt - o) / dt[:, None]
+    w0 = np.column_stack([scene.test_image, np.ones(len(pt))]) @ H0[2]
+    s = np.column_stack([scene.test_image, np.ones(len(pt))]) / w0[:, None]
+    test = np.vstack([dt, (rt**2).sum(axis=1), 2 * (rt * ut).sum(axis=1), s.T, rt.T, gt.T]).astype(np.float32)
+    F = kernels.ground_frames(Bt, g)
+    return VariantTables(v0, Bt, H0, F, np.ascontiguousarray(cal), np.ascontiguousarray(test),
+                         float(np.linalg.norm(rt, axis=1).mean()))
+
+
+def run_tables(scene: Scene, tables: VariantTables, params: StudyParams, variant: int, idx: np.ndarray):
+    """kernels.run_variant on triples idx (S, 3): (out (S, 10), ab (S, 4), vfinal (S, 9)), see there."""
+    S = len(idx)
+    out, ab, vfinal = np.empty((S, 10)), np.empty((S, 4)), np.empty((S, 9))
+    dp = params.descent
+    I, J, K = (np.ascontiguousarray(idx[:, c].astype(np.int64)) for c in range(3))
+    kernels.run_variant(
+        tables.v0, tables.Bt, tables.H0, tables.F, np.ascontiguousarray(scene.cal_image), tables.cal, tables.test,
+        tables.path_before, I, J, K, np.uint64(seed_from_key(params.seed, scene.name, variant)),
+        np.asarray(dp["grid_offsets"], dtype=np.float64), float(dp["delta_max"]), float(dp["initial_step"]),
+        float(dp["min_step"]), int(dp["max_evals"]), float(params.threshold), out, ab, vfinal)
+    return out, ab, vfinal
+
+
+def compute_shard(scene: Scene, params: StudyParams, variant: int) -> tuple[pa.Table, str]:
+    """One shard: the Parquet table of every triple of variant (empty if degenerate) and the degenerate
+    reason ("" if none). The one shard function of both engine paths (in-process and dask)."""
+    offsets, _ = draw_variant(params.seed, scene.name, variant)
+    tables = prepare_variant(scene, offsets)
+    if isinstance(tables, str):
+        return SHARD_SCHEMA.empty_table(), tables
+    out, _, _ = run_tables(scene, tables, params, variant, scene.triples)
+    d_sum, d_spread = distance_features(scene.distance, scene.triples)
+    S = len(scene.triples)
+    f32 = lambda x: pa.array(np.asarray(x, dtype=np.float32))  # noqa: E731
+    columns = [pa.array(np.full(S, variant, np.int32)), *(pa.array(scene.triples[:, c]) for c in range(3)),
+               f32(d_sum), f32(d_spread), f32(out[:, 0]), f32(np.full(S, tables.path_before))]
+    columns += [f32(out[:, c]) for c in range(1, 9)]
+    columns.append(pa.array(out[:, 9] == 1.0))
+    return pa.Table.from_arrays(columns, schema=SHARD_SCHEMA), ""
