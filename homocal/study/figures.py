@@ -36,28 +36,28 @@ class FigureFile:
 def make_figures(results_dir: Path, study: dict, shards: dict[str, list[Path]], out_dir: Path) -> tuple[list[FigureFile], list[str]]:
     """Write every figure the results allow into out_dir; return them and notes on the ones left out."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    figures = [
+    datasets, notes, figures = [], [], []
+    source, n_test, seed = study.get("foot_source", "exact"), study.get("n_test"), study.get("seed", 0)
+    for entry in study["datasets"]:
+        scene, path = entry["scene"], out_dir / f"error_distance_{entry['scene']}.png"
+        try:
+            ds = load_dataset(_dataset_path(results_dir, entry.get("path", "")))
+            caption = error_vs_distance(ds, Path(results_dir) / "variants" / f"{scene}.parquet", source, path, n_test=n_test, seed=seed)
+        except ValueError as e:
+            notes.append(f"scene {scene}: dataset not available, its error and distance figures are left out ({e})")
+            continue
+        datasets.append(ds)
+        figures.append(FigureFile(path, f"Ground error against distance: {scene}", caption))
+    if datasets:
+        path = out_dir / "test_distance.png"
+        caption = test_distance_distribution(datasets, source, path, n_test=n_test, seed=seed)
+        figures.append(FigureFile(path, "Distance distribution of the test points", caption))
+    figures += [
         FigureFile(out_dir / "improvement_histograms.png", "Improvement distributions",
                    improvement_histograms(shards, out_dir / "improvement_histograms.png")),
         FigureFile(out_dir / "path_heatmaps.png", "Mean path improvement against calibration distances",
                    path_heatmaps(shards, out_dir / "path_heatmaps.png")),
     ]
-    datasets, notes = {}, []
-    for entry in study["datasets"]:
-        try:
-            datasets[entry["scene"]] = load_dataset(_dataset_path(results_dir, entry.get("path", "")))
-        except ValueError as e:
-            notes.append(f"scene {entry['scene']}: dataset not available, its error and distance figures are left out ({e})")
-    source, n_test, seed = study.get("foot_source", "exact"), study.get("n_test"), study.get("seed", 0)
-    for scene, ds in datasets.items():
-        path = out_dir / f"error_distance_{scene}.png"
-        variants = Path(results_dir) / "variants" / f"{scene}.parquet"
-        caption = error_vs_distance(ds, variants, source, path, n_test=n_test, seed=seed)
-        figures.append(FigureFile(path, f"Ground error against distance: {scene}", caption))
-    if datasets:
-        path = out_dir / "test_distance.png"
-        caption = test_distance_distribution(list(datasets.values()), source, path, n_test=n_test, seed=seed)
-        figures.append(FigureFile(path, "Distance distribution of the test points", caption))
     return figures, notes
 
 

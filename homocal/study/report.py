@@ -74,6 +74,7 @@ def render_html(study: dict, table: Table, figures: list[FigureFile], notes: lis
     e = html.escape
     done, total = study.get("samples_done"), study.get("samples_total")
     degenerate = study.get("degenerate", [])
+    rows_read = table.value("regression", "n") + table.value("regression", "nonfinite")
     parts = [
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>homocal study report</title><style>{STYLE}</style></head><body>",
         "<h1>homocal study report</h1>",
@@ -81,7 +82,7 @@ def render_html(study: dict, table: Table, figures: list[FigureFile], notes: lis
         "<h2>Study</h2>",
         _html_table(["parameter", "value"], [[k, _show(v)] for k, v in study.items() if k not in ("datasets", "degenerate", "versions")]),
         _html_table(["scene", "dataset", "config hash"], [[d["scene"], d.get("path", ""), d.get("config_hash", "")] for d in study["datasets"]]),
-        f"<p>Samples in the table (overall): {table.value('regression', 'n') + table.value('regression', 'nonfinite'):,}. "
+        f"<p>Samples done: {e(_show(done))} of {e(_show(total))} (study.json); rows read from the shards: {rows_read:,}. "
         f"Degenerate trapezoid variants: {len(degenerate)}.</p>",
         _html_table(["scene", "variant", "reason"], [[d.get("scene", ""), d.get("variant", ""), d.get("reason", "")] for d in degenerate]) if degenerate else "",
         f"<p>Versions: {e(_show(study.get('versions', {})))}</p>",
@@ -89,9 +90,11 @@ def render_html(study: dict, table: Table, figures: list[FigureFile], notes: lis
         "<p>Improvements in percent, 100 (E_before - E_after) / E_before of the mean ground error on the calibration "
         "points (calibration) and the test points (path); pp = percentage points. Also in <a href='table.md'>table.md</a> "
         "and <a href='table.csv'>table.csv</a>.</p>",
+        "<div class='grid'>",
     ]
     for method, header, lines in table_cells(table):
-        parts += [f"<h3>{e(method)}</h3>", _html_table(header, lines)]
+        parts.append(f"<div><h3>{e(method)}</h3>{_html_table(header, lines, numeric=True)}</div>")
+    parts.append("</div>")
     parts.append("<h2>Figures</h2>")
     parts += [f"<p class='warn'>{e(note)}</p>" for note in notes]
     parts.append("<div class='grid'>")
@@ -104,10 +107,11 @@ def render_html(study: dict, table: Table, figures: list[FigureFile], notes: lis
     return "\n".join(p for p in parts if p)
 
 
-def _html_table(header: list[str], rows: list[list]) -> str:
+def _html_table(header: list[str], rows: list[list], numeric: bool = False) -> str:
+    """An HTML table; numeric: right-align every column but the first."""
     head = "".join(f"<th>{html.escape(str(h))}</th>" for h in header)
     body = "".join(
-        "<tr>" + "".join(f"<td{'' if i == 0 else ' class=num'}>{html.escape(str(c))}</td>" for i, c in enumerate(row)) + "</tr>"
+        "<tr>" + "".join(f"<td{' class=num' if numeric and i else ''}>{html.escape(str(c))}</td>" for i, c in enumerate(row)) + "</tr>"
         for row in rows
     )
     return f"<table><tr>{head}</tr>{body}</table>"
