@@ -51,6 +51,7 @@ class Scene:
     test_image: np.ndarray
     test_ground: np.ndarray
     triples: np.ndarray
+    config_hash: str = ""
 
     @classmethod
     def from_dataset(cls, path, params: StudyParams) -> "Scene":
@@ -62,7 +63,8 @@ class Scene:
             raise ValueError(f"{path}: need at least 3 calibration points, got {len(cal_image)}")
         test_image, test_ground = ds.test_points(params.foot_source, n=params.n_test, seed=params.seed)
         return cls(ds.name, ds.site_map, ds.trapezoid_image, ds.trapezoid_map, np.asarray(ds.camera_origin, float),
-                   cal_image, cal_ground, distance, test_image, test_ground, triples(len(cal_image)))
+                   cal_image, cal_ground, distance, test_image, test_ground, triples(len(cal_image)),
+                   str(ds.manifest.get("config_hash", "")))
 
 
 @dataclass

@@ -1,0 +1,198 @@
+"""Running a study into a results directory: variants, shards (one per trapezoid variant, each written
+atomically), resume, and the same shard function in-process or on a Dask distributed cluster.
+
+    DIR/study.json                                  parameters, datasets, counts, degenerate variants, complete
+    DIR/variants/<scene>.parquet                    every variant's offsets, n_perturbed, degenerate, reason
+    DIR/shards/<scene>/variant_<00000>.parquet      one row per calibration triple (scene.SHARD_SCHEMA)
+"""
+from __future__ import annotations
+
+import functools
+import json
+import os
+import platform
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import numba
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+from tqdm import tqdm
+
+from homocal.study.perturb import draw_variant
+from homocal.study.scene import Scene, StudyParams, compute_shard, prepare_variant
+from homocal.study.triples import n_samples
+
+PRESETS = {"paper": dict(n_variants=1000, n_test=2000), "quick": dict(n_variants=50, n_test=2000)}
+GROUP = 8  # variants per Dask task
+
+
+def shard_path(out: Path, scene: str, variant: int) -> Path:
+    return out / "shards" / scene / f"variant_{variant:05d}.parquet"
+
+
+def write_atomic(path: Path, write) -> None:
+    """Call write(temporary path), then rename it to path: a file that exists is whole."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f"{path.name}.tmp{os.getpid()}")
+    write(tmp)
+    os.replace(tmp, path)
+
+
+def write_table(path: Path, table: pa.Table) -> None:
+    write_atomic(path, lambda tmp: pq.write_table(table, tmp))
+
+
+def write_json(path: Path, data: dict) -> None:
+    write_atomic(path, lambda tmp: tmp.write_text(json.dumps(data, indent=2) + "\n"))
+
+
+def variants_table(scene: Scene, params: StudyParams) -> pa.Table:
+    """variants/<scene>.parquet: variant, img_0..7, map_0..7 (px offsets), n_perturbed, degenerate, reason."""
+    rows = [draw_variant(params.seed, scene.name, v) for v in range(params.n_variants + 1)]
+    offsets = np.array([r[0] for r in rows])
+    reasons = []
+    for off in offsets:
+        tables = prepare_variant(scene, off)
+        reasons.append(tables if isinstance(tables, str) else "")
+    cols = {"variant": pa.array(np.arange(len(rows), dtype=np.int32))}
+    cols |= {f"img_{c}": pa.array(offsets[:, c]) for c in range(8)}
+    cols |= {f"map_{c}": pa.array(offsets[:, 8 + c]) for c in range(8)}
+    cols |= {"n_perturbed": pa.array(np.array([r[1] for r in rows], dtype=np.int8)),
+             "degenerate": pa.array([bool(r) for r in reasons]), "reason": pa.array(reasons, pa.string())}
+    return pa.table(cols)
+
+
+@functools.lru_cache(maxsize=8)
+def _scene(path: str, params_json: str) -> Scene:
+    return Scene.from_dataset(path, StudyParams(**json.loads(params_json)))
+
+
+def run_group(path: str, params_json: str, variants: list[int]) -> list[tuple[int, pa.Table, str]]:
+    """The unit of work of both engine paths: compute_shard for each variant of one scene's dataset."""
+    scene = _scene(path, params_json)
+    params = StudyParams(**json.loads(params_json))
+    return [(v, *compute_shard(scene, params, v)) for v in variants]
+
+
+def study_parameters(preset: str | None, params: StudyParams, scenes: list[Scene], paths: list[str]) -> dict:
+    return {
+        "preset": preset, "seed": params.seed, "n_variants": params.n_variants, "foot_source": params.foot_source,
+        "n_test": params.n_test, "threshold": params.threshold, "descent": {**params.descent,
+                                                                            "grid_offsets": list(params.descent["grid_offsets"])},
+        "datasets": [{"scene": s.name, "path": str(Path(p).resolve()), "config_hash": s.config_hash,
+                      "n_calibration": len(s.cal_image), "n_test": len(s.test_image)} for s, p in zip(scenes, paths)],
+    }
+
+
+def load_scenes(paths: list[str], params: StudyParams) -> list[Scene]:
+    scenes = [_scene(str(Path(p).resolve()), json.dumps(asdict(params))) for p in paths]
+    names = [s.name for s in scenes]
+    if len(set(names)) != len(names):
+        raise ValueError(f"two datasets have the same scene name: {names}")
+    return scenes
+
+
+def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: str | None = None, resume: bool = False,
+              workers: int | None = None, scheduler: str | None = None, progress: bool = True) -> dict:
+    """Run (or resume) a study; returns the final study.json content. Bad input raises ValueError before
+    anything is written."""
+    start = time.perf_counter()
+    out = Path(out)
+    scenes = load_scenes(paths, params)
+    parameters = study_parameters(preset, params, scenes, paths)
+    study_file = out / "study.json"
+    previous = json.loads(study_file.read_text()) if study_file.is_file() else None
+    if previous is not None and not resume:
+        raise ValueError(f"{out} already holds a study; pass --resume to continue it or choose another --out")
+    if previous is not None and {k: previous.get(k) for k in parameters} != parameters:
+        raise ValueError(f"{out} holds a study with other parameters; --resume needs the same datasets and options")
+    if previous is None and not resume and out.exists() and any(out.iterdir()):
+        raise ValueError(f"{out} exists and is not empty")
+    for tmp in out.glob("**/*.tmp*"):
+        tmp.unlink()
+    variants = {}
+    for scene in scenes:
+        vfile = out / "variants" / f"{scene.name}.parquet"
+        if not vfile.is_file():
+            write_table(vfile, variants_table(scene, params))
+        variants[scene.name] = pq.read_table(vfile)
+    study = {**parameters, "samples_total": 0, "samples_done": 0, "complete": False,
+             "elapsed_seconds": (previous or {}).get("elapsed_seconds", 0.0), "versions": versions()}
+    study.update(_counts(out, scenes, variants))
+    write_json(study_file, study)
+    todo = [(s, v) for s in scenes for v in range(params.n_variants + 1) if not shard_path(out, s.name, v).is_file()]
+    bar = tqdm(total=len(todo), unit="shard", desc="study", disable=not progress)
+    for scene, variant, table, reason in _execute(todo, paths, scenes, params, workers, scheduler):
+        expected = variants[scene.name].column("reason")[variant].as_py()
+        if reason != expected:
+            raise RuntimeError(f"{scene.name} variant {variant}: degenerate reason {reason!r} != {expected!r}")
+        write_table(shard_path(out, scene.name, variant), table)
+        bar.update()
+    bar.close()
+    study.update(_counts(out, scenes, variants))
+    study["complete"] = study["shards_done"] == sum(params.n_variants + 1 for _ in scenes)
+    study["elapsed_seconds"] += time.perf_counter() - start
+    write_json(study_file, study)
+    return study
+
+
+def _execute(todo, paths, scenes, params, workers, scheduler):
+    """Yield (scene, variant, table, reason) for every (scene, variant) of todo, in-process or on Dask."""
+    params_json = json.dumps(asdict(params))
+    path_of = {s.name: str(Path(p).resolve()) for s, p in zip(scenes, paths)}
+    groups = []
+    for scene in scenes:
+        vs = [v for s, v in todo if s is scene]
+        groups += [(scene, vs[i:i + GROUP]) for i in range(0, len(vs), GROUP)]
+    if workers is None and scheduler is None:
+        for scene, vs in groups:
+            for v, table, reason in run_group(path_of[scene.name], params_json, vs):
+                yield scene, v, table, reason
+        return
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True) if scheduler is None else None
+    client = Client(cluster if cluster is not None else scheduler)
+    try:
+        futures = {client.submit(run_group, path_of[s.name], params_json, vs, pure=False): s for s, vs in groups}
+        for future in as_completed(futures):
+            for v, table, reason in future.result():
+                yield futures[future], v, table, reason
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _counts(out: Path, scenes: list[Scene], variants: dict) -> dict:
+    """samples_total, samples_done, samples_degenerate, shards_done and the degenerate variants list."""
+    total = done = degenerate_samples = shards = 0
+    degenerate = []
+    for scene in scenes:
+        per = len(scene.triples)
+        reasons = variants[scene.name].column("reason").to_pylist()
+        total += per * len(reasons)
+        for v, reason in enumerate(reasons):
+            if reason:
+                degenerate.append({"scene": scene.name, "variant": v, "reason": reason})
+                degenerate_samples += per
+            if shard_path(out, scene.name, v).is_file():
+                shards += 1
+                done += 0 if reason else per
+    return {"samples_total": total, "samples_done": done, "samples_degenerate": degenerate_samples,
+            "shards_done": shards, "degenerate": degenerate, "n_degenerate": len(degenerate)}
+
+
+def dry_run_counts(paths: list[str], params: StudyParams) -> dict[str, int]:
+    """Samples per scene: (n_variants + 1) x C(M, 3)."""
+    return {s.name: n_samples(len(s.cal_image), params.n_variants) for s in load_scenes(paths, params)}
+
+
+def versions() -> dict:
+    import homocal
+
+    return {"python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__,
+            "pyarrow": pa.__version__, "homocal": getattr(homocal, "__version__", "0.1.0")}
