@@ -110,7 +110,7 @@ class Corrector:
         self.camera_origin_ = o
         self.error_before_ = mean_error(p, g)
         self._fit(q, p, g)
-        self.error_after_ = mean_error(self.transform_points(q), g)
+        self.error_after_ = mean_error(self._transform(q), g)
         self.calibration_improvement_ = improvement_percent(self.error_before_, self.error_after_)
         return self
 
@@ -119,7 +119,7 @@ class Corrector:
 
         Points on or above the horizon give NaN.
         """
-        if not hasattr(self, "camera_origin_"):
+        if not hasattr(self, "calibration_improvement_"):
             raise RuntimeError(f"{type(self).__name__} is not fitted: call fit() or load() first")
         return self._transform(as_points(image_points, "image_points"))
 
@@ -147,7 +147,7 @@ class Corrector:
     # ---- JSON -----------------------------------------------------------------------------------
     def to_dict(self) -> dict:
         """Everything needed to apply the correction later, as a JSON-ready dict (see serialization.py)."""
-        if not hasattr(self, "camera_origin_"):
+        if not hasattr(self, "calibration_improvement_"):
             raise RuntimeError(f"{type(self).__name__} is not fitted: nothing to save")
         return {
             "format": FORMAT,

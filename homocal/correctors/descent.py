@@ -56,7 +56,7 @@ class DescentCorrector(Corrector):
 
     Args:
         delta_max: largest displacement of any coordinate from v0, pixels (every |grid offset| must be <= it).
-        grid_offsets: phase-1 offsets, pixels.
+        grid_offsets: phase-1 offsets, pixels; must include 0.
         initial_step, min_step: phase-2 step range, pixels.
         max_evals: phase-2 loss evaluation budget.
         seed: uint64 key of the coordinate order.
@@ -84,8 +84,11 @@ class DescentCorrector(Corrector):
         self.seed = int(seed)
         if not self.delta_max > 0:
             raise ValueError(f"delta_max must be > 0, got {delta_max}")
-        if not self.grid_offsets or any(not abs(x) <= self.delta_max for x in self.grid_offsets):
-            raise ValueError(f"grid_offsets must be non-empty, each within +/-delta_max={self.delta_max}: {grid_offsets}")
+        if 0.0 not in self.grid_offsets or any(not abs(x) <= self.delta_max for x in self.grid_offsets):
+            raise ValueError(
+                f"grid_offsets must include 0 (so the initial trapezoid is a candidate and the loss never ends above"
+                f" its start) and lie within +/-delta_max={self.delta_max}: got {grid_offsets}"
+            )
         if not 0 < self.min_step <= self.initial_step:
             raise ValueError(f"need 0 < min_step <= initial_step, got {min_step} and {initial_step}")
         if self.max_evals < 0 or self.max_evals != max_evals:

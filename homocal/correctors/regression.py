@@ -63,9 +63,9 @@ class RegressionCorrector(Corrector):
     param_names = ("signed",)
 
     def __init__(self, signed: bool = False) -> None:
-        if not isinstance(signed, bool):
+        if not isinstance(signed, (bool, np.bool_)):
             raise ValueError(f"signed must be True or False, got {signed!r}")
-        self.signed = signed
+        self.signed = bool(signed)
 
     def _fit(self, q: np.ndarray, p: np.ndarray, g: np.ndarray) -> None:
         o = self.camera_origin_

@@ -191,6 +191,7 @@ class TestDescentCorrector:
         "kwargs,match",
         [
             ({"grid_offsets": (-10.0, 0.0)}, "delta_max"),
+            ({"grid_offsets": (-1.0, 1.0)}, "include 0"),
             ({"delta_max": 0.0}, "delta_max"),
             ({"min_step": 2.0}, "min_step"),
             ({"max_evals": -1}, "max_evals"),
