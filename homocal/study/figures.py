@@ -20,6 +20,7 @@ from homocal.correctors import fit_quadratic_error
 from homocal.dataset import Dataset, load_dataset
 from homocal.geometry import ViewTransformer
 from homocal.study.metrics import METHODS, read_columns
+from homocal.study.perturb import N_COORDS, perturbed_quads
 
 DPI = 110
 
@@ -145,12 +146,12 @@ def error_vs_distance(ds: Dataset, variants_file: Path, source: str, out: Path, 
     ax = fig.subplots()
     e_test = ground_error(ds.trapezoid_image, ds.trapezoid_map, ds, test_img, test_ground)
     ax.scatter(_distance(ds, test_ground), e_test, s=3, color="0.7", label=f"test points ({len(e_test)}), hand-placed")
-    trapezoids = [("hand-placed", np.zeros(8), np.zeros(8))] + _perturbed_variants(variants_file, n_variants)
+    trapezoids = [("hand-placed", np.zeros(N_COORDS))] + _perturbed_variants(variants_file, n_variants)
     d_cal = _distance(ds, cal_ground)
     d_line = np.linspace(0, max(d_cal.max(), np.nanmax(_distance(ds, test_ground))), 200)
-    for (name, img, mp), color in zip(trapezoids, ["k", "tab:red", "tab:orange", "tab:purple", "tab:cyan"]):
+    for (name, offsets), color in zip(trapezoids, ["k", "tab:red", "tab:orange", "tab:purple", "tab:cyan"]):
         try:
-            e_cal = ground_error(ds.trapezoid_image + img.reshape(4, 2), ds.trapezoid_map + mp.reshape(4, 2), ds, cal_img, cal_ground)
+            e_cal = ground_error(*perturbed_quads(ds.trapezoid_image, ds.trapezoid_map, offsets), ds, cal_img, cal_ground)
         except ValueError:
             continue
         ok = np.isfinite(e_cal)
@@ -188,8 +189,8 @@ def test_distance_distribution(datasets: list[Dataset], source: str, out: Path, 
     return f"True distance from the camera of the test points ({', '.join(sizes)}); ticks on the axis: calibration distances."
 
 
-def _perturbed_variants(variants_file: Path, n: int) -> list[tuple[str, np.ndarray, np.ndarray]]:
-    """The first n non-degenerate variants with perturbed coordinates: (name, image offsets (8,), map offsets (8,)) px."""
+def _perturbed_variants(variants_file: Path, n: int) -> list[tuple[str, np.ndarray]]:
+    """The first n non-degenerate variants with perturbed coordinates: (name, offsets (16,) px, image then map)."""
     if not variants_file.is_file():
         return []
     t = pq.read_table(variants_file).to_pydict()
@@ -197,9 +198,9 @@ def _perturbed_variants(variants_file: Path, n: int) -> list[tuple[str, np.ndarr
     for row in range(len(t["variant"])):
         if len(out) == n:
             break
-        img, mp = (np.array([t[f"{side}_{k}"][row] for k in range(8)]) for side in ("img", "map"))
-        if not t["degenerate"][row] and (img.any() or mp.any()):
-            out.append((f"variant {t['variant'][row]}", img, mp))
+        offsets = np.array([t[f"{side}_{k}"][row] for side in ("img", "map") for k in range(8)])
+        if not t["degenerate"][row] and offsets.any():
+            out.append((f"variant {t['variant'][row]}", offsets))
     return out
 
 
