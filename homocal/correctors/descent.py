@@ -44,9 +44,13 @@ class DescentCorrector(Corrector):
       compiled kernels); for sign in (+1, -1): cand = v with cand[k] += sign step; skipped without
       evaluation if |cand[k] - v0[k]| > delta_max; the whole search stops when evals == max_evals before an
       evaluation; if L(cand) < L it is accepted (and the other sign not tried). After a pass: pass_index
-      += 1; if nothing improved, step /= 2, and the search stops once step < min_step.
+      += 1; if nothing improved, step /= 2, and the search stops once step < min_step. (A pass without
+      improvement has tried every allowed move from an unchanged v, so another pass at the same step
+      would find nothing either: halving after one such pass is the paper's "no improvement in
+      consecutive passes".)
     The identity is a phase-1 candidate and phase 2 only accepts decreases, so the calibration loss never
-    ends above its start: calibration_improvement_ >= 0 by construction.
+    ends above its start: calibration_improvement_ >= 0 by construction. It does not follow for other
+    points: calibration objects on one line (x = 0) leave the mapping off that line free (Section 6).
 
     Why these defaults (the paper gives none): the study perturbs 0-3 px per coordinate on top of a hand
     placement residual of about 1-2 px, so delta_max = 8 px covers the worst case with margin while keeping
