@@ -59,7 +59,7 @@ def load_study(results_dir: str | Path) -> dict:
     if not results_dir.is_dir():
         raise ValueError(f"{results_dir}: not a results directory")
     study = read_json(results_dir / "study.json")
-    if not isinstance(study.get("datasets"), list) or not all("scene" in d for d in study["datasets"]):
+    if not isinstance(study.get("datasets"), list) or not all(isinstance(d, dict) and "scene" in d for d in study["datasets"]):
         raise ValueError(f"{results_dir / 'study.json'}: needs a 'datasets' list of {{scene, path, config_hash}}")
     return study
 
@@ -77,7 +77,11 @@ def read_columns(files: Sequence[Path], columns: Sequence[str]) -> dict[str, np.
     """The named columns of the shards, concatenated in file order: {name: (N,) array as stored}."""
     if not files:
         return {c: np.empty(0, dtype=np.float32) for c in columns}
-    table = pds.dataset([str(f) for f in files], format="parquet").to_table(columns=list(columns))
+    dataset = pds.dataset([str(f) for f in files], format="parquet")
+    missing = [c for c in columns if c not in dataset.schema.names]
+    if missing:
+        raise ValueError(f"{files[0].parent}: the shards have no column(s) {', '.join(missing)}")
+    table = dataset.to_table(columns=list(columns))
     return {c: table.column(c).to_numpy() for c in columns}
 
 

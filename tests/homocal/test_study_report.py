@@ -190,6 +190,12 @@ class TestReportCommand:
         assert (out / "table.md").read_text().count("### ") == len(METHODS)
         assert (out / "table.csv").read_text().startswith("method,metric,alpha,beta,overall,paper")
 
+    def test_shards_without_a_column_are_bad_input(self, tmp_path, capsys):
+        write_results(tmp_path)
+        pq.write_table(pa.table({"variant": pa.array([0], pa.int32())}), tmp_path / "shards" / "beta" / "variant_00000.parquet")
+        assert main(["report", str(tmp_path)]) == 2
+        assert "the shards have no column(s) path_regression, cal_regression" in capsys.readouterr().err
+
     @pytest.mark.parametrize("make", [
         lambda d: d / "missing",
         lambda d: d,  # a folder without study.json
