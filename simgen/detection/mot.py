@@ -39,7 +39,7 @@ def read_mot(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarra
     Blank lines are skipped. Raises ValueError naming the file and 1-based line number of the first bad line.
     """
     frames, boxes, confs = [], [], []
-    with open(path, encoding="utf-8") as f:
+    with open(path, encoding="utf-8-sig") as f:  # tolerates a byte-order mark
         for number, line in enumerate(f, start=1):
             if not line.strip():
                 continue

@@ -316,7 +316,7 @@ class TestMot:
     def test_unmatched_boxes_get_no_agent(self, tmp_path):
         dataset = make_dataset(tmp_path / "run", gt_with_boxes(), 20.0)
         mot = tmp_path / "det.txt"
-        mot.write_text("1,-1,300,300,10,10,0.4,-1,-1,-1\n\n3,-1,14,22,12,30,0.9,-1,-1,-1\n")
+        mot.write_text("\ufeff1,-1,300,300,10,10,0.4,-1,-1,-1\n\n3,-1,14,22,12,30,0.9,-1,-1,-1\n")  # BOM, blank line
         table = import_mot(dataset, mot, "yolo")
         assert table.column("frame").to_pylist() == [0, 2]
         assert table.column("agent_id").to_pylist() == [-1, 0]
