@@ -6,6 +6,7 @@ The backend is ``MUJOCO_GL`` (egl by default, osmesa supported). When it cannot 
 from __future__ import annotations
 
 import os
+import warnings
 
 import numpy as np
 
@@ -38,15 +39,17 @@ try:
 except Exception as e:  # osmesa without libosmesa6 fails here with an AttributeError from ctypes
     raise BackendError(backend_message(e)) from e
 
-from simgen.model import CAMERA, RunModel  # noqa: E402
+from simgen.model import CAMERA  # noqa: E402
 
 
 class FrameRenderer:
     """The RGB and segmentation passes of the run camera; a context manager (closes the GL context)."""
 
-    def __init__(self, run_model: RunModel, width: int, height: int) -> None:
+    def __init__(self, model: mujoco.MjModel, width: int, height: int) -> None:
         try:
-            self._r = mujoco.Renderer(run_model.model, height, width)
+            with warnings.catch_warnings():  # glfw warns (several lines) before failing without a DISPLAY
+                warnings.simplefilter("ignore")
+                self._r = mujoco.Renderer(model, height, width)
         except Exception as e:  # EGL without Mesa's DRI driver, no DISPLAY for glfw, ...
             raise BackendError(backend_message(e)) from e
 

@@ -287,9 +287,10 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
     calib_xy = np.column_stack([np.zeros_like(calib), calib])
     bad = ~_visible(camera, calib_xy) | (calib <= 0) | (calib > y1)
     if bad.any():
+        near = camera.mount_height_m / math.tan(math.radians(camera.tilt_deg + camera.vfov_deg / 2))
         raise ConfigError(
             f"scene.toml: calibration.distances_m: {calib[bad][0]:g} m is outside the view of the camera "
-            f"(visible ground straight ahead starts at {camera.mount_height_m / math.tan(math.radians(camera.tilt_deg + camera.vfov_deg / 2)):.2f} m)"
+            f"(visible ground straight ahead: {near:.2f} m to the end of the ground plane at {y1:g} m)"
         )
     if not _visible(camera, scene.trapezoid_ground).all():
         raise ConfigError("scene.toml: trapezoid.ground_m: a vertex is outside the view of the camera")

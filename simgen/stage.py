@@ -34,7 +34,7 @@ class Stage:
         self.data = mujoco.MjData(self.model)
         mujoco.mj_forward(self.model, self.data)  # camera poses are set by mj_forward, not mj_kinematics
         self.crowd = Crowd(scene, seed, scene.seconds if t_end is None else t_end)
-        self.renderer = FrameRenderer(self.run_model, scene.camera.width, scene.camera.height)
+        self.renderer = FrameRenderer(self.model, scene.camera.width, scene.camera.height)
         self._geom_agent = np.full(self.model.ngeom, -1, np.int32)
 
     def _place(self, slot_xy: np.ndarray, slot_heading: np.ndarray, calib_y: float | None) -> None:

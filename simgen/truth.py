@@ -26,7 +26,8 @@ GT_SCHEMA = pa.schema([
 
 _ANGLES = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
 _SHIFT = 4  # cv2 fixed-point bits: polygons are filled at 1/16 px precision
-_SUPER = 4  # silhouettes are filled on a 4x finer grid and their area counted in image pixels
+_SUPER = 4  # small silhouettes are filled on a 4x finer grid (large ones on coarser) and counted in image pixels
+_MAX_SPAN = 8192  # px: a silhouette larger than this (an agent almost at the lens) has no area (NaN)
 
 
 def in_frame(camera: PinholeCamera, uv: np.ndarray) -> np.ndarray:
@@ -55,13 +56,12 @@ def _sphere_outline(camera: PinholeCamera, centres: np.ndarray, radius: float) -
     return uv
 
 
-def silhouette_pixels(camera: PinholeCamera, xy: np.ndarray, heading: np.ndarray) -> np.ndarray:
-    """Pixel count of each agent's unoccluded, unclipped silhouette.
+def silhouette_outlines(camera: PinholeCamera, xy: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    """Outline points of each agent's geoms: (A, G, 48, 2) pixels, NaN where not in front of the camera.
 
     Args:
         xy: (A, 2) contact points, metres; heading: (A,) radians.
-    Returns:
-        (A,) float64 pixels; NaN for an agent partly behind the camera.
+    Each geom's silhouette is the convex hull of its 48 points (24 per end sphere).
     """
     c, s = np.cos(heading), np.sin(heading)
     outlines = []  # per geom: (A, 48, 2)
@@ -71,18 +71,29 @@ def silhouette_pixels(camera: PinholeCamera, xy: np.ndarray, heading: np.ndarray
             world = np.column_stack([xy[:, 0] + c * p[0] - s * p[1], xy[:, 1] + s * p[0] + c * p[1], np.full(len(xy), p[2])])
             ends.append(_sphere_outline(camera, world, r))
         outlines.append(np.concatenate(ends, axis=1))
-    outlines = np.stack(outlines, axis=1)  # (A, G, 48, 2)
+    return np.stack(outlines, axis=1)
+
+
+def silhouette_pixels(camera: PinholeCamera, xy: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    """Area of each agent's unoccluded, unclipped silhouette: (A,) float64 pixels, NaN if partly behind the camera.
+
+    Args:
+        xy: (A, 2) contact points, metres; heading: (A,) radians.
+    """
     out = np.full(len(xy), np.nan)
-    for a, geoms in enumerate(outlines):
+    for a, geoms in enumerate(silhouette_outlines(camera, xy, heading)):
         if not np.isfinite(geoms).all():
             continue
         lo = np.floor(geoms.reshape(-1, 2).min(axis=0)) - 1
-        size = ((np.ceil(geoms.reshape(-1, 2).max(axis=0)) + 2 - lo) * _SUPER).astype(int)
-        canvas = np.zeros((size[1], size[0]), np.uint8)
-        for g in geoms:  # fine-grid pixel centres at (i + 0.5) / _SUPER - 0.5 in image pixels
-            fine = ((g - lo + 0.5) * _SUPER - 0.5) * (1 << _SHIFT)
+        span = np.ceil(geoms.reshape(-1, 2).max(axis=0)) + 2 - lo
+        if span.max() > _MAX_SPAN:
+            continue
+        sup = int(np.clip(1024 // span.max(), 1, _SUPER))
+        canvas = np.zeros((int(span[1]) * sup, int(span[0]) * sup), np.uint8)
+        for g in geoms:  # fine-grid pixel centres at (i + 0.5) / sup - 0.5 in image pixels
+            fine = ((g - lo + 0.5) * sup - 0.5) * (1 << _SHIFT)
             cv2.fillConvexPoly(canvas, cv2.convexHull(np.round(fine).astype(np.int32)), 1, lineType=cv2.LINE_8, shift=_SHIFT)
-        out[a] = np.count_nonzero(canvas) / _SUPER**2
+        out[a] = np.count_nonzero(canvas) / sup**2
     return out
 
 

@@ -1,0 +1,44 @@
+"""``simgen preview``: one frame of a scene, annotated with boxes, foot points, trapezoids and the horizon."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from simgen.detection import SegmentationDetector
+from simgen.scene import Scene
+from simgen.stage import Stage
+
+_SHIFT = 4  # cv2 fixed-point bits, so sub-pixel coordinates are drawn where they are
+
+
+def _px(points: np.ndarray) -> np.ndarray:
+    """(N, 2) float pixels (centres at integers) -> int32 fixed-point coordinates for cv2."""
+    return np.round(np.asarray(points, dtype=np.float64) * (1 << _SHIFT)).astype(np.int32)
+
+
+def annotate(scene: Scene, rgb: np.ndarray, agent_ids: np.ndarray) -> np.ndarray:
+    """(H, W, 3) RGB frame -> annotated BGR copy: segmentation boxes (green), foot points (red),
+    hand-placed trapezoid (yellow), exact trapezoid (cyan), horizon (magenta)."""
+    img = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
+    cam = scene.camera
+    a, b, c = cam.horizon
+    ends = np.array([[0.0, -(c + a * 0) / b], [cam.width - 1.0, -(c + a * (cam.width - 1)) / b]])
+    cv2.line(img, *map(tuple, _px(ends)), (255, 0, 255), 1, cv2.LINE_AA, _SHIFT)
+    cv2.polylines(img, [_px(scene.trapezoid_exact_image)], True, (255, 255, 0), 1, cv2.LINE_AA, _SHIFT)
+    cv2.polylines(img, [_px(scene.hand_placed_image)], True, (0, 255, 255), 1, cv2.LINE_AA, _SHIFT)
+    batch = SegmentationDetector().detect(0, 0.0, rgb, agent_ids)
+    for (x1, y1, x2, y2), (u, v) in zip(batch.xyxy, batch.foot):
+        cv2.rectangle(img, tuple(_px([x1, y1])), tuple(_px([x2, y2])), (0, 200, 0), 1, cv2.LINE_8, _SHIFT)
+        cv2.circle(img, tuple(_px([u, v])), 3 << _SHIFT, (0, 0, 255), -1, cv2.LINE_AA, _SHIFT)
+    return img
+
+
+def preview(scene: Scene, seed: int, t: float, path: str | Path) -> None:
+    """Render the scene at time t (seconds) with ``seed`` and write the annotated frame to ``path`` (PNG)."""
+    with Stage(scene, seed, t_end=t + 1.0) as stage:
+        stage.set_time(t)
+        img = annotate(scene, stage.rgb(), stage.agent_ids())
+    if not cv2.imwrite(str(path), img):
+        raise OSError(f"{path}: could not write the image")

@@ -1,0 +1,128 @@
+"""simgen generate end to end on a small copy of scene1: contents, 50 ms ground truth, determinism, resume."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from simgen.cli import main
+
+from conftest import copy_scene
+
+SECONDS, SEED = "2", "5"
+FILES = ["manifest.json", "camera.json", "trapezoids.json", "site_map.png", "site_map.json", "calibration.parquet",
+         "gt.parquet", "detections.parquet", "video.mp4", "mot/gt.txt"]  # fmt: skip
+
+
+def _generate_args(scene: Path, out: Path, *extra: str) -> list[str]:
+    return ["generate", str(scene), "--out", str(out), "--seconds", SECONDS, "--seed", SEED, "--no-progress", *extra]
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory) -> tuple[Path, Path]:
+    """(scene folder, dataset folder) of one uninterrupted run."""
+    tmp = tmp_path_factory.mktemp("run")
+    scene = copy_scene(tmp)
+    assert main(_generate_args(scene, tmp / "a")) == 0
+    return scene, tmp / "a"
+
+
+def test_dataset_has_exactly_the_documented_files(run):
+    _, out = run
+    assert sorted(_files(out)) == sorted(FILES)
+    m = json.loads((out / "manifest.json").read_text())
+    assert m["complete"] and m["frames_done"] == m["frames_total"] == 40 and m["gt_dt"] == 0.05 and m["fps"] == 20
+    assert m["detectors"] == ["segmentation", "rgb"] and set(m["versions"]) == {"python", "numpy", "mujoco", "opencv", "simgen"}
+    cam = json.loads((out / "camera.json").read_text())
+    H = np.array(cam["image_to_ground"]) @ np.array(cam["ground_to_image"])
+    np.testing.assert_allclose(H / H[2, 2], np.eye(3), atol=1e-9)
+    assert (cam["width"], cam["height"]) == (320, 180)
+
+
+def test_gt_every_50_ms(run):
+    _, out = run
+    gt = pq.read_table(out / "gt.parquet")
+    step, t = gt.column("step").to_numpy(), gt.column("t").to_numpy()
+    assert np.array_equal(t, step * 0.05)  # exactly k * 0.05, not accumulated
+    assert np.array_equal(np.unique(step), np.arange(40))
+    agent = gt.column("agent_id").to_numpy()
+    for a in np.unique(agent):  # each agent: consecutive steps, 50 ms apart, no gaps
+        assert np.all(np.diff(step[agent == a]) == 1)
+    assert gt.schema.field("agent_id").type == "int32" and gt.schema.field("in_frame").type == "bool"
+
+
+def test_gt_projection_and_boxes_agree(run):
+    _, out = run
+    gt = pq.read_table(out / "gt.parquet")
+    cam = json.loads((out / "camera.json").read_text())
+    x, y, u, v = (gt.column(c).to_numpy() for c in "xyuv")
+    uvw = np.column_stack([x, y, np.ones_like(x)]) @ np.array(cam["ground_to_image"]).T
+    front = y > 0.5
+    np.testing.assert_allclose(uvw[front, :2] / uvw[front, 2:], np.column_stack([u, v])[front], atol=1e-6)
+    x1, x2, y2, frac = (gt.column(c).to_numpy() for c in ("x1", "x2", "y2", "visible_fraction"))
+    clear = frac > 0.8  # barely occluded: the box bottom centre is the contact point's pixel
+    assert clear.sum() > 50
+    width = x2[clear] - x1[clear]
+    assert np.all(np.abs((x1[clear] + x2[clear]) / 2 - u[clear]) < 0.5 * width + 1)
+    assert np.all(np.abs(y2[clear] - v[clear]) < 2.5)
+    assert np.all(np.isnan(x1[frac == 0]))
+
+
+def test_calibration_and_detections(run):
+    _, out = run
+    cal = pq.read_table(out / "calibration.parquet")
+    assert cal.column("index").to_pylist() == list(range(40))
+    np.testing.assert_allclose(cal.column("distance_m").to_numpy(), np.arange(5.0, 45.0))
+    du = cal.column("u").to_numpy() - cal.column("u_exact").to_numpy()
+    dv = cal.column("v").to_numpy() - cal.column("v_exact").to_numpy()
+    assert np.all(np.abs(du) <= 1.0) and np.all(np.abs(dv) <= 1.5)
+    det = pq.read_table(out / "detections.parquet")
+    names = det.column("detector").to_numpy(zero_copy_only=False)
+    assert set(names) == {"segmentation", "rgb"} and list(dict.fromkeys(names)) == ["segmentation", "rgb"]
+    seg = names == "segmentation"
+    agent, t, gt_t = (det.column(c).to_numpy() for c in ("agent_id", "t", "gt_t"))
+    assert np.all(agent[seg] >= 0) and np.all(np.abs(gt_t[seg] - t[seg]) <= 0.025 + 1e-9)
+    assert (agent[~seg] >= 0).sum() > 0  # the rgb detector's blobs are associated with agents
+
+
+def test_same_seed_same_bytes(run, tmp_path):
+    scene, out = run
+    assert main(_generate_args(scene, tmp_path / "b")) == 0
+    assert _files(tmp_path / "b") == _files(out)
+
+
+@pytest.mark.parametrize("kill_when", ["manifest.json", "_parts/00001.gt.parquet", "_parts/00002.tmp.mp4"])
+def test_resume_after_kill_gives_the_same_bytes(run, tmp_path, kill_when):
+    scene, reference = run
+    out = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "simgen.cli", *_generate_args(scene, out)]
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 60
+    while not (out / kill_when).exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.005)
+    assert proc.poll() is None, "the run ended before it could be killed"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not json.loads((out / "manifest.json").read_text())["complete"]
+    assert main(_generate_args(scene, out, "--resume")) == 0
+    assert _files(out) == _files(reference)
+
+
+def test_existing_output_needs_resume_and_the_same_seed(run, capsys):
+    scene, out = run
+    assert main(_generate_args(scene, out)) == 2
+    assert "--resume" in capsys.readouterr().err
+    assert main(["generate", str(scene), "--out", str(out), "--seconds", SECONDS, "--seed", "6", "--resume"]) == 2
+    assert "seed" in capsys.readouterr().err
