@@ -31,7 +31,17 @@ JIT_SUM = dict(cache=True, error_model="numpy", fastmath={"reassoc", "nsz", "con
 METHODS = ("regression", "regression_signed", "descent", "hybrid")
 
 
-@nb.njit(**JIT)
+@nb.njit(inline="always", **JIT)
+def _max(a, b):
+    return a if a > b else b
+
+
+@nb.njit(inline="always", **JIT)
+def _min(a, b):
+    return a if a < b else b
+
+
+@nb.njit(inline="always", **JIT)
 def frame(x0, y0, x1, y1, x2, y2, x3, y3):
     """Projective frame of an image quad: (n0, n1, n2 as 9 scalars, c0, c1, c2, D, valid)."""
     a0, a1, a2 = y1 - y2, x2 - x1, x1 * y2 - x2 * y1  # n0 = p1 x p2
@@ -41,27 +51,25 @@ def frame(x0, y0, x1, y1, x2, y2, x3, y3):
     d1 = b0 * x3 + b1 * y3 + b2  # det[p2 p0 p3] = -det[p2 p3 p0]
     d2 = e0 * x3 + e1 * y3 + e2  # det[p0 p1 p3] = det[p3 p0 p1]
     det = a0 * x0 + a1 * y0 + a2  # det[p0 p1 p2]
-    sx = max(max(x0, x1), max(x2, x3)) - min(min(x0, x1), min(x2, x3))
-    sy = max(max(y0, y1), max(y2, y3)) - min(min(y0, y1), min(y2, y3))
-    tol = 1e-9 * max(sx, sy) ** 2
-    valid = (
-        min(min(abs(det), abs(d0)), min(abs(d1), abs(d2))) > tol
-        and (det > 0) == (d0 > 0)
-        and (det > 0) == (d1 < 0)
-        and (det > 0) == (d2 > 0)
-    )
+    sx = _max(_max(x0, x1), _max(x2, x3)) - _min(_min(x0, x1), _min(x2, x3))
+    sy = _max(_max(y0, y1), _max(y2, y3)) - _min(_min(y0, y1), _min(y2, y3))
+    scale = _max(sx, sy)
+    tol = 1e-9 * (scale * scale)
+    pos = det > 0
+    valid = ((_min(_min(abs(det), abs(d0)), _min(abs(d1), abs(d2))) > tol) & (pos == (d0 > 0)) & (pos == (d1 < 0))
+             & (pos == (d2 > 0)))
     return a0, a1, a2, b0, b1, b2, e0, e1, e2, d1 * d2, d0 * d2, d0 * d1, d0 * d1 * d2, valid
 
 
-@nb.njit(**JIT)
-def point_error(a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, F, u, v):
-    """||H(q) - g|| for image point q = (u, v) and the F (9,) of its ground point g; +inf beyond the horizon."""
+@nb.njit(inline="always", **JIT)
+def point_error(a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, f0, f1, f2, f3, f4, f5, f6, f7, f8, u, v):
+    """||H(q) - g|| for image point q = (u, v) and the F (9 scalars) of its ground point g; +inf beyond the horizon."""
     l0 = c0 * (a0 * u + a1 * v + a2)
     l1 = c1 * (b0 * u + b1 * v + b2)
     l2 = c2 * (e0 * u + e1 * v + e2)
-    X = F[0] * l0 + F[1] * l1 + F[2] * l2
-    Y = F[3] * l0 + F[4] * l1 + F[5] * l2
-    W = F[6] * l0 + F[7] * l1 + F[8] * l2
+    X = f0 * l0 + f1 * l1 + f2 * l2
+    Y = f3 * l0 + f4 * l1 + f5 * l2
+    W = f6 * l0 + f7 * l1 + f8 * l2
     e = math.sqrt(X * X + Y * Y) / abs(W)
     return e if W * D > 0.0 else math.inf
 
@@ -113,35 +121,31 @@ def grid_table(v0, grid, F, q):
         y2 = v0[5] + grid[g % G]
         a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, valid = frame(x0, y0, v0[2], v0[3], x2, y2, v0[6], v0[7])
         for i in range(M):
-            if valid:
-                table[i, g] = point_error(a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, F[i], q[i, 0], q[i, 1])
-            else:
-                table[i, g] = math.inf
+            e = point_error(a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, F[i, 0], F[i, 1], F[i, 2], F[i, 3],
+                            F[i, 4], F[i, 5], F[i, 6], F[i, 7], F[i, 8], q[i, 0], q[i, 1])
+            table[i, g] = e if valid else math.inf
     return table
 
 
 @nb.njit(**JIT)
-def eval_batch(v, kc, dl, n, F3, q3, out):
-    """Eq. (25) losses of n candidates: v (8,) with coordinate kc[m] moved by dl[m]; F3 (3, 9), q3 (3, 2)."""
+def eval_batch(X, n, F3, q3, out):
+    """Eq. (25) losses of n candidate quads X[:, m] (8, >= n); F3 (3, 9), q3 (3, 2) of the triple.
+    Straight-line per candidate (scalars, selects) so the loop vectorises over candidates."""
+    f00, f01, f02, f03, f04, f05, f06, f07, f08 = F3[0, 0], F3[0, 1], F3[0, 2], F3[0, 3], F3[0, 4], F3[0, 5], F3[0, 6], F3[0, 7], F3[0, 8]
+    f10, f11, f12, f13, f14, f15, f16, f17, f18 = F3[1, 0], F3[1, 1], F3[1, 2], F3[1, 3], F3[1, 4], F3[1, 5], F3[1, 6], F3[1, 7], F3[1, 8]
+    f20, f21, f22, f23, f24, f25, f26, f27, f28 = F3[2, 0], F3[2, 1], F3[2, 2], F3[2, 3], F3[2, 4], F3[2, 5], F3[2, 6], F3[2, 7], F3[2, 8]
+    u0, v0, u1, v1, u2, v2 = q3[0, 0], q3[0, 1], q3[1, 0], q3[1, 1], q3[2, 0], q3[2, 1]
     for m in range(n):
-        k, d = kc[m], dl[m]
-        x0 = v[0] + (d if k == 0 else 0.0)
-        y0 = v[1] + (d if k == 1 else 0.0)
-        x1 = v[2] + (d if k == 2 else 0.0)
-        y1 = v[3] + (d if k == 3 else 0.0)
-        x2 = v[4] + (d if k == 4 else 0.0)
-        y2 = v[5] + (d if k == 5 else 0.0)
-        x3 = v[6] + (d if k == 6 else 0.0)
-        y3 = v[7] + (d if k == 7 else 0.0)
-        a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, valid = frame(x0, y0, x1, y1, x2, y2, x3, y3)
-        s = 0.0
-        for t in range(3):
-            s += point_error(a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, F3[t], q3[t, 0], q3[t, 1])
+        a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, valid = frame(
+            X[0, m], X[1, m], X[2, m], X[3, m], X[4, m], X[5, m], X[6, m], X[7, m])
+        s = (point_error(a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, f00, f01, f02, f03, f04, f05, f06, f07, f08, u0, v0)
+             + point_error(a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, f10, f11, f12, f13, f14, f15, f16, f17, f18, u1, v1)
+             + point_error(a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, f20, f21, f22, f23, f24, f25, f26, f27, f28, u2, v2))
         out[m] = s / 3.0 if valid else math.inf
 
 
 @nb.njit(**JIT)
-def descend(v0, v, L, F3, q3, seed, step, min_step, delta_max, max_evals, order, kc, dl, lc):
+def descend(v0, v, L, F3, q3, seed, step, min_step, delta_max, max_evals, order, kc, dl, X, lc):
     """Phase 2 of DescentCorrector from v (8,) (modified in place) with loss L; returns (L, evals).
 
     Each pass shuffles the coordinates with shuffled_order(seed, pass); the candidates left in the pass
@@ -157,12 +161,14 @@ def descend(v0, v, L, F3, q3, seed, step, min_step, delta_max, max_evals, order,
         while t < 8:
             n = 0
             for tt in range(t, 8):
-                kc[n] = order[tt]
-                dl[n] = step
-                kc[n + 1] = order[tt]
-                dl[n + 1] = -step
-                n += 2
-            eval_batch(v, kc, dl, n, F3, q3, lc)
+                for sgn in range(2):
+                    kc[n] = order[tt]
+                    dl[n] = step if sgn == 0 else -step
+                    for c in range(8):
+                        X[c, n] = v[c]
+                    X[kc[n], n] += dl[n]
+                    n += 1
+            eval_batch(X, n, F3, q3, lc)
             accepted = -1
             for m in range(n):
                 k = kc[m]
@@ -286,6 +292,7 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
         kc = np.empty(16, np.int64)
         dl = np.empty(16)
         lc = np.empty(16)
+        X = np.empty((8, 16))
         F3 = np.empty((3, 9))
         q3 = np.empty((3, 2))
         v = np.empty(8)
@@ -322,7 +329,7 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
             q3[1] = q[j]
             q3[2] = q[k]
             seed = sample_seed_kernel(base, i, j, k)
-            L, evals = descend(v0, v, best, F3, q3, seed, initial_step, min_step, delta_max, max_evals, order, kc, dl, lc)
+            L, evals = descend(v0, v, best, F3, q3, seed, initial_step, min_step, delta_max, max_evals, order, kc, dl, X, lc)
             cal_d = _improvement(e_before, L)
             Hd = homography(v, Bt)
             for m in range(9):
