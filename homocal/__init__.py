@@ -1,2 +1,29 @@
-"""homocal: homography ground-plane mapping, its error model and corrections."""
+"""homocal: homography ground-plane mapping, its error model and corrections (Szulc & Iwanowski).
+
+The flat public API (supervision's style): geometry, the Section 3 error model, the Section 4
+correctors and the dataset loader. The study lives in homocal.study.
+"""
 from homocal.correctors import Corrector, DescentCorrector, HybridCorrector, RegressionCorrector, load_corrector
+from homocal.dataset import Dataset, load_dataset
+from homocal.error_model import ColumnModel, column_model, first_order_error, horizon_shift, quadratic_error
+from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer, homography_from_quads, validate_quad
+
+__all__ = [
+    "ColumnModel",
+    "Corrector",
+    "Dataset",
+    "DescentCorrector",
+    "HybridCorrector",
+    "PinholeCamera",
+    "RegressionCorrector",
+    "SiteMap",
+    "ViewTransformer",
+    "column_model",
+    "first_order_error",
+    "homography_from_quads",
+    "horizon_shift",
+    "load_corrector",
+    "load_dataset",
+    "quadratic_error",
+    "validate_quad",
+]
