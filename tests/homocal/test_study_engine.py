@@ -1,0 +1,127 @@
+"""homocal study end to end: the results directory contract, same seed -> same bytes, resume after a kill,
+a real Dask LocalCluster, degenerate variants counted, bad input as one line."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from homocal.cli import main
+from homocal.study.engine import run_study
+from homocal.study.scene import SHARD_SCHEMA, Scene, StudyParams, compute_shard
+from homocal.study.synthetic import write_dataset
+
+
+@pytest.fixture(scope="module")
+def datasets(tmp_path_factory):
+    root = tmp_path_factory.mktemp("datasets")
+    return [str(write_dataset(root / "a", "scene_a", n_calibration=12, n_test=300)),
+            str(write_dataset(root / "b", "scene_b", n_calibration=11, n_test=300, seed=1))]
+
+
+def files(out: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(out)): p.read_bytes() for p in sorted(out.rglob("*.parquet"))}
+
+
+def study_cli(datasets, out, *extra):
+    return [sys.executable, "-m", "homocal.cli", "study", *datasets, "--out", str(out), "--n-test", "200", *extra]
+
+
+@pytest.fixture(scope="module")
+def reference(datasets, tmp_path_factory):
+    out = tmp_path_factory.mktemp("ref") / "study"
+    assert main(["study", *datasets, "--out", str(out), "--variants", "40", "--n-test", "200"]) == 0
+    return out
+
+
+def test_results_directory_contract(reference):
+    study = json.loads((reference / "study.json").read_text())
+    assert study["complete"] and study["samples_total"] == study["samples_done"] == 41 * (220 + 165)
+    assert study["n_variants"] == 40 and study["n_test"] == 200 and study["degenerate"] == []
+    assert [d["scene"] for d in study["datasets"]] == ["scene_a", "scene_b"]
+    shard = pq.read_table(reference / "shards" / "scene_a" / "variant_00007.parquet")
+    assert shard.schema == SHARD_SCHEMA and shard.num_rows == 220
+    assert shard.column("variant").to_pylist() == [7] * 220
+    variants = pq.read_table(reference / "variants" / "scene_b.parquet")
+    assert variants.num_rows == 41 and variants.column("n_perturbed").type.bit_width == 8
+    assert {f"img_{c}" for c in range(8)} | {f"map_{c}" for c in range(8)} <= set(variants.column_names)
+    d_spread = shard.column("d_spread").to_numpy()
+    assert (d_spread > 0).all() and np.isfinite(shard.column("path_descent").to_numpy()).all()
+
+
+def test_same_seed_same_bytes_and_resume_after_kill(datasets, reference, tmp_path):
+    out = tmp_path / "killed"
+    proc = subprocess.Popen(study_cli(datasets, out, "--variants", "40"), stderr=subprocess.DEVNULL, stdout=subprocess.DEVNULL)
+    shards = out / "shards"
+    deadline = time.time() + 60
+    while time.time() < deadline and len(list(shards.rglob("variant_*.parquet"))) < 5:
+        time.sleep(0.005)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    done = len(list(shards.rglob("variant_*.parquet")))
+    assert 0 < done < 82, "the kill should land mid-run"
+    assert main(["study", *datasets, "--out", str(out), "--variants", "40", "--n-test", "200", "--resume"]) == 0
+    assert files(out) == files(reference)
+    assert json.loads((out / "study.json").read_text())["complete"]
+
+
+def test_dask_local_cluster_matches_in_process(datasets, reference, tmp_path):
+    out = tmp_path / "dask"
+    assert main(["study", *datasets, "--out", str(out), "--variants", "40", "--n-test", "200", "--workers", "2"]) == 0
+    assert files(out) == files(reference)
+
+
+def test_degenerate_variant_is_counted_not_dropped(datasets, tmp_path, monkeypatch):
+    # a scene whose hand-placed image trapezoid is nearly degenerate: 3 px moves make some variants invalid
+    scene = Scene.from_dataset(datasets[0], StudyParams(n_test=200))
+    quad = scene.image_quad.copy()
+    quad[1] = quad[0] + 0.5 * (quad[2] - quad[0]) + [0.0, -1.0]  # TR almost on the TL-BR diagonal
+    monkeypatch.setattr(Scene, "from_dataset", classmethod(lambda cls, p, prm: _with_quad(p, prm, quad)))
+    study = run_study(datasets[:1], tmp_path / "deg", StudyParams(n_variants=30, n_test=200), progress=False)
+    assert study["complete"] and study["n_degenerate"] > 0
+    assert study["samples_done"] + study["samples_degenerate"] == study["samples_total"]
+    for d in study["degenerate"]:
+        assert d["reason"] and pq.read_table(tmp_path / "deg" / "shards" / d["scene"] / f"variant_{d['variant']:05d}.parquet").num_rows == 0
+
+
+_original = Scene.from_dataset.__func__
+
+
+def _with_quad(path, params, quad):
+    scene = _original(Scene, path, params)
+    scene.image_quad = quad
+    return scene
+
+
+def test_dry_run_and_bad_input(datasets, tmp_path, capsys):
+    assert main(["study", *datasets, "--out", str(tmp_path / "x"), "--preset", "paper", "--dry-run"]) == 0
+    assert "total: 385,385 samples" in capsys.readouterr().out
+    assert not (tmp_path / "x").exists()
+    broken = tmp_path / "broken"
+    write_dataset(broken, "broken", n_calibration=12, n_test=50)
+    os.remove(broken / "calibration.parquet")
+    result = subprocess.run(study_cli([str(broken)], tmp_path / "y"), capture_output=True, text=True)
+    assert result.returncode == 2 and result.stderr.strip().count("\n") == 0
+    assert result.stderr.startswith("homocal: error:") and "calibration.parquet" in result.stderr
+    assert not (tmp_path / "y").exists()
+    few = write_dataset(tmp_path / "few", "few", n_calibration=2, n_test=50)
+    assert main(["study", str(few), "--out", str(tmp_path / "z")]) == 2
+    assert "at least 3 calibration points" in capsys.readouterr().err and not (tmp_path / "z").exists()
+
+
+def test_existing_study_needs_resume(datasets, reference, capsys):
+    assert main(["study", *datasets, "--out", str(reference), "--variants", "40", "--n-test", "200"]) == 2
+    assert "--resume" in capsys.readouterr().err
+
+
+def test_shard_function_is_deterministic(datasets):
+    scene = Scene.from_dataset(datasets[1], StudyParams(n_test=100))
+    a, _ = compute_shard(scene, StudyParams(n_test=100), 3)
+    b, _ = compute_shard(scene, StudyParams(n_test=100), 3)
+    assert a.equals(b)

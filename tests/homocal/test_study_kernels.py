@@ -1,0 +1,114 @@
+"""The study's compiled kernels against the public correctors (a second implementation of the same maths):
+corrected positions to 1e-9 m, the same descent trapezoid and evaluation count, the same hybrid choice."""
+import itertools
+
+import numpy as np
+import pytest
+
+from homocal.correctors import DescentCorrector, HybridCorrector, RegressionCorrector, radial_correction
+from homocal.geometry import ViewTransformer
+from homocal.keyed_rng import seed_from_key
+from homocal.study import kernels
+from homocal.study.perturb import draw_variant, perturbed_quads
+from homocal.study.scene import Scene, StudyParams, prepare_variant, run_tables
+from homocal.study.synthetic import write_dataset
+from homocal.study.triples import n_samples, triples
+
+PARAMS = StudyParams(n_test=300)
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    path = write_dataset(tmp_path_factory.mktemp("ds") / "scene", "kernel-scene", n_calibration=14, n_test=400)
+    return Scene.from_dataset(path, PARAMS)
+
+
+def fitted(scene, variant, triple):
+    """The public correctors fitted on one sample, as the study defines it."""
+    image, map_quad = perturbed_quads(scene.image_quad, scene.map_quad, draw_variant(PARAMS.seed, scene.name, variant)[0])
+    vt = ViewTransformer(image, scene.site_map.to_metres(map_quad))
+    sel = list(triple)
+    args = (vt, scene.cal_image[sel], scene.cal_ground[sel], scene.origin)
+    seed = seed_from_key(PARAMS.seed, scene.name, variant, *map(int, triple))
+    return (vt, RegressionCorrector().fit(*args), RegressionCorrector(signed=True).fit(*args),
+            DescentCorrector(seed=seed).fit(*args), HybridCorrector(seed=seed).fit(*args))
+
+
+def path_improvement(scene, before, after):
+    e0 = np.linalg.norm(before - scene.test_ground, axis=1).mean()
+    return 100 * (e0 - np.linalg.norm(after - scene.test_ground, axis=1).mean()) / e0
+
+
+@pytest.mark.parametrize("variant", [0, 3, 17, 256, 999])
+def test_kernel_agrees_with_correctors(scene, variant):
+    rng = np.random.default_rng(variant)
+    idx = scene.triples[rng.choice(len(scene.triples), 3, replace=False)]
+    tables = prepare_variant(scene, draw_variant(PARAMS.seed, scene.name, variant)[0])
+    out, ab, vfinal = run_tables(scene, tables, PARAMS, variant, idx)
+    q, g = scene.test_image, scene.test_ground
+    for s, triple in enumerate(idx):
+        vt, reg, sig, dsc, hyb = fitted(scene, variant, triple)
+        base = vt.transform_points(q)
+        # regression: the kernel's (a, b), clamping included, give the corrector's positions
+        np.testing.assert_allclose(radial_correction(base, scene.origin, ab[s, 0], ab[s, 1]), reg.transform_points(q), rtol=0, atol=1e-9)
+        np.testing.assert_allclose(radial_correction(base, scene.origin, ab[s, 2], ab[s, 3]), sig.transform_points(q), rtol=0, atol=1e-9)
+        assert (ab[s, 0], ab[s, 1]) == pytest.approx((reg.a_, reg.b_), rel=1e-9, abs=1e-15)
+        # descent: the same final trapezoid (every accepted move) and the same number of evaluations
+        np.testing.assert_array_equal(vfinal[s, :8], dsc.transformer_.source.ravel())
+        assert vfinal[s, 8] == dsc.evaluations_
+        kernel_positions = ViewTransformer(vfinal[s, :8].reshape(4, 2), vt.target).transform_points(q)
+        np.testing.assert_allclose(kernel_positions, dsc.transform_points(q), rtol=0, atol=1e-9)
+        # hybrid choice, calibration improvements, path improvements (float32 residual form)
+        assert bool(out[s, 9]) == (hyb.chosen_ == "regression")
+        for col, corrector in ((1, reg), (3, sig), (5, dsc), (7, hyb)):
+            assert out[s, col] == pytest.approx(corrector.calibration_improvement_, abs=1e-9)
+            ref = path_improvement(scene, base, corrector.transform_points(q))
+            assert out[s, col + 1] == pytest.approx(ref, abs=1e-3)
+        assert out[s, 0] == pytest.approx(reg.error_before_, rel=1e-12)
+
+
+def test_descent_budget_and_bounds(scene):
+    """A small budget stops at exactly max_evals; a small delta_max keeps every coordinate within it."""
+    variant, triple = 5, scene.triples[[10]]
+    tables = prepare_variant(scene, draw_variant(PARAMS.seed, scene.name, variant)[0])
+    for descent in (dict(max_evals=7), dict(delta_max=0.5, grid_offsets=(0.0,)), dict(grid_offsets=(-2.0, 0.0, 2.0))):
+        params = StudyParams(n_test=300, descent={**PARAMS.descent, **descent})
+        _, _, vfinal = run_tables(scene, tables, params, variant, triple)
+        vt, *_ = fitted(scene, variant, triple[0])
+        sel = list(triple[0])
+        seed = seed_from_key(PARAMS.seed, scene.name, variant, *map(int, triple[0]))
+        ref = DescentCorrector(seed=seed, **{**PARAMS.descent, **descent}).fit(vt, scene.cal_image[sel], scene.cal_ground[sel], scene.origin)
+        np.testing.assert_array_equal(vfinal[0, :8], ref.transformer_.source.ravel())
+        assert vfinal[0, 8] == ref.evaluations_
+
+
+def test_invalid_candidates_are_infinite():
+    """frame() rejects what validate_quad rejects: collinear, self-intersecting and non-convex quads."""
+    good = (0.0, 0.0, 10.0, 0.0, 10.0, 10.0, 0.0, 10.0)
+    bad = [(0.0, 0.0, 5.0, 0.0, 10.0, 0.0, 0.0, 10.0),  # three collinear
+           (0.0, 0.0, 10.0, 10.0, 10.0, 0.0, 0.0, 10.0),  # self-intersecting
+           (0.0, 0.0, 10.0, 0.0, 3.0, 3.0, 0.0, 10.0)]  # non-convex
+    assert kernels.frame(*good)[-1]
+    assert not any(kernels.frame(*b)[-1] for b in bad)
+
+
+def test_sample_seed_matches_seed_from_key():
+    base = np.uint64(seed_from_key(7, "scene", 12))
+    for i, j, k in [(0, 1, 2), (3, 17, 38)]:
+        assert int(kernels.sample_seed_kernel(base, i, j, k)) == seed_from_key(7, "scene", 12, i, j, k)
+
+
+def test_variants_are_seeded_and_in_range():
+    a, n = draw_variant(3, "s", 11)
+    b, _ = draw_variant(3, "s", 11)
+    np.testing.assert_array_equal(a, b)
+    assert 2 <= n <= 16 and np.count_nonzero(a) <= n and np.all(np.abs(a) <= 3) and np.all(a == np.round(a))
+    assert not draw_variant(3, "s", 0)[0].any()
+
+
+def test_paper_sample_count():
+    assert n_samples(40, 1000) + n_samples(39, 1000) == 19_038_019
+    t = triples(6)
+    assert [tuple(r) for r in t] == list(itertools.combinations(range(6), 3)) and t.dtype == np.int16
+    with pytest.raises(ValueError, match="at least 3"):
+        triples(2)
