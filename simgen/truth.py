@@ -114,10 +114,10 @@ def gt_columns(step: int, camera: PinholeCamera, state: AgentState, agent_ids: n
     hit = np.isin(ids, seen)
     where = np.searchsorted(seen, ids[hit])
     box[hit], pixels[hit] = xyxy[where], counts[where]
-    area = silhouette_pixels(camera, xy, state.heading[order])
+    fraction = np.zeros(len(ids))
+    area = silhouette_pixels(camera, xy[hit], state.heading[order][hit])  # only agents with visible pixels
     with np.errstate(invalid="ignore", divide="ignore"):
-        fraction = np.where(np.isfinite(area), np.clip(pixels / area, 0.0, 1.0), 1.0)
-    fraction[pixels == 0] = 0.0
+        fraction[hit] = np.where(np.isfinite(area), np.clip(pixels[hit] / area, 0.0, 1.0), 1.0)
     return {
         "t": np.full(len(ids), step * 0.05), "step": np.full(len(ids), step, np.int64), "agent_id": ids,
         "x": xy[:, 0], "y": xy[:, 1], "heading": state.heading[order], "speed": state.speed[order],
