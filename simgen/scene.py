@@ -194,12 +194,18 @@ def _check_run(s: Scene) -> None:
         raise ConfigError(f"scene.toml: detection.detectors: expected distinct names from {DETECTORS}, got {list(s.detectors)}")
 
 
-def _visible(cam: PinholeCamera, xy: np.ndarray) -> np.ndarray:
-    """(N,) bool: ground points project inside the image and below the horizon."""
-    uv = cam.project_ground(xy)
-    below = uv @ cam.horizon[:2] + cam.horizon[2] > 0
-    inside = (uv[:, 0] >= -0.5) & (uv[:, 0] < cam.width - 0.5) & (uv[:, 1] >= -0.5) & (uv[:, 1] < cam.height - 0.5)
-    return np.isfinite(uv).all(axis=1) & inside & below
+def in_frame(camera: PinholeCamera, uv: np.ndarray) -> np.ndarray:
+    """(N, 2) pixels -> (N,) bool: inside the image (pixel centres at integers) and below the horizon."""
+    a, b, c = camera.horizon
+    u, v = uv[:, 0], uv[:, 1]
+    with np.errstate(invalid="ignore"):  # NaN (not in front of the camera) -> False
+        inside = (u >= -0.5) & (u < camera.width - 0.5) & (v >= -0.5) & (v < camera.height - 0.5)
+        return inside & (a * u + b * v + c > 0)
+
+
+def _visible(camera: PinholeCamera, xy: np.ndarray) -> np.ndarray:
+    """(N, 2) ground points, metres -> (N,) bool: their pixels are ``in_frame``."""
+    return in_frame(camera, camera.project_ground(xy))
 
 
 def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:

@@ -14,6 +14,7 @@ import pyarrow as pa
 from homocal.geometry.camera import PinholeCamera
 from simgen.detection import id_boxes
 from simgen.model import PERSON
+from simgen.scene import in_frame
 from simgen.stage import AgentState
 
 GT_SCHEMA = pa.schema([
@@ -28,14 +29,6 @@ _ANGLES = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
 _SHIFT = 4  # cv2 fixed-point bits: polygons are filled at 1/16 px precision
 _SUPER = 4  # small silhouettes are filled on a 4x finer grid (large ones on coarser) and counted in image pixels
 _MAX_SPAN = 8192  # px: a silhouette larger than this (an agent almost at the lens) has no area (NaN)
-
-
-def in_frame(camera: PinholeCamera, uv: np.ndarray) -> np.ndarray:
-    """(N, 2) pixels -> (N,) bool: inside the image (pixel centres at integers) and below the horizon."""
-    a, b, c = camera.horizon
-    with np.errstate(invalid="ignore"):
-        inside = (uv[:, 0] >= -0.5) & (uv[:, 0] < camera.width - 0.5) & (uv[:, 1] >= -0.5) & (uv[:, 1] < camera.height - 0.5)
-        return inside & (a * uv[:, 0] + b * uv[:, 1] + c > 0)
 
 
 def _sphere_outline(camera: PinholeCamera, centres: np.ndarray, radius: float) -> np.ndarray:
