@@ -286,8 +286,6 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
         raise ConfigError("scene.toml: agents.routes: at least one route is needed when agents.count > 0")
     if not scene.map_scale > 0:
         raise ConfigError(f"scene.toml: site_map.scale_px_per_m: must be > 0, got {scene.map_scale}")
-    if not scene.ground.texture.is_file():
-        raise ConfigError(f"scene.toml: model: ground texture {scene.ground.texture} does not exist")
 
     x0, x1, y0, y1 = scene.ground.extent
     calib_xy = np.column_stack([np.zeros_like(calib), calib])

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -126,3 +127,15 @@ def test_existing_output_needs_resume_and_the_same_seed(run, capsys):
     assert "--resume" in capsys.readouterr().err
     assert main(["generate", str(scene), "--out", str(out), "--seconds", SECONDS, "--seed", "6", "--resume"]) == 2
     assert "seed" in capsys.readouterr().err
+
+
+def test_import_mot_adds_an_external_detector(run, tmp_path):
+    _, reference = run
+    out = tmp_path / "copy"
+    shutil.copytree(reference, out)
+    assert main(["import-mot", str(out), str(out / "mot" / "gt.txt"), "--name", "oracle"]) == 0
+    det = pq.read_table(out / "detections.parquet")
+    names = det.column("detector").to_numpy(zero_copy_only=False)
+    oracle = names == "oracle"
+    assert oracle.sum() == len((out / "mot" / "gt.txt").read_text().splitlines())
+    assert np.all(det.column("agent_id").to_numpy()[oracle] >= 0)

@@ -79,3 +79,15 @@ def test_missing_display_is_one_clear_line(tmp_path):
     lines = run.stderr.strip().splitlines()
     assert len(lines) == 1 and "MUJOCO_GL=glfw" in lines[0] and "apt-get install" in lines[0], run.stderr
     assert not out.exists()
+
+
+def test_preview_writes_an_annotated_frame(small_scene, tmp_path):
+    import cv2
+
+    from simgen.cli import main
+
+    assert main(["preview", str(small_scene), "-o", str(tmp_path / "frame.png"), "--t", "1.0"]) == 0
+    img = cv2.imread(str(tmp_path / "frame.png"))
+    assert img.shape == (180, 320, 3)
+    green = (img[:, :, 1] == 200) & (img[:, :, 0] == 0) & (img[:, :, 2] == 0)  # box outlines
+    assert green.sum() > 20
