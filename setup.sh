@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# The README's first command: install everything, then run the main job on a default:
+# generate both scenes (short runs), run the study at the quick preset, write the report (all in out/).
+set -euo pipefail
+cd "$(dirname "$0")"
+bash scripts/install.sh
+export MUJOCO_GL="${MUJOCO_GL:-egl}"
+SECONDS_PER_SCENE="${SECONDS_PER_SCENE:-10}"
+for scene in scene1 scene2; do
+  if [ -f "out/$scene/manifest.json" ] && grep -q '"complete": true' "out/$scene/manifest.json"; then
+    echo "out/$scene is complete; keeping it"
+  elif [ -d "out/$scene" ]; then
+    simgen generate "scenes/$scene" --out "out/$scene" --seconds "$SECONDS_PER_SCENE" --seed 0 --resume
+  else
+    simgen generate "scenes/$scene" --out "out/$scene" --seconds "$SECONDS_PER_SCENE" --seed 0
+  fi
+done
+resume=""; [ -f out/study/study.json ] && resume="--resume"
+homocal study out/scene1 out/scene2 --out out/study --preset quick $resume
+homocal report out/study
