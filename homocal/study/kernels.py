@@ -127,70 +127,131 @@ def grid_table(v0, grid, F, q):
     return table
 
 
+LANES = 16  # phase-2 samples run side by side, each evaluating one coordinate's +step and -step at once
+
+
 @nb.njit(**JIT)
-def eval_batch(X, n, F3, q3, out):
-    """Eq. (25) losses of n candidate quads X[:, m] (8, >= n); F3 (3, 9), q3 (3, 2) of the triple.
-    Straight-line per candidate (scalars, selects) so the loop vectorises over candidates."""
-    f00, f01, f02, f03, f04, f05, f06, f07, f08 = F3[0, 0], F3[0, 1], F3[0, 2], F3[0, 3], F3[0, 4], F3[0, 5], F3[0, 6], F3[0, 7], F3[0, 8]
-    f10, f11, f12, f13, f14, f15, f16, f17, f18 = F3[1, 0], F3[1, 1], F3[1, 2], F3[1, 3], F3[1, 4], F3[1, 5], F3[1, 6], F3[1, 7], F3[1, 8]
-    f20, f21, f22, f23, f24, f25, f26, f27, f28 = F3[2, 0], F3[2, 1], F3[2, 2], F3[2, 3], F3[2, 4], F3[2, 5], F3[2, 6], F3[2, 7], F3[2, 8]
-    u0, v0, u1, v1, u2, v2 = q3[0, 0], q3[0, 1], q3[1, 0], q3[1, 1], q3[2, 0], q3[2, 1]
-    for m in range(n):
+def eval_lanes(X, Fl, Ql, out):
+    """Eq. (25) loss of each slot's candidate quad X[:, m] (8, n) for its triple: Fl (27, n) the F of its
+    3 calibration points, Ql (6, n) their image points. Straight-line, vectorised over slots."""
+    for m in range(X.shape[1]):
         a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, valid = frame(
             X[0, m], X[1, m], X[2, m], X[3, m], X[4, m], X[5, m], X[6, m], X[7, m])
-        s = (point_error(a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, f00, f01, f02, f03, f04, f05, f06, f07, f08, u0, v0)
-             + point_error(a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, f10, f11, f12, f13, f14, f15, f16, f17, f18, u1, v1)
-             + point_error(a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, f20, f21, f22, f23, f24, f25, f26, f27, f28, u2, v2))
+        s = 0.0
+        for t in range(3):
+            s += point_error(a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, Fl[9 * t, m], Fl[9 * t + 1, m],
+                             Fl[9 * t + 2, m], Fl[9 * t + 3, m], Fl[9 * t + 4, m], Fl[9 * t + 5, m], Fl[9 * t + 6, m],
+                             Fl[9 * t + 7, m], Fl[9 * t + 8, m], Ql[2 * t, m], Ql[2 * t + 1, m])
         out[m] = s / 3.0 if valid else math.inf
 
 
 @nb.njit(**JIT)
-def descend(v0, v, L, F3, q3, seed, step, min_step, delta_max, max_evals, order, kc, dl, X, lc):
-    """Phase 2 of DescentCorrector from v (8,) (modified in place) with loss L; returns (L, evals).
+def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step, min_step, delta_max, max_evals):
+    """Phase 2 of DescentCorrector for samples lo..hi-1, LANES at a time: each lane holds one sample and
+    resolves one coordinate per round (its +step and -step candidates evaluated together in slots 2l, 2l+1);
+    a finished lane takes the next sample. vfinal[s, :8] holds the phase-1 trapezoid and Lfinal[s] its loss
+    on entry, the final ones on return, vfinal[s, 8] the evaluations.
 
-    Each pass shuffles the coordinates with shuffled_order(seed, pass); the candidates left in the pass
-    (relative to the current v) are evaluated together, then scanned in the corrector's order: skipped if
-    beyond delta_max of v0, stop when evals == max_evals, accept the first that lowers L.
+    Per lane, as DescentCorrector: each pass visits the coordinates in shuffled_order(seed, pass); a move
+    beyond delta_max of v0 is skipped unevaluated; +step is taken if it lowers L, else -step; the descent
+    stops when evals == max_evals before an evaluation, or when step < min_step after a pass without
+    improvement. (Written as one loop without helper calls: array arguments of inlined helpers cost
+    reference counting in the hot loop.)
     """
-    pass_index = 0
-    evals = 0
+    V = np.empty((8, LANES))
+    X = np.empty((8, 2 * LANES))
+    Fl, Ql = np.zeros((27, 2 * LANES)), np.zeros((6, 2 * LANES))
+    sample = np.full(LANES, -1, np.int64)
+    pas, evals, pos = np.zeros(LANES, np.int64), np.zeros(LANES, np.int64), np.zeros(LANES, np.int64)
+    improved, coord = np.zeros(LANES, np.int64), np.zeros(LANES, np.int64)
+    k = 0
+    plus_ok, minus_ok = np.zeros(LANES, np.bool_), np.zeros(LANES, np.bool_)
+    Ls, step, out = np.empty(LANES), np.empty(LANES), np.empty(2 * LANES)
+    order = np.empty((LANES, 8), np.int64)
+    tmp = np.empty(8, np.int64)
+    nxt, active = lo, 0
     while True:
-        shuffled_order(seed, pass_index, order)
-        improved = False
-        t = 0
-        while t < 8:
-            n = 0
-            for tt in range(t, 8):
-                for sgn in range(2):
-                    kc[n] = order[tt]
-                    dl[n] = step if sgn == 0 else -step
+        for l in range(LANES):
+            ready = sample[l] >= 0
+            if ready:  # resolve the coordinate evaluated in this lane's slots
+                k = coord[l]
+                taken = False
+                if plus_ok[l]:
+                    evals[l] += 1
+                    if out[2 * l] < Ls[l]:
+                        V[k, l] += step[l]
+                        Ls[l] = out[2 * l]
+                        taken = True
+                if not taken and minus_ok[l]:
+                    if evals[l] == max_evals:
+                        ready = False
+                    else:
+                        evals[l] += 1
+                        if out[2 * l + 1] < Ls[l]:
+                            V[k, l] += -step[l]
+                            Ls[l] = out[2 * l + 1]
+                            taken = True
+                improved[l] |= taken
+                pos[l] += 1
+            while True:
+                if ready:  # find the lane's next coordinate to evaluate
+                    while True:
+                        if pos[l] == 8:
+                            pas[l] += 1
+                            if improved[l] == 0:
+                                step[l] /= 2
+                                if step[l] < min_step:
+                                    ready = False
+                                    break
+                            improved[l] = 0
+                            pos[l] = 0
+                            shuffled_order(seeds[sample[l]], pas[l], tmp)
+                            for c in range(8):
+                                order[l, c] = tmp[c]
+                        k = order[l, pos[l]]
+                        plus_ok[l] = abs((V[k, l] + step[l]) - v0[k]) <= delta_max
+                        minus_ok[l] = abs((V[k, l] - step[l]) - v0[k]) <= delta_max
+                        if plus_ok[l] or minus_ok[l]:
+                            ready = evals[l] < max_evals
+                            break
+                        pos[l] += 1
+                if ready:
                     for c in range(8):
-                        X[c, n] = v[c]
-                    X[kc[n], n] += dl[n]
-                    n += 1
-            eval_batch(X, n, F3, q3, lc)
-            accepted = -1
-            for m in range(n):
-                k = kc[m]
-                if abs((v[k] + dl[m]) - v0[k]) > delta_max:
-                    continue
-                if evals == max_evals:
-                    return L, evals
-                evals += 1
-                if lc[m] < L:
-                    accepted = m
+                        X[c, 2 * l] = X[c, 2 * l + 1] = V[c, l]
+                    X[k, 2 * l] += step[l]
+                    X[k, 2 * l + 1] -= step[l]
+                    coord[l] = k
                     break
-            if accepted < 0:
-                break
-            v[kc[accepted]] += dl[accepted]
-            L = lc[accepted]
-            improved = True
-            t += accepted // 2 + 1
-        pass_index += 1
-        if not improved:
-            step /= 2
-            if step < min_step:
-                return L, evals
+                s = sample[l]
+                if s >= 0:  # the lane's descent ended
+                    for c in range(8):
+                        vfinal[s, c] = V[c, l]
+                    vfinal[s, 8] = evals[l]
+                    Lfinal[s] = Ls[l]
+                    sample[l] = -1
+                    active -= 1
+                if nxt == hi:
+                    break
+                s = nxt  # the lane takes the next sample
+                nxt += 1
+                active += 1
+                sample[l], pas[l], evals[l], pos[l], improved[l] = s, 0, 0, 0, 0
+                for c in range(8):
+                    V[c, l] = vfinal[s, c]
+                Ls[l], step[l] = Lfinal[s], initial_step
+                for t in range(3):
+                    i = I[s] if t == 0 else (J[s] if t == 1 else K[s])
+                    for c in range(9):
+                        Fl[9 * t + c, 2 * l] = Fl[9 * t + c, 2 * l + 1] = F[i, c]
+                    Ql[2 * t, 2 * l] = Ql[2 * t, 2 * l + 1] = q[i, 0]
+                    Ql[2 * t + 1, 2 * l] = Ql[2 * t + 1, 2 * l + 1] = q[i, 1]
+                shuffled_order(seeds[s], 0, tmp)
+                for c in range(8):
+                    order[l, c] = tmp[c]
+                ready = True
+        if active == 0:
+            return
+        eval_lanes(X, Fl, Ql, out)
 
 
 @nb.njit(**JIT)
@@ -284,66 +345,53 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
     vfinal (S, 9): descent's final trapezoid and its phase-2 evaluations.
     """
     table = grid_table(v0, grid, F, q)
-    G4 = table.shape[1]
+    G, G4 = grid.shape[0], table.shape[1]
     S = I.shape[0]
-    chunk = 64
+    Lfinal = np.empty(S)
+    seeds = np.empty(S, np.uint64)
+    chunk = 256
     for c in nb.prange((S + chunk - 1) // chunk):
-        order = np.empty(8, np.int64)
-        kc = np.empty(16, np.int64)
-        dl = np.empty(16)
-        lc = np.empty(16)
-        X = np.empty((8, 16))
-        F3 = np.empty((3, 9))
-        q3 = np.empty((3, 2))
-        v = np.empty(8)
+        lo, hi = c * chunk, min(S, (c + 1) * chunk)
         dH = np.empty(9, np.float32)
-        for s in range(c * chunk, min(S, (c + 1) * chunk)):
+        for s in range(lo, hi):
             i, j, k = I[s], J[s], K[s]
             # ---- regression, faithful and signed (eqs. (18)-(24))
             e_before = (cal[5, i] + cal[5, j] + cal[5, k]) / 3.0
             di, dj, dk = cal[0, i], cal[0, j], cal[0, k]
             af, bf, _ = fit_quadratic(di, dj, dk, cal[5, i], cal[5, j], cal[5, k], True)
             as_, bs, _ = fit_quadratic(di, dj, dk, cal[6, i], cal[6, j], cal[6, k], False)
-            cal_f = _improvement(e_before, (radial_error(cal, i, af, bf) + radial_error(cal, j, af, bf)
-                                            + radial_error(cal, k, af, bf)) / 3.0)
-            cal_s = _improvement(e_before, (radial_error(cal, i, as_, bs) + radial_error(cal, j, as_, bs)
-                                            + radial_error(cal, k, as_, bs)) / 3.0)
+            out[s, 0] = e_before
+            out[s, 1] = _improvement(e_before, (radial_error(cal, i, af, bf) + radial_error(cal, j, af, bf)
+                                                + radial_error(cal, k, af, bf)) / 3.0)
+            out[s, 3] = _improvement(e_before, (radial_error(cal, i, as_, bs) + radial_error(cal, j, as_, bs)
+                                                + radial_error(cal, k, as_, bs)) / 3.0)
             path_f, path_s = regression_paths(test, af, bf, as_, bs)
+            out[s, 2], out[s, 4] = _improvement(path_before, path_f), _improvement(path_before, path_s)
+            ab[s, 0], ab[s, 1], ab[s, 2], ab[s, 3] = af, bf, as_, bs
             # ---- descent phase 1: the grid cell of least mean loss, first on ties
             best, gbest = math.inf, 0
             for g in range(G4):
                 Lg = (table[i, g] + table[j, g] + table[k, g]) / 3.0
                 if Lg < best:
                     best, gbest = Lg, g
-            G = grid.shape[0]
-            v[:] = v0
-            v[0] += grid[gbest // G**3]
-            v[1] += grid[(gbest // G**2) % G]
-            v[4] += grid[(gbest // G) % G]
-            v[5] += grid[gbest % G]
-            # ---- descent phase 2
-            F3[0] = F[i]
-            F3[1] = F[j]
-            F3[2] = F[k]
-            q3[0] = q[i]
-            q3[1] = q[j]
-            q3[2] = q[k]
-            seed = sample_seed_kernel(base, i, j, k)
-            L, evals = descend(v0, v, best, F3, q3, seed, initial_step, min_step, delta_max, max_evals, order, kc, dl, X, lc)
-            cal_d = _improvement(e_before, L)
-            Hd = homography(v, Bt)
+            vfinal[s, :8] = v0
+            vfinal[s, 0] += grid[gbest // G**3]
+            vfinal[s, 1] += grid[(gbest // G**2) % G]
+            vfinal[s, 4] += grid[(gbest // G) % G]
+            vfinal[s, 5] += grid[gbest % G]
+            Lfinal[s] = best
+            seeds[s] = sample_seed_kernel(base, i, j, k)
+        # ---- descent phase 2, LANES samples side by side
+        descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step, min_step, delta_max, max_evals)
+        for s in range(lo, hi):
+            e_before = out[s, 0]
+            out[s, 5] = _improvement(e_before, Lfinal[s])
+            Hd = homography(vfinal[s, :8], Bt)
             for m in range(9):
                 dH[m] = np.float32(Hd.flat[m] - H0.flat[m])
-            path_d = descent_path(test, dH)
-            # ---- outputs
-            hyb = cal_f >= threshold
-            out[s, 0] = e_before
-            out[s, 1], out[s, 2] = cal_f, _improvement(path_before, path_f)
-            out[s, 3], out[s, 4] = cal_s, _improvement(path_before, path_s)
-            out[s, 5], out[s, 6] = cal_d, _improvement(path_before, path_d)
-            out[s, 7] = cal_f if hyb else cal_d
+            out[s, 6] = _improvement(path_before, descent_path(test, dH))
+            # ---- hybrid: regression if its calibration improvement reaches the threshold (Section 7)
+            hyb = out[s, 1] >= threshold
+            out[s, 7] = out[s, 1] if hyb else out[s, 5]
             out[s, 8] = out[s, 2] if hyb else out[s, 6]
             out[s, 9] = 1.0 if hyb else 0.0
-            ab[s, 0], ab[s, 1], ab[s, 2], ab[s, 3] = af, bf, as_, bs
-            vfinal[s, :8] = v
-            vfinal[s, 8] = evals
