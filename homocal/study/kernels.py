@@ -22,7 +22,7 @@ import math
 import numba as nb
 import numpy as np
 
-from homocal.keyed_rng import shuffled_order, splitmix64
+from homocal.keyed_rng import splitmix64
 
 JIT = dict(cache=True, error_model="numpy")
 # float sums over test points may be reordered (vectorised); everything else keeps IEEE order
@@ -127,6 +127,34 @@ def grid_table(v0, grid, F, q):
     return table
 
 
+@nb.njit(inline="always", **JIT)
+def shuffled_order8(seed, pass_index, out, r):
+    """keyed_rng.shuffled_order for n = 8 into row r of out (the same permutation, tested), unrolled so that
+    every modulo has a constant divisor: the general version's 64-bit divisions were a quarter of phase 2."""
+    for i in range(8):
+        out[r, i] = i
+    state = splitmix64(seed ^ (np.uint64(pass_index) * np.uint64(0xD1B54A32D192ED03)))
+    state = splitmix64(state)
+    _swap(out, r, 7, np.int64(state % np.uint64(8)))
+    state = splitmix64(state)
+    _swap(out, r, 6, np.int64(state % np.uint64(7)))
+    state = splitmix64(state)
+    _swap(out, r, 5, np.int64(state % np.uint64(6)))
+    state = splitmix64(state)
+    _swap(out, r, 4, np.int64(state % np.uint64(5)))
+    state = splitmix64(state)
+    _swap(out, r, 3, np.int64(state % np.uint64(4)))
+    state = splitmix64(state)
+    _swap(out, r, 2, np.int64(state % np.uint64(3)))
+    state = splitmix64(state)
+    _swap(out, r, 1, np.int64(state % np.uint64(2)))
+
+
+@nb.njit(inline="always", **JIT)
+def _swap(out, r, i, j):
+    out[r, i], out[r, j] = out[r, j], out[r, i]
+
+
 LANES = 16  # phase-2 samples run side by side, each evaluating one coordinate's +step and -step at once
 
 
@@ -168,7 +196,6 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
     plus_ok, minus_ok = np.zeros(LANES, np.bool_), np.zeros(LANES, np.bool_)
     Ls, step, out = np.empty(LANES), np.empty(LANES), np.empty(2 * LANES)
     order = np.empty((LANES, 8), np.int64)
-    tmp = np.empty(8, np.int64)
     nxt, active = lo, 0
     while True:
         for l in range(LANES):
@@ -205,9 +232,7 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
                                     break
                             improved[l] = 0
                             pos[l] = 0
-                            shuffled_order(seeds[sample[l]], pas[l], tmp)
-                            for c in range(8):
-                                order[l, c] = tmp[c]
+                            shuffled_order8(seeds[sample[l]], pas[l], order, l)
                         k = order[l, pos[l]]
                         plus_ok[l] = abs((V[k, l] + step[l]) - v0[k]) <= delta_max
                         minus_ok[l] = abs((V[k, l] - step[l]) - v0[k]) <= delta_max
@@ -245,9 +270,7 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
                         Fl[9 * t + c, 2 * l] = Fl[9 * t + c, 2 * l + 1] = F[i, c]
                     Ql[2 * t, 2 * l] = Ql[2 * t, 2 * l + 1] = q[i, 0]
                     Ql[2 * t + 1, 2 * l] = Ql[2 * t + 1, 2 * l + 1] = q[i, 1]
-                shuffled_order(seeds[s], 0, tmp)
-                for c in range(8):
-                    order[l, c] = tmp[c]
+                shuffled_order8(seeds[s], 0, order, l)
                 ready = True
         if active == 0:
             return

@@ -112,3 +112,14 @@ def test_paper_sample_count():
     assert [tuple(r) for r in t] == list(itertools.combinations(range(6), 3)) and t.dtype == np.int16
     with pytest.raises(ValueError, match="at least 3"):
         triples(2)
+
+
+def test_unrolled_shuffle_is_keyed_rng_shuffle():
+    from homocal.keyed_rng import shuffled_order
+
+    ref, out = np.empty(8, np.int64), np.zeros((2, 8), np.int64)
+    for seed in [0, 1, 2**63 + 5, seed_from_key(3, "x", 4, 5, 6, 7)]:
+        for pass_index in range(40):
+            shuffled_order(np.uint64(seed), pass_index, ref)
+            kernels.shuffled_order8(np.uint64(seed), pass_index, out, 1)
+            np.testing.assert_array_equal(out[1], ref)
