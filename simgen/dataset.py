@@ -13,13 +13,10 @@ import json
 import os
 import platform
 import shutil
-import subprocess
 from fractions import Fraction
 from pathlib import Path
 
 import cv2
-import imageio.v2 as imageio
-import imageio_ffmpeg
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -37,9 +34,9 @@ from simgen.render import backend, mujoco
 from simgen.scene import GT_DT, GT_RATE, Scene
 from simgen.stage import Stage
 from simgen.truth import GT_SCHEMA, gt_columns
+from simgen.video import SegmentWriter, concat
 
 PARTS = "_parts"
-VIDEO_PARAMS = ["-preset", "veryfast", "-crf", "20", "-fflags", "+bitexact", "-flags:v", "+bitexact", "-map_metadata", "-1"]
 
 CALIBRATION_SCHEMA = pa.schema([
     ("index", pa.int32()), ("distance_m", pa.float64()), ("x", pa.float64()), ("y", pa.float64()),
@@ -183,23 +180,18 @@ def _warm_up(stage: Stage, detectors: list, frame: int) -> None:
 def _run_chunk(stage: Stage, detectors: list, c: int, parts: Path, bar: tqdm) -> None:
     scene = stage.scene
     gt, batches = [], []
-    video = parts / f"{c:05d}.mp4"
-    writer = imageio.get_writer(_tmp(video), format="FFMPEG", fps=scene.fps, codec="libx264", quality=None,
-                                pixelformat="yuv420p", macro_block_size=1, output_params=VIDEO_PARAMS,
-                                ffmpeg_log_level="error")
-    try:
+    video, cam = parts / f"{c:05d}.mp4", scene.camera
+    with SegmentWriter(_tmp(video), cam.width, cam.height, scene.fps) as writer:
         for t, frame, step in _timeline(scene, c):
             state = stage.set_time(t)
             ids = stage.agent_ids()
             if step is not None:
-                gt.append(gt_columns(step, scene.camera, state, ids))
+                gt.append(gt_columns(step, cam, state, ids))
             if frame is not None:
                 rgb = stage.rgb()
-                writer.append_data(rgb)
+                writer.append(rgb)
                 batches += [d.detect(frame, frame / scene.fps, rgb, ids) for d in detectors]
                 bar.update(1)
-    finally:
-        writer.close()
     os.replace(_tmp(video), video)
     columns = {name: np.concatenate([g[name] for g in gt]) for name in GT_SCHEMA.names}
     write_parquet(parts / f"{c:05d}.gt.parquet", pa.Table.from_pydict(columns, schema=GT_SCHEMA))
@@ -217,11 +209,7 @@ def _finalize(scene: Scene, out: Path) -> None:
     write_parquet(out / "gt.parquet", gt)
     write_parquet(out / "detections.parquet", match_to_gt(det, gt))
     write_mot_gt(gt, scene.fps, out / "mot" / "gt.txt")
-    listing = parts / "videos.txt"
-    listing.write_text("".join(f"file '{c:05d}.mp4'\n" for c in range(n)))
-    _write(out / "video.mp4", lambda p: subprocess.run(
-        [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-loglevel", "error", "-f", "concat", "-safe", "0", "-i", str(listing),
-         "-c", "copy", "-fflags", "+bitexact", "-map_metadata", "-1", str(p)], check=True))
+    _write(out / "video.mp4", lambda p: concat([parts / f"{c:05d}.mp4" for c in range(n)], p))
 
 
 # ---- the run -------------------------------------------------------------------------------
