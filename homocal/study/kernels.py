@@ -159,12 +159,16 @@ LANES = 16  # phase-2 samples run side by side, each evaluating one coordinate's
 
 
 @nb.njit(**JIT)
-def eval_lanes(X, Fl, Ql, out):
-    """Eq. (25) loss of each slot's candidate quad X[:, m] (8, n) for its triple: Fl (27, n) the F of its
-    3 calibration points, Ql (6, n) their image points. Straight-line, vectorised over slots."""
+def eval_lanes(X, kc, dl, Fl, Ql, out):
+    """Eq. (25) loss of each slot's candidate: quad X[:, m] (8, n) with coordinate kc[m] moved by dl[m], for its
+    triple: Fl (27, n) the F of its 3 calibration points, Ql (6, n) their image points. Straight-line,
+    vectorised over slots."""
     for m in range(X.shape[1]):
+        k, d = kc[m], dl[m]
         a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, valid = frame(
-            X[0, m], X[1, m], X[2, m], X[3, m], X[4, m], X[5, m], X[6, m], X[7, m])
+            X[0, m] + (d if k == 0 else 0.0), X[1, m] + (d if k == 1 else 0.0), X[2, m] + (d if k == 2 else 0.0),
+            X[3, m] + (d if k == 3 else 0.0), X[4, m] + (d if k == 4 else 0.0), X[5, m] + (d if k == 5 else 0.0),
+            X[6, m] + (d if k == 6 else 0.0), X[7, m] + (d if k == 7 else 0.0))
         s = 0.0
         for t in range(3):
             s += point_error(a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, Fl[9 * t, m], Fl[9 * t + 1, m],
@@ -187,7 +191,8 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
     reference counting in the hot loop.)
     """
     V = np.empty((8, LANES))
-    X = np.empty((8, 2 * LANES))
+    X = np.zeros((8, 2 * LANES))  # the slots' lane quads (v, twice)
+    kc, dl = np.zeros(2 * LANES, np.int64), np.zeros(2 * LANES)
     Fl, Ql = np.zeros((27, 2 * LANES)), np.zeros((6, 2 * LANES))
     sample = np.full(LANES, -1, np.int64)
     pas, evals, pos = np.zeros(LANES, np.int64), np.zeros(LANES, np.int64), np.zeros(LANES, np.int64)
@@ -207,6 +212,7 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
                     evals[l] += 1
                     if out[2 * l] < Ls[l]:
                         V[k, l] += step[l]
+                        X[k, 2 * l] = X[k, 2 * l + 1] = V[k, l]
                         Ls[l] = out[2 * l]
                         taken = True
                 if not taken and minus_ok[l]:
@@ -216,6 +222,7 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
                         evals[l] += 1
                         if out[2 * l + 1] < Ls[l]:
                             V[k, l] += -step[l]
+                            X[k, 2 * l] = X[k, 2 * l + 1] = V[k, l]
                             Ls[l] = out[2 * l + 1]
                             taken = True
                 improved[l] |= taken
@@ -241,11 +248,8 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
                             break
                         pos[l] += 1
                 if ready:
-                    for c in range(8):
-                        X[c, 2 * l] = X[c, 2 * l + 1] = V[c, l]
-                    X[k, 2 * l] += step[l]
-                    X[k, 2 * l + 1] -= step[l]
-                    coord[l] = k
+                    kc[2 * l] = kc[2 * l + 1] = coord[l] = k
+                    dl[2 * l], dl[2 * l + 1] = step[l], -step[l]
                     break
                 s = sample[l]
                 if s >= 0:  # the lane's descent ended
@@ -262,7 +266,7 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
                 active += 1
                 sample[l], pas[l], evals[l], pos[l], improved[l] = s, 0, 0, 0, 0
                 for c in range(8):
-                    V[c, l] = vfinal[s, c]
+                    V[c, l] = X[c, 2 * l] = X[c, 2 * l + 1] = vfinal[s, c]
                 Ls[l], step[l] = Lfinal[s], initial_step
                 for t in range(3):
                     i = I[s] if t == 0 else (J[s] if t == 1 else K[s])
@@ -274,7 +278,7 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
                 ready = True
         if active == 0:
             return
-        eval_lanes(X, Fl, Ql, out)
+        eval_lanes(X, kc, dl, Fl, Ql, out)
 
 
 @nb.njit(**JIT)
