@@ -12,6 +12,7 @@ import json
 import os
 import platform
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict
 from pathlib import Path
 
@@ -42,7 +43,8 @@ def write_atomic(path: Path, write) -> None:
 
 
 def write_table(path: Path, table: pa.Table) -> None:
-    write_atomic(path, lambda tmp: pq.write_table(table, tmp))
+    """Parquet without dictionary encoding (3x faster to write here, and smaller: the floats rarely repeat)."""
+    write_atomic(path, lambda tmp: pq.write_table(table, tmp, use_dictionary=False))
 
 
 def write_json(path: Path, data: dict) -> None:
@@ -125,12 +127,16 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
     write_json(study_file, study)
     todo = [(s, v) for s in scenes for v in range(params.n_variants + 1) if not shard_path(out, s.name, v).is_file()]
     bar = tqdm(total=len(todo), unit="shard", desc="study", disable=not progress)
-    for scene, variant, table, reason in _execute(todo, paths, scenes, params, workers, scheduler):
-        expected = variants[scene.name].column("reason")[variant].as_py()
-        if reason != expected:
-            raise RuntimeError(f"{scene.name} variant {variant}: degenerate reason {reason!r} != {expected!r}")
-        write_table(shard_path(out, scene.name, variant), table)
-        bar.update()
+    with ThreadPoolExecutor(max_workers=1) as writer:  # writes overlap the next shard's computation
+        writes = []
+        for scene, variant, table, reason in _execute(todo, paths, scenes, params, workers, scheduler):
+            expected = variants[scene.name].column("reason")[variant].as_py()
+            if reason != expected:
+                raise RuntimeError(f"{scene.name} variant {variant}: degenerate reason {reason!r} != {expected!r}")
+            writes.append(writer.submit(write_table, shard_path(out, scene.name, variant), table))
+            writes[-1].add_done_callback(lambda _: bar.update())
+        for w in writes:
+            w.result()
     bar.close()
     study.update(_counts(out, scenes, variants))
     study["complete"] = study["shards_done"] == sum(params.n_variants + 1 for _ in scenes)

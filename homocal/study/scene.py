@@ -2,6 +2,7 @@
 shard (every calibration triple of one trapezoid variant) that both engine paths compute."""
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -52,6 +53,11 @@ class Scene:
     test_ground: np.ndarray
     triples: np.ndarray
     config_hash: str = ""
+
+    @functools.cached_property
+    def distance_features(self) -> tuple[np.ndarray, np.ndarray]:
+        """(d_sum, d_spread) (S,) float32 of every triple (triples.distance_features)."""
+        return distance_features(self.distance, self.triples)
 
     @classmethod
     def from_dataset(cls, path, params: StudyParams) -> "Scene":
@@ -134,7 +140,7 @@ def compute_shard(scene: Scene, params: StudyParams, variant: int) -> tuple[pa.T
     if isinstance(tables, str):
         return SHARD_SCHEMA.empty_table(), tables
     out, _, _ = run_tables(scene, tables, params, variant, scene.triples)
-    d_sum, d_spread = distance_features(scene.distance, scene.triples)
+    d_sum, d_spread = scene.distance_features
     S = len(scene.triples)
     f32 = lambda x: pa.array(np.asarray(x, dtype=np.float32))  # noqa: E731
     columns = [pa.array(np.full(S, variant, np.int32)), *(pa.array(scene.triples[:, c]) for c in range(3)),
