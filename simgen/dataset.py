@@ -93,10 +93,19 @@ def trapezoids_json(scene: Scene) -> dict:
 
 
 def site_map(scene: Scene) -> np.ndarray:
-    """(H, W, 3) uint8 BGR top-down image of the ground texture at ``scene.map_scale`` px per metre."""
+    """(H, W, 3) uint8 BGR top-down map at ``scene.map_scale`` px per metre: the ground texture, with the
+    footprints of the scene's static boxes (buildings) in grey."""
     x0, x1, y0, y1 = scene.ground.extent
     size = (round((x1 - x0) * scene.map_scale), round((y1 - y0) * scene.map_scale))
-    return cv2.resize(cv2.imread(str(scene.ground.texture), cv2.IMREAD_COLOR), size, interpolation=cv2.INTER_AREA)
+    image = cv2.resize(cv2.imread(str(scene.ground.texture), cv2.IMREAD_COLOR), size, interpolation=cv2.INTER_AREA)
+    model = mujoco.MjModel.from_xml_path(str(scene.model_path))
+    for g in np.flatnonzero((model.geom_type == mujoco.mjtGeom.mjGEOM_BOX) & (model.geom_bodyid == 0)):
+        corners = np.array([[sx, sy, 0.0] for sx, sy in ((1, 1), (1, -1), (-1, -1), (-1, 1))]) * model.geom_size[g]
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, model.geom_quat[g])
+        xy = (corners @ rot.reshape(3, 3).T + model.geom_pos[g])[:, :2]
+        cv2.fillPoly(image, [np.round(scene.to_map(xy) * 16).astype(np.int32)], (150, 150, 150), cv2.LINE_AA, 4)
+    return image
 
 
 def manifest(scene: Scene, seed: int, frames_done: int, complete: bool) -> dict:
