@@ -75,14 +75,28 @@ def point_error(a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, f0, f1, f2, f
 
 
 @nb.njit(**JIT)
-def homography(v, Bt):
-    """(3, 3) image-to-target homography of image quad v (8,) and target basis Bt (3, 3), unit Frobenius
-    norm, w > 0 on the quad (as homocal.geometry.homography_from_quads)."""
+def homography_into(v, Bt, H):
+    """Write into H (3, 3) the image-to-target homography of image quad v (8,) and target basis Bt (3, 3):
+    B_t diag(c) N, scaled to unit Frobenius norm with w > 0 on the quad (as homography_from_quads)."""
     a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, valid = frame(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7])
-    N = np.array([[a0, a1, a2], [b0, b1, b2], [e0, e1, e2]])
-    c = np.array([c0, c1, c2])
-    H = Bt @ (c[:, None] * N)
-    H *= math.copysign(1.0, D) / math.sqrt(np.sum(H * H))
+    ss = 0.0
+    for r in range(3):
+        x, y, z = Bt[r, 0] * c0, Bt[r, 1] * c1, Bt[r, 2] * c2
+        H[r, 0] = x * a0 + y * b0 + z * e0
+        H[r, 1] = x * a1 + y * b1 + z * e1
+        H[r, 2] = x * a2 + y * b2 + z * e2
+        ss += H[r, 0] * H[r, 0] + H[r, 1] * H[r, 1] + H[r, 2] * H[r, 2]
+    scale = math.copysign(1.0, D) / math.sqrt(ss)
+    for r in range(3):
+        for m in range(3):
+            H[r, m] *= scale
+
+
+@nb.njit(**JIT)
+def homography(v, Bt):
+    """(3, 3) homography_into a new array."""
+    H = np.empty((3, 3))
+    homography_into(v, Bt, H)
     return H
 
 
@@ -156,6 +170,29 @@ def _swap(out, r, i, j):
 
 
 LANES = 16  # phase-2 samples run side by side, each evaluating one coordinate's +step and -step at once
+
+
+@nb.njit(**JIT)
+def grid_best(table, i, j, k, sums):
+    """Phase 1 for triple (i, j, k): (least mean loss, first cell reaching it) over the grid table (M, G^4);
+    sums (G^4,) scratch. Sums and minimum vectorise; the scan for the first minimum exits early."""
+    n = table.shape[1]
+    for g in range(n):
+        sums[g] = (table[i, g] + table[j, g] + table[k, g]) / 3.0
+    best = _min_value(sums)
+    g = 0
+    while sums[g] != best:  # the first cell at the minimum (np.argmin; all +inf gives cell 0, as np.argmin)
+        g += 1
+    return best, g
+
+
+@nb.njit(cache=True, error_model="numpy", fastmath={"nnan", "nsz", "reassoc"})
+def _min_value(x):
+    """Smallest element of x (no NaN: losses are finite or +inf)."""
+    m = math.inf
+    for g in range(x.shape[0]):
+        m = _min(m, x[g])
+    return m
 
 
 @nb.njit(**JIT)
@@ -380,6 +417,8 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
     for c in nb.prange((S + chunk - 1) // chunk):
         lo, hi = c * chunk, min(S, (c + 1) * chunk)
         dH = np.empty(9, np.float32)
+        Hd = np.empty((3, 3))
+        sums = np.empty(G4)
         for s in range(lo, hi):
             i, j, k = I[s], J[s], K[s]
             # ---- regression, faithful and signed (eqs. (18)-(24))
@@ -396,11 +435,7 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
             out[s, 2], out[s, 4] = _improvement(path_before, path_f), _improvement(path_before, path_s)
             ab[s, 0], ab[s, 1], ab[s, 2], ab[s, 3] = af, bf, as_, bs
             # ---- descent phase 1: the grid cell of least mean loss, first on ties
-            best, gbest = math.inf, 0
-            for g in range(G4):
-                Lg = (table[i, g] + table[j, g] + table[k, g]) / 3.0
-                if Lg < best:
-                    best, gbest = Lg, g
+            best, gbest = grid_best(table, i, j, k, sums)
             vfinal[s, :8] = v0
             vfinal[s, 0] += grid[gbest // G**3]
             vfinal[s, 1] += grid[(gbest // G**2) % G]
@@ -413,9 +448,9 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
         for s in range(lo, hi):
             e_before = out[s, 0]
             out[s, 5] = _improvement(e_before, Lfinal[s])
-            Hd = homography(vfinal[s, :8], Bt)
+            homography_into(vfinal[s, :8], Bt, Hd)
             for m in range(9):
-                dH[m] = np.float32(Hd.flat[m] - H0.flat[m])
+                dH[m] = np.float32(Hd[m // 3, m % 3] - H0[m // 3, m % 3])
             out[s, 6] = _improvement(path_before, descent_path(test, dH))
             # ---- hybrid: regression if its calibration improvement reaches the threshold (Section 7)
             hyb = out[s, 1] >= threshold
