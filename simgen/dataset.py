@@ -51,7 +51,7 @@ class DatasetError(RuntimeError):
 
 # ---- atomic writes -----------------------------------------------------------------------
 def _tmp(path: Path) -> Path:
-    """Temporary name beside ``path`` keeping its extension (imageio picks the format by it)."""
+    """Temporary name beside ``path`` keeping its extension (ffmpeg picks the container by it)."""
     return path.with_name(f"{path.stem}.tmp{path.suffix}")
 
 
