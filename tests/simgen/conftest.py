@@ -1,46 +1,14 @@
-"""Helpers for the simgen tests: scene folders copied to tmp and edited like a user would."""
+"""Fixtures of the simgen tests."""
 from __future__ import annotations
 
-import re
-import shutil
 from pathlib import Path
 
 import pytest
 
-SCENES = Path(__file__).resolve().parents[2] / "scenes"
-
-
-def edit_toml(path: Path, section: str, key: str, value: str | None) -> None:
-    """Set ``key = value`` (TOML text) in ``[section]`` of the file, or delete the line if value is None."""
-    lines, current, done = path.read_text().splitlines(keepends=True), "", False
-    for i, line in enumerate(lines):
-        head = re.match(r"\s*\[+([^\]]+)\]+", line)
-        if head:
-            current = head.group(1).strip()
-        elif current == section and re.match(rf"{re.escape(key)}\s*=", line) and not done:
-            lines[i], done = ("" if value is None else f"{key} = {value}\n"), True
-    assert done, f"{section}.{key} not found in {path}"
-    path.write_text("".join(lines))
-
-
-def copy_scene(tmp_path: Path, name: str = "scene1", small: bool = True) -> Path:
-    """A copy of scenes/<name> in tmp_path; ``small``: 320x180, 8 agents, 0.5 s chunks, 5 warm-up frames."""
-    folder = tmp_path / name
-    shutil.copytree(SCENES / name, folder)
-    if small:
-        toml = folder / "scene.toml"
-        text = toml.read_text()
-        image = eval(re.search(r"hand_placed_image = (.*)", text).group(1))  # noqa: S307 (our own file)
-        scaled = [[round((u + 0.5) / 4 - 0.5), round((v + 0.5) / 4 - 0.5)] for u, v in image]
-        for section, key, value in (
-            ("camera", "width", "320"), ("camera", "height", "180"), ("run", "chunk_seconds", "0.5"),
-            ("agents", "count", "8"), ("detection", "rgb_warmup_frames", "5"),
-            ("trapezoid", "hand_placed_image", str(scaled)),
-        ):  # fmt: skip
-            edit_toml(toml, section, key, value)
-    return folder
+from scene_copies import copy_scene
 
 
 @pytest.fixture
 def small_scene(tmp_path: Path) -> Path:
+    """A copy of scene1 at 320x180 with 8 agents (scene_copies.copy_scene)."""
     return copy_scene(tmp_path)

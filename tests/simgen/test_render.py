@@ -16,7 +16,7 @@ from simgen.scene import load_scene
 from simgen.stage import Stage
 from simgen.truth import silhouette_outlines
 
-from conftest import SCENES
+from scene_copies import SCENES
 
 HERE = Path(__file__).resolve().parent
 

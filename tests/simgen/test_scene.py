@@ -7,7 +7,7 @@ import pytest
 from simgen.cli import main
 from simgen.scene import load_scene
 
-from conftest import SCENES, copy_scene, edit_toml
+from scene_copies import SCENES, copy_scene, edit_toml
 
 
 @pytest.mark.parametrize("name, count, stop", [("scene1", 40, 44.0), ("scene2", 39, 49.0)])

@@ -16,7 +16,7 @@ import pytest
 
 from simgen.cli import main
 
-from conftest import copy_scene
+from scene_copies import copy_scene
 
 SECONDS, SEED = "2", "5"
 FILES = ["manifest.json", "camera.json", "trapezoids.json", "site_map.png", "site_map.json", "calibration.parquet",
