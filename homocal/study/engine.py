@@ -12,7 +12,7 @@ import json
 import os
 import platform
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ALL_COMPLETED, FIRST_COMPLETED, ThreadPoolExecutor, wait
 from dataclasses import asdict
 from pathlib import Path
 
@@ -23,7 +23,7 @@ import pyarrow.parquet as pq
 from tqdm import tqdm
 
 from homocal.study.perturb import draw_variant
-from homocal.study.scene import Scene, StudyParams, compute_shard, prepare_variant
+from homocal.study.scene import Scene, StudyParams, compute_shard, variant_mapping
 from homocal.study.triples import n_samples
 
 PRESETS = {"paper": dict(n_variants=1000, n_test=2000), "quick": dict(n_variants=50, n_test=2000)}
@@ -57,8 +57,8 @@ def variants_table(scene: Scene, params: StudyParams) -> pa.Table:
     offsets = np.array([r[0] for r in rows])
     reasons = []
     for off in offsets:
-        tables = prepare_variant(scene, off)
-        reasons.append(tables if isinstance(tables, str) else "")
+        mapping = variant_mapping(scene, off)
+        reasons.append(mapping if isinstance(mapping, str) else "")
     cols = {"variant": pa.array(np.arange(len(rows), dtype=np.int32))}
     cols |= {f"img_{c}": pa.array(offsets[:, c]) for c in range(8)}
     cols |= {f"map_{c}": pa.array(offsets[:, 8 + c]) for c in range(8)}
@@ -153,10 +153,18 @@ def _execute(todo, paths, scenes, params, workers, scheduler):
     for scene in scenes:
         vs = [v for s, v in todo if s is scene]
         groups += [(scene, vs[i:i + GROUP]) for i in range(0, len(vs), GROUP)]
-    if workers is None and scheduler is None:
-        for scene, vs in groups:
-            for v, table, reason in run_group(path_of[scene.name], params_json, vs):
-                yield scene, v, table, reason
+    if workers is None and scheduler is None:  # one shard per thread at a time; the kernel releases the GIL
+        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+            window = 2 * (os.cpu_count() or 1)
+            shards = [(s, [v]) for s, vs in groups for v in vs]
+            futures = {}
+            for n, (scene, vs) in enumerate(shards):
+                futures[pool.submit(run_group, path_of[scene.name], params_json, vs)] = scene
+                if len(futures) >= window or n == len(shards) - 1:
+                    done, _ = wait(futures, return_when=FIRST_COMPLETED if n < len(shards) - 1 else ALL_COMPLETED)
+                    for future in done:
+                        for v, table, reason in future.result():
+                            yield futures.pop(future), v, table, reason
         return
     from dask.distributed import Client, LocalCluster, as_completed
 

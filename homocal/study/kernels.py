@@ -1,5 +1,6 @@
 """The study's compiled kernels: a second implementation of the correctors' maths (homocal.correctors),
-per trapezoid variant, over every calibration triple, in parallel.
+per trapezoid variant, over every calibration triple (one call per variant, GIL released: the engine runs
+variants side by side on all cores).
 
 Closed-form homography (the projective-basis construction of homocal.geometry): for an image quad
 p0..p3 (homogeneous, w = 1) let n_k = p_{k+1} x p_{k+2} (indices mod 3) and d_k = n_k . p3. Then
@@ -395,7 +396,7 @@ def _improvement(before, after):
     return math.nan if before == 0.0 else 100.0 * (before - after) / before
 
 
-@nb.njit(parallel=True, **JIT)
+@nb.njit(nogil=True, **JIT)
 def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, delta_max, initial_step, min_step,
                 max_evals, threshold, out, ab, vfinal):
     """Every method on every triple (I, J, K) (S,) of one trapezoid variant.
@@ -414,7 +415,7 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
     Lfinal = np.empty(S)
     seeds = np.empty(S, np.uint64)
     chunk = 256
-    for c in nb.prange((S + chunk - 1) // chunk):
+    for c in range((S + chunk - 1) // chunk):
         lo, hi = c * chunk, min(S, (c + 1) * chunk)
         dH = np.empty(9, np.float32)
         Hd = np.empty((3, 3))

@@ -86,9 +86,10 @@ class VariantTables:
     path_before: float
 
 
-def prepare_variant(scene: Scene, offsets: np.ndarray) -> VariantTables | str:
-    """The variant's tables, or the reason (str) it is degenerate: a quad validate_quad rejects, a homography
-    that cannot be formed, or a calibration or test point beyond the horizon."""
+def variant_mapping(scene: Scene, offsets: np.ndarray):
+    """(v0 (8,), Bt (3, 3), H0 (3, 3), p (M, 2), pt (N, 2)): the variant's image quad, target basis, homography and
+    mapped calibration and test points; or the reason (str) the variant is degenerate: a quad validate_quad
+    rejects, a homography that cannot be formed, or a calibration or test point beyond the horizon."""
     image, map_quad = perturbed_quads(scene.image_quad, scene.map_quad, offsets)
     try:
         target = ViewTransformer(image, scene.site_map.to_metres(map_quad)).target
@@ -103,6 +104,15 @@ def prepare_variant(scene: Scene, offsets: np.ndarray) -> VariantTables | str:
         bad = np.flatnonzero(np.isnan(mapped).any(axis=1))
         if bad.size:
             return f"{what} point {bad[0]} maps beyond the horizon"
+    return v0, Bt, H0, p, pt
+
+
+def prepare_variant(scene: Scene, offsets: np.ndarray) -> VariantTables | str:
+    """The variant's tables, or the reason (str) it is degenerate (see variant_mapping)."""
+    mapping = variant_mapping(scene, offsets)
+    if isinstance(mapping, str):
+        return mapping
+    v0, Bt, H0, p, pt = mapping
     o, g, gt = scene.origin, scene.cal_ground, scene.test_ground
     d = np.linalg.norm(p - o, axis=1)
     r = p - g
