@@ -50,33 +50,45 @@ def dashes(x, y0, y1, dash=3.0, period=9.0, w=0.12, skip=()):
     return out
 
 
+def _gaps(spans, lo=-20.0, hi=140.0, margin=1.0):
+    """The y-intervals of [lo, hi] outside the spans (each widened by margin): where lines are painted."""
+    out, y = [], lo
+    for a, b in sorted(spans):
+        out.append((y, a - margin))
+        y = b + margin
+    return out + [(y, hi)]
+
+
 def scene1():
-    """Straight two-lane street, 7 m road, 4 m sidewalks, a zebra crossing at y = 22..26 m."""
-    xw = (22.0, 26.0)
+    """Straight two-lane street, 7 m road, 4 m sidewalks, zebra crossings at y = 7..10 and 22..26 m."""
+    zebras = [(7.0, 10.0), (22.0, 26.0)]
     r = [((-40, 40, -20, 140), GRASS), ((-3.5, 3.5, -20, 140), ASPHALT)]
     for s in (-1, 1):
         r += [((min(s * 3.5, s * 7.5), max(s * 3.5, s * 7.5), -20, 140), SIDEWALK)]
         r += [((min(s * 3.5, s * 3.7), max(s * 3.5, s * 3.7), -20, 140), CURB)]
-        for ya, yb in ((-20, xw[0] - 1), (xw[1] + 1, 140)):
+        for ya, yb in _gaps(zebras):
             r += [((s * 3.25 - 0.075, s * 3.25 + 0.075, ya, yb), LINE)]
-    r += dashes(0.0, -20, 140, skip=[(xw[0] - 1, xw[1] + 1)])
-    r += stripes(-3.2, 3.2, *xw, along="y")
+    r += dashes(0.0, -20, 140, skip=[(a - 1, b + 1) for a, b in zebras])
+    for ya, yb in zebras:
+        r += stripes(-3.2, 3.2, ya, yb, along="y")
     return r
 
 
 def scene2():
-    """Four-lane avenue (14 m) with a side street (y = 40..52 m) crossing it; zebras on every arm."""
+    """Four-lane avenue (14 m) with a side street (y = 40..52 m) crossing it; zebras on every arm and one near
+    the camera (y = 9..13 m)."""
     side = (40.0, 52.0)
-    cross = [(side[0] - 7, side[0] - 3), (side[1] + 3, side[1] + 7)]  # zebras across the avenue
+    cross = [(9.0, 13.0), (side[0] - 7, side[0] - 3), (side[1] + 3, side[1] + 7)]  # zebras across the avenue
     r = [((-50, 50, -20, 140), GRASS), ((-11, 11, -20, 140), SIDEWALK)]
     r += [((-50, 50, side[0] - 4, side[0]), SIDEWALK), ((-50, 50, side[1], side[1] + 4), SIDEWALK)]
     r += [((-7.2, 7.2, -20, 140), CURB), ((-50, 50, side[0] - 0.2, side[1] + 0.2), CURB)]
     r += [((-7, 7, -20, 140), ASPHALT), ((-50, 50, *side), ASPHALT)]
+    junction = [(cross[0][0], cross[0][1]), (cross[1][0], cross[2][1])]
     for s in (-1, 1):
-        for ya, yb in ((-20, cross[0][0] - 1), (cross[1][1] + 1, 140)):
+        for ya, yb in _gaps(junction):
             r += [((s * 6.75 - 0.075, s * 6.75 + 0.075, ya, yb), LINE)]
             r += [((s * 0.15 - 0.06, s * 0.15 + 0.06, ya, yb), LINE)]  # double centre line
-        r += dashes(s * 3.5, -20, 140, skip=[(cross[0][0] - 1, cross[1][1] + 1)])
+        r += dashes(s * 3.5, -20, 140, skip=[(a - 1, b + 1) for a, b in junction])
         r += stripes(min(s * 7, s * 11), max(s * 7, s * 11), side[0] + 0.5, side[1] - 0.5, along="x")
     for ya, yb in cross:
         r += stripes(-6.7, 6.7, ya, yb, along="y")
