@@ -56,9 +56,9 @@ def frame(x0, y0, x1, y1, x2, y2, x3, y3):
     sy = _max(_max(y0, y1), _max(y2, y3)) - _min(_min(y0, y1), _min(y2, y3))
     scale = _max(sx, sy)
     tol = 1e-9 * (scale * scale)
-    pos = det > 0
-    valid = ((_min(_min(abs(det), abs(d0)), _min(abs(d1), abs(d2))) > tol) & (pos == (d0 > 0)) & (pos == (d1 < 0))
-             & (pos == (d2 > 0)))
+    lo = _min(_min(det, d0), _min(-d1, d2))
+    hi = _max(_max(det, d0), _max(-d1, d2))
+    valid = (lo > tol) | (hi < -tol)  # one sign, each beyond the tolerance
     return a0, a1, a2, b0, b1, b2, e0, e1, e2, d1 * d2, d0 * d2, d0 * d1, d0 * d1 * d2, valid
 
 
