@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import os
 import statistics
 import tempfile
 import time
@@ -110,14 +111,16 @@ def main() -> None:
             paths = [str(write_dataset(tmp / "s1", "synthetic1", 40, 5000)), str(write_dataset(tmp / "s2", "synthetic2", 39, 5000, 1))]
         params = StudyParams(n_variants=args.variants, n_test=args.n_test)
         run_study(paths, tmp / "warmup", StudyParams(n_variants=1, n_test=args.n_test), progress=False)  # compile/load
-        walls = []
+        walls, cpus = [], []
         for r in range(args.repeats):
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.process_time()
             study = run_study(paths, tmp / f"study{r}", params, preset="paper", progress=False)
             walls.append(time.perf_counter() - start)
-        wall, n = statistics.median(walls), study["samples_done"]
+            cpus.append(time.process_time() - cpu)
+        wall, cpu, n = statistics.median(walls), statistics.median(cpus), study["samples_done"]
         print(f"study: {n:,} samples ({args.variants} variants, {args.n_test} test points, all methods) "
-              f"in {wall:.1f} s wall (median of {len(walls)}): {n / wall:,.0f} samples/s")
+              f"in {wall:.1f} s wall (median of {len(walls)}): {n / wall:,.0f} samples/s; "
+              f"{cpu:.1f} s CPU on {os.cpu_count()} cores (wall if the cores were ours alone: >= {cpu / os.cpu_count():.1f} s)")
         scene = Scene.from_dataset(paths[0], params)
         rng = np.random.default_rng(0)
         per_sample = []

@@ -7,7 +7,7 @@ import pytest
 
 from homocal.correctors import DescentCorrector, HybridCorrector, RegressionCorrector, radial_correction
 from homocal.geometry import ViewTransformer
-from homocal.keyed_rng import seed_from_key
+from homocal.keyed_rng import seed_from_key, shuffled_order
 from homocal.study import kernels
 from homocal.study.perturb import draw_variant, perturbed_quads
 from homocal.study.scene import Scene, StudyParams, prepare_variant, run_tables
@@ -115,8 +115,6 @@ def test_paper_sample_count():
 
 
 def test_unrolled_shuffle_is_keyed_rng_shuffle():
-    from homocal.keyed_rng import shuffled_order
-
     ref, out = np.empty(8, np.int64), np.zeros((2, 8), np.int64)
     for seed in [0, 1, 2**63 + 5, seed_from_key(3, "x", 4, 5, 6, 7)]:
         for pass_index in range(40):
