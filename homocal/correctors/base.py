@@ -23,8 +23,8 @@ from homocal.correctors.serialization import (
     float_or_none,
     none_to_nan,
     read_json,
-    write_text_atomic,
 )
+from homocal.files import write_text_atomic
 from homocal.geometry import ViewTransformer, as_points
 
 

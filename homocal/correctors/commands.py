@@ -16,7 +16,8 @@ from homocal.correctors.base import Corrector, load_corrector
 from homocal.correctors.descent import DescentCorrector
 from homocal.correctors.hybrid import HybridCorrector
 from homocal.correctors.regression import RegressionCorrector
-from homocal.correctors.serialization import read_json, write_text_atomic
+from homocal.correctors.serialization import read_json
+from homocal.files import write_text_atomic
 from homocal.geometry import SiteMap, ViewTransformer, validate_quad
 
 METHODS = {

@@ -1,4 +1,4 @@
-"""JSON files of fitted corrections: the format's identity, atomic writes and tolerant reads.
+"""JSON files of fitted corrections: the format's identity and tolerant reads.
 
 A correction file is one JSON object (see ``Corrector.to_dict``)::
 
@@ -12,25 +12,10 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
 
 FORMAT = "homocal.correction"
 FORMAT_VERSION = 1
-
-
-def write_text_atomic(path: str | Path, text: str) -> None:
-    """Write text to path through a temporary file in the same folder and a rename: a file that exists is whole."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def read_json(path: str | Path) -> dict:

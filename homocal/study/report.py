@@ -13,7 +13,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from homocal.correctors.serialization import write_text_atomic
+from homocal.files import write_text_atomic
 from homocal.study.figures import FigureFile, make_figures
 from homocal.study.metrics import Table, build_table, load_study, shard_files, table_cells, to_csv, to_markdown, to_text
 

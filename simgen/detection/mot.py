@@ -25,6 +25,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
+from homocal.files import write_atomic
 from simgen.detection.association import TIE_TOLERANCE_S, associate, match_to_gt, nearest_sample
 from simgen.detection.core import DetectionBatch, detections_table
 
@@ -103,7 +104,7 @@ def append_detections(dataset_dir: str | os.PathLike, table: pa.Table) -> None:
         existing = pq.read_table(path)
         keep = pc.invert(pc.is_in(existing.column("detector"), value_set=pc.unique(table.column("detector"))))
         table = pa.concat_tables([existing.filter(keep), table.select(existing.column_names).cast(existing.schema)])
-    _write_atomically(path, lambda tmp: pq.write_table(table, tmp))
+    write_atomic(path, lambda tmp: pq.write_table(table, tmp))
 
 
 def write_mot_gt(gt: pa.Table, fps: float, path: str | os.PathLike) -> None:
@@ -129,7 +130,7 @@ def write_mot_gt(gt: pa.Table, fps: float, path: str | os.PathLike) -> None:
                 )
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    _write_atomically(path, lambda tmp: Path(tmp).write_text("".join(lines), encoding="utf-8"))
+    write_atomic(path, lambda tmp: Path(tmp).write_text("".join(lines), encoding="utf-8"))
 
 
 def _boxes(table: pa.Table) -> np.ndarray:
@@ -148,14 +149,3 @@ def _visible_by_time(gt: pa.Table) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     rows = rows[np.lexsort((agent[rows], t[rows]))]
     times, starts, counts = np.unique(t[rows], return_index=True, return_counts=True)
     return rows, times, starts, counts
-
-
-def _write_atomically(path: Path, write) -> None:
-    """Call write(tmp_path) on a temporary file beside `path`, then rename it to `path`."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
