@@ -14,7 +14,8 @@ Errors against a ground point g use F = [B_t0 - g_x B_t2; B_t1 - g_y B_t2; B_t2]
 
 Differences from the readable correctors, all below any decision: the loss is summed in another order
 (1e-15 relative), and the horizon test is on the sign only (apply_homography also rejects w within
-1e-12 relative of zero). Path errors over the test points are float32 in residual form (about 1e-7 m).
+1e-12 relative of zero). Path errors over the test points are float32 in residual form (about 1e-7 m), summed exactly in
+fixed point (the same bits in every compilation, whatever the vectorisation).
 """
 from __future__ import annotations
 
@@ -26,8 +27,6 @@ import numpy as np
 from homocal.keyed_rng import splitmix64
 
 JIT = dict(cache=True, error_model="numpy")
-# float sums over test points may be reordered (vectorised); everything else keeps IEEE order
-JIT_SUM = dict(cache=True, error_model="numpy", fastmath={"reassoc", "nsz", "contract"})
 
 METHODS = ("regression", "regression_signed", "descent", "hybrid")
 
@@ -346,30 +345,42 @@ def radial_error(cal, i, a, b):
     return math.hypot(cal[1, i] + cal[3, i] * c, cal[2, i] + cal[4, i] * c)
 
 
-@nb.njit(**JIT_SUM)
+FIXED = 2.0**26  # path errors are summed as integers of 2^-26 m (15 nm): exact, so any order gives the same bits
+CLIP = 1e5  # metres; a point error is clipped here so the integer sum cannot overflow (up to 1e6 test points)
+
+
+@nb.njit(inline="always", **JIT)
+def _fixed(e):
+    """A float32 point error as an int64 count of 2^-26 m (truncated), clipped at CLIP metres."""
+    x = np.float64(e)
+    return np.int64((x if x < CLIP else CLIP) * FIXED)
+
+
+@nb.njit(**JIT)
 def regression_paths(test, af, bf, as_, bs):
     """Mean test-point error after both regressions, float32: |r + u c|^2 = |r|^2 + c (2 r.u + c).
     test rows 0-2: d, |r|^2, 2 r.u (N,)."""
     n = test.shape[1]
     af, bf, as_, bs = np.float32(af), np.float32(bf), np.float32(as_), np.float32(bs)
-    sf = np.float32(0.0)
-    ss = np.float32(0.0)
+    sf = np.int64(0)
+    ss = np.int64(0)
     for t in range(n):
         d, rr, ru2 = test[0, t], test[1, t], test[2, t]
         cf = d * (af * d + bf)
         cs = d * (as_ * d + bs)
-        sf += math.sqrt(rr + cf * (ru2 + cf))
-        ss += math.sqrt(rr + cs * (ru2 + cs))
-    return sf / n, ss / n
+        sf += _fixed(math.sqrt(rr + cf * (ru2 + cf)))
+        ss += _fixed(math.sqrt(rr + cs * (ru2 + cs)))
+    return sf / FIXED / n, ss / FIXED / n
 
 
-@nb.njit(**JIT_SUM)
+@nb.njit(**JIT)
 def descent_path(test, dH):
     """Mean test-point error of H0 + dH, float32, residual form: with s = t/w0 (H0 s = (p0, 1)) and r = p0 - g,
     H(t) - g = (r + dH01 s - g dH2 s) / (1 + dH2 s). test rows 3-9: s0, s1, s2, rx, ry, gx, gy; dH (9,)
     float32. NaN if a point crosses the horizon."""
     n = test.shape[1]
-    total = np.float32(0.0)
+    total = np.int64(0)
+    beyond = np.int64(0)
     for t in range(n):
         s0, s1, s2 = test[3, t], test[4, t], test[5, t]
         dx = dH[0] * s0 + dH[1] * s1 + dH[2] * s2
@@ -378,9 +389,10 @@ def descent_path(test, dH):
         nx = test[6, t] + dx - test[8, t] * dw
         ny = test[7, t] + dy - test[9, t] * dw
         w = np.float32(1.0) + dw
-        e = math.sqrt(nx * nx + ny * ny) / w
-        total += e if w > 0 else np.float32(np.nan)
-    return total / n
+        ok = w > 0
+        total += _fixed(math.sqrt(nx * nx + ny * ny) / (w if ok else np.float32(1.0)))
+        beyond += np.int64(not ok)
+    return total / FIXED / n if beyond == 0 else math.nan
 
 
 @nb.njit(**JIT)
