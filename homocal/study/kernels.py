@@ -345,39 +345,41 @@ def radial_error(cal, i, a, b):
     return math.hypot(cal[1, i] + cal[3, i] * c, cal[2, i] + cal[4, i] * c)
 
 
-FIXED = 2.0**26  # path errors are summed as integers of 2^-26 m (15 nm): exact, so any order gives the same bits
-CLIP = 1e5  # metres; a point error is clipped here so the integer sum cannot overflow (up to 1e6 test points)
+FIXED = 2.0**26  # test-point lengths are in units of 2^-26 m (15 nm) (scene.prepare_variant scales them)
+CLIP = np.float32(1e5 * FIXED)  # a point error is clipped at 100 km: the int64 sum cannot overflow (1e6 points)
 
 
 @nb.njit(inline="always", **JIT)
 def _fixed(e):
-    """A float32 point error as an int64 count of 2^-26 m (truncated), clipped at CLIP metres."""
-    x = np.float64(e)
-    return np.int64((x if x < CLIP else CLIP) * FIXED)
+    """A float32 point error in units of 2^-26 m as an int64 (truncated, clipped): integer sums are exact, so
+    they give the same bits in every order (a float reduction vectorises differently in different compilations)."""
+    return np.int64(e if e < CLIP else CLIP)
 
 
 @nb.njit(**JIT)
 def regression_paths(test, af, bf, as_, bs):
-    """Mean test-point error after both regressions, float32: |r + u c|^2 = |r|^2 + c (2 r.u + c).
-    test rows 0-2: d, |r|^2, 2 r.u (N,)."""
+    """Mean test-point error (m) after both regressions: |r + u c|^2 = |r|^2 + c (2 r.u + c), c = a d^2 + b d,
+    in float32 and units of 2^-26 m. test rows 0-2: d, |r|^2, 2 r.u (N,) in those units."""
     n = test.shape[1]
-    af, bf, as_, bs = np.float32(af), np.float32(bf), np.float32(as_), np.float32(bs)
+    af, bf, as_, bs = np.float32(af / FIXED), np.float32(bf), np.float32(as_ / FIXED), np.float32(bs)
     sf = np.int64(0)
     ss = np.int64(0)
     for t in range(n):
         d, rr, ru2 = test[0, t], test[1, t], test[2, t]
         cf = d * (af * d + bf)
         cs = d * (as_ * d + bs)
-        sf += _fixed(math.sqrt(rr + cf * (ru2 + cf)))
-        ss += _fixed(math.sqrt(rr + cs * (ru2 + cs)))
+        qf = rr + cf * (ru2 + cf)
+        qs = rr + cs * (ru2 + cs)
+        sf += _fixed(math.sqrt(qf if qf > 0 else np.float32(0.0)))
+        ss += _fixed(math.sqrt(qs if qs > 0 else np.float32(0.0)))
     return sf / FIXED / n, ss / FIXED / n
 
 
 @nb.njit(**JIT)
 def descent_path(test, dH):
-    """Mean test-point error of H0 + dH, float32, residual form: with s = t/w0 (H0 s = (p0, 1)) and r = p0 - g,
-    H(t) - g = (r + dH01 s - g dH2 s) / (1 + dH2 s). test rows 3-9: s0, s1, s2, rx, ry, gx, gy; dH (9,)
-    float32. NaN if a point crosses the horizon."""
+    """Mean test-point error (m) of H0 + dH, float32, residual form: with s = t/w0 (H0 s = (p0, 1)) and
+    r = p0 - g, H(t) - g = (r + dH01 s - g dH2 s) / (1 + dH2 s). test rows 3-9: s0, s1, s2, then rx, ry, gx, gy
+    in units of 2^-26 m; dH (9,) float32, rows 0-1 in those units. NaN if a point crosses the horizon."""
     n = test.shape[1]
     total = np.int64(0)
     beyond = np.int64(0)
@@ -463,7 +465,7 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
             out[s, 5] = _improvement(e_before, Lfinal[s])
             homography_into(vfinal[s, :8], Bt, Hd)
             for m in range(9):
-                dH[m] = np.float32(Hd[m // 3, m % 3] - H0[m // 3, m % 3])
+                dH[m] = np.float32((Hd[m // 3, m % 3] - H0[m // 3, m % 3]) * (FIXED if m < 6 else 1.0))
             out[s, 6] = _improvement(path_before, descent_path(test, dH))
             # ---- hybrid: regression if its calibration improvement reaches the threshold (Section 7)
             hyb = out[s, 1] >= threshold

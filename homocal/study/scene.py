@@ -122,7 +122,9 @@ def prepare_variant(scene: Scene, offsets: np.ndarray) -> VariantTables | str:
     ut = (pt - o) / dt[:, None]
     w0 = np.column_stack([scene.test_image, np.ones(len(pt))]) @ H0[2]
     s = np.column_stack([scene.test_image, np.ones(len(pt))]) / w0[:, None]
-    test = np.vstack([dt, (rt**2).sum(axis=1), 2 * (rt * ut).sum(axis=1), s.T, rt.T, gt.T]).astype(np.float32)
+    f = kernels.FIXED  # lengths in units of 2^-26 m (see kernels.regression_paths)
+    test = np.vstack([f * dt, f * f * (rt**2).sum(axis=1), f * 2 * (rt * ut).sum(axis=1), s.T, f * rt.T, f * gt.T])
+    test = test.astype(np.float32)
     F = kernels.ground_frames(Bt, g)
     return VariantTables(v0, Bt, H0, F, np.ascontiguousarray(cal), np.ascontiguousarray(test),
                          float(np.linalg.norm(rt, axis=1).mean()))
