@@ -22,6 +22,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 from tqdm import tqdm
 
+from homocal.files import write_atomic, write_text_atomic
 from homocal.study.perturb import draw_variant
 from homocal.study.scene import Scene, StudyParams, compute_shard, variant_mapping
 from homocal.study.triples import n_samples
@@ -34,21 +35,14 @@ def shard_path(out: Path, scene: str, variant: int) -> Path:
     return out / "shards" / scene / f"variant_{variant:05d}.parquet"
 
 
-def write_atomic(path: Path, write) -> None:
-    """Call write(temporary path), then rename it to path: a file that exists is whole."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f"{path.name}.tmp{os.getpid()}")
-    write(tmp)
-    os.replace(tmp, path)
-
-
 def write_table(path: Path, table: pa.Table) -> None:
-    """Parquet without dictionary encoding (3x faster to write here, and smaller: the floats rarely repeat)."""
+    """Parquet, atomically, without dictionary encoding (3x faster to write here, and smaller: the floats
+    rarely repeat)."""
     write_atomic(path, lambda tmp: pq.write_table(table, tmp, use_dictionary=False))
 
 
 def write_json(path: Path, data: dict) -> None:
-    write_atomic(path, lambda tmp: tmp.write_text(json.dumps(data, indent=2) + "\n"))
+    write_text_atomic(path, json.dumps(data, indent=2) + "\n")
 
 
 def variants_table(scene: Scene, params: StudyParams) -> pa.Table:
