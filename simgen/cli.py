@@ -34,7 +34,8 @@ def _parser() -> argparse.ArgumentParser:
     m = sub.add_parser("import-mot", help="add an external detector's MOTChallenge file to a dataset")
     m.add_argument("dataset_dir", type=Path)
     m.add_argument("mot_txt", type=Path)
-    m.add_argument("--name", required=True, help="detector name for the detections.parquet rows")
+    m.add_argument("--name", required=True, help="detector name for the detections.parquet rows (not segmentation or rgb)")
+    m.add_argument("--min-iou", type=float, default=0.5, help="box IoU needed to associate a box with an agent (default 0.5)")
     return p
 
 
@@ -49,9 +50,13 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         if args.command == "import-mot":
-            from simgen.detection import append_detections, import_mot
+            from simgen.detection import import_into_dataset
 
-            append_detections(args.dataset_dir, import_mot(args.dataset_dir, args.mot_txt, args.name))
+            try:
+                n = import_into_dataset(args.dataset_dir, args.mot_txt, args.name, args.min_iou)
+            except (ValueError, OSError, KeyError) as e:
+                return _fail(f"import-mot: {e}")
+            print(f"simgen import-mot: {n} detections of {args.name!r} added to {args.dataset_dir / 'detections.parquet'}")
             return 0
         scene = load_scene(args.scene_dir)
         if args.command == "preview":

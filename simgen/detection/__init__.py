@@ -9,7 +9,7 @@ from simgen.detection.association import associate, box_iou, greedy_assign, matc
 from simgen.detection.background import BackgroundSubtractionDetector
 from simgen.detection.core import DETECTIONS_SCHEMA, DetectionBatch, Detector, detections_table, foot_points
 from simgen.detection.masks import SegmentationDetector, id_boxes, mask_boxes
-from simgen.detection.mot import append_detections, import_mot, read_mot, write_mot_gt
+from simgen.detection.mot import append_detections, import_into_dataset, import_mot, read_mot, write_mot_gt
 
 __all__ = [
     "DETECTIONS_SCHEMA",
@@ -24,6 +24,7 @@ __all__ = [
     "foot_points",
     "greedy_assign",
     "id_boxes",
+    "import_into_dataset",
     "import_mot",
     "mask_boxes",
     "match_to_gt",

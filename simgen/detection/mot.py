@@ -29,6 +29,8 @@ from homocal.files import write_atomic
 from simgen.detection.association import TIE_TOLERANCE_S, associate, match_to_gt, nearest_sample
 from simgen.detection.core import DetectionBatch, detections_table
 
+BUILTIN_DETECTORS = ("segmentation", "rgb")
+
 MOT_COLUMNS = (9, 10)
 MOT_OFFSET = 1.5
 """bb_left = x1 + MOT_OFFSET, bb_top = y1 + MOT_OFFSET (module docstring)."""
@@ -105,6 +107,28 @@ def append_detections(dataset_dir: str | os.PathLike, table: pa.Table) -> None:
         keep = pc.invert(pc.is_in(existing.column("detector"), value_set=pc.unique(table.column("detector"))))
         table = pa.concat_tables([existing.filter(keep), table.select(existing.column_names).cast(existing.schema)])
     write_atomic(path, lambda tmp: pq.write_table(table, tmp))
+
+
+def import_into_dataset(dataset_dir: str | os.PathLike, mot_txt_path: str | os.PathLike, name: str, min_iou: float = 0.5) -> int:
+    """`simgen import-mot`: import_mot, append_detections, then list `name` last in manifest.json's detectors.
+
+    Refuses an incomplete dataset and the built-in detector names (importing under them would replace
+    the run's own rows). Returns the number of detections imported. ValueError names the problem.
+    """
+    dataset_dir = Path(dataset_dir)
+    manifest_path = dataset_dir / "manifest.json"
+    if not manifest_path.is_file():
+        raise ValueError(f"{dataset_dir}: not a dataset (no manifest.json)")
+    manifest = json.loads(manifest_path.read_text())
+    if not manifest.get("complete"):
+        raise ValueError(f"{dataset_dir}: the run is not complete; finish it with simgen generate --resume first")
+    if name in BUILTIN_DETECTORS or not name.strip():
+        raise ValueError(f"--name {name!r} is reserved or empty; choose another (built-in: {', '.join(BUILTIN_DETECTORS)})")
+    table = import_mot(dataset_dir, mot_txt_path, name, min_iou)
+    append_detections(dataset_dir, table)
+    manifest["detectors"] = [d for d in manifest["detectors"] if d != name] + [name]
+    write_atomic(manifest_path, lambda tmp: tmp.write_text(json.dumps(manifest, indent=2) + "\n"))
+    return table.num_rows
 
 
 def write_mot_gt(gt: pa.Table, fps: float, path: str | os.PathLike) -> None:

@@ -142,3 +142,35 @@ def test_import_mot_adds_an_external_detector(run, tmp_path):
     oracle = names == "oracle"
     assert oracle.sum() == len((out / "mot" / "gt.txt").read_text().splitlines())
     assert np.all(det.column("agent_id").to_numpy()[oracle] >= 0)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["detectors"][-1] == "oracle"
+    assert main(["import-mot", str(out), str(out / "mot" / "gt.txt"), "--name", "oracle"]) == 0  # re-import replaces
+    assert (pq.read_table(out / "detections.parquet").column("detector").to_numpy(zero_copy_only=False) == "oracle").sum() == oracle.sum()
+    assert json.loads((out / "manifest.json").read_text())["detectors"].count("oracle") == 1
+
+
+@pytest.mark.parametrize(
+    "how,message",
+    [("reserved name", "reserved"), ("bad line", "line 2"), ("incomplete", "not complete"), ("no file", "No such file")],
+)  # fmt: skip
+def test_import_mot_refuses_bad_input(run, tmp_path, capsys, how, message):
+    _, reference = run
+    out = tmp_path / "copy"
+    shutil.copytree(reference, out)
+    before = _files(out)
+    mot, name = out / "mot" / "gt.txt", "yolo"
+    if how == "reserved name":
+        name = "rgb"
+    elif how == "bad line":
+        mot = tmp_path / "det.txt"
+        mot.write_text("1,-1,10,10,5,20,0.9,-1,-1,-1\n2,-1,ten,10,5,20,0.9,-1,-1,-1\n")
+    elif how == "incomplete":
+        manifest = json.loads((out / "manifest.json").read_text())
+        (out / "manifest.json").write_text(json.dumps({**manifest, "complete": False}, indent=2) + "\n")
+        before = _files(out)
+    else:
+        mot = tmp_path / "missing.txt"
+    assert main(["import-mot", str(out), str(mot), "--name", name]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("simgen: error: import-mot:") and message in err and len(err.splitlines()) == 1
+    assert _files(out) == before
