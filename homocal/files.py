@@ -1,6 +1,7 @@
 """Atomic file writes: a file that exists is whole (DESIGN principle 6). Shared by homocal and simgen."""
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -23,3 +24,8 @@ def write_atomic(path: str | Path, write: Callable[[Path], object]) -> None:
 def write_text_atomic(path: str | Path, text: str) -> None:
     """Write text (UTF-8, newlines as given) atomically."""
     write_atomic(path, lambda tmp: tmp.write_text(text, encoding="utf-8", newline=""))
+
+
+def write_json_atomic(path: str | Path, obj: object) -> None:
+    """Write obj as indented JSON with a final newline, atomically."""
+    write_text_atomic(path, json.dumps(obj, indent=2) + "\n")

@@ -23,6 +23,7 @@ import pyarrow.parquet as pq
 from tqdm import tqdm
 
 import simgen
+from homocal.files import write_atomic, write_json_atomic
 from simgen.detection import (
     BackgroundSubtractionDetector,
     SegmentationDetector,
@@ -51,23 +52,12 @@ class DatasetError(RuntimeError):
 
 # ---- atomic writes -----------------------------------------------------------------------
 def _tmp(path: Path) -> Path:
-    """Temporary name beside ``path`` keeping its extension (ffmpeg picks the container by it)."""
+    """Temporary name beside ``path`` keeping its extension, for files streamed in place (the video segments)."""
     return path.with_name(f"{path.stem}.tmp{path.suffix}")
 
 
-def _write(path: Path, write) -> None:
-    """write(tmp_path), then rename to ``path``."""
-    tmp = _tmp(path)
-    write(tmp)
-    os.replace(tmp, path)
-
-
-def write_json(path: Path, obj: dict) -> None:
-    _write(path, lambda p: p.write_text(json.dumps(obj, indent=2) + "\n"))
-
-
 def write_parquet(path: Path, table: pa.Table) -> None:
-    _write(path, lambda p: pq.write_table(table, p, compression="zstd"))
+    write_atomic(path, lambda p: pq.write_table(table, p, compression="zstd"))
 
 
 # ---- the static files ----------------------------------------------------------------------
@@ -122,11 +112,11 @@ def manifest(scene: Scene, seed: int, frames_done: int, complete: bool) -> dict:
 
 
 def _write_static(scene: Scene, out: Path) -> None:
-    write_json(out / "camera.json", camera_json(scene))
-    write_json(out / "trapezoids.json", trapezoids_json(scene))
+    write_json_atomic(out / "camera.json", camera_json(scene))
+    write_json_atomic(out / "trapezoids.json", trapezoids_json(scene))
     image = site_map(scene)
-    _write(out / "site_map.png", lambda p: p.write_bytes(cv2.imencode(".png", image)[1].tobytes()))
-    write_json(out / "site_map.json", {"file": "site_map.png", "scale_px_per_m": scene.map_scale,
+    write_atomic(out / "site_map.png", lambda p: p.write_bytes(cv2.imencode(".png", image)[1].tobytes()))
+    write_json_atomic(out / "site_map.json", {"file": "site_map.png", "scale_px_per_m": scene.map_scale,
                                        "origin_px": list(scene.map_origin), "width": image.shape[1], "height": image.shape[0]})
 
 
@@ -218,7 +208,7 @@ def _finalize(scene: Scene, out: Path) -> None:
     write_parquet(out / "gt.parquet", gt)
     write_parquet(out / "detections.parquet", match_to_gt(det, gt))
     write_mot_gt(gt, scene.fps, out / "mot" / "gt.txt")
-    _write(out / "video.mp4", lambda p: concat([parts / f"{c:05d}.mp4" for c in range(n)], p))
+    write_atomic(out / "video.mp4", lambda p: concat([parts / f"{c:05d}.mp4" for c in range(n)], p))
 
 
 # ---- the run -------------------------------------------------------------------------------
@@ -244,7 +234,7 @@ def generate(scene: Scene, seed: int, out: str | Path, resume: bool = False, pro
         for stale in out.rglob("*.tmp*"):
             stale.unlink()
         _write_static(scene, out)
-        write_json(out / "manifest.json", manifest(scene, seed, frames_done, False))
+        write_json_atomic(out / "manifest.json", manifest(scene, seed, frames_done, False))
         if not (out / "calibration.parquet").is_file():
             write_parquet(out / "calibration.parquet", calibration_table(stage))
         parts = out / PARTS
@@ -257,8 +247,8 @@ def generate(scene: Scene, seed: int, out: str | Path, resume: bool = False, pro
             for c in range(first, _chunk_count(scene)):
                 _run_chunk(stage, detectors, c, parts, bar)
                 done = min((c + 1) * _chunk_frames(scene), scene.frames_total)
-                write_json(out / "manifest.json", manifest(scene, seed, done, False))
+                write_json_atomic(out / "manifest.json", manifest(scene, seed, done, False))
     _finalize(scene, out)
-    write_json(out / "manifest.json", manifest(scene, seed, scene.frames_total, True))
+    write_json_atomic(out / "manifest.json", manifest(scene, seed, scene.frames_total, True))
     shutil.rmtree(out / PARTS)
     return out

@@ -22,7 +22,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 from tqdm import tqdm
 
-from homocal.files import write_atomic, write_text_atomic
+from homocal.files import write_atomic, write_json_atomic
 from homocal.study.perturb import draw_variant
 from homocal.study.scene import Scene, StudyParams, compute_shard, variant_mapping
 from homocal.study.triples import n_samples
@@ -39,10 +39,6 @@ def write_table(path: Path, table: pa.Table) -> None:
     """Parquet, atomically, without dictionary encoding (3x faster to write here, and smaller: the floats
     rarely repeat)."""
     write_atomic(path, lambda tmp: pq.write_table(table, tmp, use_dictionary=False))
-
-
-def write_json(path: Path, data: dict) -> None:
-    write_text_atomic(path, json.dumps(data, indent=2) + "\n")
 
 
 def variants_table(scene: Scene, params: StudyParams) -> pa.Table:
@@ -118,7 +114,7 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
     study = {**parameters, "samples_total": 0, "samples_done": 0, "complete": False,
              "elapsed_seconds": (previous or {}).get("elapsed_seconds", 0.0), "versions": versions()}
     study.update(_counts(out, scenes, variants))
-    write_json(study_file, study)
+    write_json_atomic(study_file, study)
     todo = [(s, v) for s in scenes for v in range(params.n_variants + 1) if not shard_path(out, s.name, v).is_file()]
     bar = tqdm(total=len(todo), unit="shard", desc="study", disable=not progress)
     with ThreadPoolExecutor(max_workers=1) as writer:  # writes overlap the next shard's computation
@@ -135,7 +131,7 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
     study.update(_counts(out, scenes, variants))
     study["complete"] = study["shards_done"] == sum(params.n_variants + 1 for _ in scenes)
     study["elapsed_seconds"] += time.perf_counter() - start
-    write_json(study_file, study)
+    write_json_atomic(study_file, study)
     return study
 
 

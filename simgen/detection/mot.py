@@ -25,7 +25,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from homocal.files import write_atomic
+from homocal.files import write_atomic, write_json_atomic
 from simgen.detection.association import TIE_TOLERANCE_S, associate, match_to_gt, nearest_sample
 from simgen.detection.core import DetectionBatch, detections_table
 
@@ -127,7 +127,7 @@ def import_into_dataset(dataset_dir: str | os.PathLike, mot_txt_path: str | os.P
     table = import_mot(dataset_dir, mot_txt_path, name, min_iou)
     append_detections(dataset_dir, table)
     manifest["detectors"] = [d for d in manifest["detectors"] if d != name] + [name]
-    write_atomic(manifest_path, lambda tmp: tmp.write_text(json.dumps(manifest, indent=2) + "\n"))
+    write_json_atomic(manifest_path, manifest)
     return table.num_rows
 
 
