@@ -428,47 +428,44 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
     S = I.shape[0]
     Lfinal = np.empty(S)
     seeds = np.empty(S, np.uint64)
-    chunk = 256
-    for c in range((S + chunk - 1) // chunk):
-        lo, hi = c * chunk, min(S, (c + 1) * chunk)
-        dH = np.empty(9, np.float32)
-        Hd = np.empty((3, 3))
-        sums = np.empty(G4)
-        for s in range(lo, hi):
-            i, j, k = I[s], J[s], K[s]
-            # ---- regression, faithful and signed (eqs. (18)-(24))
-            e_before = (cal[5, i] + cal[5, j] + cal[5, k]) / 3.0
-            di, dj, dk = cal[0, i], cal[0, j], cal[0, k]
-            af, bf, _ = fit_quadratic(di, dj, dk, cal[5, i], cal[5, j], cal[5, k], True)
-            as_, bs, _ = fit_quadratic(di, dj, dk, cal[6, i], cal[6, j], cal[6, k], False)
-            out[s, 0] = e_before
-            out[s, 1] = _improvement(e_before, (radial_error(cal, i, af, bf) + radial_error(cal, j, af, bf)
-                                                + radial_error(cal, k, af, bf)) / 3.0)
-            out[s, 3] = _improvement(e_before, (radial_error(cal, i, as_, bs) + radial_error(cal, j, as_, bs)
-                                                + radial_error(cal, k, as_, bs)) / 3.0)
-            path_f, path_s = regression_paths(test, af, bf, as_, bs)
-            out[s, 2], out[s, 4] = _improvement(path_before, path_f), _improvement(path_before, path_s)
-            ab[s, 0], ab[s, 1], ab[s, 2], ab[s, 3] = af, bf, as_, bs
-            # ---- descent phase 1: the grid cell of least mean loss, first on ties
-            best, gbest = grid_best(table, i, j, k, sums)
-            vfinal[s, :8] = v0
-            vfinal[s, 0] += grid[gbest // G**3]
-            vfinal[s, 1] += grid[(gbest // G**2) % G]
-            vfinal[s, 4] += grid[(gbest // G) % G]
-            vfinal[s, 5] += grid[gbest % G]
-            Lfinal[s] = best
-            seeds[s] = sample_seed_kernel(base, i, j, k)
-        # ---- descent phase 2, LANES samples side by side
-        descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step, min_step, delta_max, max_evals)
-        for s in range(lo, hi):
-            e_before = out[s, 0]
-            out[s, 5] = _improvement(e_before, Lfinal[s])
-            homography_into(vfinal[s, :8], Bt, Hd)
-            for m in range(9):
-                dH[m] = np.float32((Hd[m // 3, m % 3] - H0[m // 3, m % 3]) * (FIXED if m < 6 else 1.0))
-            out[s, 6] = _improvement(path_before, descent_path(test, dH))
-            # ---- hybrid: regression if its calibration improvement reaches the threshold (Section 7)
-            hyb = out[s, 1] >= threshold
-            out[s, 7] = out[s, 1] if hyb else out[s, 5]
-            out[s, 8] = out[s, 2] if hyb else out[s, 6]
-            out[s, 9] = 1.0 if hyb else 0.0
+    dH = np.empty(9, np.float32)
+    Hd = np.empty((3, 3))
+    sums = np.empty(G4)
+    for s in range(S):
+        i, j, k = I[s], J[s], K[s]
+        # ---- regression, faithful and signed (eqs. (18)-(24))
+        e_before = (cal[5, i] + cal[5, j] + cal[5, k]) / 3.0
+        di, dj, dk = cal[0, i], cal[0, j], cal[0, k]
+        af, bf, _ = fit_quadratic(di, dj, dk, cal[5, i], cal[5, j], cal[5, k], True)
+        as_, bs, _ = fit_quadratic(di, dj, dk, cal[6, i], cal[6, j], cal[6, k], False)
+        out[s, 0] = e_before
+        out[s, 1] = _improvement(e_before, (radial_error(cal, i, af, bf) + radial_error(cal, j, af, bf)
+                                            + radial_error(cal, k, af, bf)) / 3.0)
+        out[s, 3] = _improvement(e_before, (radial_error(cal, i, as_, bs) + radial_error(cal, j, as_, bs)
+                                            + radial_error(cal, k, as_, bs)) / 3.0)
+        path_f, path_s = regression_paths(test, af, bf, as_, bs)
+        out[s, 2], out[s, 4] = _improvement(path_before, path_f), _improvement(path_before, path_s)
+        ab[s, 0], ab[s, 1], ab[s, 2], ab[s, 3] = af, bf, as_, bs
+        # ---- descent phase 1: the grid cell of least mean loss, first on ties
+        best, gbest = grid_best(table, i, j, k, sums)
+        vfinal[s, :8] = v0
+        vfinal[s, 0] += grid[gbest // G**3]
+        vfinal[s, 1] += grid[(gbest // G**2) % G]
+        vfinal[s, 4] += grid[(gbest // G) % G]
+        vfinal[s, 5] += grid[gbest % G]
+        Lfinal[s] = best
+        seeds[s] = sample_seed_kernel(base, i, j, k)
+    # ---- descent phase 2, LANES samples side by side over the whole variant (lanes idle only at its end)
+    descend_lanes(0, S, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step, min_step, delta_max, max_evals)
+    for s in range(S):
+        e_before = out[s, 0]
+        out[s, 5] = _improvement(e_before, Lfinal[s])
+        homography_into(vfinal[s, :8], Bt, Hd)
+        for m in range(9):
+            dH[m] = np.float32((Hd[m // 3, m % 3] - H0[m // 3, m % 3]) * (FIXED if m < 6 else 1.0))
+        out[s, 6] = _improvement(path_before, descent_path(test, dH))
+        # ---- hybrid: regression if its calibration improvement reaches the threshold (Section 7)
+        hyb = out[s, 1] >= threshold
+        out[s, 7] = out[s, 1] if hyb else out[s, 5]
+        out[s, 8] = out[s, 2] if hyb else out[s, 6]
+        out[s, 9] = 1.0 if hyb else 0.0
