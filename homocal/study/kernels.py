@@ -24,7 +24,7 @@ import math
 import numba as nb
 import numpy as np
 
-from homocal.keyed_rng import splitmix64
+from homocal.keyed_rng import shuffled_order8, splitmix64
 
 JIT = dict(cache=True, error_model="numpy")
 
@@ -139,34 +139,6 @@ def grid_table(v0, grid, F, q):
                             F[i, 4], F[i, 5], F[i, 6], F[i, 7], F[i, 8], q[i, 0], q[i, 1])
             table[i, g] = e if valid else math.inf
     return table
-
-
-@nb.njit(inline="always", **JIT)
-def shuffled_order8(seed, pass_index, out, r):
-    """keyed_rng.shuffled_order for n = 8 into row r of out (the same permutation, tested), unrolled so that
-    every modulo has a constant divisor: the general version's 64-bit divisions were a quarter of phase 2."""
-    for i in range(8):
-        out[r, i] = i
-    state = splitmix64(seed ^ (np.uint64(pass_index) * np.uint64(0xD1B54A32D192ED03)))
-    state = splitmix64(state)
-    _swap(out, r, 7, np.int64(state % np.uint64(8)))
-    state = splitmix64(state)
-    _swap(out, r, 6, np.int64(state % np.uint64(7)))
-    state = splitmix64(state)
-    _swap(out, r, 5, np.int64(state % np.uint64(6)))
-    state = splitmix64(state)
-    _swap(out, r, 4, np.int64(state % np.uint64(5)))
-    state = splitmix64(state)
-    _swap(out, r, 3, np.int64(state % np.uint64(4)))
-    state = splitmix64(state)
-    _swap(out, r, 2, np.int64(state % np.uint64(3)))
-    state = splitmix64(state)
-    _swap(out, r, 1, np.int64(state % np.uint64(2)))
-
-
-@nb.njit(inline="always", **JIT)
-def _swap(out, r, i, j):
-    out[r, i], out[r, j] = out[r, j], out[r, i]
 
 
 LANES = 16  # phase-2 samples run side by side, each evaluating one coordinate's +step and -step at once

@@ -7,7 +7,7 @@ import pytest
 
 from homocal.correctors import DescentCorrector, HybridCorrector, RegressionCorrector, radial_correction
 from homocal.geometry import ViewTransformer
-from homocal.keyed_rng import seed_from_key, shuffled_order
+from homocal.keyed_rng import fisher_yates, seed_from_key, shuffled_order, shuffled_order8
 from homocal.study import kernels
 from homocal.study.perturb import draw_variant, perturbed_quads
 from homocal.study.scene import Scene, StudyParams, prepare_variant, run_tables
@@ -115,9 +115,20 @@ def test_paper_sample_count():
 
 
 def test_unrolled_shuffle_is_keyed_rng_shuffle():
-    ref, out = np.empty(8, np.int64), np.zeros((2, 8), np.int64)
+    """shuffled_order8 (the kernels' and, through shuffled_order, the correctors' shuffle for 8 coordinates)
+    draws the general Fisher-Yates permutations; pinned values guard the results of past studies."""
+    ref, out, public = np.empty(8, np.int64), np.zeros((2, 8), np.int64), np.empty(8, np.int64)
     for seed in [0, 1, 2**63 + 5, seed_from_key(3, "x", 4, 5, 6, 7)]:
         for pass_index in range(40):
-            shuffled_order(np.uint64(seed), pass_index, ref)
-            kernels.shuffled_order8(np.uint64(seed), pass_index, out, 1)
+            fisher_yates(np.uint64(seed), pass_index, ref)
+            shuffled_order8(np.uint64(seed), pass_index, out, 1)
+            shuffled_order(np.uint64(seed), pass_index, public)
             np.testing.assert_array_equal(out[1], ref)
+            np.testing.assert_array_equal(public, ref)
+    shuffled_order(np.uint64(0), 0, public)
+    assert public.tolist() == [2, 3, 6, 0, 1, 4, 5, 7]
+    shuffled_order(np.uint64(seed_from_key(3, "x", 4, 5, 6, 7)), 11, public)
+    assert public.tolist() == [6, 1, 2, 5, 4, 3, 7, 0]
+    five = np.empty(5, np.int64)
+    shuffled_order(np.uint64(9), 2, five)
+    assert sorted(five) == list(range(5))
