@@ -13,9 +13,14 @@ Errors against a ground point g use F = [B_t0 - g_x B_t2; B_t1 - g_y B_t2; B_t2]
     (X, Y, W) = F diag(c) N q,   ||H(q) - g|| = sqrt(X^2 + Y^2) / |W|.
 
 Differences from the readable correctors, all below any decision: the loss is summed in another order
-(1e-15 relative), and the horizon test is on the sign only (apply_homography also rejects w within
-1e-12 relative of zero). Path errors over the test points are float32 in residual form (about 1e-7 m), summed exactly in
-fixed point (the same bits in every compilation, whatever the vectorisation).
+(1e-15 relative), and the horizon test is on the sign of w only (point_error, descent_path), where
+homocal.geometry.apply_homography rejects w <= 1e-12 (|x| + |y| + 1) |H[2]|. The two differ only for a point
+within 1e-12 relative of the horizon, which the kernels map ~1e12 scene sizes away instead of rejecting: such
+a candidate's loss is far above the current one (at most the loss of v0, which is a scene-sized distance:
+a variant whose calibration points do not map inside the horizon is degenerate and never run), so it is
+rejected either way and no decision changes; matching the rule exactly would cost |H[2]| per candidate (a
+3-vector and a norm, an estimated ~15 % of an evaluation). Path errors over the test points are float32 in residual form (about 1e-7 m), summed exactly
+in fixed point (the same bits in every compilation, whatever the vectorisation).
 """
 from __future__ import annotations
 
@@ -63,7 +68,9 @@ def frame(x0, y0, x1, y1, x2, y2, x3, y3):
 
 @nb.njit(inline="always", **JIT)
 def point_error(a0, a1, a2, b0, b1, b2, e0, e1, e2, c0, c1, c2, D, f0, f1, f2, f3, f4, f5, f6, f7, f8, u, v):
-    """||H(q) - g|| for image point q = (u, v) and the F (9 scalars) of its ground point g; +inf beyond the horizon."""
+    """||H(q) - g|| for image point q = (u, v) and the F (9 scalars) of its ground point g; +inf beyond the horizon,
+    decided on the sign of w alone (apply_homography's 1e-12 relative band is not applied: see the module
+    docstring for why no decision depends on it)."""
     l0 = c0 * (a0 * u + a1 * v + a2)
     l1 = c1 * (b0 * u + b1 * v + b2)
     l2 = c2 * (e0 * u + e1 * v + e2)
