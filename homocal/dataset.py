@@ -58,8 +58,11 @@ class Dataset:
             raise ValueError(f"{self.path}: calibration objects {np.flatnonzero(bad).tolist()} have no {source} foot point")
         return image, ground, distance
 
-    def test_points(self, source: str = EXACT, n: int | None = None, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """Test trajectory points: image (N, 2) px and true ground (N, 2) m, optionally a seeded subsample of n.
+    def test_points(
+        self, source: str = EXACT, n: int | None = None, seed: int = 0, max_distance: float | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Test trajectory points: image (N, 2) px and true ground (N, 2) m, optionally only those whose true
+        distance from the camera origin is at most max_distance (m), then a seeded subsample of n.
 
         source "exact": the exact projections (u, v) of in-frame agents' contact points (gt.parquet);
         a detector name: that detector's detections matched to an agent (detections.parquet, with the
@@ -77,9 +80,11 @@ class Dataset:
             table = table.filter(pc.and_(pc.equal(table.column("detector"), source), pc.greater_equal(table.column("agent_id"), 0)))
             image, ground = _columns(table, ("u", "v")), _columns(table, ("gt_x", "gt_y"))
         keep = np.isfinite(image).all(axis=1) & np.isfinite(ground).all(axis=1)
+        if max_distance is not None:
+            keep &= np.hypot(*(ground - self.camera_origin).T) <= max_distance
         image, ground = image[keep], ground[keep]
         if len(image) == 0:
-            raise ValueError(f"{self.path}: no {source} test points")
+            raise ValueError(f"{self.path}: no {source} test points" + (f" within {max_distance} m" if max_distance else ""))
         if n is not None and n < len(image):
             pick = np.sort(np.random.default_rng(seed).choice(len(image), size=n, replace=False))
             image, ground = image[pick], ground[pick]

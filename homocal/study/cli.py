@@ -22,6 +22,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("--foot-source", default="exact",
                    help="exact (projected contact points), segmentation or rgb (a detector's matched detections)")
     p.add_argument("--n-test", type=int, help="test points per scene, a seeded subsample (default: the preset's, 2000)")
+    p.add_argument("--max-test-distance", type=_metres_or_none, default=StudyParams.max_test_distance, metavar="M",
+                   help="test points at most M metres from the camera (default 50, the paper's operating range, Fig. 2); "
+                        "'none' for all")
     group = p.add_mutually_exclusive_group()
     group.add_argument("--workers", type=int, help="start a local Dask cluster of N worker processes")
     group.add_argument("--scheduler", help="address of a running Dask scheduler")
@@ -30,11 +33,21 @@ def add_parser(subparsers) -> None:
     p.set_defaults(handler=handle)
 
 
+def _metres_or_none(text: str) -> float | None:
+    if text.lower() == "none":
+        return None
+    value = float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number of metres or 'none', got {text}")
+    return value
+
+
 def handle(args: argparse.Namespace) -> int:
     preset = PRESETS[args.preset]
     params = StudyParams(seed=args.seed, foot_source=args.foot_source,
                          n_variants=preset["n_variants"] if args.variants is None else args.variants,
-                         n_test=preset["n_test"] if args.n_test is None else args.n_test)
+                         n_test=preset["n_test"] if args.n_test is None else args.n_test,
+                         max_test_distance=args.max_test_distance)
     if params.n_variants < 0 or params.n_test < 1 or (args.workers is not None and args.workers < 1):
         raise ValueError("--variants must be >= 0, --n-test and --workers >= 1")
     if args.dry_run:

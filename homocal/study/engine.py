@@ -72,7 +72,7 @@ def run_group(path: str, params_json: str, variants: list[int]) -> list[tuple[in
 def study_parameters(preset: str | None, params: StudyParams, scenes: list[Scene], paths: list[str]) -> dict:
     return {
         "preset": preset, "seed": params.seed, "n_variants": params.n_variants, "foot_source": params.foot_source,
-        "n_test": params.n_test, "threshold": params.threshold, "descent": {**params.descent,
+        "n_test": params.n_test, "max_test_distance": params.max_test_distance, "threshold": params.threshold, "descent": {**params.descent,
                                                                             "grid_offsets": list(params.descent["grid_offsets"])},
         "datasets": [{"scene": s.name, "path": str(Path(p).resolve()), "config_hash": s.config_hash,
                       "n_calibration": len(s.cal_image), "n_test": len(s.test_image)} for s, p in zip(scenes, paths)],

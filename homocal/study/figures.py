@@ -39,11 +39,13 @@ def make_figures(results_dir: Path, study: dict, shards: dict[str, list[Path]], 
     out_dir.mkdir(parents=True, exist_ok=True)
     datasets, notes, figures = [], [], []
     source, n_test, seed = study.get("foot_source", "exact"), study.get("n_test"), study.get("seed", 0)
+    max_distance = study.get("max_test_distance")
     for entry in study["datasets"]:
         scene, path = entry["scene"], out_dir / f"error_distance_{entry['scene']}.png"
         try:
             ds = load_dataset(_dataset_path(results_dir, entry.get("path", "")))
-            caption = error_vs_distance(ds, Path(results_dir) / "variants" / f"{scene}.parquet", source, path, n_test=n_test, seed=seed)
+            caption = error_vs_distance(ds, Path(results_dir) / "variants" / f"{scene}.parquet", source, path,
+                                        n_test=n_test, seed=seed, max_distance=max_distance)
         except ValueError as e:
             notes.append(f"scene {scene}: dataset not available, its error and distance figures are left out ({e})")
             continue
@@ -51,7 +53,7 @@ def make_figures(results_dir: Path, study: dict, shards: dict[str, list[Path]], 
         figures.append(FigureFile(path, f"Ground error against distance: {scene}", caption))
     if datasets:
         path = out_dir / "test_distance.png"
-        caption = test_distance_distribution(datasets, source, path, n_test=n_test, seed=seed)
+        caption = test_distance_distribution(datasets, source, path, n_test=n_test, seed=seed, max_distance=max_distance)
         figures.append(FigureFile(path, "Distance distribution of the test points", caption))
     figures += [
         FigureFile(out_dir / "improvement_histograms.png", "Improvement distributions",
@@ -136,12 +138,12 @@ def ground_error(image_quad: np.ndarray, map_quad: np.ndarray, ds: Dataset, imag
 
 
 def error_vs_distance(ds: Dataset, variants_file: Path, source: str, out: Path, n_variants: int = 3,
-                      n_test: int | None = 2000, seed: int = 0) -> str:
+                      n_test: int | None = 2000, seed: int = 0, max_distance: float | None = None) -> str:
     """Ground error (m) against true distance from the camera (m) for the hand-placed trapezoid (calibration
     and test points) and the first n_variants perturbed, non-degenerate variants (calibration points), each
     with the least-squares fit e = a d^2 + b d over its calibration points (paper eqs. (17), (19))."""
     cal_img, cal_ground, _ = ds.calibration_points(source)
-    test_img, test_ground = ds.test_points(source, n=n_test, seed=seed)
+    test_img, test_ground = ds.test_points(source, n=n_test, seed=seed, max_distance=max_distance)
     fig = Figure(figsize=(8, 5.5), layout="constrained")
     ax = fig.subplots()
     e_test = ground_error(ds.trapezoid_image, ds.trapezoid_map, ds, test_img, test_ground)
@@ -170,13 +172,13 @@ def error_vs_distance(ds: Dataset, variants_file: Path, source: str, out: Path, 
 
 
 def test_distance_distribution(datasets: list[Dataset], source: str, out: Path, n_test: int | None = None, seed: int = 0,
-                               width: float = 1.0) -> str:
+                               width: float = 1.0, max_distance: float | None = None) -> str:
     """Histogram of the test points' true distance from the camera (m) per scene, calibration distances as ticks."""
     fig = Figure(figsize=(8, 4.5), layout="constrained")
     ax = fig.subplots()
     sizes = []
     for ds, color in zip(datasets, ["tab:blue", "tab:orange", "tab:green", "tab:red"]):
-        d = _distance(ds, ds.test_points(source, n=n_test, seed=seed)[1])
+        d = _distance(ds, ds.test_points(source, n=n_test, seed=seed, max_distance=max_distance)[1])
         sizes.append(f"{ds.name}: {len(d)}")
         ax.hist(d, bins=np.arange(0, d.max() + width, width), histtype="step", color=color, lw=1.5, label=f"{ds.name} test points")
         cal = ds.calibration_points(source)[2]

@@ -31,6 +31,7 @@ class StudyParams:
     n_variants: int = 1000
     foot_source: str = EXACT  # "exact", "segmentation" or another detector's name
     n_test: int = 2000
+    max_test_distance: float | None = 50.0  # metres from the camera; the paper's operating range (Fig. 2); None: all
     threshold: float = 75.0
     descent: dict = field(default_factory=lambda: dict(
         delta_max=8.0, grid_offsets=(-4.0, -2.0, 0.0, 2.0, 4.0), initial_step=1.0, min_step=0.0625, max_evals=400))
@@ -67,7 +68,8 @@ class Scene:
         cal_image, cal_ground, distance = ds.calibration_points(EXACT if params.foot_source == EXACT else "segmentation")
         if len(cal_image) < 3:
             raise ValueError(f"{path}: need at least 3 calibration points, got {len(cal_image)}")
-        test_image, test_ground = ds.test_points(params.foot_source, n=params.n_test, seed=params.seed)
+        test_image, test_ground = ds.test_points(params.foot_source, n=params.n_test, seed=params.seed,
+                                                  max_distance=params.max_test_distance)
         return cls(ds.name, ds.site_map, ds.trapezoid_image, ds.trapezoid_map, np.asarray(ds.camera_origin, float),
                    cal_image, cal_ground, distance, test_image, test_ground, triples(len(cal_image)),
                    str(ds.manifest.get("config_hash", "")))

@@ -84,3 +84,12 @@ def break_copy(src, tmp_path, how):
 def test_bad_datasets_are_named(tiny_dataset, tmp_path, how, message):
     with pytest.raises(ValueError, match=message):
         load_dataset(break_copy(tiny_dataset, tmp_path, how))
+
+
+def test_max_distance_keeps_the_operating_range(tiny_dataset):
+    ds = load_dataset(tiny_dataset)
+    _, every = ds.test_points("exact")
+    _, near = ds.test_points("exact", max_distance=20.0)
+    d = np.hypot(*every.T)
+    assert len(near) == np.sum(d <= 20.0) and 0 < len(near) < len(every)
+    assert np.hypot(*near.T).max() <= 20.0
