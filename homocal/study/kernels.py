@@ -195,54 +195,50 @@ def eval_lanes(X, kc, dl, Fl, Ql, out):
 
 @nb.njit(**JIT)
 def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step, min_step, delta_max, max_evals):
-    """Phase 2 of DescentCorrector for samples lo..hi-1, LANES at a time: each lane holds one sample and
-    resolves one coordinate per round (its +step and -step candidates evaluated together in slots 2l, 2l+1);
-    a finished lane takes the next sample. vfinal[s, :8] holds the phase-1 trapezoid and Lfinal[s] its loss
-    on entry, the final ones on return, vfinal[s, 8] the evaluations.
+    """Phase 2 of DescentCorrector for samples lo..hi-1, LANES at a time: each lane l holds one sample and
+    resolves one coordinate per round, its +step and -step candidates evaluated together in slots l and
+    LANES + l; a finished lane takes the next sample. vfinal[s, :8] holds the phase-1 trapezoid and Lfinal[s]
+    its loss on entry, the final ones on return, vfinal[s, 8] the evaluations.
 
     Per lane, as DescentCorrector: each pass visits the coordinates in shuffled_order(seed, pass); a move
     beyond delta_max of v0 is skipped unevaluated; +step is taken if it lowers L, else -step; the descent
     stops when evals == max_evals before an evaluation, or when step < min_step after a pass without
-    improvement. (Written as one loop without helper calls: array arguments of inlined helpers cost
+    improvement.
+
+    Each round is a straight-line loop over the lanes (vectorised): accept or reject, write the moved
+    coordinate into X, select the next coordinate of the pass and test its bounds. A lane that needs more
+    (end of pass: step halving and a new shuffle; a coordinate skipped at the delta_max bound; budget
+    exhausted; end of sample: its results out and the next sample in; idle) is flagged in event and
+    finished by a scalar pass. (Written without helper calls: array arguments of inlined helpers cost
     reference counting in the hot loop.)
+
+    Per-lane state (LANES,): the sample (-1 idle), its pass, evals, position in the pass, improved (0/1),
+    the pass order packed 4 bits a position (perm), step, loss Ls, and for the coordinate in evaluation
+    (kc[l]) its value xk and whether +step, -step are within delta_max (pok, mok, 0/1).
     """
-    V = np.empty((8, LANES))
-    X = np.zeros((8, 2 * LANES))  # the slots' lane quads (v, twice)
-    kc, dl = np.zeros(2 * LANES, np.int64), np.zeros(2 * LANES)
-    Fl, Ql = np.zeros((27, 2 * LANES)), np.zeros((6, 2 * LANES))
-    sample = np.full(LANES, -1, np.int64)
-    pas, evals, pos = np.zeros(LANES, np.int64), np.zeros(LANES, np.int64), np.zeros(LANES, np.int64)
-    improved, coord = np.zeros(LANES, np.int64), np.zeros(LANES, np.int64)
-    k = 0
-    plus_ok, minus_ok = np.zeros(LANES, np.bool_), np.zeros(LANES, np.bool_)
-    Ls, step, out = np.empty(LANES), np.empty(LANES), np.empty(2 * LANES)
-    order = np.empty((LANES, 8), np.int64)
+    n = LANES
+    # all lane state in two flat arrays at constant offsets (named views for the scalar code): the vectorised
+    # loop indexes them directly, so it needs no runtime alias checks between a dozen arrays (with them,
+    # LLVM does not vectorise it)
+    OUT, DL, LS, STEP, XK = 16 * n, 18 * n, 20 * n, 21 * n, 22 * n  # in fs, after X (8, 2n)
+    KC, SAMPLE, PAS, EVALS, POS = 0, 2 * n, 3 * n, 4 * n, 5 * n  # in ist
+    IMPROVED, PERM, POK, MOK, EVENT = 6 * n, 7 * n, 8 * n, 9 * n, 10 * n
+    fs, ist = np.zeros(23 * n), np.zeros(11 * n, np.int64)
+    X, out, dl = fs[:OUT].reshape(8, 2 * n), fs[OUT:DL], fs[DL:LS]
+    Ls, step, xk = fs[LS:STEP], fs[STEP:XK], fs[XK:]
+    kc, sample, pas, evals = ist[KC:SAMPLE], ist[SAMPLE:PAS], ist[PAS:EVALS], ist[EVALS:POS]
+    pos, improved, perm = ist[POS:IMPROVED], ist[IMPROVED:PERM], ist[PERM:POK]
+    pok, mok, event = ist[POK:MOK], ist[MOK:EVENT], ist[EVENT:]
+    sample[:] = -1
+    event[:] = 1
+    Fl, Ql = np.zeros((27, 2 * n)), np.zeros((6, 2 * n))
+    order = np.empty((n, 8), np.int64)
     nxt, active = lo, 0
     while True:
-        for l in range(LANES):
-            ready = sample[l] >= 0
-            if ready:  # resolve the coordinate evaluated in this lane's slots
-                k = coord[l]
-                taken = False
-                if plus_ok[l]:
-                    evals[l] += 1
-                    if out[2 * l] < Ls[l]:
-                        V[k, l] += step[l]
-                        X[k, 2 * l] = X[k, 2 * l + 1] = V[k, l]
-                        Ls[l] = out[2 * l]
-                        taken = True
-                if not taken and minus_ok[l]:
-                    if evals[l] == max_evals:
-                        ready = False
-                    else:
-                        evals[l] += 1
-                        if out[2 * l + 1] < Ls[l]:
-                            V[k, l] += -step[l]
-                            X[k, 2 * l] = X[k, 2 * l + 1] = V[k, l]
-                            Ls[l] = out[2 * l + 1]
-                            taken = True
-                improved[l] |= taken
-                pos[l] += 1
+        for l in range(n):  # events of the previous round, and the initial loads (every lane flagged)
+            if event[l] == 0:
+                continue
+            ready = sample[l] >= 0 and event[l] < 2  # event >= 2: the budget ran out before -step
             while True:
                 if ready:  # find the lane's next coordinate to evaluate
                     while True:
@@ -256,24 +252,29 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
                             improved[l] = 0
                             pos[l] = 0
                             shuffled_order8(seeds[sample[l]], pas[l], order, l)
-                        k = order[l, pos[l]]
-                        plus_ok[l] = abs((V[k, l] + step[l]) - v0[k]) <= delta_max
-                        minus_ok[l] = abs((V[k, l] - step[l]) - v0[k]) <= delta_max
-                        if plus_ok[l] or minus_ok[l]:
+                            perm[l] = 0
+                            for c in range(8):
+                                perm[l] |= order[l, c] << (4 * c)
+                        k = (perm[l] >> (4 * pos[l])) & 7
+                        pok[l] = abs((X[k, l] + step[l]) - v0[k]) <= delta_max
+                        mok[l] = abs((X[k, l] - step[l]) - v0[k]) <= delta_max
+                        if pok[l] or mok[l]:
                             ready = evals[l] < max_evals
                             break
                         pos[l] += 1
                 if ready:
-                    kc[2 * l] = kc[2 * l + 1] = coord[l] = k
-                    dl[2 * l], dl[2 * l + 1] = step[l], -step[l]
+                    kc[l] = kc[n + l] = k
+                    xk[l] = X[k, l]
+                    dl[l], dl[n + l] = step[l], -step[l]
                     break
                 s = sample[l]
                 if s >= 0:  # the lane's descent ended
                     for c in range(8):
-                        vfinal[s, c] = V[c, l]
+                        vfinal[s, c] = X[c, l]
                     vfinal[s, 8] = evals[l]
                     Lfinal[s] = Ls[l]
                     sample[l] = -1
+                    pok[l] = mok[l] = 0
                     active -= 1
                 if nxt == hi:
                     break
@@ -282,19 +283,52 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
                 active += 1
                 sample[l], pas[l], evals[l], pos[l], improved[l] = s, 0, 0, 0, 0
                 for c in range(8):
-                    V[c, l] = X[c, 2 * l] = X[c, 2 * l + 1] = vfinal[s, c]
+                    X[c, l] = X[c, n + l] = vfinal[s, c]
                 Ls[l], step[l] = Lfinal[s], initial_step
                 for t in range(3):
                     i = I[s] if t == 0 else (J[s] if t == 1 else K[s])
                     for c in range(9):
-                        Fl[9 * t + c, 2 * l] = Fl[9 * t + c, 2 * l + 1] = F[i, c]
-                    Ql[2 * t, 2 * l] = Ql[2 * t, 2 * l + 1] = q[i, 0]
-                    Ql[2 * t + 1, 2 * l] = Ql[2 * t + 1, 2 * l + 1] = q[i, 1]
+                        Fl[9 * t + c, l] = Fl[9 * t + c, n + l] = F[i, c]
+                    Ql[2 * t, l] = Ql[2 * t, n + l] = q[i, 0]
+                    Ql[2 * t + 1, l] = Ql[2 * t + 1, n + l] = q[i, 1]
                 shuffled_order8(seeds[s], 0, order, l)
+                perm[l] = 0
+                for c in range(8):
+                    perm[l] |= order[l, c] << (4 * c)
                 ready = True
         if active == 0:
             return
         eval_lanes(X, kc, dl, Fl, Ql, out)
+        for l in range(n):  # resolve every lane's coordinate and pick its next one (idle lanes: pok = mok = 0)
+            k, sp, L, e, x = ist[KC + l], fs[STEP + l], fs[LS + l], ist[EVALS + l], fs[XK + l]
+            op, om, p_ok, m_ok = fs[OUT + l], fs[OUT + n + l], ist[POK + l], ist[MOK + l]
+            take_p = (p_ok != 0) & (op < L)
+            e += p_ok
+            try_m = (m_ok != 0) & (not take_p)
+            budget = try_m & (e == max_evals)  # no evaluation left for -step: the descent ends
+            eval_m = try_m & (e != max_evals)
+            take_m = eval_m & (om < L)
+            e += eval_m
+            x = x + sp if take_p else (x - sp if take_m else x)
+            fs[LS + l] = op if take_p else (om if take_m else L)
+            ist[EVALS + l] = e
+            ist[IMPROVED + l] |= take_p | take_m
+            p = ist[POS + l] + 1
+            ist[POS + l] = p
+            k2 = (ist[PERM + l] >> (4 * p)) & 7  # (p == 8: an event, k2 unused)
+            xn, vn = 0.0, 0.0
+            for c in range(8):  # selects, not branches or indexing by k: X[k, l] = x, xn = X[k2, l], vn = v0[k2]
+                old = fs[2 * n * c + l]
+                col = x if c == k else old
+                fs[2 * n * c + l] = fs[2 * n * c + n + l] = col
+                xn = col if c == k2 else xn
+                vn = v0[c] if c == k2 else vn
+            pn = abs((xn + sp) - vn) <= delta_max
+            mn = abs((xn - sp) - vn) <= delta_max
+            ist[KC + l] = ist[KC + n + l] = k2
+            fs[XK + l], ist[POK + l], ist[MOK + l] = xn, pn, mn
+            # event: 0 none; 1 end of pass, k2 out of bounds both ways, budget spent, or idle; 2 or 3 budget hit
+            ist[EVENT + l] = 2 * budget + ((ist[SAMPLE + l] < 0) | (p == 8) | (not (pn | mn)) | (e >= max_evals))
 
 
 @nb.njit(**JIT)
