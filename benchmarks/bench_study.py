@@ -3,9 +3,8 @@ implementation (cv2.getPerspectiveTransform + cv2.perspectiveTransform in a Pyth
 
     python benchmarks/bench_study.py SCENE1_DATASET SCENE2_DATASET [--variants 1000] [--n-test 2000]
 
-The datasets should be `simgen generate` outputs of scenes/scene1 and scenes/scene2 (40 and 39 calibration
-points: 1001 x (C(40,3) + C(39,3)) = 19,038,019 samples). Without datasets it writes synthetic ones from
-the pinhole camera, for development only: those numbers are not the headline figure.
+The datasets are `simgen generate` outputs of scenes/scene1 and scenes/scene2 (40 and 39 calibration
+points: 1001 x (C(40,3) + C(39,3)) = 19,038,019 samples).
 """
 from __future__ import annotations
 
@@ -24,7 +23,6 @@ from homocal.keyed_rng import seed_from_key, shuffled_order
 from homocal.study.engine import run_study
 from homocal.study.perturb import draw_variant, perturbed_quads
 from homocal.study.scene import Scene, StudyParams
-from homocal.study.synthetic import write_dataset
 
 
 def cv2_map(H: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -97,7 +95,7 @@ def baseline_sample(scene: Scene, params: StudyParams, variant: int, triple) -> 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("datasets", nargs="*", help="the two scenes' simgen datasets")
+    ap.add_argument("datasets", nargs="+", help="the two scenes' simgen datasets")
     ap.add_argument("--variants", type=int, default=1000)
     ap.add_argument("--n-test", type=int, default=2000)
     ap.add_argument("--repeats", type=int, default=1, help="full-study runs (median printed)")
@@ -106,9 +104,6 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         paths = args.datasets
-        if not paths:
-            print("NOTE: no datasets given: synthetic pinhole datasets (development only, NOT the headline figure)")
-            paths = [str(write_dataset(tmp / "s1", "synthetic1", 40, 5000)), str(write_dataset(tmp / "s2", "synthetic2", 39, 5000, 1))]
         params = StudyParams(n_variants=args.variants, n_test=args.n_test)
         run_study(paths, tmp / "warmup", StudyParams(n_variants=1, n_test=args.n_test), progress=False)  # compile/load
         walls, cpus = [], []

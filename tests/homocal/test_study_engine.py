@@ -16,7 +16,7 @@ import pytest
 from homocal.cli import main
 from homocal.study.engine import run_study
 from homocal.study.scene import SHARD_SCHEMA, Scene, StudyParams, compute_shard
-from homocal.study.synthetic import write_dataset
+from synthetic_dataset import write_dataset
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,7 @@ from homocal.keyed_rng import fisher_yates, seed_from_key, shuffled_order, shuff
 from homocal.study import kernels
 from homocal.study.perturb import draw_variant, perturbed_quads
 from homocal.study.scene import Scene, StudyParams, prepare_variant, run_tables
-from homocal.study.synthetic import write_dataset
+from synthetic_dataset import write_dataset
 from homocal.study.triples import n_samples, triples
 
 PARAMS = StudyParams(n_test=300)

@@ -24,7 +24,6 @@ from matplotlib.image import imread
 from homocal.cli import main
 from homocal.dataset import load_dataset
 from homocal.study import figures, metrics, report
-from homocal.study.synthetic import write_dataset
 
 METHODS = metrics.METHODS
 SCENES = {"alpha": (5.0, 9.0, 14.0, 20.0, 27.0, 35.0), "beta": (6.0, 11.0, 17.0, 24.0, 32.0)}  # calibration distances, m
@@ -210,13 +209,9 @@ class TestReportCommand:
 
 
 @pytest.fixture
-def dataset_dir(request, tmp_path_factory) -> Path:
-    """The tiny dataset of tests/conftest.py, or the study's synthetic one while that fixture does not exist."""
-    try:
-        value = request.getfixturevalue("tiny_dataset")
-    except pytest.FixtureLookupError:
-        return write_dataset(tmp_path_factory.mktemp("dataset"), n_test=400)
-    return Path(getattr(value, "path", value))
+def dataset_dir(tiny_dataset) -> Path:
+    """The real simgen dataset of tests/conftest.py."""
+    return tiny_dataset
 
 
 def write_variants(path: Path) -> None:

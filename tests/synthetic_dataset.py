@@ -1,5 +1,5 @@
-"""A small synthetic dataset folder (data_schema.md) from the paper's pinhole camera, for tests and
-development only: the headline figures come from `simgen generate` datasets."""
+"""A small synthetic dataset folder (data_schema.md) from the paper's pinhole camera, for the study tests that
+need fast datasets with chosen sizes; real datasets come from `simgen generate` (tests/conftest.py)."""
 from __future__ import annotations
 
 import json
