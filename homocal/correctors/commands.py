@@ -126,7 +126,7 @@ def load_trapezoid(path: Path) -> ViewTransformer:
         else:
             entry = data
             sm = data.get("site_map")
-            site_map = None if sm is None else SiteMap(float(sm["scale_px_per_m"]), tuple(map(float, sm["origin_px"])))
+            site_map = None if sm is None else SiteMap.from_dict(sm, f"{path} site_map")
         image, ground = validate_quad(entry["image"], "image"), validate_quad(entry["map"], "map")
         if site_map is not None:
             ground = site_map.to_metres(ground)

@@ -47,10 +47,14 @@ class SiteMap:
         return np.column_stack([ox + p[:, 0] * self.scale_px_per_m, oy - p[:, 1] * self.scale_px_per_m])
 
     @classmethod
-    def from_json(cls, path: str | Path) -> "SiteMap":
-        """Read a dataset's site_map.json ({"scale_px_per_m": s, "origin_px": [ox, oy], ...})."""
-        d = json.loads(Path(path).read_text())
+    def from_dict(cls, d: dict, where: str = "site map") -> "SiteMap":
+        """From {"scale_px_per_m": s, "origin_px": [ox, oy], ...}; ValueError naming ``where`` if malformed."""
         try:
             return cls(float(d["scale_px_per_m"]), (float(d["origin_px"][0]), float(d["origin_px"][1])))
         except (KeyError, TypeError, IndexError) as e:
-            raise ValueError(f"{path}: site map needs scale_px_per_m and origin_px [ox, oy] ({e})") from None
+            raise ValueError(f"{where}: site map needs scale_px_per_m and origin_px [ox, oy] ({e})") from None
+
+    @classmethod
+    def from_json(cls, path: str | Path) -> "SiteMap":
+        """Read a dataset's site_map.json."""
+        return cls.from_dict(json.loads(Path(path).read_text()), str(path))
