@@ -29,7 +29,7 @@ import math
 import numba as nb
 import numpy as np
 
-from homocal.keyed_rng import shuffled_order8, splitmix64
+from homocal.keyed_rng import packed_order, splitmix64
 
 JIT = dict(cache=True, error_model="numpy")
 
@@ -152,26 +152,22 @@ LANES = 16  # phase-2 samples run side by side, each evaluating one coordinate's
 
 
 @nb.njit(**JIT)
-def grid_best(table, i, j, k, sums):
-    """Phase 1 for triple (i, j, k): (least mean loss, first cell reaching it) over the grid table (M, G^4);
-    sums (G^4,) scratch. Sums and minimum vectorise; the scan for the first minimum exits early."""
+def grid_best(table, i, j, k, means):
+    """Phase 1 for triple (i, j, k): (least mean loss, first cell reaching it, as np.argmin) over the grid
+    table (M, G^4); means (G^4,) scratch. Losses are >= 0 or +inf, so the means order as their int64 bit
+    patterns: the minimum and the search for its first cell are integer loops, which vectorise (a float
+    minimum does not)."""
     n = table.shape[1]
     for g in range(n):
-        sums[g] = (table[i, g] + table[j, g] + table[k, g]) / 3.0
-    best = _min_value(sums)
-    g = 0
-    while sums[g] != best:  # the first cell at the minimum (np.argmin; all +inf gives cell 0, as np.argmin)
-        g += 1
-    return best, g
-
-
-@nb.njit(cache=True, error_model="numpy", fastmath={"nnan", "nsz", "reassoc"})
-def _min_value(x):
-    """Smallest element of x (no NaN: losses are finite or +inf)."""
-    m = math.inf
-    for g in range(x.shape[0]):
-        m = _min(m, x[g])
-    return m
+        means[g] = (table[i, g] + table[j, g] + table[k, g]) / 3.0
+    bits = means.view(np.int64)
+    least = bits[0]
+    for g in range(n):
+        least = _min(least, bits[g])
+    first = n
+    for g in range(n):
+        first = _min(first, g if bits[g] == least else n)
+    return means[first], first
 
 
 @nb.njit(**JIT)
@@ -213,7 +209,7 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
     reference counting in the hot loop.)
 
     Per-lane state (LANES,): the sample (-1 idle), its pass, evals, position in the pass, improved (0/1),
-    the pass order packed 4 bits a position (perm), step, loss Ls, and for the coordinate in evaluation
+    the pass order packed 4 bits a position (perm, keyed_rng.packed_order), step, loss Ls, and for the coordinate in evaluation
     (kc[l]) its value xk and whether +step, -step are within delta_max (pok, mok, 0/1).
     """
     n = LANES
@@ -232,7 +228,6 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
     sample[:] = -1
     event[:] = 1
     Fl, Ql = np.zeros((27, 2 * n)), np.zeros((6, 2 * n))
-    order = np.empty((n, 8), np.int64)
     nxt, active = lo, 0
     while True:
         for l in range(n):  # events of the previous round, and the initial loads (every lane flagged)
@@ -251,10 +246,7 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
                                     break
                             improved[l] = 0
                             pos[l] = 0
-                            shuffled_order8(seeds[sample[l]], pas[l], order, l)
-                            perm[l] = 0
-                            for c in range(8):
-                                perm[l] |= order[l, c] << (4 * c)
+                            perm[l] = packed_order(seeds[sample[l]], pas[l])
                         k = (perm[l] >> (4 * pos[l])) & 7
                         pok[l] = abs((X[k, l] + step[l]) - v0[k]) <= delta_max
                         mok[l] = abs((X[k, l] - step[l]) - v0[k]) <= delta_max
@@ -291,10 +283,7 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
                         Fl[9 * t + c, l] = Fl[9 * t + c, n + l] = F[i, c]
                     Ql[2 * t, l] = Ql[2 * t, n + l] = q[i, 0]
                     Ql[2 * t + 1, l] = Ql[2 * t + 1, n + l] = q[i, 1]
-                shuffled_order8(seeds[s], 0, order, l)
-                perm[l] = 0
-                for c in range(8):
-                    perm[l] |= order[l, c] << (4 * c)
+                perm[l] = packed_order(seeds[s], 0)
                 ready = True
         if active == 0:
             return
@@ -443,7 +432,7 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
     seeds = np.empty(S, np.uint64)
     dH = np.empty(9, np.float32)
     Hd = np.empty((3, 3))
-    sums = np.empty(G4)
+    means = np.empty(G4)
     for s in range(S):
         i, j, k = I[s], J[s], K[s]
         # ---- regression, faithful and signed (eqs. (18)-(24))
@@ -460,7 +449,7 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
         out[s, 2], out[s, 4] = _improvement(path_before, path_f), _improvement(path_before, path_s)
         ab[s, 0], ab[s, 1], ab[s, 2], ab[s, 3] = af, bf, as_, bs
         # ---- descent phase 1: the grid cell of least mean loss, first on ties
-        best, gbest = grid_best(table, i, j, k, sums)
+        best, gbest = grid_best(table, i, j, k, means)
         vfinal[s, :8] = v0
         vfinal[s, 0] += grid[gbest // G**3]
         vfinal[s, 1] += grid[(gbest // G**2) % G]

@@ -7,14 +7,15 @@ import pytest
 
 from homocal.correctors import DescentCorrector, HybridCorrector, RegressionCorrector, radial_correction
 from homocal.geometry import ViewTransformer
-from homocal.keyed_rng import fisher_yates, seed_from_key, shuffled_order, shuffled_order8
+from homocal.keyed_rng import packed_order, seed_from_key, shuffled_order, splitmix64
 from homocal.study import kernels
 from homocal.study.perturb import draw_variant, perturbed_quads
 from homocal.study.scene import Scene, StudyParams, prepare_variant, run_tables
-from synthetic_dataset import write_dataset
 from homocal.study.triples import n_samples, triples
+from synthetic_dataset import write_dataset
 
 PARAMS = StudyParams(n_test=300)
+MASK64 = 2**64 - 1
 
 
 @pytest.fixture(scope="module")
@@ -92,6 +93,21 @@ def test_invalid_candidates_are_infinite():
     assert not any(kernels.frame(*b)[-1] for b in bad)
 
 
+def test_grid_best_is_first_argmin_of_means():
+    """Phase 1's choice is np.argmin of the three losses' means (first on ties, cell 0 if all are +inf), on
+    tables with repeated values, exact ties and invalid cells."""
+    rng = np.random.default_rng(5)
+    means = np.empty(625)
+    for trial in range(300):
+        table = rng.choice([0.0, 0.25, 0.5, 1 / 3, 2.0, np.inf], size=(6, 625)) if trial % 2 else rng.random((6, 625))
+        if trial % 7 == 0:
+            table[:, :] = np.inf
+        i, j, k = rng.choice(6, 3, replace=False)
+        expected = table[[i, j, k]].mean(axis=0)
+        best, cell = kernels.grid_best(table, i, j, k, means)
+        assert cell == np.argmin(expected) and best == expected[cell]
+
+
 def test_sample_seed_matches_seed_from_key():
     base = np.uint64(seed_from_key(7, "scene", 12))
     for i, j, k in [(0, 1, 2), (3, 17, 38)]:
@@ -114,21 +130,48 @@ def test_paper_sample_count():
         triples(2)
 
 
-def test_unrolled_shuffle_is_keyed_rng_shuffle():
-    """shuffled_order8 (the kernels' and, through shuffled_order, the correctors' shuffle for 8 coordinates)
-    draws the general Fisher-Yates permutations; pinned values guard the results of past studies."""
-    ref, out, public = np.empty(8, np.int64), np.zeros((2, 8), np.int64), np.empty(8, np.int64)
-    for seed in [0, 1, 2**63 + 5, seed_from_key(3, "x", 4, 5, 6, 7)]:
+def _splitmix64_reference(state: int) -> int:
+    """splitmix64 in Python integers (Vigna's reference: add the golden gamma, then mix)."""
+    z = (state + 0x9E3779B97F4A7C15) & MASK64
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & MASK64
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & MASK64
+    return z ^ (z >> 31)
+
+
+def test_splitmix64_matches_reference_sequence():
+    """The published splitmix64 outputs for seed 1234567 (state advanced by the gamma each step)."""
+    expected = [6457827717110365317, 3203168211198807973, 9817491932198370423, 4593380528125082431,
+                16408922859458223821]
+    state = 1234567
+    for value in expected:
+        assert int(splitmix64(np.uint64(state))) == _splitmix64_reference(state) == value
+        state = (state + 0x9E3779B97F4A7C15) & MASK64
+
+
+def test_shuffled_order_is_lexicographic_permutation_of_one_draw():
+    """shuffled_order (the correctors') and packed_order (the kernels') give permutation floor(z 8!/2^64) of
+    itertools.permutations(range(8)), z = splitmix64(seed ^ pass * C), computed here in Python integers."""
+    permutations = list(itertools.permutations(range(8)))
+    out = np.empty(8, np.int64)
+    for seed in [0, 1, 2**63 + 5, 2**64 - 1, seed_from_key(3, "x", 4, 5, 6, 7)]:
         for pass_index in range(40):
-            fisher_yates(np.uint64(seed), pass_index, ref)
-            shuffled_order8(np.uint64(seed), pass_index, out, 1)
-            shuffled_order(np.uint64(seed), pass_index, public)
-            np.testing.assert_array_equal(out[1], ref)
-            np.testing.assert_array_equal(public, ref)
-    shuffled_order(np.uint64(0), 0, public)
-    assert public.tolist() == [2, 3, 6, 0, 1, 4, 5, 7]
-    shuffled_order(np.uint64(seed_from_key(3, "x", 4, 5, 6, 7)), 11, public)
-    assert public.tolist() == [6, 1, 2, 5, 4, 3, 7, 0]
-    five = np.empty(5, np.int64)
-    shuffled_order(np.uint64(9), 2, five)
-    assert sorted(five) == list(range(5))
+            z = _splitmix64_reference(seed ^ ((pass_index * 0xD1B54A32D192ED03) & MASK64))
+            expected = permutations[(z * 40320) >> 64]
+            shuffled_order(np.uint64(seed), pass_index, out)
+            assert tuple(out) == expected
+            packed = int(packed_order(np.uint64(seed), pass_index))
+            assert tuple((packed >> (4 * c)) & 15 for c in range(8)) == expected
+    with pytest.raises(ValueError, match="shape \\(8,\\)"):
+        shuffled_order(np.uint64(9), 2, np.empty(5, np.int64))
+
+
+def test_shuffled_orders_are_uniform():
+    """Over 40,000 (seed, pass) draws every coordinate takes every position about 1/8 of the time."""
+    counts = np.zeros((8, 8))
+    out = np.empty(8, np.int64)
+    for seed in range(1000):
+        for pass_index in range(40):
+            shuffled_order(np.uint64(seed_from_key(seed)), pass_index, out)
+            counts[np.arange(8), out] += 1
+    expected = 40_000 / 8
+    assert np.all(np.abs(counts - expected) < 5 * np.sqrt(expected))  # 5 sigma, binomial
