@@ -212,8 +212,8 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
     reference counting in the hot loop.)
 
     Per-lane state (LANES,): the sample (-1 idle), its pass, evals, position in the pass, improved (0/1),
-    the pass order packed 4 bits a position (perm, keyed_rng.packed_order), step, loss Ls, and for the coordinate in evaluation
-    (kc[l]) its value xk and whether +step, -step are within delta_max (pok, mok, 0/1).
+    the pass order packed 4 bits a position (perm, keyed_rng.packed_order), step, loss Ls, and for the
+    coordinate in evaluation (kc[l]) its value xk and whether +step, -step are within delta_max (pok, mok, 0/1).
     """
     n = LANES
     # all lane state in two flat arrays at constant offsets (named views for the scalar code): the vectorised
