@@ -151,26 +151,28 @@ def grid_table(v0, grid, F, q):
     return table
 
 
-LANES = 16  # phase-2 samples run side by side, each evaluating one coordinate's +step and -step at once
+LANES = 32  # phase-2 samples run side by side, each evaluating one coordinate's +step and -step at once
 
 
 @nb.njit(**JIT)
-def grid_best(table, i, j, k, means):
+def grid_best(table, i, j, k, sums):
     """Phase 1 for triple (i, j, k): (least mean loss, first cell reaching it, as np.argmin) over the grid
-    table (M, G^4); means (G^4,) scratch. Losses are >= 0 or +inf, so the means order as their int64 bit
-    patterns: the minimum and the search for its first cell are integer loops, which vectorise (a float
-    minimum does not)."""
+    table (M, G^4); sums (G^4,) scratch. The cells are ranked by their loss sums, divided by 3 once for the
+    best (the same bits as its mean; a sum and a mean rank alike except where two sums 1 ulp apart round to
+    one mean, below the kernels' other differences from the correctors). Losses are >= 0 or +inf, so the
+    sums order as their int64 bit patterns: the minimum and the search for its first cell are integer loops,
+    which vectorise (a float minimum does not)."""
     n = table.shape[1]
     for g in range(n):
-        means[g] = (table[i, g] + table[j, g] + table[k, g]) / 3.0
-    bits = means.view(np.int64)
+        sums[g] = table[i, g] + table[j, g] + table[k, g]
+    bits = sums.view(np.int64)
     least = bits[0]
     for g in range(n):
         least = _min(least, bits[g])
     first = n
     for g in range(n):
         first = _min(first, g if bits[g] == least else n)
-    return means[first], first
+    return sums[first] / 3.0, first
 
 
 @nb.njit(**JIT)
@@ -435,7 +437,7 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
     seeds = np.empty(S, np.uint64)
     dH = np.empty(9, np.float32)
     Hd = np.empty((3, 3))
-    means = np.empty(G4)
+    sums = np.empty(G4)
     for s in range(S):
         i, j, k = I[s], J[s], K[s]
         # ---- regression, faithful and signed (eqs. (18)-(24))
@@ -452,7 +454,7 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
         out[s, 2], out[s, 4] = _improvement(path_before, path_f), _improvement(path_before, path_s)
         ab[s, 0], ab[s, 1], ab[s, 2], ab[s, 3] = af, bf, as_, bs
         # ---- descent phase 1: the grid cell of least mean loss, first on ties
-        best, gbest = grid_best(table, i, j, k, means)
+        best, gbest = grid_best(table, i, j, k, sums)
         vfinal[s, :8] = v0
         vfinal[s, 0] += grid[gbest // G**3]
         vfinal[s, 1] += grid[(gbest // G**2) % G]
