@@ -3,7 +3,11 @@ atomically), resume, and the same shard function in-process or on a Dask distrib
 
     DIR/study.json                                  parameters, datasets, counts, degenerate variants, complete
     DIR/variants/<scene>.parquet                    every variant's offsets, n_perturbed, degenerate, reason
-    DIR/shards/<scene>/variant_<00000>.parquet      one row per calibration triple (scene.SHARD_SCHEMA)
+    DIR/shards/<scene>/variant_<00000>.parquet      one row per calibration triple (scene.SHARD_SCHEMA); its
+                                                    schema metadata holds the variant's degenerate reason
+
+Each variant's mapping is computed once, in its shard: the variants tables and the counts are written after
+the shards, from the reasons the shards record (a killed run leaves them to the run that resumes it).
 """
 from __future__ import annotations
 
@@ -24,7 +28,7 @@ from tqdm import tqdm
 
 from homocal.files import write_atomic, write_json_atomic
 from homocal.study.perturb import draw_variant
-from homocal.study.scene import Scene, StudyParams, compute_shard, variant_mapping
+from homocal.study.scene import Scene, StudyParams, compute_shard, shard_reason
 from homocal.study.triples import n_samples
 
 PRESETS = {"paper": dict(n_variants=1000, n_test=2000), "quick": dict(n_variants=50, n_test=2000)}
@@ -41,14 +45,11 @@ def write_table(path: Path, table: pa.Table) -> None:
     write_atomic(path, lambda tmp: pq.write_table(table, tmp, use_dictionary=False))
 
 
-def variants_table(scene: Scene, params: StudyParams) -> pa.Table:
-    """variants/<scene>.parquet: variant, img_0..7, map_0..7 (px offsets), n_perturbed, degenerate, reason."""
+def variants_table(scene: Scene, params: StudyParams, reasons: list[str]) -> pa.Table:
+    """variants/<scene>.parquet: variant, img_0..7, map_0..7 (px offsets), n_perturbed, degenerate, reason;
+    reasons (n_variants + 1,) are the shards' ("" if not degenerate)."""
     rows = [draw_variant(params.seed, scene.name, v) for v in range(params.n_variants + 1)]
     offsets = np.array([r[0] for r in rows])
-    reasons = []
-    for off in offsets:
-        mapping = variant_mapping(scene, off)
-        reasons.append(mapping if isinstance(mapping, str) else "")
     cols = {"variant": pa.array(np.arange(len(rows), dtype=np.int32))}
     cols |= {f"img_{c}": pa.array(offsets[:, c]) for c in range(8)}
     cols |= {f"map_{c}": pa.array(offsets[:, 8 + c]) for c in range(8)}
@@ -105,31 +106,28 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
         raise ValueError(f"{out} exists and is not empty")
     for tmp in out.glob("**/*.tmp*"):
         tmp.unlink()
-    variants = {}
-    for scene in scenes:
-        vfile = out / "variants" / f"{scene.name}.parquet"
-        if not vfile.is_file():
-            write_table(vfile, variants_table(scene, params))
-        variants[scene.name] = pq.read_table(vfile)
-    study = {**parameters, "samples_total": 0, "samples_done": 0, "complete": False,
-             "elapsed_seconds": (previous or {}).get("elapsed_seconds", 0.0), "versions": versions()}
-    study.update(_counts(out, scenes, variants))
+    n_shards = len(scenes) * (params.n_variants + 1)
+    study = {**parameters, "samples_total": sum(len(s.triples) * (params.n_variants + 1) for s in scenes),
+             "complete": False, "elapsed_seconds": (previous or {}).get("elapsed_seconds", 0.0), "versions": versions()}
     write_json_atomic(study_file, study)
-    todo = [(s, v) for s in scenes for v in range(params.n_variants + 1) if not shard_path(out, s.name, v).is_file()]
+    reasons = {(s.name, v): shard_reason(shard_path(out, s.name, v))
+               for s in scenes for v in range(params.n_variants + 1) if shard_path(out, s.name, v).is_file()}
+    todo = [(s, v) for s in scenes for v in range(params.n_variants + 1) if (s.name, v) not in reasons]
     bar = tqdm(total=len(todo), unit="shard", desc="study", disable=not progress)
     with ThreadPoolExecutor(max_workers=1) as writer:  # writes overlap the next shard's computation
         writes = []
         for scene, variant, table, reason in _execute(todo, paths, scenes, params, workers, scheduler):
-            expected = variants[scene.name].column("reason")[variant].as_py()
-            if reason != expected:
-                raise RuntimeError(f"{scene.name} variant {variant}: degenerate reason {reason!r} != {expected!r}")
             writes.append(writer.submit(write_table, shard_path(out, scene.name, variant), table))
             writes[-1].add_done_callback(lambda _: bar.update())
+            reasons[scene.name, variant] = reason
         for w in writes:
             w.result()
     bar.close()
-    study.update(_counts(out, scenes, variants))
-    study["complete"] = study["shards_done"] == sum(params.n_variants + 1 for _ in scenes)
+    for scene in scenes:
+        write_table(out / "variants" / f"{scene.name}.parquet",
+                    variants_table(scene, params, [reasons[scene.name, v] for v in range(params.n_variants + 1)]))
+    study.update(_counts(scenes, reasons))
+    study["complete"] = study["shards_done"] == n_shards
     study["elapsed_seconds"] += time.perf_counter() - start
     write_json_atomic(study_file, study)
     return study
@@ -171,23 +169,16 @@ def _execute(todo, paths, scenes, params, workers, scheduler):
             cluster.close()
 
 
-def _counts(out: Path, scenes: list[Scene], variants: dict) -> dict:
-    """samples_total, samples_done, samples_degenerate, shards_done and the degenerate variants list."""
-    total = done = degenerate_samples = shards = 0
-    degenerate = []
-    for scene in scenes:
-        per = len(scene.triples)
-        reasons = variants[scene.name].column("reason").to_pylist()
-        total += per * len(reasons)
-        for v, reason in enumerate(reasons):
-            if reason:
-                degenerate.append({"scene": scene.name, "variant": v, "reason": reason})
-                degenerate_samples += per
-            if shard_path(out, scene.name, v).is_file():
-                shards += 1
-                done += 0 if reason else per
-    return {"samples_total": total, "samples_done": done, "samples_degenerate": degenerate_samples,
-            "shards_done": shards, "degenerate": degenerate, "n_degenerate": len(degenerate)}
+def _counts(scenes: list[Scene], reasons: dict[tuple[str, int], str]) -> dict:
+    """samples_done, samples_degenerate, shards_done and the degenerate variants list, from the shards'
+    degenerate reasons {(scene, variant): reason}."""
+    per = {s.name: len(s.triples) for s in scenes}
+    degenerate = [{"scene": s.name, "variant": v, "reason": r}
+                  for s in scenes for (name, v), r in sorted(reasons.items()) if name == s.name and r]
+    n_degenerate_samples = sum(per[d["scene"]] for d in degenerate)
+    return {"samples_done": sum(per[name] for name, _ in reasons) - n_degenerate_samples,
+            "samples_degenerate": n_degenerate_samples, "shards_done": len(reasons), "degenerate": degenerate,
+            "n_degenerate": len(degenerate)}
 
 
 def dry_run_counts(paths: list[str], params: StudyParams) -> dict[str, int]:

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.parquet as pq
 
 from homocal.dataset import EXACT, load_dataset
 from homocal.geometry import SiteMap, ViewTransformer, apply_homography
@@ -21,6 +22,7 @@ SHARD_SCHEMA = pa.schema(
     + [(f"{kind}_{m}", pa.float32()) for m in kernels.METHODS for kind in ("cal", "path")]
     + [("hybrid_regression", pa.bool_())]
 )
+REASON_KEY = "degenerate_reason"  # a shard's Parquet schema metadata: why its variant is degenerate, "" if it is not
 
 
 @dataclass(frozen=True)
@@ -148,11 +150,12 @@ def run_tables(scene: Scene, tables: VariantTables, params: StudyParams, variant
 
 def compute_shard(scene: Scene, params: StudyParams, variant: int) -> tuple[pa.Table, str]:
     """One shard: the Parquet table of every triple of variant (empty if degenerate) and the degenerate
-    reason ("" if none). The one shard function of both engine paths (in-process and dask)."""
+    reason ("" if none), which the table also carries in its schema metadata (see shard_reason). The one
+    shard function of both engine paths (in-process and dask)."""
     offsets, _ = draw_variant(params.seed, scene.name, variant)
     tables = prepare_variant(scene, offsets)
     if isinstance(tables, str):
-        return SHARD_SCHEMA.empty_table(), tables
+        return SHARD_SCHEMA.empty_table().replace_schema_metadata({REASON_KEY: tables}), tables
     out, _, _ = run_tables(scene, tables, params, variant, scene.triples)
     d_sum, d_spread = scene.distance_features
     S = len(scene.triples)
@@ -161,4 +164,12 @@ def compute_shard(scene: Scene, params: StudyParams, variant: int) -> tuple[pa.T
                f32(d_sum), f32(d_spread), f32(out[:, 0]), f32(np.full(S, tables.path_before))]
     columns += [f32(out[:, c]) for c in range(1, 9)]
     columns.append(pa.array(out[:, 9] == 1.0))
-    return pa.Table.from_arrays(columns, schema=SHARD_SCHEMA), ""
+    return pa.Table.from_arrays(columns, schema=SHARD_SCHEMA.with_metadata({REASON_KEY: ""})), ""
+
+
+def shard_reason(path) -> str:
+    """The degenerate reason ("" if none) a shard file records in its Parquet schema metadata."""
+    metadata = pq.read_schema(path).metadata or {}
+    if REASON_KEY.encode() not in metadata:
+        raise ValueError(f"{path}: not a shard of this homocal version (no {REASON_KEY!r} in its metadata)")
+    return metadata[REASON_KEY.encode()].decode()

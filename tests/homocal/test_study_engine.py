@@ -15,7 +15,7 @@ import pytest
 
 from homocal.cli import main
 from homocal.study.engine import run_study
-from homocal.study.scene import SHARD_SCHEMA, Scene, StudyParams, compute_shard
+from homocal.study.scene import SHARD_SCHEMA, Scene, StudyParams, compute_shard, shard_reason
 from synthetic_dataset import write_dataset
 
 
@@ -116,8 +116,12 @@ def test_degenerate_variant_is_counted_not_dropped(datasets, tmp_path, monkeypat
     study = run_study(datasets[:1], tmp_path / "deg", StudyParams(n_variants=30, n_test=200), progress=False)
     assert study["complete"] and study["n_degenerate"] > 0
     assert study["samples_done"] + study["samples_degenerate"] == study["samples_total"]
+    variants = pq.read_table(tmp_path / "deg" / "variants" / "scene_a.parquet").to_pydict()
+    assert [v for v, r in zip(variants["variant"], variants["reason"]) if r] == [d["variant"] for d in study["degenerate"]]
     for d in study["degenerate"]:
-        assert d["reason"] and pq.read_table(tmp_path / "deg" / "shards" / d["scene"] / f"variant_{d['variant']:05d}.parquet").num_rows == 0
+        shard = tmp_path / "deg" / "shards" / d["scene"] / f"variant_{d['variant']:05d}.parquet"
+        assert d["reason"] and pq.read_table(shard).num_rows == 0
+        assert shard_reason(shard) == variants["reason"][d["variant"]] == d["reason"]
 
 
 _original = Scene.from_dataset.__func__
