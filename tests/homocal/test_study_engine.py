@@ -101,6 +101,19 @@ def test_resume_from_any_partial_state(datasets, reference, tmp_path):
     assert resumed["complete"] and resumed["samples_done"] == study["samples_done"] == 41 * (220 + 165)
 
 
+def test_resume_rejects_a_shard_without_its_degenerate_reason(datasets, reference, tmp_path, capsys):
+    """A shard that does not record its variant's degenerate reason (not written by this version) is named,
+    with a non-zero exit, before anything is computed."""
+    out = tmp_path / "foreign"
+    shutil.copytree(reference, out)
+    shard = out / "shards" / "scene_b" / "variant_00005.parquet"
+    pq.write_table(pq.read_table(shard).replace_schema_metadata(None), shard)
+    (out / "shards" / "scene_a" / "variant_00002.parquet").unlink()
+    assert main(["study", *datasets, "--out", str(out), "--variants", "40", "--n-test", "200", "--resume"]) == 2
+    assert "variant_00005.parquet" in capsys.readouterr().err
+    assert not (out / "shards" / "scene_a" / "variant_00002.parquet").exists()
+
+
 def test_dask_local_cluster_matches_in_process(datasets, reference, tmp_path):
     out = tmp_path / "dask"
     assert main(["study", *datasets, "--out", str(out), "--variants", "40", "--n-test", "200", "--workers", "2"]) == 0
