@@ -11,9 +11,9 @@ import argparse
 import sys
 
 from homocal.correctors import commands as corrector_commands
-from homocal.study import cli as study_cli, report as study_report
+from homocal.study import cli as study_cli, report as study_report, sweep as study_sweep
 
-SUBCOMMANDS = (corrector_commands, study_cli, study_report)
+SUBCOMMANDS = (corrector_commands, study_cli, study_sweep, study_report)
 
 
 class _Parser(argparse.ArgumentParser):

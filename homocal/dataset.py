@@ -59,10 +59,13 @@ class Dataset:
         return image, ground, distance
 
     def test_points(
-        self, source: str = EXACT, n: int | None = None, seed: int = 0, max_distance: float | None = None
+        self, source: str = EXACT, n: int | None = None, seed: int = 0, max_distance: float | None = None,
+        max_lateral: float | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Test trajectory points: image (N, 2) px and true ground (N, 2) m, optionally only those whose true
-        distance from the camera origin is at most max_distance (m), then a seeded subsample of n.
+        distance from the camera origin is at most max_distance (m) and whose lateral distance |x - o_x| from
+        the line straight ahead of the camera (where the calibration objects stand) is at most max_lateral
+        (m), then a seeded subsample of n.
 
         source "exact": the exact projections (u, v) of in-frame agents' contact points (gt.parquet);
         a detector name: that detector's detections matched to an agent (detections.parquet, with the
@@ -82,9 +85,12 @@ class Dataset:
         keep = np.isfinite(image).all(axis=1) & np.isfinite(ground).all(axis=1)
         if max_distance is not None:
             keep &= np.hypot(*(ground - self.camera_origin).T) <= max_distance
+        if max_lateral is not None:
+            keep &= np.abs(ground[:, 0] - self.camera_origin[0]) <= max_lateral
         image, ground = image[keep], ground[keep]
         if len(image) == 0:
-            raise ValueError(f"{self.path}: no {source} test points" + (f" within {max_distance} m" if max_distance else ""))
+            limits = [f"within {max_distance} m" if max_distance else "", f"within {max_lateral} m of x = 0" if max_lateral else ""]
+            raise ValueError(f"{self.path}: no {source} test points {' and '.join(x for x in limits if x)}".rstrip())
         if n is not None and n < len(image):
             pick = np.sort(np.random.default_rng(seed).choice(len(image), size=n, replace=False))
             image, ground = image[pick], ground[pick]

@@ -4,27 +4,76 @@ from __future__ import annotations
 import argparse
 
 from homocal.study.engine import PRESETS, dry_run_counts, run_study
-from homocal.study.scene import StudyParams
+from homocal.study.scene import METRICS, StudyParams
+
+
+def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
+    """The options that set StudyParams (shared by study and sweep). Absent options are left out of the
+    namespace (argparse.SUPPRESS), so the preset's values apply unless an option is given. sweep: the
+    sweepable ones are read as text (a list of values, see sweep.expand_values)."""
+    quiet = dict(default=argparse.SUPPRESS)
+
+    def typed(kind):
+        return str if sweep else kind
+
+    p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
+                   help="paper: the paper's protocol (1000 variants, 2000 test points) with the base error closest to "
+                        "its Table 1 (see README); quick: 50 variants, no base error (default)")
+    p.add_argument("--variants", dest="n_variants", type=int, metavar="N", help="perturbed variants per scene (overrides the preset)", **quiet)
+    p.add_argument("--seed", type=typed(int), help="run seed (variants, base errors, descent orders, test subsample; default 0)", **quiet)
+    p.add_argument("--foot-source", help="exact (projected contact points, default), segmentation or rgb "
+                                         "(a detector's matched detections)", **quiet)
+    p.add_argument("--n-test", type=int, help="test points per scene, a seeded subsample (default 2000)", **quiet)
+    p.add_argument("--max-test-distance", type=typed(metres_or_none), metavar="M", **quiet,
+                   help="test points at most M metres from the camera (default 50, the paper's operating range, Fig. 2); "
+                        "'none' for all")
+    p.add_argument("--test-lateral-max", type=typed(metres_or_none), metavar="M", **quiet,
+                   help="test points at most M metres to the side of the calibration line x = 0 (default: none)")
+    p.add_argument("--horizon-shift", metavar="SPEC", **quiet,
+                   help="the clicked trapezoid's systematic error: its horizon SPEC px above the true one, as a tilt "
+                        "error would put it (positive: the mapping underestimates range); SPEC is a number or a "
+                        "per-variant distribution normal:MU:SIGMA or uniform:A:B (default 0, or the preset's)")
+    p.add_argument("--click-noise", type=typed(float), metavar="PX", **quiet,
+                   help="per-variant Gaussian noise (standard deviation, px) on the 8 clicked image coordinates (default 0)")
+    p.add_argument("--metric", **({} if sweep else dict(choices=METRICS)), **quiet,
+                   help="calibration and path errors as Euclidean ground error (default) or range error |d_true - d_mapped|")
+    p.add_argument("--descent-delta-max", type=typed(float), metavar="PX", **quiet,
+                   help="descent: largest move of a trapezoid coordinate, px (default 8; the phase-1 grid spans "
+                        "+/- half of it in 5 steps)")
+
+
+def params_from_args(args: argparse.Namespace, **override) -> StudyParams:
+    """StudyParams of the preset, then the options given, then override; ValueError naming a bad option."""
+    names = ("n_variants", "seed", "foot_source", "n_test", "max_test_distance", "test_lateral_max", "horizon_shift",
+             "click_noise", "metric", "descent_delta_max")
+    values = {**PRESETS[args.preset], **{n: getattr(args, n) for n in names if hasattr(args, n)}, **override}
+    if "descent_delta_max" in values:
+        values["descent"] = descent_settings(values.pop("descent_delta_max"))
+    if values.get("n_variants", 0) < 0:
+        raise ValueError(f"--variants must be >= 0, got {values['n_variants']}")
+    if values.get("n_test", 1) < 1:
+        raise ValueError(f"--n-test must be >= 1, got {values['n_test']}")
+    return StudyParams(**values)
+
+
+def descent_settings(delta_max: float) -> dict:
+    """StudyParams.descent for a largest move delta_max (px): the phase-1 grid on TL and BR spans +/- delta_max / 2
+    in 5 steps (the defaults: delta_max 8, grid -4..4 in 2 px steps); phase 2 as by default."""
+    if not 0 < delta_max <= 100:
+        raise ValueError(f"--descent-delta-max must be in (0, 100] px, got {delta_max}")
+    half = delta_max / 2
+    return {**StudyParams().descent, "delta_max": float(delta_max), "grid_offsets": (-half, -half / 2, 0.0, half / 2, half)}
 
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
         "study", help="run the correction study (every trapezoid variant x every calibration triple)",
-        description="Per scene: the hand-placed trapezoid and N perturbed variants, every combination of three "
+        description="Per scene: the clicked base trapezoid and N perturbed variants, every combination of three "
                     "calibration points, regression (faithful and signed), descent and hybrid; per-sample results "
                     "as Parquet shards in --out. --preset paper runs the paper's 1000 variants.")
     p.add_argument("datasets", nargs="+", metavar="DATASET", help="simgen dataset folders (one per scene)")
-    p.add_argument("--out", required=True, help="results directory")
-    p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
-                   help="paper: 1000 variants, 2000 test points; quick: 50 variants (default)")
-    p.add_argument("--variants", type=int, help="perturbed variants per scene (overrides the preset)")
-    p.add_argument("--seed", type=int, default=0, help="run seed (variants, descent orders, test subsample)")
-    p.add_argument("--foot-source", default="exact",
-                   help="exact (projected contact points), segmentation or rgb (a detector's matched detections)")
-    p.add_argument("--n-test", type=int, help="test points per scene, a seeded subsample (default: the preset's, 2000)")
-    p.add_argument("--max-test-distance", type=_metres_or_none, default=StudyParams.max_test_distance, metavar="M",
-                   help="test points at most M metres from the camera (default 50, the paper's operating range, Fig. 2); "
-                        "'none' for all")
+    p.add_argument("-o", "--out", required=True, help="results directory")
+    add_study_options(p)
     group = p.add_mutually_exclusive_group()
     group.add_argument("--workers", type=int, help="start a local Dask cluster of N worker processes")
     group.add_argument("--scheduler", help="address of a running Dask scheduler")
@@ -33,23 +82,22 @@ def add_parser(subparsers) -> None:
     p.set_defaults(handler=handle)
 
 
-def _metres_or_none(text: str) -> float | None:
+def metres_or_none(text: str) -> float | None:
     if text.lower() == "none":
         return None
-    value = float(text)
-    if not value > 0:
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0 < value < float("inf"):
         raise argparse.ArgumentTypeError(f"must be a positive number of metres or 'none', got {text}")
     return value
 
 
 def handle(args: argparse.Namespace) -> int:
-    preset = PRESETS[args.preset]
-    params = StudyParams(seed=args.seed, foot_source=args.foot_source,
-                         n_variants=preset["n_variants"] if args.variants is None else args.variants,
-                         n_test=preset["n_test"] if args.n_test is None else args.n_test,
-                         max_test_distance=args.max_test_distance)
-    if params.n_variants < 0 or params.n_test < 1 or (args.workers is not None and args.workers < 1):
-        raise ValueError("--variants must be >= 0, --n-test and --workers >= 1")
+    params = params_from_args(args)
+    if args.workers is not None and args.workers < 1:
+        raise ValueError(f"--workers must be >= 1, got {args.workers}")
     if args.dry_run:
         counts = dry_run_counts(args.datasets, params)
         for scene, n in counts.items():

@@ -2,6 +2,7 @@
 atomically), resume, and the same shard function in-process or on a Dask distributed cluster.
 
     DIR/study.json                                  parameters, datasets, counts, degenerate variants, complete
+    DIR/timing.json                                 elapsed_seconds (wall time, summed over resumed runs)
     DIR/variants/<scene>.parquet                    every variant's offsets, n_perturbed, degenerate, reason
     DIR/shards/<scene>/variant_<00000>.parquet      one row per calibration triple (scene.SHARD_SCHEMA); its
                                                     schema metadata holds the variant's degenerate reason
@@ -17,7 +18,6 @@ import os
 import platform
 import time
 from concurrent.futures import ALL_COMPLETED, FIRST_COMPLETED, ThreadPoolExecutor, wait
-from dataclasses import asdict
 from pathlib import Path
 
 import numba
@@ -27,7 +27,7 @@ import pyarrow.parquet as pq
 from tqdm import tqdm
 
 from homocal.files import write_atomic, write_json_atomic
-from homocal.study.perturb import draw_variant
+from homocal.study.perturb import ShiftSpec, draw_base_error, draw_variant
 from homocal.study.scene import Scene, StudyParams, compute_shard, shard_reason
 from homocal.study.triples import n_samples
 
@@ -46,11 +46,16 @@ def write_table(path: Path, table: pa.Table) -> None:
 
 
 def variants_table(scene: Scene, params: StudyParams, reasons: list[str]) -> pa.Table:
-    """variants/<scene>.parquet: variant, img_0..7, map_0..7 (px offsets), n_perturbed, degenerate, reason;
-    reasons (n_variants + 1,) are the shards' ("" if not degenerate)."""
-    rows = [draw_variant(params.seed, scene.name, v) for v in range(params.n_variants + 1)]
-    offsets = np.array([r[0] for r in rows])
-    cols = {"variant": pa.array(np.arange(len(rows), dtype=np.int32))}
+    """variants/<scene>.parquet: variant, horizon_shift_px and click_0..7 (the base error, px), img_0..7, map_0..7
+    (px offsets), n_perturbed, degenerate, reason; reasons (n_variants + 1,) are the shards' ("" if not
+    degenerate)."""
+    n = params.n_variants + 1
+    rows = [draw_variant(params.seed, scene.name, v) for v in range(n)]
+    base = [draw_base_error(params.seed, scene.name, v, ShiftSpec.parse(params.horizon_shift), params.click_noise)
+            for v in range(n)]
+    offsets, click = np.array([r[0] for r in rows]), np.array([b[1] for b in base])
+    cols = {"variant": pa.array(np.arange(n, dtype=np.int32)), "horizon_shift_px": pa.array([b[0] for b in base])}
+    cols |= {f"click_{c}": pa.array(click[:, c]) for c in range(8)}
     cols |= {f"img_{c}": pa.array(offsets[:, c]) for c in range(8)}
     cols |= {f"map_{c}": pa.array(offsets[:, 8 + c]) for c in range(8)}
     cols |= {"n_perturbed": pa.array(np.array([r[1] for r in rows], dtype=np.int8)),
@@ -60,28 +65,27 @@ def variants_table(scene: Scene, params: StudyParams, reasons: list[str]) -> pa.
 
 @functools.lru_cache(maxsize=8)
 def _scene(path: str, params_json: str) -> Scene:
-    return Scene.from_dataset(path, StudyParams(**json.loads(params_json)))
+    return Scene.from_dataset(path, StudyParams.from_dict(json.loads(params_json)))
 
 
 def run_group(path: str, params_json: str, variants: list[int]) -> list[tuple[int, pa.Table, str]]:
     """The unit of work of both engine paths: compute_shard for each variant of one scene's dataset."""
     scene = _scene(path, params_json)
-    params = StudyParams(**json.loads(params_json))
+    params = StudyParams.from_dict(json.loads(params_json))
     return [(v, *compute_shard(scene, params, v)) for v in variants]
 
 
 def study_parameters(preset: str | None, params: StudyParams, scenes: list[Scene], paths: list[str]) -> dict:
+    """The parameters part of study.json: what --resume compares (every StudyParams field, the datasets)."""
     return {
-        "preset": preset, "seed": params.seed, "n_variants": params.n_variants, "foot_source": params.foot_source,
-        "n_test": params.n_test, "max_test_distance": params.max_test_distance, "threshold": params.threshold, "descent": {**params.descent,
-                                                                            "grid_offsets": list(params.descent["grid_offsets"])},
+        "preset": preset, **params.to_dict(),
         "datasets": [{"scene": s.name, "path": str(Path(p).resolve()), "config_hash": s.config_hash,
                       "n_calibration": len(s.cal_image), "n_test": len(s.test_image)} for s, p in zip(scenes, paths)],
     }
 
 
 def load_scenes(paths: list[str], params: StudyParams) -> list[Scene]:
-    scenes = [_scene(str(Path(p).resolve()), json.dumps(asdict(params))) for p in paths]
+    scenes = [_scene(str(Path(p).resolve()), json.dumps(params.to_dict())) for p in paths]
     names = [s.name for s in scenes]
     if len(set(names)) != len(names):
         raise ValueError(f"two datasets have the same scene name: {names}")
@@ -90,8 +94,9 @@ def load_scenes(paths: list[str], params: StudyParams) -> list[Scene]:
 
 def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: str | None = None, resume: bool = False,
               workers: int | None = None, scheduler: str | None = None, progress: bool = True) -> dict:
-    """Run (or resume) a study; returns the final study.json content. Bad input raises ValueError before
-    anything is written."""
+    """Run (or resume) a study; returns the final study.json content plus elapsed_seconds (wall time of all the
+    runs that wrote it, kept in timing.json so that study.json is the same bytes for the same inputs). Bad
+    input raises ValueError before anything is written."""
     start = time.perf_counter()
     out = Path(out)
     scenes = load_scenes(paths, params)
@@ -107,8 +112,10 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
     for tmp in out.glob("**/*.tmp*"):
         tmp.unlink()
     n_shards = len(scenes) * (params.n_variants + 1)
+    timing_file = out / "timing.json"
+    elapsed = json.loads(timing_file.read_text()).get("elapsed_seconds", 0.0) if timing_file.is_file() else 0.0
     study = {**parameters, "samples_total": sum(len(s.triples) * (params.n_variants + 1) for s in scenes),
-             "complete": False, "elapsed_seconds": (previous or {}).get("elapsed_seconds", 0.0), "versions": versions()}
+             "complete": False, "versions": versions()}
     write_json_atomic(study_file, study)
     reasons = {(s.name, v): shard_reason(shard_path(out, s.name, v))
                for s in scenes for v in range(params.n_variants + 1) if shard_path(out, s.name, v).is_file()}
@@ -128,14 +135,15 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
                     variants_table(scene, params, [reasons[scene.name, v] for v in range(params.n_variants + 1)]))
     study.update(_counts(scenes, reasons))
     study["complete"] = study["shards_done"] == n_shards
-    study["elapsed_seconds"] += time.perf_counter() - start
     write_json_atomic(study_file, study)
-    return study
+    elapsed += time.perf_counter() - start
+    write_json_atomic(timing_file, {"elapsed_seconds": elapsed})
+    return study | {"elapsed_seconds": elapsed}
 
 
 def _execute(todo, paths, scenes, params, workers, scheduler):
     """Yield (scene, variant, table, reason) for every (scene, variant) of todo, in-process or on Dask."""
-    params_json = json.dumps(asdict(params))
+    params_json = json.dumps(params.to_dict())
     path_of = {s.name: str(Path(p).resolve()) for s, p in zip(scenes, paths)}
     groups = []
     for scene in scenes:

@@ -14,13 +14,14 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow.parquet as pq
+from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
 from homocal.correctors import fit_quadratic_error
 from homocal.dataset import Dataset, load_dataset
 from homocal.geometry import ViewTransformer
 from homocal.study.metrics import METHODS, read_columns
-from homocal.study.perturb import N_COORDS, perturbed_quads
+from homocal.study.perturb import base_quad, perturbed_quads
 
 DPI = 110
 
@@ -92,7 +93,8 @@ def improvement_histograms(shards: dict[str, list[Path]], out: Path, lo: float =
     for ax in axes[-1]:
         ax.set_xlabel("improvement (%) = 100 (E_before - E_after) / E_before")
     fig.savefig(out, dpi=DPI)
-    return (f"Share of samples per {width:g} percentage-point bin, all scenes pooled; the display is clipped to "
+    return (f"The improvement distributions of the paper's Section 6 (its text gives their medians, spreads and 1st "
+            f"percentiles). Share of samples per {width:g} percentage-point bin, all scenes pooled; the display is clipped to "
             f"[{lo:g}, {hi:g}] % and each panel gives the share of samples outside it.")
 
 
@@ -116,16 +118,18 @@ def path_heatmaps(shards: dict[str, list[Path]], out: Path, bins: int = 24, vmin
     lowest = float(min((m.min() for m in filled), default=0.0))
     vmin = max(lowest, vmin_floor)
     vmax = max(float(max((m.max() for m in filled), default=100.0)), vmin)
+    span = max(abs(vmin), abs(vmax), 1e-9)  # diverging, centred on 0: red worse than no correction, blue better
+    norm = Normalize(-span, span)
     fig = Figure(figsize=(11, 9), layout="constrained")
     axes = fig.subplots(2, 2, sharex=True, sharey=True).ravel()
     for ax, (method, mean) in zip(axes, means.items()):
-        mesh = ax.pcolormesh(x_edges, y_edges, mean, vmin=vmin, vmax=vmax, cmap="viridis")
+        mesh = ax.pcolormesh(x_edges, y_edges, mean, cmap="RdBu", norm=norm)
         ax.set_title(method)
         ax.set_xlabel("sum of the three calibration distances (m)")
         ax.set_ylabel("spread of the three calibration distances (m)")
     fig.colorbar(mesh, ax=axes.tolist(), label="mean path improvement (%)", extend="min" if lowest < vmin else "neither")
     fig.savefig(out, dpi=DPI)
-    return (f"Mean path improvement per cell of {bins} x {bins} bins of the calibration triple's distance sum and "
+    return (f"Counterpart of the paper's Fig. 4 (a: regression, b: descent). Mean path improvement per cell of {bins} x {bins} bins of the calibration triple's distance sum and "
             f"spread (max - min), all scenes and variants pooled; empty cells are blank"
             + (f"; cell means below {vmin:g} % share the lowest colour." if lowest < vmin else "."))
 
@@ -139,36 +143,41 @@ def ground_error(image_quad: np.ndarray, map_quad: np.ndarray, ds: Dataset, imag
 
 def error_vs_distance(ds: Dataset, variants_file: Path, source: str, out: Path, n_variants: int = 3,
                       n_test: int | None = 2000, seed: int = 0, max_distance: float | None = None) -> str:
-    """Ground error (m) against true distance from the camera (m) for the hand-placed trapezoid (calibration
+    """Ground error (m) against true distance from the camera (m) for the variant-0 base trapezoid (calibration
     and test points) and the first n_variants perturbed, non-degenerate variants (calibration points), each
-    with the least-squares fit e = a d^2 + b d over its calibration points (paper eqs. (17), (19))."""
+    with the least-squares fit e = a d^2 + b d over its calibration points (paper eqs. (17), (19); the
+    counterpart of the paper's Fig. 3)."""
     cal_img, cal_ground, _ = ds.calibration_points(source)
     test_img, test_ground = ds.test_points(source, n=n_test, seed=seed, max_distance=max_distance)
     fig = Figure(figsize=(8, 5.5), layout="constrained")
     ax = fig.subplots()
-    e_test = ground_error(ds.trapezoid_image, ds.trapezoid_map, ds, test_img, test_ground)
-    ax.scatter(_distance(ds, test_ground), e_test, s=3, color="0.7", label=f"test points ({len(e_test)}), hand-placed")
-    trapezoids = [("hand-placed", np.zeros(N_COORDS))] + _perturbed_variants(variants_file, n_variants)
+    quads = _variant_quads(ds, variants_file, n_variants)
+    e_test = ground_error(*quads[0][1], ds, test_img, test_ground)
+    ax.scatter(_distance(ds, test_ground), e_test, s=3, color="0.7", label=f"test points ({len(e_test)}), {quads[0][0]}")
     d_cal = _distance(ds, cal_ground)
     d_line = np.linspace(0, max(d_cal.max(), np.nanmax(_distance(ds, test_ground))), 200)
-    for (name, offsets), color in zip(trapezoids, ["k", "tab:red", "tab:orange", "tab:purple", "tab:cyan"]):
+    negative = []
+    for (name, (image, map_quad)), color in zip(quads, ["k", "tab:red", "tab:orange", "tab:purple", "tab:cyan"]):
         try:
-            e_cal = ground_error(*perturbed_quads(ds.trapezoid_image, ds.trapezoid_map, offsets), ds, cal_img, cal_ground)
+            e_cal = ground_error(image, map_quad, ds, cal_img, cal_ground)
         except ValueError:
             continue
         ok = np.isfinite(e_cal)
         a, b, _ = fit_quadratic_error(d_cal[ok], e_cal[ok])
-        ax.scatter(d_cal, e_cal, s=18, color=color, marker="o" if name == "hand-placed" else "x")
-        ax.plot(d_line, a * d_line**2 + b * d_line, color=color, ls="-" if name == "hand-placed" else "--",
+        negative += [name] if a < 0 else []
+        ax.scatter(d_cal, e_cal, s=18, color=color, marker="o" if name == quads[0][0] else "x")
+        ax.plot(d_line, a * d_line**2 + b * d_line, color=color, ls="-" if name == quads[0][0] else "--",
                 label=f"{name}: e = {a:.2e} d² {b:+.2e} d")
     ax.set_xlabel("true distance from the camera (m)")
     ax.set_ylabel("ground error of the mapped point (m)")
     ax.set_title(f"{ds.name}: ground error against distance ({source} foot points)")
     ax.legend(fontsize=8)
     fig.savefig(out, dpi=DPI)
-    return (f"Euclidean ground error of the calibration points (markers) and the test points (grey) mapped through the "
-            f"hand-placed trapezoid and the first {len(trapezoids) - 1} perturbed variant(s), with the least-squares fit "
-            f"e = a d² + b d over all {len(d_cal)} calibration points of each.")
+    return (f"Counterpart of the paper's Fig. 3. Euclidean ground error of the calibration points (markers) and the test "
+            f"points (grey) mapped through the base trapezoid of variant 0 and the first {len(quads) - 1} perturbed "
+            f"variant(s), with the least-squares fit e = a d² + b d over all {len(d_cal)} calibration points of each."
+            + (f" The fitted quadratic term is negative for {', '.join(negative)}: there the error does not grow as the "
+               f"square of the range (Section 3), and the paper's Method 1 clamps a to 0." if negative else ""))
 
 
 def test_distance_distribution(datasets: list[Dataset], source: str, out: Path, n_test: int | None = None, seed: int = 0,
@@ -188,22 +197,32 @@ def test_distance_distribution(datasets: list[Dataset], source: str, out: Path, 
     ax.set_title("Distance distribution of the test points")
     ax.legend(fontsize=8)
     fig.savefig(out, dpi=DPI)
-    return f"True distance from the camera of the test points ({', '.join(sizes)}); ticks on the axis: calibration distances."
+    return (f"Counterpart of the paper's Fig. 2. True distance from the camera of the test points ({', '.join(sizes)}); "
+            f"ticks on the axis: calibration distances.")
 
 
-def _perturbed_variants(variants_file: Path, n: int) -> list[tuple[str, np.ndarray]]:
-    """The first n non-degenerate variants with perturbed coordinates: (name, offsets (16,) px, image then map)."""
+def _variant_quads(ds: Dataset, variants_file: Path, n: int) -> list[tuple[str, tuple[np.ndarray, np.ndarray]]]:
+    """(name, (image quad, map quad)) of variant 0 and the first n non-degenerate perturbed variants, each its
+    base trapezoid (the variants table's horizon_shift_px and click_0..7; the hand-placed one if the table is
+    missing) plus its offsets (img_0..7, map_0..7)."""
+    hand = ("hand-placed", (ds.trapezoid_image, ds.trapezoid_map))
     if not variants_file.is_file():
-        return []
+        return [hand]
     t = pq.read_table(variants_file).to_pydict()
+    K = np.asarray(ds.camera["K"], dtype=np.float64)
+    horizon = float(ViewTransformer(ds.trapezoid_image, ds.site_map.to_metres(ds.trapezoid_map)).horizon_row(K[0, 2]))
     out = []
     for row in range(len(t["variant"])):
-        if len(out) == n:
+        if len(out) == n + 1:
             break
         offsets = np.array([t[f"{side}_{k}"][row] for side in ("img", "map") for k in range(8)])
-        if not t["degenerate"][row] and offsets.any():
-            out.append((f"variant {t['variant'][row]}", offsets))
-    return out
+        if t["degenerate"][row] or (row > 0 and not offsets.any()):
+            continue
+        noise = np.array([t[f"click_{k}"][row] for k in range(8)])
+        base = base_quad(ds.trapezoid_image, K, horizon, t["horizon_shift_px"][row], noise)
+        name = "base trapezoid (variant 0)" if row == 0 else f"variant {t['variant'][row]}"
+        out.append((name, perturbed_quads(base, ds.trapezoid_map, offsets)))
+    return out or [hand]
 
 
 def _distance(ds: Dataset, ground: np.ndarray) -> np.ndarray:

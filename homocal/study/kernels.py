@@ -37,6 +37,8 @@ JIT = dict(cache=True, error_model="numpy")
 PATH_JIT = dict(JIT, fastmath={"contract"})  # the test-point loops (no decision depends on them)
 
 METHODS = ("regression", "regression_signed", "descent", "hybrid")
+# run_variant's output columns, in order (the shard schema is derived from them)
+OUT_COLUMNS = ("cal_before", *(f"{kind}_{m}" for m in METHODS for kind in ("cal", "path")), "hybrid_regression")
 
 
 @nb.njit(inline="always", **JIT)
@@ -345,10 +347,13 @@ def fit_quadratic(d0, d1, d2, e0, e1, e2, faithful):
 
 
 @nb.njit(**JIT)
-def radial_error(cal, i, a, b):
-    """||p + u c - g|| (eq. (24)) of calibration candidate i, c = a d^2 + b d; cal rows d, rx, ry, ux, uy, ..."""
+def radial_error(cal, i, a, b, in_range):
+    """Error of calibration candidate i after the radial correction (eq. (24)), c = a d^2 + b d: ||p + u c - g||,
+    or in_range the range error | ||g - o|| - |d + c| |; cal rows d, rx, ry, ux, uy, e, ||g - o|| - d."""
     d = cal[0, i]
     c = a * d * d + b * d
+    if in_range:
+        return abs(cal[6, i] + d - abs(d + c))
     return math.hypot(cal[1, i] + cal[3, i] * c, cal[2, i] + cal[4, i] * c)
 
 
@@ -383,6 +388,21 @@ def regression_paths(test, af, bf, as_, bs):
 
 
 @nb.njit(**PATH_JIT)
+def regression_paths_range(test, af, bf, as_, bs):
+    """As regression_paths, with the range error | ||g - o|| - |d + c| | (the corrected point p + u c lies at range
+    |d + c|); test rows 0 and 12: d and ||g - o||, in units of 2^-26 m."""
+    n = test.shape[1]
+    af, bf, as_, bs = np.float32(af / FIXED), np.float32(bf), np.float32(as_ / FIXED), np.float32(bs)
+    sf = np.int64(0)
+    ss = np.int64(0)
+    for t in range(n):
+        d, dg = test[0, t], test[12, t]
+        sf += _fixed(abs(dg - abs(d + d * (af * d + bf))))
+        ss += _fixed(abs(dg - abs(d + d * (as_ * d + bs))))
+    return sf / FIXED / n, ss / FIXED / n
+
+
+@nb.njit(**PATH_JIT)
 def descent_path(test, dH):
     """Mean test-point error (m) of H0 + dH, float32, residual form: with s = t/w0 (H0 s = (p0, 1)) and
     r = p0 - g, H(t) - g = (r + dH01 s - g dH2 s) / (1 + dH2 s). test rows 3-9: s0, s1, s2, then rx, ry, gx, gy
@@ -404,6 +424,40 @@ def descent_path(test, dH):
     return total / FIXED / n if beyond == 0 else math.nan
 
 
+@nb.njit(**PATH_JIT)
+def descent_path_range(test, dH):
+    """As descent_path, with the range error | ||g - o|| - ||H(t) - o|| |, H(t) - o = (H(t) - g) + (g - o);
+    test rows 10-12: g - o (2) and ||g - o||, in units of 2^-26 m."""
+    n = test.shape[1]
+    total = np.int64(0)
+    beyond = np.int64(0)
+    for t in range(n):
+        s0, s1, s2 = test[3, t], test[4, t], test[5, t]
+        dx = dH[0] * s0 + dH[1] * s1 + dH[2] * s2
+        dy = dH[3] * s0 + dH[4] * s1 + dH[5] * s2
+        dw = dH[6] * s0 + dH[7] * s1 + dH[8] * s2
+        w = np.float32(1.0) + dw
+        ok = w > 0
+        wi = np.float32(1.0) / (w if ok else np.float32(1.0))
+        px = (test[6, t] + dx - test[8, t] * dw) * wi + test[10, t]
+        py = (test[7, t] + dy - test[9, t] * dw) * wi + test[11, t]
+        total += _fixed(abs(test[12, t] - math.sqrt(px * px + py * py)))
+        beyond += np.int64(not ok)
+    return total / FIXED / n if beyond == 0 else math.nan
+
+
+@nb.njit(**JIT)
+def range_error(H, q, i, dg, ox, oy):
+    """| dg - ||H(q_i) - o|| |: the range error of image point q[i] (M, 2) under H (3, 3), true range dg."""
+    u, v = q[i, 0], q[i, 1]
+    w = H[2, 0] * u + H[2, 1] * v + H[2, 2]
+    if not w > 0.0:
+        return math.inf
+    x = (H[0, 0] * u + H[0, 1] * v + H[0, 2]) / w - ox
+    y = (H[1, 0] * u + H[1, 1] * v + H[1, 2]) / w - oy
+    return abs(dg - math.hypot(x, y))
+
+
 @nb.njit(**JIT)
 def sample_seed_kernel(base, i, j, k):
     """seed_from_key(run_seed, scene, variant, i, j, k) from base = seed_from_key(run_seed, scene, variant)."""
@@ -419,16 +473,19 @@ def _improvement(before, after):
 
 @nb.njit(nogil=True, **JIT)
 def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, delta_max, initial_step, min_step,
-                max_evals, threshold, out, ab, vfinal):
+                max_evals, threshold, in_range, origin, out, ab, vfinal):
     """Every method on every triple (I, J, K) (S,) of one trapezoid variant.
 
     v0 (8,) image quad, Bt (3, 3) target basis, H0 (3, 3) = homography(v0, Bt); F (M, 9), q (M, 2) image
     calibration points; cal (7, M) of the mapped candidates p: d = |p - o|, r = p - g (2), u = (p - o)/d (2),
-    faithful e = |p - g| (eq. (18)), signed e = |g - o| - |p - o|; test (10, N) float32 (see
-    regression_paths, descent_path); path_before: mean test error (metres).
-    Writes out (S, 10) float64: cal_before (m), then (cal, path) improvement (%) of each of the 4 METHODS,
-    then 1.0 if hybrid chose regression; ab (S, 4): a, b faithful, a, b signed;
-    vfinal (S, 9): descent's final trapezoid and its phase-2 evaluations.
+    faithful e = |p - g| (eq. (18)), signed e = |g - o| - |p - o|; test (13, N) float32 (see
+    regression_paths, descent_path and their _range forms); path_before: mean test error (metres);
+    in_range: errors are range errors | ||g - o|| - ||p - o|| | instead of ||p - g|| (the study's metric; the
+    methods themselves do not change, the hybrid's threshold applies to the metric's improvement);
+    origin (2,) the camera's ground point o.
+    Writes out (S, len(OUT_COLUMNS)) float64 in OUT_COLUMNS order: cal_before (m), then (cal, path)
+    improvement (%) of each of the METHODS, then 1.0 if hybrid chose regression; ab (S, 4): a, b faithful,
+    a, b signed; vfinal (S, 9): descent's final trapezoid and its phase-2 evaluations.
     """
     table = grid_table(v0, grid, F, q)
     G, G4 = grid.shape[0], table.shape[1]
@@ -441,16 +498,22 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
     for s in range(S):
         i, j, k = I[s], J[s], K[s]
         # ---- regression, faithful and signed (eqs. (18)-(24))
-        e_before = (cal[5, i] + cal[5, j] + cal[5, k]) / 3.0
+        if in_range:
+            e_before = (abs(cal[6, i]) + abs(cal[6, j]) + abs(cal[6, k])) / 3.0
+        else:
+            e_before = (cal[5, i] + cal[5, j] + cal[5, k]) / 3.0
         di, dj, dk = cal[0, i], cal[0, j], cal[0, k]
         af, bf, _ = fit_quadratic(di, dj, dk, cal[5, i], cal[5, j], cal[5, k], True)
         as_, bs, _ = fit_quadratic(di, dj, dk, cal[6, i], cal[6, j], cal[6, k], False)
         out[s, 0] = e_before
-        out[s, 1] = _improvement(e_before, (radial_error(cal, i, af, bf) + radial_error(cal, j, af, bf)
-                                            + radial_error(cal, k, af, bf)) / 3.0)
-        out[s, 3] = _improvement(e_before, (radial_error(cal, i, as_, bs) + radial_error(cal, j, as_, bs)
-                                            + radial_error(cal, k, as_, bs)) / 3.0)
-        path_f, path_s = regression_paths(test, af, bf, as_, bs)
+        out[s, 1] = _improvement(e_before, (radial_error(cal, i, af, bf, in_range) + radial_error(cal, j, af, bf, in_range)
+                                            + radial_error(cal, k, af, bf, in_range)) / 3.0)
+        out[s, 3] = _improvement(e_before, (radial_error(cal, i, as_, bs, in_range) + radial_error(cal, j, as_, bs, in_range)
+                                            + radial_error(cal, k, as_, bs, in_range)) / 3.0)
+        if in_range:
+            path_f, path_s = regression_paths_range(test, af, bf, as_, bs)
+        else:
+            path_f, path_s = regression_paths(test, af, bf, as_, bs)
         out[s, 2], out[s, 4] = _improvement(path_before, path_f), _improvement(path_before, path_s)
         ab[s, 0], ab[s, 1], ab[s, 2], ab[s, 3] = af, bf, as_, bs
         # ---- descent phase 1: the grid cell of least mean loss, first on ties
@@ -466,11 +529,18 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
     descend_lanes(0, S, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step, min_step, delta_max, max_evals)
     for s in range(S):
         e_before = out[s, 0]
-        out[s, 5] = _improvement(e_before, Lfinal[s])
         homography_into(vfinal[s, :8], Bt, Hd)
+        if in_range:
+            i, j, k = I[s], J[s], K[s]
+            ox, oy = origin[0], origin[1]
+            out[s, 5] = _improvement(e_before, (range_error(Hd, q, i, cal[6, i] + cal[0, i], ox, oy)
+                                                + range_error(Hd, q, j, cal[6, j] + cal[0, j], ox, oy)
+                                                + range_error(Hd, q, k, cal[6, k] + cal[0, k], ox, oy)) / 3.0)
+        else:
+            out[s, 5] = _improvement(e_before, Lfinal[s])
         for m in range(9):
             dH[m] = np.float32((Hd[m // 3, m % 3] - H0[m // 3, m % 3]) * (FIXED if m < 6 else 1.0))
-        out[s, 6] = _improvement(path_before, descent_path(test, dH))
+        out[s, 6] = _improvement(path_before, descent_path_range(test, dH) if in_range else descent_path(test, dH))
         # ---- hybrid: regression if its calibration improvement reaches the threshold (Section 7)
         hyb = out[s, 1] >= threshold
         out[s, 7] = out[s, 1] if hyb else out[s, 5]

@@ -53,6 +53,19 @@ PAPER = {
 }
 
 
+# The 14 numbers of the distance D to the paper: 7 per paper method (Table 1's five, the text's std and 1st
+# percentile), ours "regression" (as written) against its regression, "descent" against its descent.
+D_METHODS = ("regression", "descent")
+D_KEYS = ("pos_path", "pos_cal", "mean_path", "median_path", "corr", "std_path", "p1_path")
+
+
+def paper_distance(table: "Table", scope: str = OVERALL) -> float:
+    """D, percentage points: the RMS of (ours - paper) over the 14 numbers D_METHODS x D_KEYS (percentages in
+    pp, correlations x 100). NaN if any of ours is NaN."""
+    diffs = [(table.value(m, k, scope) - PAPER[m][k]) * (100.0 if k == "corr" else 1.0) for m in D_METHODS for k in D_KEYS]
+    return math.sqrt(sum(d * d for d in diffs) / len(diffs))
+
+
 def load_study(results_dir: str | Path) -> dict:
     """study.json of a results directory; ValueError if the folder or the file is missing or malformed."""
     results_dir = Path(results_dir)

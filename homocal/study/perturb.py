@@ -1,5 +1,16 @@
-"""Trapezoid variants of the study (paper Section 5.2): the hand-placed trapezoid and its perturbations."""
+"""Trapezoid variants of the study (paper Section 5.2): the clicked base trapezoid and its perturbations.
+
+A variant's image trapezoid is built in three steps, each seeded by (run seed, scene, variant):
+  1. the base error of the clicking (the paper's "residual geometric errors", whose size it never gives):
+     a systematic horizon shift (``tilt_shift``: the vertices move as a change of the camera's tilt moves
+     them) and Gaussian click noise on the 8 image coordinates (``draw_base_error``);
+  2. the paper's perturbation: 2 to 16 of the 16 coordinates moved by 0-3 px (``draw_variant``).
+"""
 from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -7,6 +18,80 @@ from homocal.keyed_rng import seed_from_key
 
 N_COORDS = 16  # 8 image coordinates (TL.u, TL.v, ..., BL.v), then 8 site-map coordinates
 MAX_PIXELS = 3
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+
+@dataclass(frozen=True)
+class ShiftSpec:
+    """A horizon-shift SPEC: a number of pixels (kind "fixed", a = the shift), or a per-variant distribution
+    "normal" (a = mean, b = standard deviation) or "uniform" (on [a, b]). Positive: the clicked trapezoid's
+    horizon lies above the true one, so the mapping underestimates range."""
+
+    kind: str
+    a: float
+    b: float = 0.0
+
+    @classmethod
+    def parse(cls, text: str) -> "ShiftSpec":
+        """'8', '-2.5', 'normal:MU:SIGMA' or 'uniform:A:B'; ValueError naming the flag otherwise."""
+        text = str(text).strip()
+        usage = "expected a number of pixels, normal:MU:SIGMA or uniform:A:B"
+        if re.fullmatch(_NUMBER, text):
+            spec = cls("fixed", float(text))
+        elif m := re.fullmatch(rf"(normal|uniform):({_NUMBER}):({_NUMBER})", text):
+            spec = cls(m.group(1), float(m.group(2)), float(m.group(3)))
+        else:
+            raise ValueError(f"--horizon-shift {text!r}: {usage}")
+        if not (math.isfinite(spec.a) and math.isfinite(spec.b) and abs(spec.a) <= 100 and abs(spec.b) <= 100):
+            raise ValueError(f"--horizon-shift {text!r}: values must be finite and at most 100 px")
+        if spec.kind == "normal" and spec.b < 0:
+            raise ValueError(f"--horizon-shift {text!r}: the standard deviation must be >= 0")
+        if spec.kind == "uniform" and spec.b < spec.a:
+            raise ValueError(f"--horizon-shift {text!r}: uniform:A:B needs A <= B")
+        return spec
+
+    def __str__(self) -> str:
+        return f"{self.a:g}" if self.kind == "fixed" else f"{self.kind}:{self.a:g}:{self.b:g}"
+
+
+def draw_base_error(seed: int, scene: str, variant: int, shift: ShiftSpec, click_noise: float) -> tuple[float, np.ndarray]:
+    """(horizon shift (px), click noise (8,) px) of one variant's clicked base trapezoid, drawn from
+    np.random.default_rng(seed_from_key(seed, scene, variant, "base")): the shift from the spec, then 8
+    independent N(0, click_noise^2) offsets of the image coordinates. Every variant, the 0th too, has its own."""
+    rng = np.random.default_rng(seed_from_key(seed, scene, variant, "base"))
+    if shift.kind == "normal":
+        eps = float(rng.normal(shift.a, shift.b))
+    elif shift.kind == "uniform":
+        eps = float(rng.uniform(shift.a, shift.b))
+    else:
+        eps = shift.a
+    return eps, rng.normal(0.0, 1.0, 8) * click_noise
+
+
+def tilt_shift(image: np.ndarray, K: np.ndarray, horizon_row: float, shift_px: float) -> np.ndarray:
+    """The image quad (4, 2) px moved as a change of the camera's tilt would move it, so that the horizon row
+    at the principal column, horizon_row (px), rises by shift_px (positive: up, the mapping then
+    underestimates range).
+
+    The horizon lies at elevation alpha = atan((cy - v_h) / f) above the optical axis; raising it to
+    v_h - shift_px needs alpha' = atan(tan(alpha) + shift_px / f), a rotation of every viewing ray by
+    delta = alpha' - alpha about the camera's x-axis: the image homography G = K R_x(delta) K^-1 (OpenCV
+    camera frame, y down), applied to the vertices. G maps column cx onto itself, so the new horizon at cx
+    is exactly horizon_row - shift_px. K (3, 3) intrinsics with fx = fy.
+    """
+    f, cy = K[1, 1], K[1, 2]
+    alpha = math.atan((cy - horizon_row) / f)
+    delta = math.atan(math.tan(alpha) + shift_px / f) - alpha
+    c, s = math.cos(delta), math.sin(delta)
+    G = K @ np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]]) @ np.linalg.inv(K)
+    moved = np.column_stack([image, np.ones(len(image))]) @ G.T
+    return moved[:, :2] / moved[:, 2:]
+
+
+def base_quad(image: np.ndarray, K: np.ndarray, horizon_row: float, shift_px: float, noise: np.ndarray) -> np.ndarray:
+    """The clicked base image quad (4, 2) px: the hand-placed image (4, 2) moved by tilt_shift (skipped when
+    shift_px is 0, so the default base is the hand-placed quad to the bit) plus click noise (8,) px."""
+    return (tilt_shift(image, K, horizon_row, shift_px) if shift_px else image) + noise.reshape(4, 2)
 
 
 def draw_variant(seed: int, scene: str, variant: int) -> tuple[np.ndarray, int]:
@@ -24,5 +109,5 @@ def draw_variant(seed: int, scene: str, variant: int) -> tuple[np.ndarray, int]:
 
 
 def perturbed_quads(image: np.ndarray, site_map: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The variant's (image (4, 2) px, map (4, 2) map px) quads from the hand-placed ones and (16,) offsets."""
+    """The variant's (image (4, 2) px, map (4, 2) map px) quads from the base ones and (16,) offsets."""
     return image + offsets[:8].reshape(4, 2), site_map + offsets[8:].reshape(4, 2)

@@ -7,15 +7,23 @@ from __future__ import annotations
 
 import argparse
 import base64
+import csv
 import html
 import json
 from pathlib import Path
+from typing import Sequence
+
+import numpy as np
 
 from tqdm import tqdm
 
 from homocal.files import write_text_atomic
 from homocal.study.figures import FigureFile, make_figures
-from homocal.study.metrics import Table, build_table, load_study, shard_files, table_cells, to_csv, to_markdown, to_text
+from homocal.dataset import load_dataset
+from homocal.geometry import ViewTransformer
+from homocal.study.law import horizon_shift_law, perturbation_law
+from homocal.study.metrics import (D_KEYS, D_METHODS, METRICS, PAPER, Table, build_table, load_study, paper_distance,
+                                   shard_files, table_cells, to_csv, to_markdown, to_text)
 
 STYLE = """body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:2px 8px}
@@ -32,28 +40,39 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "write one HTML page with all of it; print the table and the page's path.",
     )
     parser.add_argument("results_dir", metavar="RESULTS_DIR", type=Path, help="a folder written by `homocal study`")
-    parser.add_argument("--out", type=Path, default=None, help="folder for the page, table and figures (default: RESULTS_DIR/report)")
+    parser.add_argument("-o", "--out", type=Path, default=None, help="folder for the page, table and figures (default: RESULTS_DIR/report)")
+    parser.add_argument("--compare", type=Path, action="append", default=[], metavar="RESULTS_DIR",
+                        help="another study to show beside this one in the Reproduction table (repeatable)")
+    parser.add_argument("--sweep", type=Path, default=None, metavar="SWEEP_DIR",
+                        help="a `homocal sweep` folder whose figure and closest value the Reproduction section shows")
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Handler of ``homocal report``: print the table and the page's path; ValueError on bad input."""
-    page, text = write_report(args.results_dir, args.out)
+    page, text = write_report(args.results_dir, args.out, args.compare, args.sweep)
     print(text)
     print(page)
     return 0
 
 
-def write_report(results_dir: str | Path, out_dir: str | Path | None = None) -> tuple[Path, str]:
+def write_report(results_dir: str | Path, out_dir: str | Path | None = None, compare: Sequence[Path] = (),
+                 sweep_dir: Path | None = None) -> tuple[Path, str]:
     """Write table.md, table.csv, figures/ and report.html; return the page's path and the table as text.
 
-    ValueError if results_dir is not a results directory (no study.json) or holds no shard yet.
+    compare: other results directories shown beside this one in the Reproduction table; sweep_dir: a sweep
+    folder whose figure and closest value it shows. ValueError if a results directory is not one (no
+    study.json) or holds no shard yet.
     """
     results_dir = Path(results_dir)
     study = load_study(results_dir)
     shards = shard_files(results_dir, study)
     if not any(shards.values()):
         raise ValueError(f"{results_dir}: no finished shards under shards/<scene>/ yet")
+    others = []
+    for other in compare:
+        other_study = load_study(other)
+        others.append((other, other_study, build_table(shard_files(other, other_study))))
     out_dir = Path(out_dir) if out_dir is not None else results_dir / "report"
     out_dir.mkdir(parents=True, exist_ok=True)
     with tqdm(total=3, desc="homocal report", unit="step", disable=None) as bar:
@@ -64,13 +83,101 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None) -> 
         figures, notes = make_figures(results_dir, study, shards, out_dir / "figures")
         bar.update()
         page = out_dir / "report.html"
-        write_text_atomic(page, render_html(study, table, figures, notes, out_dir))
+        reproduction = reproduction_html([(results_dir, study, table), *others], sweep_dir, out_dir)
+        law = law_html(results_dir, study)
+        write_text_atomic(page, render_html(study, table, figures, notes, out_dir, reproduction + law))
         bar.update()
     return page, to_text(table)
 
 
-def render_html(study: dict, table: Table, figures: list[FigureFile], notes: list[str], out_dir: Path) -> str:
-    """The report page: study parameters and counts, the table per method, the figures two by two."""
+def config_label(study: dict) -> str:
+    """The base-error configuration of a study, in its options' words."""
+    parts = [f"--horizon-shift {study.get('horizon_shift', '0')}", f"--click-noise {study.get('click_noise', 0.0):g}",
+             f"--metric {study.get('metric', 'euclidean')}"]
+    if study.get("test_lateral_max") is not None:
+        parts.append(f"--test-lateral-max {study['test_lateral_max']:g}")
+    if study.get("descent", {}).get("delta_max", 8.0) != 8.0:
+        parts.append(f"--descent-delta-max {study['descent']['delta_max']:g}")
+    return f"preset {study.get('preset')}, {study.get('n_variants')} variants: " + " ".join(parts)
+
+
+def reproduction_html(studies: list[tuple[Path, dict, Table]], sweep_dir: Path | None, out_dir: Path) -> list[str]:
+    """The Reproduction section: the paper's Table 1 numbers (and the text's std and 1st percentile) beside
+    each study's, with D (metrics.paper_distance); numbers more than 10 pp (0.10 for correlations) from the
+    paper are marked; the sweep's figure if given."""
+    e = html.escape
+    header = ["method", "metric", "paper"] + [f"{i + 1}: {p.name}" for i, (p, _, _) in enumerate(studies)]
+    rows, far = [], []
+    for method in D_METHODS:
+        for key in D_KEYS:
+            cells = [method, METRICS[key][0], METRICS[key][1].format(PAPER[method][key])]
+            for i, (_, _, table) in enumerate(studies):
+                value = table.value(method, key)
+                gap = abs(value - PAPER[method][key]) * (100 if key == "corr" else 1)
+                cells.append(("! " if gap > 10 else "") + METRICS[key][1].format(value))
+                far += [f"{method} {METRICS[key][0]} (study {i + 1})"] if gap > 10 else []
+            rows.append(cells)
+    rows.append(["", "D, RMS distance to the paper over these 14 numbers (pp)", "0"]
+                + [f"{paper_distance(t):.1f}" for _, _, t in studies])
+    parts = ["<h2>Reproduction of the paper's Table 1</h2>",
+             "<p>The paper's numbers (Table 1 and the text of its Section 6) beside ours: the paper's regression against "
+             "ours as written (unsigned errors, a, b clamped), its gradient descent against our descent. D is the RMS of "
+             "the 14 differences (percentages in pp, correlations x 100). '!' marks a number more than 10 pp (0.10) "
+             "from the paper's. The studies:</p><ol>"]
+    parts += [f"<li>{e(str(p))}: {e(config_label(st))}</li>" for p, st, _ in studies]
+    parts += ["</ol>", _html_table(header, rows, numeric=True)]
+    if far:
+        parts.append(f"<p class='warn'>Far from the paper: {e('; '.join(far))}. The README's 'What the study finds' "
+                     "gives the measured reason for each.</p>")
+    if sweep_dir is not None:
+        rows_csv = list(csv.DictReader((Path(sweep_dir) / "sweep.csv").open(encoding="utf-8")))
+        best = min((r for r in rows_csv if r["method"] == "regression"), key=lambda r: float(r["D"]))
+        data = base64.b64encode((Path(sweep_dir) / "sweep.png").read_bytes()).decode("ascii")
+        parts.append(f"<figure><img src='data:image/png;base64,{data}' alt='sweep'><figcaption><b>Sensitivity to "
+                     f"{e(best['param'])}.</b> Table 1's metrics against the swept value ({e(str(sweep_dir))}); the "
+                     f"paper's values dashed. Closest: {e(best['param'])} = {e(best['value'])}, D = {float(best['D']):.1f} "
+                     "pp.</figcaption></figure>")
+    return parts
+
+
+def law_html(results_dir: Path, study: dict) -> list[str]:
+    """The quadratic law (paper Section 3) measured on each dataset's exact trapezoid (study.law)."""
+    e = html.escape
+    parts = ["<h2>The quadratic law, measured</h2>",
+             "<p>Range error along the calibration line (10-44 m straight ahead) against the exact trapezoid. A horizon "
+             "shift (the clicked image trapezoid moved as a tilt error moves it) gives the error eq. (17) describes: its "
+             "exponent against range measured from the column model's Offset point is 2 to first order; higher-order "
+             "terms lower it at large shifts. The study's random 0-3 px corner perturbations do not: their signed error "
+             "changes sign along the line in most variants, and eq. (17) alone does not predict it, while the full "
+             "first-order expansion (first_order_error) does.</p>"]
+    for entry in study["datasets"]:
+        try:
+            ds = load_dataset(entry["path"])
+        except ValueError as err:
+            parts.append(f"<p class='warn'>{e(entry['scene'])}: dataset not available ({e(str(err))})</p>")
+            continue
+        exact = ds.trapezoids["exact"]
+        vt = ViewTransformer(exact["image"], ds.site_map.to_metres(exact["map"]))
+        K = np.asarray(ds.camera["K"], dtype=np.float64)
+        shift_rows = [[f"{r['shift_px']:g}", f"{r['exponent_Y']:.3f}", f"{r['exponent_Y_offset']:.3f}", f"{r['error_far_m']:.3f}",
+                       f"{r['first_order_far_m']:.3f}", f"{r['eq17_far_m']:.3f}"] for r in horizon_shift_law(vt, K, ds.camera_origin)]
+        parts += [f"<h3>{e(ds.name)}</h3>", _html_table(
+            ["horizon shift (px)", "exponent vs Y", "exponent vs Y - Offset", "error at 44 m (m)", "first order (m)", "eq. (17) (m)"],
+            shift_rows, numeric=True)]
+        law = perturbation_law(vt, np.asarray(exact["map"], float), ds.site_map, ds.camera_origin, K[0, 2],
+                               study.get("seed", 0), ds.name)
+        parts.append(f"<p>Random corner perturbations ({law['variants']} variants of the study's perturbation model on the "
+                     f"exact trapezoid): median exponent {law['median_exponent']:.2f}; the signed error changes sign "
+                     f"between 10 and 44 m in {100 * law['sign_change_share']:.0f} % of variants; median relative RMS "
+                     f"residual of first_order_error {100 * law['median_residual_first_order']:.1f} %, of eq. (17) alone "
+                     f"{100 * law['median_residual_eq17']:.0f} %.</p>")
+    return parts
+
+
+def render_html(study: dict, table: Table, figures: list[FigureFile], notes: list[str], out_dir: Path,
+                first: Sequence[str] = ()) -> str:
+    """The report page: the incomplete-study warning, the sections given in first (Reproduction, the law),
+    the study's parameters and counts, the table per method, the figures two by two."""
     e = html.escape
     done, total = study.get("samples_done"), study.get("samples_total")
     degenerate = study.get("degenerate", [])
@@ -78,7 +185,8 @@ def render_html(study: dict, table: Table, figures: list[FigureFile], notes: lis
     parts = [
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>homocal study report</title><style>{STYLE}</style></head><body>",
         "<h1>homocal study report</h1>",
-        "" if study.get("complete") else f"<p class='warn'>The study is not complete: {e(str(done))} of {e(str(total))} samples.</p>",
+        "" if study.get("complete") else f"<p class='warn'>The study is not complete: {e(_show(done))} of {e(_show(total))} samples are in study.json's count; the numbers below are of the shards finished so far.</p>",
+        *first,
         "<h2>Study</h2>",
         _html_table(["parameter", "value"], [[k, _show(v)] for k, v in study.items() if k not in ("datasets", "degenerate", "versions")]),
         _html_table(["scene", "dataset", "config hash"], [[d["scene"], d.get("path", ""), d.get("config_hash", "")] for d in study["datasets"]]),

@@ -3,7 +3,7 @@ shard (every calibration triple of one trapezoid variant) that both engine paths
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 import pyarrow as pa
@@ -13,30 +13,68 @@ from homocal.dataset import EXACT, load_dataset
 from homocal.geometry import SiteMap, ViewTransformer, apply_homography
 from homocal.keyed_rng import seed_from_key
 from homocal.study import kernels
-from homocal.study.perturb import draw_variant, perturbed_quads
+from homocal.study.perturb import ShiftSpec, base_quad, draw_base_error, draw_variant, perturbed_quads
 from homocal.study.triples import distance_features, triples
 
 SHARD_SCHEMA = pa.schema(
     [("variant", pa.int32()), ("i", pa.int16()), ("j", pa.int16()), ("k", pa.int16()),
-     ("d_sum", pa.float32()), ("d_spread", pa.float32()), ("cal_before", pa.float32()), ("path_before", pa.float32())]
-    + [(f"{kind}_{m}", pa.float32()) for m in kernels.METHODS for kind in ("cal", "path")]
-    + [("hybrid_regression", pa.bool_())]
+     ("d_sum", pa.float32()), ("d_spread", pa.float32()), ("path_before", pa.float32())]
+    + [(name, pa.bool_() if name == "hybrid_regression" else pa.float32()) for name in kernels.OUT_COLUMNS]
 )
 REASON_KEY = "degenerate_reason"  # a shard's Parquet schema metadata: why its variant is degenerate, "" if it is not
+METRICS = ("euclidean", "range")
 
 
 @dataclass(frozen=True)
 class StudyParams:
-    """Everything that determines a study's numbers (written to study.json)."""
+    """Everything that determines a study's numbers (written to study.json by to_dict).
+
+    horizon_shift: the clicked trapezoid's systematic error, a ShiftSpec string (px; positive: the horizon
+    above the true one). click_noise: standard deviation (px) of Gaussian noise on its 8 image coordinates.
+    metric: "euclidean" (ground error ||p - g||) or "range" (| ||g - o|| - ||p - o|| |) for the calibration
+    and path errors the improvements are computed from (the correctors themselves are unchanged).
+    test_lateral_max: test points at most this many metres to the side of the calibration line x = o_x.
+    """
 
     seed: int = 0
     n_variants: int = 1000
     foot_source: str = EXACT  # "exact", "segmentation" or another detector's name
     n_test: int = 2000
     max_test_distance: float | None = 50.0  # metres from the camera; the paper's operating range (Fig. 2); None: all
+    test_lateral_max: float | None = None
+    horizon_shift: str = "0"
+    click_noise: float = 0.0
+    metric: str = "euclidean"
     threshold: float = 75.0
     descent: dict = field(default_factory=lambda: dict(
         delta_max=8.0, grid_offsets=(-4.0, -2.0, 0.0, 2.0, 4.0), initial_step=1.0, min_step=0.0625, max_evals=400))
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "horizon_shift", str(ShiftSpec.parse(self.horizon_shift)))  # one spelling
+        grid = tuple(float(x) for x in self.descent["grid_offsets"])
+        object.__setattr__(self, "descent", {**self.descent, "grid_offsets": grid})
+        if self.metric not in METRICS:
+            raise ValueError(f"--metric {self.metric!r}: expected one of {', '.join(METRICS)}")
+        if not (isinstance(self.click_noise, (int, float)) and 0 <= self.click_noise <= 100):
+            raise ValueError(f"--click-noise {self.click_noise!r}: expected a number of pixels in [0, 100]")
+        if not isinstance(self.seed, int) or not 0 <= self.seed < 2**63:
+            raise ValueError(f"--seed {self.seed!r}: expected an integer in [0, 2**63)")
+        for name in ("max_test_distance", "test_lateral_max"):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float)) and 0 < value < float("inf")):
+                raise ValueError(f"--{name.replace('_', '-')} {value!r}: expected a positive number of metres or none")
+
+    def to_dict(self) -> dict:
+        """Every field, JSON-ready (study.json; what --resume compares)."""
+        d = asdict(self)
+        d["descent"]["grid_offsets"] = list(d["descent"]["grid_offsets"])
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "StudyParams":
+        """The inverse of to_dict (unknown keys are ignored: study.json holds more)."""
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in d.items() if k in names})
 
 
 @dataclass
@@ -55,7 +93,21 @@ class Scene:
     test_image: np.ndarray
     test_ground: np.ndarray
     triples: np.ndarray
+    K: np.ndarray
     config_hash: str = ""
+
+    @functools.cached_property
+    def horizon_row(self) -> float:
+        """Horizon row (px) of the hand-placed trapezoid's mapping at the principal column."""
+        return float(ViewTransformer(self.image_quad, self.site_map.to_metres(self.map_quad)).horizon_row(self.K[0, 2]))
+
+    def base_image_quad(self, params: StudyParams, variant: int) -> np.ndarray:
+        """The variant's clicked base image trapezoid (4, 2) px: the hand-placed one with the variant's horizon
+        shift (perturb.tilt_shift) and click noise (perturb.draw_base_error); the hand-placed one itself when
+        both are 0 (the default)."""
+        eps, noise = draw_base_error(params.seed, self.name, variant, ShiftSpec.parse(params.horizon_shift),
+                                     params.click_noise)
+        return base_quad(self.image_quad, self.K, self.horizon_row, eps, noise)
 
     @functools.cached_property
     def distance_features(self) -> tuple[np.ndarray, np.ndarray]:
@@ -71,10 +123,11 @@ class Scene:
         if len(cal_image) < 3:
             raise ValueError(f"{path}: need at least 3 calibration points, got {len(cal_image)}")
         test_image, test_ground = ds.test_points(params.foot_source, n=params.n_test, seed=params.seed,
-                                                  max_distance=params.max_test_distance)
+                                                  max_distance=params.max_test_distance,
+                                                  max_lateral=params.test_lateral_max)
         return cls(ds.name, ds.site_map, ds.trapezoid_image, ds.trapezoid_map, np.asarray(ds.camera_origin, float),
                    cal_image, cal_ground, distance, test_image, test_ground, triples(len(cal_image)),
-                   str(ds.manifest.get("config_hash", "")))
+                   np.asarray(ds.camera["K"], dtype=np.float64), str(ds.manifest.get("config_hash", "")))
 
 
 @dataclass
@@ -90,11 +143,13 @@ class VariantTables:
     path_before: float
 
 
-def variant_mapping(scene: Scene, offsets: np.ndarray):
-    """(v0 (8,), Bt (3, 3), H0 (3, 3), p (M, 2), pt (N, 2)): the variant's image quad, target basis, homography and
-    mapped calibration and test points; or the reason (str) the variant is degenerate: a quad validate_quad
-    rejects, a homography that cannot be formed, or a calibration or test point beyond the horizon."""
-    image, map_quad = perturbed_quads(scene.image_quad, scene.map_quad, offsets)
+def variant_mapping(scene: Scene, params: StudyParams, variant: int):
+    """(v0 (8,), Bt (3, 3), H0 (3, 3), p (M, 2), pt (N, 2)): the variant's image quad (its base quad plus its
+    offsets), target basis, homography and mapped calibration and test points; or the reason (str) the
+    variant is degenerate: a quad validate_quad rejects, a homography that cannot be formed, or a
+    calibration or test point beyond the horizon."""
+    offsets, _ = draw_variant(params.seed, scene.name, variant)
+    image, map_quad = perturbed_quads(scene.base_image_quad(params, variant), scene.map_quad, offsets)
     try:
         target = ViewTransformer(image, scene.site_map.to_metres(map_quad)).target
     except ValueError as e:
@@ -111,9 +166,9 @@ def variant_mapping(scene: Scene, offsets: np.ndarray):
     return v0, Bt, H0, p, pt
 
 
-def prepare_variant(scene: Scene, offsets: np.ndarray) -> VariantTables | str:
+def prepare_variant(scene: Scene, params: StudyParams, variant: int) -> VariantTables | str:
     """The variant's tables, or the reason (str) it is degenerate (see variant_mapping)."""
-    mapping = variant_mapping(scene, offsets)
+    mapping = variant_mapping(scene, params, variant)
     if isinstance(mapping, str):
         return mapping
     v0, Bt, H0, p, pt = mapping
@@ -122,29 +177,32 @@ def prepare_variant(scene: Scene, offsets: np.ndarray) -> VariantTables | str:
     r = p - g
     cal = np.vstack([d, r.T, ((p - o) / d[:, None]).T, np.linalg.norm(r, axis=1), np.linalg.norm(g - o, axis=1) - d])
     dt = np.linalg.norm(pt - o, axis=1)
+    dgt = np.linalg.norm(gt - o, axis=1)
     rt = pt - gt
     ut = (pt - o) / dt[:, None]
     w0 = np.column_stack([scene.test_image, np.ones(len(pt))]) @ H0[2]
     s = np.column_stack([scene.test_image, np.ones(len(pt))]) / w0[:, None]
     f = kernels.FIXED  # lengths in units of 2^-26 m (see kernels.regression_paths)
-    test = np.vstack([f * dt, f * f * (rt**2).sum(axis=1), f * 2 * (rt * ut).sum(axis=1), s.T, f * rt.T, f * gt.T])
+    test = np.vstack([f * dt, f * f * (rt**2).sum(axis=1), f * 2 * (rt * ut).sum(axis=1), s.T, f * rt.T, f * gt.T,
+                      f * (gt - o).T, f * dgt])
     test = test.astype(np.float32)
     F = kernels.ground_frames(Bt, g)
-    return VariantTables(v0, Bt, H0, F, np.ascontiguousarray(cal), np.ascontiguousarray(test),
-                         float(np.linalg.norm(rt, axis=1).mean()))
+    before = np.abs(dgt - dt) if params.metric == "range" else np.linalg.norm(rt, axis=1)
+    return VariantTables(v0, Bt, H0, F, np.ascontiguousarray(cal), np.ascontiguousarray(test), float(before.mean()))
 
 
 def run_tables(scene: Scene, tables: VariantTables, params: StudyParams, variant: int, idx: np.ndarray):
-    """kernels.run_variant on triples idx (S, 3): (out (S, 10), ab (S, 4), vfinal (S, 9)), see there."""
+    """kernels.run_variant on triples idx (S, 3): (out (S, len(OUT_COLUMNS)), ab (S, 4), vfinal (S, 9)), see there."""
     S = len(idx)
-    out, ab, vfinal = np.empty((S, 10)), np.empty((S, 4)), np.empty((S, 9))
+    out, ab, vfinal = np.empty((S, len(kernels.OUT_COLUMNS))), np.empty((S, 4)), np.empty((S, 9))
     dp = params.descent
     I, J, K = (np.ascontiguousarray(idx[:, c].astype(np.int64)) for c in range(3))
     kernels.run_variant(
         tables.v0, tables.Bt, tables.H0, tables.F, np.ascontiguousarray(scene.cal_image), tables.cal, tables.test,
         tables.path_before, I, J, K, np.uint64(seed_from_key(params.seed, scene.name, variant)),
         np.asarray(dp["grid_offsets"], dtype=np.float64), float(dp["delta_max"]), float(dp["initial_step"]),
-        float(dp["min_step"]), int(dp["max_evals"]), float(params.threshold), out, ab, vfinal)
+        float(dp["min_step"]), int(dp["max_evals"]), float(params.threshold), params.metric == "range", scene.origin,
+        out, ab, vfinal)
     return out, ab, vfinal
 
 
@@ -152,8 +210,7 @@ def compute_shard(scene: Scene, params: StudyParams, variant: int) -> tuple[pa.T
     """One shard: the Parquet table of every triple of variant (empty if degenerate) and the degenerate
     reason ("" if none), which the table also carries in its schema metadata (see shard_reason). The one
     shard function of both engine paths (in-process and dask)."""
-    offsets, _ = draw_variant(params.seed, scene.name, variant)
-    tables = prepare_variant(scene, offsets)
+    tables = prepare_variant(scene, params, variant)
     if isinstance(tables, str):
         return SHARD_SCHEMA.empty_table().replace_schema_metadata({REASON_KEY: tables}), tables
     out, _, _ = run_tables(scene, tables, params, variant, scene.triples)
@@ -161,9 +218,9 @@ def compute_shard(scene: Scene, params: StudyParams, variant: int) -> tuple[pa.T
     S = len(scene.triples)
     f32 = lambda x: pa.array(np.asarray(x, dtype=np.float32))  # noqa: E731
     columns = [pa.array(np.full(S, variant, np.int32)), *(pa.array(scene.triples[:, c]) for c in range(3)),
-               f32(d_sum), f32(d_spread), f32(out[:, 0]), f32(np.full(S, tables.path_before))]
-    columns += [f32(out[:, c]) for c in range(1, 9)]
-    columns.append(pa.array(out[:, 9] == 1.0))
+               f32(d_sum), f32(d_spread), f32(np.full(S, tables.path_before))]
+    columns += [pa.array(out[:, c] == 1.0) if name == "hybrid_regression" else f32(out[:, c])
+                for c, name in enumerate(kernels.OUT_COLUMNS)]
     return pa.Table.from_arrays(columns, schema=SHARD_SCHEMA.with_metadata({REASON_KEY: ""})), ""
 
 

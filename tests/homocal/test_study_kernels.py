@@ -15,6 +15,8 @@ from homocal.study.triples import n_samples, triples
 from synthetic_dataset import write_dataset
 
 PARAMS = StudyParams(n_test=300)
+# the base error and the range metric on top: every kernel path is compared with the correctors
+SHIFTED = StudyParams(n_test=300, horizon_shift="normal:6:4", click_noise=1.0, metric="range")
 MASK64 = 2**64 - 1
 
 
@@ -24,9 +26,10 @@ def scene(tmp_path_factory):
     return Scene.from_dataset(path, PARAMS)
 
 
-def fitted(scene, variant, triple):
+def fitted(scene, variant, triple, params=PARAMS):
     """The public correctors fitted on one sample, as the study defines it."""
-    image, map_quad = perturbed_quads(scene.image_quad, scene.map_quad, draw_variant(PARAMS.seed, scene.name, variant)[0])
+    base = scene.base_image_quad(params, variant)
+    image, map_quad = perturbed_quads(base, scene.map_quad, draw_variant(params.seed, scene.name, variant)[0])
     vt = ViewTransformer(image, scene.site_map.to_metres(map_quad))
     sel = list(triple)
     args = (vt, scene.cal_image[sel], scene.cal_ground[sel], scene.origin)
@@ -35,20 +38,28 @@ def fitted(scene, variant, triple):
             DescentCorrector(seed=seed).fit(*args), HybridCorrector(seed=seed).fit(*args))
 
 
-def path_improvement(scene, before, after):
-    e0 = np.linalg.norm(before - scene.test_ground, axis=1).mean()
-    return 100 * (e0 - np.linalg.norm(after - scene.test_ground, axis=1).mean()) / e0
+def errors(points, truth, origin, metric):
+    """(N,) errors of points (N, 2) against truth (N, 2): Euclidean, or range | ||g - o|| - ||p - o|| |."""
+    if metric == "range":
+        return np.abs(np.linalg.norm(truth - origin, axis=1) - np.linalg.norm(points - origin, axis=1))
+    return np.linalg.norm(points - truth, axis=1)
 
 
+def improvement(before, after, truth, origin, metric):
+    e0 = errors(before, truth, origin, metric).mean()
+    return 100 * (e0 - errors(after, truth, origin, metric).mean()) / e0
+
+
+@pytest.mark.parametrize("params", [PARAMS, SHIFTED], ids=["default", "shifted-range"])
 @pytest.mark.parametrize("variant", [0, 3, 17, 256, 999])
-def test_kernel_agrees_with_correctors(scene, variant):
+def test_kernel_agrees_with_correctors(scene, variant, params):
     rng = np.random.default_rng(variant)
     idx = scene.triples[rng.choice(len(scene.triples), 3, replace=False)]
-    tables = prepare_variant(scene, draw_variant(PARAMS.seed, scene.name, variant)[0])
-    out, ab, vfinal = run_tables(scene, tables, PARAMS, variant, idx)
-    q, g = scene.test_image, scene.test_ground
+    tables = prepare_variant(scene, params, variant)
+    out, ab, vfinal = run_tables(scene, tables, params, variant, idx)
+    q, g, o = scene.test_image, scene.test_ground, scene.origin
     for s, triple in enumerate(idx):
-        vt, reg, sig, dsc, hyb = fitted(scene, variant, triple)
+        vt, reg, sig, dsc, hyb = fitted(scene, variant, triple, params)
         base = vt.transform_points(q)
         # regression: the kernel's (a, b), clamping included, give the corrector's positions
         np.testing.assert_allclose(radial_correction(base, scene.origin, ab[s, 0], ab[s, 1]), reg.transform_points(q), rtol=0, atol=1e-9)
@@ -59,19 +70,28 @@ def test_kernel_agrees_with_correctors(scene, variant):
         assert vfinal[s, 8] == dsc.evaluations_
         kernel_positions = ViewTransformer(vfinal[s, :8].reshape(4, 2), vt.target).transform_points(q)
         np.testing.assert_allclose(kernel_positions, dsc.transform_points(q), rtol=0, atol=1e-9)
-        # hybrid choice, calibration improvements, path improvements (float32 residual form)
-        assert bool(out[s, 9]) == (hyb.chosen_ == "regression")
-        for col, corrector in ((1, reg), (3, sig), (5, dsc), (7, hyb)):
-            assert out[s, col] == pytest.approx(corrector.calibration_improvement_, abs=1e-9)
-            ref = path_improvement(scene, base, corrector.transform_points(q))
+        # calibration and path improvements in the study's metric (paths: float32 residual form); the hybrid
+        # applies its threshold to the metric's calibration improvement of regression
+        cq, cg = scene.cal_image[list(triple)], scene.cal_ground[list(triple)]
+        cal_base = vt.transform_points(cq)
+        for col, corrector in ((1, reg), (3, sig), (5, dsc)):
+            ref = improvement(cal_base, corrector.transform_points(cq), cg, o, params.metric)
+            assert out[s, col] == pytest.approx(ref, abs=1e-9)
+            ref = improvement(base, corrector.transform_points(q), g, o, params.metric)
             assert out[s, col + 1] == pytest.approx(ref, abs=1e-3)
-        assert out[s, 0] == pytest.approx(reg.error_before_, rel=1e-12)
+        chose_regression = out[s, 1] >= params.threshold
+        assert bool(out[s, 9]) == chose_regression
+        if params.metric == "euclidean":
+            assert chose_regression == (hyb.chosen_ == "regression")
+            assert out[s, 7] == pytest.approx(hyb.calibration_improvement_, abs=1e-9)
+        assert tuple(out[s, 7:9]) == tuple(out[s, 1:3] if chose_regression else out[s, 5:7])
+        assert out[s, 0] == pytest.approx(errors(cal_base, cg, o, params.metric).mean(), rel=1e-12)
 
 
 def test_descent_budget_and_bounds(scene):
     """A small budget stops at exactly max_evals; a small delta_max keeps every coordinate within it."""
     variant, triple = 5, scene.triples[[10]]
-    tables = prepare_variant(scene, draw_variant(PARAMS.seed, scene.name, variant)[0])
+    tables = prepare_variant(scene, PARAMS, variant)
     for descent in (dict(max_evals=7), dict(delta_max=0.5, grid_offsets=(0.0,)), dict(grid_offsets=(-2.0, 0.0, 2.0))):
         params = StudyParams(n_test=300, descent={**PARAMS.descent, **descent})
         _, _, vfinal = run_tables(scene, tables, params, variant, triple)
