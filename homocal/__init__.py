@@ -3,7 +3,14 @@
 The flat public API (supervision's style): geometry, the Section 3 error model, the Section 4
 correctors and the dataset loader. The study lives in homocal.study.
 """
-from homocal.correctors import Corrector, DescentCorrector, HybridCorrector, RegressionCorrector, load_corrector
+from homocal.correctors import (
+    Corrector,
+    DescentCorrector,
+    HorizonCorrector,
+    HybridCorrector,
+    RegressionCorrector,
+    load_corrector,
+)
 from homocal.dataset import Dataset, load_dataset
 from homocal.error_model import ColumnModel, column_model, first_order_error, horizon_shift, quadratic_error
 from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer, homography_from_quads, validate_quad
@@ -13,6 +20,7 @@ __all__ = [
     "Corrector",
     "Dataset",
     "DescentCorrector",
+    "HorizonCorrector",
     "HybridCorrector",
     "PinholeCamera",
     "RegressionCorrector",
