@@ -243,7 +243,7 @@ class TestHorizonCorrector:
 
         best = scan[np.argmin(losses)]
         assert eps == pytest.approx(best, abs=2 * delta / 400000)
-        assert sq(eps) <= sq(best) and sq(eps) <= sq(0.0)
+        assert sq(eps) <= (1 + 1e-11) * min(sq(best), sq(0.0))
         h = 1e-5  # the derivative vanishes at the fit (an interior minimum)
         assert abs(sq(eps + h) - sq(eps - h)) / (2 * h) < 1e-6 * max(1.0, sq(0.0))
 
