@@ -14,6 +14,7 @@ from homocal.correctors import (
 from homocal.dataset import Dataset, load_dataset
 from homocal.error_model import ColumnModel, column_model, first_order_error, horizon_shift, quadratic_error
 from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer, homography_from_quads, validate_quad
+from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius
 
 __all__ = [
     "ColumnModel",
@@ -28,10 +29,13 @@ __all__ = [
     "ViewTransformer",
     "column_model",
     "first_order_error",
+    "ground_uncertainty",
     "homography_from_quads",
     "horizon_shift",
     "load_corrector",
     "load_dataset",
+    "max_trustworthy_range",
     "quadratic_error",
+    "sigma_radius",
     "validate_quad",
 ]
