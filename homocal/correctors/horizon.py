@@ -7,7 +7,8 @@ import math
 import numpy as np
 
 from homocal.correctors.base import Corrector
-from homocal.geometry import apply_homography
+from homocal.correctors.serialization import number
+from homocal.geometry import ViewTransformer, apply_homography
 
 GRID_INTERVALS = 64  # the bracketing grid: epsilon_k = -delta + 2 delta k / 64, k = 1..64
 GOLDEN_ITERATIONS = 40  # shrink the bracket (about 4 px) by 0.618^40 (1e-8): to about 1e-7 px
@@ -19,13 +20,6 @@ INV_PHI = (math.sqrt(5.0) - 1.0) / 2.0
 def row_shift(eps: float) -> np.ndarray:
     """(3, 3) image homography (u, v) -> (u, v + eps), pixels."""
     return np.array([[1.0, 0.0, 0.0], [0.0, 1.0, eps], [0.0, 0.0, 1.0]])
-
-
-def shifted_homography(H: np.ndarray, eps: float) -> np.ndarray:
-    """H_eps = H . row_shift(eps), unit Frobenius norm: the image-to-ground mapping whose horizon lies eps pixels
-    ABOVE H's (at every column: H's horizon row v_h(u) becomes v_h(u) - eps). w > 0 below the new horizon."""
-    M = H @ row_shift(eps)
-    return M / np.linalg.norm(M)
 
 
 def horizon_loss(H: np.ndarray, eps: float, q: np.ndarray, g: np.ndarray) -> float:
@@ -104,7 +98,8 @@ def fit_horizon_shift(H: np.ndarray, q: np.ndarray, g: np.ndarray) -> tuple[floa
 
 class HorizonCorrector(Corrector):
     """The horizon shift of Section 3 as a correction: one parameter, epsilon (pixels), fitted to the reference
-    points; the corrected mapping is the homography H_eps = H . row_shift(epsilon), ``.m``.
+    points; the corrected mapping is the homography H_eps = H . row_shift(epsilon), ``.m``: the mapping whose
+    horizon lies epsilon pixels above H's (H's horizon row v_h(u) becomes v_h(u) - epsilon at every column).
 
     Model. The paper's model of a trapezoid error is a shifted horizon, v_h -> v_h + epsilon (eq. (9)), with K
     and Offset of eq. (7) unchanged: Y_hat(v) = Offset + K / (v - v_h - epsilon). The transform of the image
@@ -127,9 +122,13 @@ class HorizonCorrector(Corrector):
     ``search_half_width`` (how far the reference point nearest the horizon lies below it, in pixels): the
     corrected horizon stays above every reference point, and the range scales with the image.
 
+    The corrected mapping is also a trapezoid: H_eps maps the clicked image trapezoid moved epsilon pixels UP
+    (source - (0, epsilon)) onto the same map trapezoid, so ``transformer_`` is that ViewTransformer
+    (ground_uncertainty and the CLI's error bars use it).
+
     Attributes after fit: horizon_shift_ (epsilon, pixels: the base mapping's horizon lies epsilon pixels
-    below the corrected one, eq. (9)), search_half_width_ (delta), m (3, 3 corrected image-to-ground homography,
-    as ViewTransformer.m), plus those of ``Corrector``.
+    below the corrected one, eq. (9)), search_half_width_ (delta), transformer_ (the corrected ViewTransformer),
+    m (3, 3 corrected image-to-ground homography, as ViewTransformer.m), plus those of ``Corrector``.
     """
 
     method = "horizon"
@@ -137,17 +136,33 @@ class HorizonCorrector(Corrector):
 
     def _fit(self, q: np.ndarray, p: np.ndarray, g: np.ndarray) -> None:
         self.horizon_shift_, self.search_half_width_ = fit_horizon_shift(self.base_transformer_.m, q, g)
+        self._set_transformer()
+
+    def _set_transformer(self) -> None:
+        base = self.base_transformer_
+        self.transformer_ = ViewTransformer(base.source - [0.0, self.horizon_shift_], base.target)
 
     @property
     def m(self) -> np.ndarray:
         """(3, 3) corrected image-to-ground homography (unit Frobenius norm, w > 0 on the ground side)."""
-        return shifted_homography(self.base_transformer_.m, self.horizon_shift_)
+        return self.transformer_.m
 
     def _transform(self, q: np.ndarray) -> np.ndarray:
-        return apply_homography(self.m, q)
+        return self.transformer_.transform_points(q)
 
     def _fitted_state(self) -> dict:
         return {"horizon_shift": self.horizon_shift_, "search_half_width": self.search_half_width_}
 
     def _set_fitted_state(self, state: dict) -> None:
-        self.horizon_shift_, self.search_half_width_ = float(state["horizon_shift"]), float(state["search_half_width"])
+        """Check what fit could have produced: finite numbers, delta > 0, -delta < epsilon <= delta."""
+        self.search_half_width_ = number(state["search_half_width"], "fitted.search_half_width")
+        self.horizon_shift_ = number(state["horizon_shift"], "fitted.horizon_shift")
+        if not self.search_half_width_ > 0:
+            raise ValueError(f"field fitted.search_half_width: must be > 0, got {self.search_half_width_}")
+        if not -self.search_half_width_ < self.horizon_shift_ <= self.search_half_width_:
+            raise ValueError(f"field fitted.horizon_shift: {self.horizon_shift_} is outside the search range "
+                             f"(-{self.search_half_width_}, {self.search_half_width_}] fit uses")
+        try:
+            self._set_transformer()
+        except ValueError as e:
+            raise ValueError(f"field fitted.horizon_shift: {e}") from None

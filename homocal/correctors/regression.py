@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from homocal.correctors.base import Corrector
+from homocal.correctors.serialization import boolean, number
 
 
 def fit_quadratic_error(d: np.ndarray, e: np.ndarray) -> tuple[float, float, bool]:
@@ -111,7 +112,7 @@ class RegressionCorrector(Corrector):
     def __init__(self, signed: bool = False, intercept: bool = False) -> None:
         for name, value in (("signed", signed), ("intercept", intercept)):
             if not isinstance(value, (bool, np.bool_)):
-                raise ValueError(f"{name} must be True or False, got {value!r}")
+                raise ValueError(f"{name} must be true or false, got {value!r}")
         if intercept and not signed:
             raise ValueError("intercept=True needs signed=True: an intercept fitted to unsigned errors would move "
                              "every point, even one at the camera, away from it")
@@ -141,5 +142,14 @@ class RegressionCorrector(Corrector):
         return {"a": self.a_, "b": self.b_, "c": self.c_, "degenerate": self.degenerate_}
 
     def _set_fitted_state(self, state: dict) -> None:
-        self.a_, self.b_, self.degenerate_ = float(state["a"]), float(state["b"]), bool(state["degenerate"])
-        self.c_ = float(state.get("c", 0.0))  # files written before the intercept have no c
+        """Check what fit could have produced: finite a, b, c; faithful: a, b >= 0 (clamped); no intercept: c = 0
+        (files written before the intercept have no c); degenerate: a = 0 (the fallbacks have no d^2 term)."""
+        floor = None if self.signed else 0.0
+        self.a_ = number(state["a"], "fitted.a", minimum=floor)
+        self.b_ = number(state["b"], "fitted.b", minimum=floor)
+        self.c_ = number(state.get("c", 0.0), "fitted.c")
+        self.degenerate_ = boolean(state["degenerate"], "fitted.degenerate")
+        if not self.intercept and self.c_ != 0:
+            raise ValueError(f"field fitted.c: must be 0 without the intercept (params.intercept false), got {self.c_}")
+        if self.degenerate_ and self.a_ != 0:
+            raise ValueError(f"field fitted.a: must be 0 for a degenerate fit (fitted.degenerate true), got {self.a_}")

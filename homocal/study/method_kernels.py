@@ -164,8 +164,8 @@ def fit_horizon_shift3(H, u0, v0, gx0, gy0, u1, v1, gx1, gy1, u2, v2, gx2, gy2):
 
 @nb.njit(**JIT)
 def horizon_homography_into(H, eps, out):
-    """Write into out (3, 3) the corrected homography H . row_shift(eps), unit Frobenius norm (as
-    homocal.correctors.horizon.shifted_homography): column 2 becomes H[:, 1] eps + H[:, 2]."""
+    """Write into out (3, 3) the corrected homography H . row_shift(eps), unit Frobenius norm (HorizonCorrector.m,
+    there formed from the trapezoid moved eps px up): column 2 becomes H[:, 1] eps + H[:, 2]."""
     ss = 0.0
     for r in range(3):
         out[r, 0], out[r, 1], out[r, 2] = H[r, 0], H[r, 1], H[r, 1] * eps + H[r, 2]

@@ -379,8 +379,8 @@ class TestJson:
         np.testing.assert_array_equal(old.transform_points(TEST_Q), c.transform_points(TEST_Q))
 
     def test_nan_improvement_is_strict_json(self):
-        zero = np.zeros((3, 2))  # maps exactly onto itself: no error before correction
-        c = RegressionCorrector().fit(IDENTITY, zero, zero, [-1.0, -1.0])
+        q = SQUARE[1:]
+        c = RegressionCorrector().fit(IDENTITY, q, IDENTITY.transform_points(q), [-1.0, -1.0])  # no error before
         assert c.error_before_ == 0.0 and math.isnan(c.calibration_improvement_)
         assert json.loads(c.to_json())["calibration_improvement"] is None
         assert math.isnan(Corrector.from_json(c.to_json()).calibration_improvement_)
@@ -406,6 +406,43 @@ class TestJson:
         edit(d)
         (tmp_path / "c.json").write_text(json.dumps(d))
         with pytest.raises(ValueError, match=match):
+            load_corrector(tmp_path / "c.json")
+
+    @pytest.mark.parametrize("name,edit,match", [  # issue 12 class 5: hand-edited files
+        ("regression", lambda d: d["fitted"].update(a=-5.0), r"field fitted\.a: must be >= 0"),
+        ("regression", lambda d: d["fitted"].update(b=math.nan), r"field fitted\.b: expected a finite number"),
+        ("regression", lambda d: d["fitted"].update(a="0.1"), r"field fitted\.a: expected a number"),
+        ("regression", lambda d: d["fitted"].update(degenerate="false"), r"field fitted\.degenerate: expected true"),
+        ("regression", lambda d: d["fitted"].update(c=0.5), r"field fitted\.c: must be 0 without the intercept"),
+        ("regression", lambda d: d["fitted"].update(degenerate=True), r"field fitted\.a: must be 0 for a degenerate"),
+        ("regression", lambda d: d["params"].update(intercept=True), r"field params: intercept=True needs signed"),
+        ("regression-signed", lambda d: d["fitted"].update(a=math.inf), r"field fitted\.a: expected a finite"),
+        ("regression-intercept", lambda d: d["fitted"].update(c=None), r"field fitted\.c: expected a number"),
+        ("regression", lambda d: d.update(error_before=-1.0), r"field error_before: must be >= 0"),
+        ("regression", lambda d: d.update(error_after=math.nan), r"field error_after: expected a finite"),
+        ("regression", lambda d: d.update(calibration_improvement=50.0), r"field calibration_improvement: 50\.0 does"),
+        ("regression", lambda d: d.update(calibration_improvement=None), r"field calibration_improvement: None does"),
+        ("regression", lambda d: d["transformer"]["source"][0].__setitem__(0, 1e308), r"field transformer: .*out of range"),
+        ("regression", lambda d: d.update(camera_origin=[0.0, math.nan]), r"field camera_origin"),
+        ("regression", lambda d: d.update(params=[True]), r"field params: expected an object"),
+        ("descent", lambda d: d["fitted"]["source"][1].__setitem__(1, d["fitted"]["source"][1][1] + 20), r"moved .*delta_max"),
+        ("descent", lambda d: d["fitted"].update(source=[[0, 0]] * 4), r"field fitted\.source: .*same point"),
+        ("descent", lambda d: d["fitted"].update(loss_final=d["fitted"]["loss_initial"] + 1), r"above loss_initial"),
+        ("descent", lambda d: d["fitted"].update(evaluations=101), r"field fitted\.evaluations: expected an integer"),
+        ("descent", lambda d: d["fitted"].update(evaluations=1.5), r"field fitted\.evaluations"),
+        ("hybrid", lambda d: d["fitted"].update(chosen="regression" if d["fitted"]["chosen"] == "descent" else "descent"),
+         r"field fitted\.chosen"),
+        ("hybrid", lambda d: d["fitted"]["regression"]["fitted"].update(a=-5.0), r"field fitted\.regression: .*fitted\.a"),
+        ("hybrid", lambda d: d["fitted"]["descent"]["params"].update(max_evals=500), r"field fitted\.descent\.params"),
+        ("horizon", lambda d: d["fitted"].update(horizon_shift=1e6), r"field fitted\.horizon_shift: .*search range"),
+        ("horizon", lambda d: d["fitted"].update(search_half_width=-1.0), r"field fitted\.search_half_width: must be"),
+        ("horizon", lambda d: d["fitted"].pop("horizon_shift"), r"missing key 'horizon_shift'"),
+    ])
+    def test_hand_edited_fields_are_refused(self, name, edit, match, tmp_path):
+        d = json.loads(FITTED[name]().fit(perturbed(HAND_ERROR), CALIB_Q, CALIB_G, ORIGIN).to_json())
+        edit(d)
+        (tmp_path / "c.json").write_text(json.dumps(d))
+        with pytest.raises(ValueError, match=f"c.json: bad .*{match}"):
             load_corrector(tmp_path / "c.json")
 
     @pytest.mark.parametrize("text,match", [(None, "no such file"), ("{not json", "not a JSON"), ("[1]", "object")])
@@ -434,6 +471,25 @@ class TestFitInputChecks:
     def test_bad_input_names_the_problem(self, cls, q, g, o, match):
         with pytest.raises(ValueError, match=match):
             cls().fit(perturbed(HAND_ERROR), q, g, o)
+
+    @pytest.mark.parametrize("which,index", [("image_points", 2), ("ground_points", 1)])
+    def test_duplicate_reference_points(self, which, index):
+        q, g = CALIB_Q.copy(), CALIB_G.copy()
+        (q if which == "image_points" else g)[index] = (q if which == "image_points" else g)[0]
+        with pytest.raises(ValueError, match=rf"{which}\[0\] and {which}\[{index}\] are the same point"):
+            RegressionCorrector().fit(perturbed(HAND_ERROR), q, g, ORIGIN)
+
+    @pytest.mark.parametrize("which", ["image_points", "ground_points"])
+    def test_overflow_has_its_own_message(self, which):
+        q, g = CALIB_Q.copy(), CALIB_G.copy()
+        (q if which == "image_points" else g)[1, 0] = 1e308
+        with pytest.raises(ValueError, match=rf"{which}: point 1 = \[1e\+308, .*out of range"):
+            RegressionCorrector().fit(perturbed(HAND_ERROR), q, g, ORIGIN)
+
+    def test_point_behind_the_camera_warns(self):
+        g = CALIB_G * [[1.0, -1.0], [1.0, 1.0], [1.0, 1.0]]  # a sign error: y negative
+        with pytest.warns(UserWarning, match=r"ground_points\[0\] = \[0\.0, -10\.0\] is behind the camera"):
+            RegressionCorrector().fit(perturbed(HAND_ERROR), CALIB_Q, g, ORIGIN)
 
     def test_not_fitted(self):
         with pytest.raises(RuntimeError, match="not fitted"):
