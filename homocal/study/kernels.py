@@ -32,13 +32,16 @@ import numba as nb
 import numpy as np
 
 from homocal.keyed_rng import packed_order, splitmix64
+from homocal.study import method_kernels as mk
+from homocal.study.jit import FIXED, JIT, PATH_JIT, to_fixed
 
-JIT = dict(cache=True, error_model="numpy")
-PATH_JIT = dict(JIT, fastmath={"contract"})  # the test-point loops (no decision depends on them)
 
-METHODS = ("regression", "regression_signed", "descent", "hybrid")
-# run_variant's output columns, in order (the shard schema is derived from them)
+METHODS = ("regression", "regression_signed", "regression_intercept", "horizon", "descent", "hybrid")
+# run_variant's output columns, in order (the shard schema is derived from them): method m's calibration and
+# path improvements are columns 1 + 2 m and 2 + 2 m
 OUT_COLUMNS = ("cal_before", *(f"{kind}_{m}" for m in METHODS for kind in ("cal", "path")), "hybrid_regression")
+REG, SIG, INT, HOR, DES, HYB = (1 + 2 * METHODS.index(m) for m in METHODS)  # calibration columns
+CHOSE = len(OUT_COLUMNS) - 1
 
 
 @nb.njit(inline="always", **JIT)
@@ -357,17 +360,6 @@ def radial_error(cal, i, a, b, in_range):
     return math.hypot(cal[1, i] + cal[3, i] * c, cal[2, i] + cal[4, i] * c)
 
 
-FIXED = 2.0**26  # test-point lengths are in units of 2^-26 m (15 nm) (scene.prepare_variant scales them)
-CLIP = np.float32(1e5 * FIXED)  # a point error is clipped at 100 km: the int64 sum cannot overflow (1e6 points)
-
-
-@nb.njit(inline="always", **JIT)
-def _fixed(e):
-    """A float32 point error in units of 2^-26 m as an int64 (truncated, clipped): integer sums are exact, so
-    they give the same bits in every order (a float reduction vectorises differently in different compilations)."""
-    return np.int64(e if e < CLIP else CLIP)
-
-
 @nb.njit(**PATH_JIT)
 def regression_paths(test, af, bf, as_, bs):
     """Mean test-point error (m) after both regressions: |r + u c|^2 = |r|^2 + c (2 r.u + c), c = a d^2 + b d,
@@ -382,8 +374,8 @@ def regression_paths(test, af, bf, as_, bs):
         cs = d * (as_ * d + bs)
         qf = rr + cf * (ru2 + cf)
         qs = rr + cs * (ru2 + cs)
-        sf += _fixed(math.sqrt(qf if qf > 0 else np.float32(0.0)))
-        ss += _fixed(math.sqrt(qs if qs > 0 else np.float32(0.0)))
+        sf += to_fixed(math.sqrt(qf if qf > 0 else np.float32(0.0)))
+        ss += to_fixed(math.sqrt(qs if qs > 0 else np.float32(0.0)))
     return sf / FIXED / n, ss / FIXED / n
 
 
@@ -397,8 +389,8 @@ def regression_paths_range(test, af, bf, as_, bs):
     ss = np.int64(0)
     for t in range(n):
         d, dg = test[0, t], test[12, t]
-        sf += _fixed(abs(dg - abs(d + d * (af * d + bf))))
-        ss += _fixed(abs(dg - abs(d + d * (as_ * d + bs))))
+        sf += to_fixed(abs(dg - abs(d + d * (af * d + bf))))
+        ss += to_fixed(abs(dg - abs(d + d * (as_ * d + bs))))
     return sf / FIXED / n, ss / FIXED / n
 
 
@@ -419,7 +411,7 @@ def descent_path(test, dH):
         ny = test[7, t] + dy - test[9, t] * dw
         w = np.float32(1.0) + dw
         ok = w > 0
-        total += _fixed(math.sqrt(nx * nx + ny * ny) / (w if ok else np.float32(1.0)))
+        total += to_fixed(math.sqrt(nx * nx + ny * ny) / (w if ok else np.float32(1.0)))
         beyond += np.int64(not ok)
     return total / FIXED / n if beyond == 0 else math.nan
 
@@ -441,21 +433,45 @@ def descent_path_range(test, dH):
         wi = np.float32(1.0) / (w if ok else np.float32(1.0))
         px = (test[6, t] + dx - test[8, t] * dw) * wi + test[10, t]
         py = (test[7, t] + dy - test[9, t] * dw) * wi + test[11, t]
-        total += _fixed(abs(test[12, t] - math.sqrt(px * px + py * py)))
+        total += to_fixed(abs(test[12, t] - math.sqrt(px * px + py * py)))
         beyond += np.int64(not ok)
     return total / FIXED / n if beyond == 0 else math.nan
 
 
+@nb.njit(**PATH_JIT)
+def regression_path_range(test, a, b, c):
+    """As regression_paths_range for one regression with an intercept, c(d) = a d^2 + b d + c (m)."""
+    n = test.shape[1]
+    af, bf, cf = np.float32(a / FIXED), np.float32(b), np.float32(c * FIXED)
+    total = np.int64(0)
+    for t in range(n):
+        d = test[0, t]
+        total += to_fixed(abs(test[12, t] - abs(d + d * (af * d + bf) + cf)))
+    return total / FIXED / n
+
+
 @nb.njit(**JIT)
-def range_error(H, q, i, dg, ox, oy):
-    """| dg - ||H(q_i) - o|| |: the range error of image point q[i] (M, 2) under H (3, 3), true range dg."""
+def mapped_error(H, q, g, i, origin, in_range):
+    """Error of image point q[i] (M, 2) mapped by H (3, 3) against its ground point g[i] (M, 2): ||H(q) - g||, or
+    in_range | ||g - o|| - ||H(q) - o|| | (origin o (2,)); +inf on or beyond the horizon (w <= 0)."""
     u, v = q[i, 0], q[i, 1]
     w = H[2, 0] * u + H[2, 1] * v + H[2, 2]
     if not w > 0.0:
         return math.inf
-    x = (H[0, 0] * u + H[0, 1] * v + H[0, 2]) / w - ox
-    y = (H[1, 0] * u + H[1, 1] * v + H[1, 2]) / w - oy
-    return abs(dg - math.hypot(x, y))
+    x = (H[0, 0] * u + H[0, 1] * v + H[0, 2]) / w
+    y = (H[1, 0] * u + H[1, 1] * v + H[1, 2]) / w
+    if in_range:
+        return abs(math.hypot(g[i, 0] - origin[0], g[i, 1] - origin[1]) - math.hypot(x - origin[0], y - origin[1]))
+    return math.hypot(x - g[i, 0], y - g[i, 1])
+
+
+@nb.njit(**JIT)
+def homography_paths(test, H, H0, dH, in_range):
+    """Mean test-point error (m) of the mapping H (3, 3), through descent_path (or its range form) with dH (9,)
+    float32 scratch = H - H0 (rows 0-1 in units of 2^-26 m)."""
+    for m in range(9):
+        dH[m] = np.float32((H[m // 3, m % 3] - H0[m // 3, m % 3]) * (FIXED if m < 6 else 1.0))
+    return descent_path_range(test, dH) if in_range else descent_path(test, dH)
 
 
 @nb.njit(**JIT)
@@ -471,14 +487,19 @@ def _improvement(before, after):
     return math.nan if before == 0.0 else 100.0 * (before - after) / before
 
 
+@nb.njit(**JIT)
+def _mean3(a, b, c):
+    return (a + b + c) / 3.0
+
+
 @nb.njit(nogil=True, **JIT)
-def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, delta_max, initial_step, min_step,
+def run_variant(v0, Bt, H0, F, q, g, cal, test, path_before, I, J, K, base, grid, delta_max, initial_step, min_step,
                 max_evals, threshold, in_range, origin, out, ab, vfinal):
     """Every method on every triple (I, J, K) (S,) of one trapezoid variant.
 
-    v0 (8,) image quad, Bt (3, 3) target basis, H0 (3, 3) = homography(v0, Bt); F (M, 9), q (M, 2) image
-    calibration points; cal (7, M) of the mapped candidates p: d = |p - o|, r = p - g (2), u = (p - o)/d (2),
-    faithful e = |p - g| (eq. (18)), signed e = |g - o| - |p - o|; test (13, N) float32 (see
+    v0 (8,) image quad, Bt (3, 3) target basis, H0 (3, 3) = homography(v0, Bt); F (M, 9), q (M, 2) image and
+    g (M, 2) ground calibration points; cal (7, M) of the mapped candidates p: d = |p - o|, r = p - g (2),
+    u = (p - o)/d (2), faithful e = |p - g| (eq. (18)), signed e = |g - o| - |p - o|; test (13, N) float32 (see
     regression_paths, descent_path and their _range forms); path_before: mean test error (metres);
     in_range: errors are range errors | ||g - o|| - ||p - o|| | instead of ||p - g|| (the study's metric; the
     methods themselves do not change, the hybrid's threshold applies to the metric's improvement);
@@ -499,23 +520,42 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
         i, j, k = I[s], J[s], K[s]
         # ---- regression, faithful and signed (eqs. (18)-(24))
         if in_range:
-            e_before = (abs(cal[6, i]) + abs(cal[6, j]) + abs(cal[6, k])) / 3.0
+            e_before = _mean3(abs(cal[6, i]), abs(cal[6, j]), abs(cal[6, k]))
         else:
-            e_before = (cal[5, i] + cal[5, j] + cal[5, k]) / 3.0
+            e_before = _mean3(cal[5, i], cal[5, j], cal[5, k])
         di, dj, dk = cal[0, i], cal[0, j], cal[0, k]
         af, bf, _ = fit_quadratic(di, dj, dk, cal[5, i], cal[5, j], cal[5, k], True)
         as_, bs, _ = fit_quadratic(di, dj, dk, cal[6, i], cal[6, j], cal[6, k], False)
         out[s, 0] = e_before
-        out[s, 1] = _improvement(e_before, (radial_error(cal, i, af, bf, in_range) + radial_error(cal, j, af, bf, in_range)
-                                            + radial_error(cal, k, af, bf, in_range)) / 3.0)
-        out[s, 3] = _improvement(e_before, (radial_error(cal, i, as_, bs, in_range) + radial_error(cal, j, as_, bs, in_range)
-                                            + radial_error(cal, k, as_, bs, in_range)) / 3.0)
+        out[s, REG] = _improvement(e_before, _mean3(radial_error(cal, i, af, bf, in_range), radial_error(cal, j, af, bf, in_range),
+                                                    radial_error(cal, k, af, bf, in_range)))
+        out[s, SIG] = _improvement(e_before, _mean3(radial_error(cal, i, as_, bs, in_range), radial_error(cal, j, as_, bs, in_range),
+                                                    radial_error(cal, k, as_, bs, in_range)))
         if in_range:
             path_f, path_s = regression_paths_range(test, af, bf, as_, bs)
         else:
             path_f, path_s = regression_paths(test, af, bf, as_, bs)
-        out[s, 2], out[s, 4] = _improvement(path_before, path_f), _improvement(path_before, path_s)
+        out[s, REG + 1], out[s, SIG + 1] = _improvement(path_before, path_f), _improvement(path_before, path_s)
         ab[s, 0], ab[s, 1], ab[s, 2], ab[s, 3] = af, bf, as_, bs
+        # ---- regression with an intercept (signed e = a d^2 + b d + c, exact through the three points)
+        ai, bi, ci, _ = mk.fit_quadratic_intercept3(di, dj, dk, cal[6, i], cal[6, j], cal[6, k])
+        if in_range:
+            cal_i = _mean3(abs(cal[6, i] + di - abs(di + ai * di * di + bi * di + ci)),
+                           abs(cal[6, j] + dj - abs(dj + ai * dj * dj + bi * dj + ci)),
+                           abs(cal[6, k] + dk - abs(dk + ai * dk * dk + bi * dk + ci)))
+            path_i = regression_path_range(test, ai, bi, ci)
+        else:
+            cal_i = _mean3(mk.radial_error_intercept(cal, i, ai, bi, ci), mk.radial_error_intercept(cal, j, ai, bi, ci),
+                           mk.radial_error_intercept(cal, k, ai, bi, ci))
+            path_i = mk.regression_path_intercept(test, ai, bi, ci)
+        out[s, INT], out[s, INT + 1] = _improvement(e_before, cal_i), _improvement(path_before, path_i)
+        # ---- horizon correction: the least-squares horizon shift (eq. (9)) as a homography
+        eps, _ = mk.fit_horizon_shift3(H0, q[i, 0], q[i, 1], g[i, 0], g[i, 1], q[j, 0], q[j, 1], g[j, 0], g[j, 1],
+                                       q[k, 0], q[k, 1], g[k, 0], g[k, 1])
+        mk.horizon_homography_into(H0, eps, Hd)
+        cal_h = _mean3(mapped_error(Hd, q, g, i, origin, in_range), mapped_error(Hd, q, g, j, origin, in_range),
+                       mapped_error(Hd, q, g, k, origin, in_range))
+        out[s, HOR], out[s, HOR + 1] = _improvement(e_before, cal_h), _improvement(path_before, homography_paths(test, Hd, H0, dH, in_range))
         # ---- descent phase 1: the grid cell of least mean loss, first on ties
         best, gbest = grid_best(table, i, j, k, sums)
         vfinal[s, :8] = v0
@@ -528,21 +568,16 @@ def run_variant(v0, Bt, H0, F, q, cal, test, path_before, I, J, K, base, grid, d
     # ---- descent phase 2, LANES samples side by side over the whole variant (lanes idle only at its end)
     descend_lanes(0, S, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step, min_step, delta_max, max_evals)
     for s in range(S):
-        e_before = out[s, 0]
+        i, j, k = I[s], J[s], K[s]
         homography_into(vfinal[s, :8], Bt, Hd)
         if in_range:
-            i, j, k = I[s], J[s], K[s]
-            ox, oy = origin[0], origin[1]
-            out[s, 5] = _improvement(e_before, (range_error(Hd, q, i, cal[6, i] + cal[0, i], ox, oy)
-                                                + range_error(Hd, q, j, cal[6, j] + cal[0, j], ox, oy)
-                                                + range_error(Hd, q, k, cal[6, k] + cal[0, k], ox, oy)) / 3.0)
+            cal_d = _mean3(mapped_error(Hd, q, g, i, origin, True), mapped_error(Hd, q, g, j, origin, True),
+                           mapped_error(Hd, q, g, k, origin, True))
         else:
-            out[s, 5] = _improvement(e_before, Lfinal[s])
-        for m in range(9):
-            dH[m] = np.float32((Hd[m // 3, m % 3] - H0[m // 3, m % 3]) * (FIXED if m < 6 else 1.0))
-        out[s, 6] = _improvement(path_before, descent_path_range(test, dH) if in_range else descent_path(test, dH))
+            cal_d = Lfinal[s]
+        out[s, DES], out[s, DES + 1] = _improvement(out[s, 0], cal_d), _improvement(path_before, homography_paths(test, Hd, H0, dH, in_range))
         # ---- hybrid: regression if its calibration improvement reaches the threshold (Section 7)
-        hyb = out[s, 1] >= threshold
-        out[s, 7] = out[s, 1] if hyb else out[s, 5]
-        out[s, 8] = out[s, 2] if hyb else out[s, 6]
-        out[s, 9] = 1.0 if hyb else 0.0
+        hyb = out[s, REG] >= threshold
+        out[s, HYB] = out[s, REG] if hyb else out[s, DES]
+        out[s, HYB + 1] = out[s, REG + 1] if hyb else out[s, DES + 1]
+        out[s, CHOSE] = 1.0 if hyb else 0.0

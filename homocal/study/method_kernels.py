@@ -3,7 +3,7 @@ intercept (homocal.correctors.regression.fit_quadratic_intercept) and the horizo
 (homocal.correctors.horizon.fit_horizon_shift). Plain scalar functions of one calibration triple, the same
 algorithm, iteration counts and tolerances as the readable correctors (tests/homocal/test_method_kernels.py
 checks them decision for decision). Conventions as homocal.study.kernels: cal table rows d, rx, ry, ux, uy,
-e_faithful, e_signed; test-point lengths in units of 2^-26 m (kernels.FIXED).
+e_faithful, e_signed; test-point lengths in units of 2^-26 m (jit.FIXED).
 
 Use in a per-sample loop (i, j, k the triple, H0 the variant's homography, q (M, 2) image and g (M, 2) ground
 calibration points)::
@@ -22,7 +22,7 @@ import numba as nb
 import numpy as np
 
 from homocal.correctors.horizon import FLAT, GOLDEN_ITERATIONS, GRID_INTERVALS, INV_PHI, NEWTON_STEPS
-from homocal.study.kernels import FIXED, JIT, PATH_JIT, _fixed
+from homocal.study.jit import FIXED, JIT, PATH_JIT, to_fixed
 
 
 @nb.njit(**JIT)
@@ -73,7 +73,7 @@ def regression_path_intercept(test, a, b, c):
         d, rr, ru2 = test[0, t], test[1, t], test[2, t]
         shift = d * (af * d + bf) + cf
         qq = rr + shift * (ru2 + shift)
-        total += _fixed(math.sqrt(qq if qq > 0 else np.float32(0.0)))
+        total += to_fixed(math.sqrt(qq if qq > 0 else np.float32(0.0)))
     return total / FIXED / n
 
 

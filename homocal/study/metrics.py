@@ -22,7 +22,7 @@ import pyarrow.dataset as pds
 
 from homocal.correctors.serialization import read_json
 
-METHODS = ("regression", "regression_signed", "descent", "hybrid")
+from homocal.study.kernels import METHODS  # the one list of the study's methods
 OVERALL = "overall"
 SHARD_NAME = re.compile(r"variant_\d+\.parquet")
 

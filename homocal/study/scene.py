@@ -198,7 +198,8 @@ def run_tables(scene: Scene, tables: VariantTables, params: StudyParams, variant
     dp = params.descent
     I, J, K = (np.ascontiguousarray(idx[:, c].astype(np.int64)) for c in range(3))
     kernels.run_variant(
-        tables.v0, tables.Bt, tables.H0, tables.F, np.ascontiguousarray(scene.cal_image), tables.cal, tables.test,
+        tables.v0, tables.Bt, tables.H0, tables.F, np.ascontiguousarray(scene.cal_image),
+        np.ascontiguousarray(scene.cal_ground), tables.cal, tables.test,
         tables.path_before, I, J, K, np.uint64(seed_from_key(params.seed, scene.name, variant)),
         np.asarray(dp["grid_offsets"], dtype=np.float64), float(dp["delta_max"]), float(dp["initial_step"]),
         float(dp["min_step"]), int(dp["max_evals"]), float(params.threshold), params.metric == "range", scene.origin,

@@ -5,7 +5,7 @@ import itertools
 import numpy as np
 import pytest
 
-from homocal.correctors import DescentCorrector, HybridCorrector, RegressionCorrector, radial_correction
+from homocal.correctors import DescentCorrector, HorizonCorrector, HybridCorrector, RegressionCorrector, radial_correction
 from homocal.geometry import ViewTransformer
 from homocal.keyed_rng import packed_order, seed_from_key, shuffled_order, splitmix64
 from homocal.study import kernels
@@ -35,7 +35,8 @@ def fitted(scene, variant, triple, params=PARAMS):
     args = (vt, scene.cal_image[sel], scene.cal_ground[sel], scene.origin)
     seed = seed_from_key(PARAMS.seed, scene.name, variant, *map(int, triple))
     return (vt, RegressionCorrector().fit(*args), RegressionCorrector(signed=True).fit(*args),
-            DescentCorrector(seed=seed).fit(*args), HybridCorrector(seed=seed).fit(*args))
+            DescentCorrector(seed=seed).fit(*args), HybridCorrector(seed=seed).fit(*args),
+            RegressionCorrector(signed=True, intercept=True).fit(*args), HorizonCorrector().fit(*args))
 
 
 def errors(points, truth, origin, metric):
@@ -59,7 +60,7 @@ def test_kernel_agrees_with_correctors(scene, variant, params):
     out, ab, vfinal = run_tables(scene, tables, params, variant, idx)
     q, g, o = scene.test_image, scene.test_ground, scene.origin
     for s, triple in enumerate(idx):
-        vt, reg, sig, dsc, hyb = fitted(scene, variant, triple, params)
+        vt, reg, sig, dsc, hyb, icp, hor = fitted(scene, variant, triple, params)
         base = vt.transform_points(q)
         # regression: the kernel's (a, b), clamping included, give the corrector's positions
         np.testing.assert_allclose(radial_correction(base, scene.origin, ab[s, 0], ab[s, 1]), reg.transform_points(q), rtol=0, atol=1e-9)
@@ -74,17 +75,21 @@ def test_kernel_agrees_with_correctors(scene, variant, params):
         # applies its threshold to the metric's calibration improvement of regression
         cq, cg = scene.cal_image[list(triple)], scene.cal_ground[list(triple)]
         cal_base = vt.transform_points(cq)
-        for col, corrector in ((1, reg), (3, sig), (5, dsc)):
+        col = {m: 1 + 2 * c for c, m in enumerate(kernels.METHODS)}
+        for col, corrector in ((col["regression"], reg), (col["regression_signed"], sig), (col["descent"], dsc),
+                               (col["regression_intercept"], icp), (col["horizon"], hor)):
             ref = improvement(cal_base, corrector.transform_points(cq), cg, o, params.metric)
             assert out[s, col] == pytest.approx(ref, abs=1e-9)
             ref = improvement(base, corrector.transform_points(q), g, o, params.metric)
             assert out[s, col + 1] == pytest.approx(ref, abs=1e-3)
-        chose_regression = out[s, 1] >= params.threshold
-        assert bool(out[s, 9]) == chose_regression
+        reg_col, des_col, hyb_col = kernels.REG, kernels.DES, kernels.HYB
+        chose_regression = out[s, reg_col] >= params.threshold
+        assert bool(out[s, kernels.CHOSE]) == chose_regression
         if params.metric == "euclidean":
             assert chose_regression == (hyb.chosen_ == "regression")
-            assert out[s, 7] == pytest.approx(hyb.calibration_improvement_, abs=1e-9)
-        assert tuple(out[s, 7:9]) == tuple(out[s, 1:3] if chose_regression else out[s, 5:7])
+            assert out[s, hyb_col] == pytest.approx(hyb.calibration_improvement_, abs=1e-9)
+        chosen = reg_col if chose_regression else des_col
+        assert tuple(out[s, hyb_col:hyb_col + 2]) == tuple(out[s, chosen:chosen + 2])
         assert out[s, 0] == pytest.approx(errors(cal_base, cg, o, params.metric).mean(), rel=1e-12)
 
 
