@@ -288,7 +288,7 @@ def _method_note(corrector: Corrector) -> str:
         return f" Descent used {corrector.evaluations_} phase-2 evaluations."
     if isinstance(corrector, RegressionCorrector):
         note = " (fallback of lower order: the reference distances are nearly equal)" if corrector.degenerate_ else ""
-        constant = f" + {corrector.c_:.6g}" if corrector.intercept else ""
+        constant = f" {'-' if corrector.c_ < 0 else '+'} {abs(corrector.c_):.6g}" if corrector.intercept else ""
         return f" Error law e(d) = {corrector.a_:.6g} d^2 + {corrector.b_:.6g} d{constant}{note}."
     if isinstance(corrector, HorizonCorrector):
         return (f" Horizon shift epsilon = {corrector.horizon_shift_:.3f} px (the clicked trapezoid's horizon lies that "
