@@ -21,7 +21,7 @@ from homocal.correctors.hybrid import HybridCorrector
 from homocal.correctors.regression import RegressionCorrector
 from homocal.correctors.serialization import read_json
 from homocal.files import write_text_atomic
-from homocal.geometry import SiteMap, ViewTransformer, check_orientation, validate_quad
+from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, check_orientation, validate_quad
 from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius, straight_ahead_column
 
 METHODS = {
@@ -33,7 +33,6 @@ METHODS = {
     "hybrid": lambda args: HybridCorrector(threshold=args.threshold, seed=args.seed),
 }
 TRUST_TOLERANCE_M = 0.5  # homocal fit reports how far the 1-sigma error stays under this
-STATUS = ("ok", "beyond_horizon", "not_finite")  # homocal apply's status column
 
 FIT_FORMATS = """\
 TRAP.json, the trapezoid (vertices in the order TL, TR, BR, BL as seen in the image):
@@ -64,8 +63,8 @@ other columns are carried through to the output. The output has the same rows an
             homocal.ground_uncertainty) for a clicking error of --click-sigma-px on each trapezoid corner
             and --point-sigma-px on the foot point; of the trapezoid the correction maps with (descent's
             and horizon's own, the clicked one for the regressions);
-  status    ok; beyond_horizon (on or above the horizon: x, y, sigma_m = nan); not_finite (u or v is
-            nan or inf in the input: x, y, sigma_m = nan).
+  status    ok; beyond_horizon (on or above the horizon: x, y, sigma_m = nan); bad_input (u or v is
+            nan, inf or beyond +/-1e9 in the input: x, y, sigma_m = nan).
 Rows are never dropped; the summary line names the lines of the non-finite rows."""
 
 
@@ -133,10 +132,11 @@ def run_apply(args: argparse.Namespace) -> int:
     fields, rows, cols, lines = read_points_csv(args.points, ("u", "v"), finite=False)
     _check_output_folder(args.output)
     q = np.column_stack([cols["u"], cols["v"]])
+    bad_input = ~(np.abs(q) <= MAX_COORDINATE).all(axis=1)  # nan, inf, or an overflow
+    q[bad_input] = np.nan
     xy = corrector.transform_points(q)
     sigma = sigma_radius(ground_uncertainty(_mapping(corrector), q, args.click_sigma_px, args.point_sigma_px))
-    not_finite = ~np.isfinite(q).all(axis=1)
-    status = np.where(not_finite, "not_finite", np.where(np.isnan(xy).any(axis=1), "beyond_horizon", "ok"))
+    status = np.where(bad_input, "bad_input", np.where(np.isnan(xy).any(axis=1), "beyond_horizon", "ok"))
     added = ("x", "y", "sigma_m", "status")
     out_fields = [f for f in fields if f not in added] + list(added)
     buffer = io.StringIO()
@@ -147,8 +147,8 @@ def run_apply(args: argparse.Namespace) -> int:
         writer.writerow([row[f] for f in out_fields])
     write_text_atomic(args.output, buffer.getvalue())
     beyond = int((status == "beyond_horizon").sum())
-    bad_lines = [lines[i] for i in np.flatnonzero(not_finite)]
-    bad = (f"; {len(bad_lines)} with a non-finite u or v (status not_finite, line"
+    bad_lines = [lines[i] for i in np.flatnonzero(bad_input)]
+    bad = (f"; {len(bad_lines)} with u or v nan, inf or beyond 1e9 (status bad_input, line"
            f"{'s' if len(bad_lines) > 1 else ''} {_line_list(bad_lines)})" if bad_lines else "")
     print(f"homocal apply: {len(rows)} points mapped with the {_label(corrector)} correction of {args.correction} "
           f"and written to {args.output}; {beyond} on or above the horizon (status beyond_horizon){bad}; x, y, "
@@ -288,7 +288,7 @@ def _method_note(corrector: Corrector) -> str:
         return f" Descent used {corrector.evaluations_} phase-2 evaluations."
     if isinstance(corrector, RegressionCorrector):
         note = " (fallback of lower order: the reference distances are nearly equal)" if corrector.degenerate_ else ""
-        constant = f" + {corrector.c_:.6g}" if corrector.intercept else ""
+        constant = f" {'-' if corrector.c_ < 0 else '+'} {abs(corrector.c_):.6g}" if corrector.intercept else ""
         return f" Error law e(d) = {corrector.a_:.6g} d^2 + {corrector.b_:.6g} d{constant}{note}."
     if isinstance(corrector, HorizonCorrector):
         return (f" Horizon shift epsilon = {corrector.horizon_shift_:.3f} px (the clicked trapezoid's horizon lies that "

@@ -2,11 +2,15 @@
 
 A correction file is one JSON object (see ``Corrector.to_dict``)::
 
-    {"format": "homocal.correction", "format_version": 1, "method": "regression" | "descent" | "hybrid",
+    {"format": "homocal.correction", "format_version": 1,
+     "method": "regression" | "horizon" | "descent" | "hybrid",
      "params": {...constructor arguments...},
      "transformer": {"source": 4x2 image px (TL, TR, BR, BL), "target": 4x2 ground units},
      "camera_origin": [x, y], "error_before": e, "error_after": e, "calibration_improvement": pct | null,
      "fitted": {...the method's fitted parameters...}}
+
+Every field is checked on load against what fit could have produced (``Corrector._from_fields``); a bad one
+is one ValueError naming the file and the field ("field fitted.a: must be >= 0 ...").
 """
 from __future__ import annotations
 

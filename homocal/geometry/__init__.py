@@ -1,6 +1,7 @@
 """Geometry: the pinhole camera model, homographies from trapezoids, site-map units."""
 from homocal.geometry.camera import PinholeCamera
 from homocal.geometry.homography import (
+    MAX_COORDINATE,
     ViewTransformer,
     apply_homography,
     as_points,
@@ -13,6 +14,7 @@ from homocal.geometry.homography import (
 from homocal.geometry.sitemap import SiteMap
 
 __all__ = [
+    "MAX_COORDINATE",
     "PinholeCamera",
     "SiteMap",
     "ViewTransformer",

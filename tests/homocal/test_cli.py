@@ -89,17 +89,19 @@ def test_fit_and_apply_match_the_library(work, method, expected):
     assert sorted(p.name for p in work.iterdir()) == ["c.json", "feet.csv", "out.csv", "ref.csv", "trap.json"]
 
 
-def test_apply_marks_non_finite_rows_and_names_their_lines(work):
+def test_apply_marks_bad_rows_and_names_their_lines(work):
     assert homocal("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "--method", "regression-intercept",
                    "-o", "c.json", cwd=work).returncode == 0
-    write_csv(work / "feet.csv", ["u", "v"], [(640, 500), ("nan", 500), (640, 100), (640, "inf"), (600, 450)])
+    write_csv(work / "feet.csv", ["u", "v"], [(640, 500), ("nan", 500), (640, 100), (640, "inf"), (600, 450),
+                                              (1e308, 400)])
     app = homocal("apply", "c.json", "--points", "feet.csv", "-o", "out.csv", cwd=work)
     assert app.returncode == 0, app.stderr
-    assert "1 on or above the horizon (status beyond_horizon); 2 with a non-finite u or v (status not_finite, " \
-           "lines 3, 5)" in app.stdout
+    assert "1 on or above the horizon (status beyond_horizon); 3 with u or v nan, inf or beyond 1e9 (status " \
+           "bad_input, lines 3, 5, 7)" in app.stdout
     with (work / "out.csv").open() as f:
         rows = list(csv.DictReader(f))
-    assert [r["status"] for r in rows] == ["ok", "not_finite", "beyond_horizon", "not_finite", "ok"]
+    assert [r["status"] for r in rows] == ["ok", "bad_input", "beyond_horizon", "bad_input", "ok", "bad_input"]
+    assert rows[5]["u"] == "1e+308"  # the input is carried through as given
     for r in rows:
         assert (r["status"] == "ok") == all(np.isfinite(float(r[c])) for c in ("x", "y", "sigma_m"))
 
