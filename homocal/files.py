@@ -123,7 +123,9 @@ def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "mani
          the tool's is never written to.
       5. The lock is taken (``LOCK_EX | LOCK_NB``, ``path/.lock`` created if missing) and the lock file
          then holds this process's pid, host and start time (UTC).
-    On exit (normal or exception): the lock file is deleted, then unlocked. Locking checks that the locked
+    On exit (normal or exception): the lock file is deleted, then unlocked; if the block raised and this
+    call created the folder and nothing is in it, the folder is removed (a run that fails before writing
+    anything, e.g. no OpenGL, leaves nothing behind). Locking checks that the locked
     file is still the one at ``path/.lock`` (and retries if not), so a deletion racing a new run never
     leaves two holders. Works on local file systems (flock is advisory and per open file; NFS may not
     honour it).
@@ -140,6 +142,7 @@ def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "mani
             raise OutputFolderError(f"{path}: exists and is not empty (use --resume to continue it, or another output folder)")
         if resumed and _marker_format(path / marker) != tool:
             raise OutputFolderError(f"{path}: not a {tool} output folder (no {marker} with format {tool!r}); --resume refused, nothing touched")
+        created = not path.exists()
         path.mkdir(parents=True, exist_ok=True)
         fd = fd if fd is not None else _lock(lock, create=True)
     except BaseException:
@@ -151,6 +154,11 @@ def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "mani
         since = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
         os.write(fd, json.dumps({"pid": os.getpid(), "host": socket.gethostname(), "since": since}).encode())
         yield OutputFolder(path, path / marker, resumed)
+    except BaseException:
+        if created and {p.name for p in path.iterdir()} == {LOCK_NAME}:
+            lock.unlink()
+            path.rmdir()
+        raise
     finally:
         lock.unlink(missing_ok=True)
         os.close(fd)  # closing releases the flock

@@ -132,3 +132,19 @@ def test_write_atomic_leaves_nothing_on_failure(tmp_path):
     with pytest.raises(UnicodeEncodeError):
         write_text_atomic(tmp_path / "a.txt", "\udcff")  # unencodable: fails mid-write
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("existed", [False, True])
+def test_failure_before_any_write_leaves_no_new_folder(tmp_path, existed):
+    out = tmp_path / "out"
+    if existed:
+        out.mkdir()
+    with pytest.raises(RuntimeError, match="no backend"):
+        with output_folder(out, TOOL, False):
+            raise RuntimeError("no backend")
+    assert out.exists() is existed and (not existed or list(out.iterdir()) == [])
+    with pytest.raises(RuntimeError, match="late"):
+        with output_folder(out, TOOL, False):
+            (out / "manifest.json").write_text(OURS)
+            raise RuntimeError("late")
+    assert sorted(p.name for p in out.iterdir()) == ["manifest.json"]  # what was written stays, to resume
