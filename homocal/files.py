@@ -35,13 +35,20 @@ def temporaries_of(path: str | Path) -> list[Path]:
 
 def write_atomic(path: str | Path, write: Callable[[Path], object]) -> None:
     """Call write(tmp) on ``temporary_path(path)``, then rename it to ``path``; on any failure the temporary
-    file is removed and nothing is left behind."""
+    file is removed and nothing is left behind. An OSError that names no file (pyarrow's, ffmpeg's) is
+    raised again naming ``path``, so a full disk reads "path: No space left on device"."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = temporary_path(path)
     try:
         write(tmp)
         os.replace(tmp, path)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        if e.filename is not None:
+            raise
+        reason = os.strerror(e.errno) if e.errno else (str(e).strip().splitlines() or [type(e).__name__])[0]
+        raise OSError(e.errno, reason, str(path)) from e
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

@@ -83,7 +83,10 @@ def _os_message(e: OSError) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    try:
+        args = _parser().parse_args(argv)
+    except SystemExit as e:  # --help, --version, or a refused argument (already printed)
+        return e.code
     try:
         from simgen.render import BackendError  # first: guards the mujoco import
     except Exception as e:  # noqa: BLE001  (BackendError raised while importing simgen.render)

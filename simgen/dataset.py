@@ -20,6 +20,7 @@ import platform
 import shutil
 import time
 from collections import Counter
+from contextlib import nullcontext
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from fractions import Fraction
 from multiprocessing import get_context
@@ -325,22 +326,25 @@ def _render_in_processes(run: Run, todo: list[int], workers: int, bar: tqdm) -> 
         _follow(run, todo, futures, bar)
 
 
-def _render_on_dask(run: Run, todo: list[int], address: str, bar: tqdm) -> None:
-    """One block of chunks per worker of the Dask cluster at ``address``; each worker's LP_NUM_THREADS is its
-    host's cores over the workers on that host (at least 1). Workers should run one thread each."""
+def _dask_client(address: str):
+    """A Dask client of the scheduler at ``address``; DatasetError (one line) if it cannot connect."""
     from distributed import Client  # noqa: PLC0415  (optional: only --scheduler needs it)
 
     try:
-        client = Client(address, timeout="20s")
+        return Client(address, timeout="10s")
     except (OSError, ValueError) as e:
         raise DatasetError(f"--scheduler {address}: cannot connect ({str(e).splitlines()[0]})") from None
-    with client:
-        workers = sorted(client.scheduler_info()["workers"].items())
-        cores, hosts = client.run(os.cpu_count), Counter(info["host"] for _, info in workers)
-        futures = [client.submit(render_chunks, run.scene, run.seed, str(run.out), block,
-                                 max(1, cores[address] // hosts[info["host"]]), workers=[address], pure=False)
-                   for (address, info), block in zip(workers, _blocks(todo, len(workers)))]  # fmt: skip
-        _follow(run, todo, futures, bar)
+
+
+def _render_on_dask(run: Run, todo: list[int], client, bar: tqdm) -> None:
+    """One block of chunks per worker of the Dask cluster; each worker's LP_NUM_THREADS is its host's cores
+    over the workers on that host (at least 1). Workers should run one thread each."""
+    workers = sorted(client.scheduler_info()["workers"].items())
+    cores, hosts = client.run(os.cpu_count), Counter(info["host"] for _, info in workers)
+    futures = [client.submit(render_chunks, run.scene, run.seed, str(run.out), block,
+                             max(1, cores[address] // hosts[info["host"]]), workers=[address], pure=False)
+               for (address, info), block in zip(workers, _blocks(todo, len(workers)))]  # fmt: skip
+    _follow(run, todo, futures, bar)
 
 
 def _check_resumable(scene: Scene, seed: int, folder: OutputFolder) -> dict | None:
@@ -364,7 +368,7 @@ def generate(scene: Scene, seed: int, out: str | Path, resume: bool = False, pro
     The bytes are the same either way. Raises DatasetError or OutputFolderError (one line) when ``out``
     cannot be used; nothing of a folder that is not a simgen dataset is touched.
     """
-    with output_folder(out, FORMAT, resume) as folder:
+    with _dask_client(scheduler) if scheduler else nullcontext() as client, output_folder(out, FORMAT, resume) as folder:
         m = _check_resumable(scene, seed, folder)
         if m is not None and m.get("complete"):
             shutil.rmtree(folder.path / PARTS, ignore_errors=True)
@@ -380,8 +384,8 @@ def generate(scene: Scene, seed: int, out: str | Path, resume: bool = False, pro
         todo = run.todo()
         with tqdm(total=scene.frames_total, initial=scene.frames_total - run.frames(todo),
                   unit="frame", desc=scene.name, disable=not progress, smoothing=0.05) as bar:
-            if scheduler is not None:
-                _render_on_dask(run, todo, scheduler, bar)
+            if client is not None:
+                _render_on_dask(run, todo, client, bar)
             elif workers > 1:
                 _render_in_processes(run, todo, workers, bar)
             else:

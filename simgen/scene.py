@@ -138,7 +138,8 @@ def _get(d: dict, key: str, kind=float, default=_MISSING):
         if not isinstance(cur, dict) or part not in cur:
             if default is not _MISSING:
                 return default
-            raise ConfigError(f"scene.toml: {key}: missing")
+            near = difflib.get_close_matches(part, list(dict.keys(cur)), n=1) if isinstance(cur, dict) else []
+            raise ConfigError(f"scene.toml: {key}: missing" + (f" (is {near[0]} a typo of {part}?)" if near else ""))
         cur = cur[part]
     accepted = (int, float) if kind is float else kind
     if not isinstance(cur, accepted) or (isinstance(cur, bool) and kind is not bool):
