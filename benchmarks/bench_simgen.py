@@ -1,6 +1,8 @@
 """Frames per second of the whole ``simgen generate`` pipeline beside MuJoCo's raw render passes.
 
-    python benchmarks/bench_simgen.py [--scene scenes/scene1] [--seconds 20] [--seed 0]
+    python benchmarks/bench_simgen.py [--scene scenes/scene1] [--seconds 20] [--seed 0] [--quality default]
+    python benchmarks/bench_simgen.py --presets [--frames 60]       # RGB render cost of each quality preset
+    python benchmarks/bench_simgen.py --parallel 2 [--repeats 3]    # generate serial vs --workers 2
 
 In one process, one ``generate`` run (kinematics, renders, ground truth, both detectors, MP4
 encoding, Parquet writing) is timed chunk by chunk; before each chunk, the raw passes of the same
@@ -11,18 +13,28 @@ of the same chunk's frames, and the medians (target ratio <= 1.25). On a machine
 other jobs the raw time itself moves by +-30 % from chunk to chunk, so it also prints the time the
 pipeline spends inside its own render calls against everything else it does in the same frames
 (encoding runs in ffmpeg's process; its CPU shows up as slower renders there).
+
+``--presets``: one renderer per quality preset (simgen.render.QUALITY) on the same Stage; each frame is
+rendered (RGB) by every preset in turn, so all see the same load; prints the median ms/frame of each.
+``--parallel N``: whole ``simgen generate`` runs (separate processes, as a user types them), serial and
+with ``--workers N`` alternately, ``--repeats`` times each; prints each wall time, the medians and their
+ratio (the speed-up), and checks that the datasets are byte-identical.
 """
 from __future__ import annotations
 
 import argparse
+import filecmp
+import os
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import simgen.dataset as dataset
 from simgen.model import CAMERA
-from simgen.render import FrameRenderer, backend, mujoco
+from simgen.render import QUALITY, FrameRenderer, apply_quality, backend, mujoco
 from simgen.scene import load_scene
 from simgen.stage import Stage
 
@@ -52,27 +64,82 @@ class RawPasses:
         self.stage.close()
 
 
+def presets(scene, seed: int, frames: int) -> None:
+    """Median RGB render ms/frame of each quality preset, interleaved frame by frame."""
+    with Stage(scene, seed) as stage:
+        renderers = {}
+        for q in QUALITY:
+            apply_quality(stage.model, q)  # read when the renderer (its GL buffers) is made, and by update_scene
+            renderers[q] = mujoco.Renderer(stage.model, scene.camera.height, scene.camera.width)
+        ms = {q: [] for q in QUALITY}
+        for k in range(frames):
+            stage.set_time(k / scene.fps)
+            for q, r in renderers.items():
+                apply_quality(stage.model, q)  # castshadow is read per update_scene
+                t0 = time.perf_counter()
+                r.update_scene(stage.data, camera=CAMERA)
+                r.render()
+                ms[q].append((time.perf_counter() - t0) * 1e3)
+        for r in renderers.values():
+            r.close()
+    for q, samples in QUALITY.items():
+        print(f"quality {q:8s} (offsamples {samples[0]}, shadow map {samples[1]} px): RGB median {statistics.median(ms[q]):.1f} ms/frame "
+              f"over {frames} frames")
+
+
+def parallel(scene_dir: Path, seconds: float, seed: int, workers: int, repeats: int) -> None:
+    """Serial and ``--workers`` generate runs, alternately; wall-time medians and the speed-up."""
+    walls: dict[int, list[float]] = {1: [], workers: []}
+    with tempfile.TemporaryDirectory() as tmp:
+        for r in range(repeats):
+            for w in (1, workers):
+                out = Path(tmp) / f"w{w}_{r}"
+                cmd = [sys.executable, "-m", "simgen.cli", "generate", str(scene_dir), "--out", str(out), "--seconds",
+                       str(seconds), "--seed", str(seed), "--workers", str(w), "--no-progress"]  # fmt: skip
+                t0 = time.perf_counter()
+                subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+                walls[w].append(time.perf_counter() - t0)
+                print(f"  repeat {r}, --workers {w}: {walls[w][-1]:.1f} s", flush=True)
+        a, b = Path(tmp) / "w1_0", Path(tmp) / f"w{workers}_0"
+        files = sorted(str(p.relative_to(a)) for p in a.rglob("*") if p.is_file())
+        same = filecmp.cmpfiles(a, b, files, shallow=False)[0] == files
+    frames = round(seconds * load_scene(scene_dir).fps)
+    s, p = statistics.median(walls[1]), statistics.median(walls[workers])
+    print(f"serial: median {s:.1f} s ({frames / s:.2f} frames/s); --workers {workers}: median {p:.1f} s "
+          f"({frames / p:.2f} frames/s); speed-up {s / p:.2f}x (medians of {repeats}, interleaved, end to end); "
+          f"datasets byte-identical: {same}; {os.cpu_count()} cores")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scene", type=Path, default=Path(__file__).resolve().parents[1] / "scenes" / "scene1")
     p.add_argument("--seconds", type=float, default=20.0)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--quality", choices=list(QUALITY), help="render preset of the pipeline run (default: the scene's)")
+    p.add_argument("--presets", action="store_true", help="time the RGB pass of each quality preset instead")
+    p.add_argument("--frames", type=int, default=60, help="frames per preset with --presets")
+    p.add_argument("--parallel", type=int, metavar="N", help="time generate serial vs --workers N instead")
+    p.add_argument("--repeats", type=int, default=3, help="runs of each with --parallel")
     a = p.parse_args()
-    scene = load_scene(a.scene).with_run(seconds=a.seconds)
+    if a.parallel:
+        return parallel(a.scene, a.seconds, a.seed, a.parallel, a.repeats)
+    scene = load_scene(a.scene).with_run(seconds=a.seconds, quality=a.quality)
+    if a.presets:
+        return presets(scene, a.seed, a.frames)
     cam, n = scene.camera, scene.frames_total
     print(f"scene {scene.name}, {cam.width}x{cam.height}, {n} frames at {scene.fps} fps, {scene.agent_count} agents, "
-          f"detectors {','.join(scene.detectors)}, MUJOCO_GL={backend()}")
+          f"detectors {','.join(scene.detectors)}, quality {scene.quality}, MUJOCO_GL={backend()}")
 
     raw, chunk_ms, ratios, inside_ms, chunk_inside = RawPasses(scene, a.seed), [], [], [0.0], []
     per_chunk, run_chunk = dataset._chunk_frames(scene), dataset._run_chunk
     raw_ms: list[float] = []
 
-    def timed(stage, detectors, c, parts, bar):
+    def timed(stage, detectors, c, parts, tick):
         frames = range(c * per_chunk, min((c + 1) * per_chunk, n))
         raw_chunk = raw.time(frames[::2])
         raw_ms.extend(raw_chunk)
         t0, inside0 = time.perf_counter(), inside_ms[0]
-        run_chunk(stage, detectors, c, parts, bar)
+        run_chunk(stage, detectors, c, parts, tick)
         chunk_ms.append((time.perf_counter() - t0) * 1e3 / len(frames))
         chunk_inside.append((inside_ms[0] - inside0) / len(frames))
         ratios.append(chunk_ms[-1] / statistics.median(raw_chunk))

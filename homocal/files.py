@@ -1,21 +1,54 @@
-"""Atomic file writes: a file that exists is whole (DESIGN principle 6). Shared by homocal and simgen."""
+"""Files a tool owns: atomic writes (a file that exists is whole) and locked, marked output folders
+(DESIGN principle 6). Shared by homocal and simgen."""
 from __future__ import annotations
 
+import fcntl
 import json
 import os
-from collections.abc import Callable
+import re
+import socket
+import time
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
+
+LOCK_NAME = ".lock"
+
+
+def temporary_path(path: str | Path) -> Path:
+    """The temporary name this process writes ``path`` under: ``<stem>.tmp<pid><suffix>`` beside it (same
+    extension: tools pick formats by it)."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.tmp{os.getpid()}{path.suffix}")
+
+
+def temporaries_of(path: str | Path) -> list[Path]:
+    """The files beside ``path`` named like one of its temporaries (``<stem>.tmp<digits><suffix>``, any pid
+    or none), sorted; nothing else in the folder matches."""
+    path = Path(path)
+    if not path.parent.is_dir():
+        return []
+    pattern = re.compile(rf"{re.escape(path.stem)}\.tmp\d*{re.escape(path.suffix)}")
+    return sorted(p for p in path.parent.iterdir() if pattern.fullmatch(p.name) and p.is_file())
 
 
 def write_atomic(path: str | Path, write: Callable[[Path], object]) -> None:
-    """Call write(tmp) on a temporary path beside ``path`` (same extension: tools pick formats by it), then
-    rename it to ``path``; on any failure the temporary file is removed and nothing is left behind."""
+    """Call write(tmp) on ``temporary_path(path)``, then rename it to ``path``; on any failure the temporary
+    file is removed and nothing is left behind. An OSError that names no file (pyarrow's, ffmpeg's) is
+    raised again naming ``path``, so a full disk reads "path: No space left on device"."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f"{path.stem}.tmp{os.getpid()}{path.suffix}")
+    tmp = temporary_path(path)
     try:
         write(tmp)
         os.replace(tmp, path)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        if e.filename is not None:
+            raise
+        reason = os.strerror(e.errno) if e.errno else (str(e).strip().splitlines() or [type(e).__name__])[0]
+        raise OSError(e.errno, reason, str(path)) from e
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
@@ -29,3 +62,136 @@ def write_text_atomic(path: str | Path, text: str) -> None:
 def write_json_atomic(path: str | Path, obj: object) -> None:
     """Write obj as indented JSON with a final newline, atomically."""
     write_text_atomic(path, json.dumps(obj, indent=2) + "\n")
+
+
+# ---- output folders ------------------------------------------------------------------------
+class OutputFolderError(RuntimeError):
+    """The output folder cannot be used (not ours, not empty, or locked by another run); one-line message."""
+
+
+@dataclass(frozen=True)
+class OutputFolder:
+    """An output folder held by this process (see ``output_folder``).
+
+    path: the folder. marker: its marker file. resumed: True if the marker was there at entry (a run
+    to continue), False if the folder was new or empty.
+    """
+
+    path: Path
+    marker: Path
+    resumed: bool
+
+    def remove_temporaries(self, names: Iterable[str]) -> None:
+        """Delete the leftover temporaries (``temporaries_of``) of the given files, named relative to the
+        folder (e.g. ``"camera.json"``, ``"_parts/00003.mp4"``): the only cleanup a tool may do."""
+        for name in names:
+            for tmp in temporaries_of(self.path / name):
+                tmp.unlink()
+
+
+def _marker_format(marker: Path) -> object:
+    try:
+        return json.loads(marker.read_text(encoding="utf-8")).get("format")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def _holder(lock: Path) -> str | None:
+    """Who a lock file of ours names ("pid P on HOST since T"; "another process" if it is still empty), or
+    None if ``lock`` is missing or not one of ours."""
+    try:
+        text = lock.read_text(encoding="utf-8")
+        if not text:
+            return "another process"
+        h = json.loads(text)
+        return f"pid {h['pid']} on {h['host']} since {h['since']}"
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+@contextmanager
+def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "manifest.json") -> Iterator[OutputFolder]:
+    """Create or reopen the output folder ``path`` of ``tool`` and hold its lock for the ``with`` block.
+
+    Ownership: a folder is ``tool``'s when the JSON file ``path/marker`` has ``"format": tool`` (e.g.
+    ``output_folder(out, "simgen-dataset", resume)`` with manifest.json, or ``output_folder(out,
+    "homocal-study", resume, marker="study.json")``). The caller writes that marker, first of its files.
+
+    On entry, in this order (each refusal raises ``OutputFolderError`` naming the folder, before anything
+    is created or written):
+      1. ``path`` exists and is not a directory: refused.
+      2. Another process holds the folder's lock (``fcntl.flock`` on ``path/.lock``): refused with who
+         holds it ("locked by pid P on HOST since 2026-11-23T05:30:00Z"). The kernel releases a lock when
+         its holder dies, so a killed run never blocks a resume.
+      3. The folder is missing, or holds nothing but a lock file of ours (empty, or the JSON this function
+         writes): a new folder (created with its parents), ``resumed`` False, whatever ``resume`` says.
+      4. Otherwise: without ``resume``, refused ("exists and is not empty"); with ``resume``, refused unless
+         the marker is there with the right format ("not a <tool> output folder"): a folder that is not
+         the tool's is never written to.
+      5. The lock is taken (``LOCK_EX | LOCK_NB``, ``path/.lock`` created if missing) and the lock file
+         then holds this process's pid, host and start time (UTC).
+    On exit (normal or exception): the lock file is deleted, then unlocked; if the block raised and this
+    call created the folder and nothing is in it, the folder is removed (a run that fails before writing
+    anything, e.g. no OpenGL, leaves nothing behind). Locking checks that the locked
+    file is still the one at ``path/.lock`` (and retries if not), so a deletion racing a new run never
+    leaves two holders. Works on local file systems (flock is advisory and per open file; NFS may not
+    honour it).
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise OutputFolderError(f"{path}: exists and is not a folder")
+    lock = path / LOCK_NAME
+    fd = _lock(lock, create=False) if _holder(lock) else None  # a run writing it is named before other refusals
+    try:
+        entries = {p.name for p in path.iterdir()} - ({LOCK_NAME} if _holder(lock) else set()) if path.is_dir() else set()
+        resumed = bool(entries)
+        if resumed and not resume:
+            raise OutputFolderError(f"{path}: exists and is not empty (use --resume to continue it, or another output folder)")
+        if resumed and _marker_format(path / marker) != tool:
+            raise OutputFolderError(f"{path}: not a {tool} output folder (no {marker} with format {tool!r}); --resume refused, nothing touched")
+        created = not path.exists()
+        path.mkdir(parents=True, exist_ok=True)
+        fd = fd if fd is not None else _lock(lock, create=True)
+    except BaseException:
+        if fd is not None:
+            os.close(fd)
+        raise
+    try:
+        os.ftruncate(fd, 0)
+        since = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+        os.write(fd, json.dumps({"pid": os.getpid(), "host": socket.gethostname(), "since": since}).encode())
+        yield OutputFolder(path, path / marker, resumed)
+    except BaseException:
+        if created and {p.name for p in path.iterdir()} == {LOCK_NAME}:
+            lock.unlink()
+            path.rmdir()
+        raise
+    finally:
+        lock.unlink(missing_ok=True)
+        os.close(fd)  # closing releases the flock
+
+
+def _lock(lock: Path, create: bool) -> int | None:
+    """Open and exclusively lock ``lock`` (created if ``create``; None if it is absent and not ``create``):
+    the descriptor of the file that is at that path once locked."""
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | (os.O_CREAT if create else 0), 0o644)
+        except FileNotFoundError:
+            if create:
+                raise
+            return None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise OutputFolderError(f"{lock.parent}: locked by {_holder(lock) or 'another process'} (another run is writing it)") from None
+        except BaseException:
+            os.close(fd)
+            raise
+        try:
+            if os.stat(lock).st_ino == os.fstat(fd).st_ino:
+                return fd
+        except FileNotFoundError:
+            pass
+        os.close(fd)  # the holder deleted the file between our open and our lock: try again

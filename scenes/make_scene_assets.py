@@ -1,14 +1,18 @@
 """Regenerate the scenes' generated assets: ground textures and the hand-placed trapezoids.
 
-    python scenes/make_scene_assets.py            # rewrite scenes/*/ground.png and the trapezoid blocks
+    python scenes/make_scene_assets.py            # rewrite scene1's and scene2's ground.png and trapezoid blocks
+    python scenes/make_scene_assets.py DIR ...    # rewrite the trapezoid block of any scene folder (a copy you edited)
 
 The ground texture is painted here from a list of rectangles in world metres (x right, y forward),
 at RES px per metre, over the extent of the scene's ``ground`` plane. MuJoCo stretches it once over
 the plane (``texrepeat="1 1" texuniform="false"``): image top = +y, image left = -x, like a site map.
 
-The hand-placed trapezoids are drawn ONCE (seeded) and fixed in each ``scene.toml`` between the
-BEGIN/END markers: the exact vertices (camera model, ``trapezoid.ground_m``) moved by 1 to 2 px in a
-random direction and rounded to integers, as a person clicks them.
+The hand-placed trapezoids are a function of the scene: the exact vertices (the scene's own camera and
+``trapezoid.ground_m``, image and site map) moved by 1 to 2 px in a random direction (keyed by SEED and
+the folder's name) and rounded to integers, as a person clicks them. They are stored in ``scene.toml``
+between the BEGIN/END markers, and ``load_scene`` refuses a block that no longer fits the camera
+(edit the camera or the trapezoid, then rerun this on the folder). scene1's and scene2's blocks are
+this function's output.
 """
 from __future__ import annotations
 
@@ -22,10 +26,12 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
+from homocal.files import write_text_atomic  # noqa: E402
 from simgen.rng import keyed_rng  # noqa: E402
-from simgen.scene import load_scene  # noqa: E402
+from simgen.scene import ConfigError, load_scene  # noqa: E402
 
 RES = 20  # texture px per metre
+SEED = 2024  # of the hand-placed trapezoids' click noise
 
 ASPHALT, LINE, SIDEWALK, CURB, GRASS = (62, 62, 66), (232, 232, 228), (168, 165, 158), (128, 126, 122), (86, 118, 68)
 
@@ -119,9 +125,12 @@ def hand_placed(exact: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.array(out)
 
 
-def write_trapezoid_block(scene_dir: Path, seed: int) -> None:
+def write_trapezoid_block(scene_dir: Path, seed: int = SEED) -> None:
     """Replace the BEGIN/END block of scene.toml with seeded hand-placed trapezoid vertices."""
     toml_path = scene_dir / "scene.toml"
+    if not re.search(r"# BEGIN hand-placed.*?# END hand-placed", toml_path.read_text(encoding="utf-8"), flags=re.S):
+        sys.exit(f"make_scene_assets: error: {toml_path}: no '# BEGIN hand-placed' ... '# END hand-placed' block "
+                 "in [trapezoid] to rewrite (copy it from scenes/scene1/scene.toml)")
     scene = load_scene(scene_dir, check_trapezoid=False)
     rng = keyed_rng(seed, scene.name, "hand-placed trapezoid")
     img, mp = hand_placed(scene.trapezoid_exact_image, rng), hand_placed(scene.trapezoid_exact_map, rng)
@@ -131,12 +140,20 @@ def write_trapezoid_block(scene_dir: Path, seed: int) -> None:
         + f"hand_placed_image = {fmt(img)}\nhand_placed_map = {fmt(mp)}\n"
         + "# END hand-placed"
     )
-    text = re.sub(r"# BEGIN hand-placed.*?# END hand-placed", block, toml_path.read_text(), flags=re.S)
+    text = re.sub(r"# BEGIN hand-placed.*?# END hand-placed", block, toml_path.read_text(encoding="utf-8"), flags=re.S)
     tomllib.loads(text)
-    toml_path.write_text(text)
+    write_text_atomic(toml_path, text)
 
 
 def main() -> None:
+    if sys.argv[1:]:
+        for folder in map(Path, sys.argv[1:]):
+            try:
+                write_trapezoid_block(folder)
+            except ConfigError as e:
+                sys.exit(f"make_scene_assets: error: {folder}: {e}")
+            print(f"{folder}: trapezoid block written")
+        return
     for name, rects in (("scene1", scene1()), ("scene2", scene2())):
         d = HERE / name
         xml = (d / "scene.xml").read_text()
@@ -144,7 +161,7 @@ def main() -> None:
         hx, hy, cx, cy = map(float, m.groups())
         img = paint(rects, (cx - hx, cx + hx, cy - hy, cy + hy))
         cv2.imwrite(str(d / "ground.png"), img[:, :, ::-1])
-        write_trapezoid_block(d, seed=2024)
+        write_trapezoid_block(d)
         print(f"{name}: ground.png {img.shape[1]}x{img.shape[0]}, trapezoid block written")
 
 

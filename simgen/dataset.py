@@ -6,6 +6,11 @@ resumed with ``resume=True`` redoes the unfinished chunk and ends with the same 
 uninterrupted run: every draw is keyed by (seed, scene, slot), renders are deterministic, the rgb
 detector restarts at every chunk from the ``rgb_warmup_frames`` frames before it (re-rendered on
 resume), and the final files are written once from the parts.
+
+The folder is held with ``homocal.files.output_folder`` (manifest.json with ``"format": FORMAT`` marks it as
+a dataset; ``.lock`` while a run writes it). Chunks are independent, so ``workers`` processes (or the
+workers of a Dask cluster) render contiguous blocks of them into ``_parts/``; each block starts with a fresh
+Stage and rgb detector warmed up as on resume, so the parts are the bytes a serial run writes.
 """
 from __future__ import annotations
 
@@ -13,7 +18,12 @@ import json
 import os
 import platform
 import shutil
+import time
+from collections import Counter
+from contextlib import nullcontext
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from fractions import Fraction
+from multiprocessing import get_context
 from pathlib import Path
 
 import cv2
@@ -23,7 +33,7 @@ import pyarrow.parquet as pq
 from tqdm import tqdm
 
 import simgen
-from homocal.files import write_atomic, write_json_atomic
+from homocal.files import OutputFolder, output_folder, write_atomic, write_json_atomic
 from simgen.detection import (
     BackgroundSubtractionDetector,
     SegmentationDetector,
@@ -38,6 +48,9 @@ from simgen.truth import GT_SCHEMA, gt_columns
 from simgen.video import SegmentWriter, concat
 
 PARTS = "_parts"
+FORMAT = "simgen-dataset"  # manifest.json's format tag: the folder is a simgen dataset
+FINAL = ("manifest.json", "camera.json", "trapezoids.json", "site_map.png", "site_map.json", "calibration.parquet",
+         "gt.parquet", "detections.parquet", "mot/gt.txt", "video.mp4")  # fmt: skip
 
 CALIBRATION_SCHEMA = pa.schema([
     ("index", pa.int32()), ("distance_m", pa.float64()), ("x", pa.float64()), ("y", pa.float64()),
@@ -48,12 +61,6 @@ CALIBRATION_SCHEMA = pa.schema([
 
 class DatasetError(RuntimeError):
     """The output folder cannot be (re)used; one-line message."""
-
-
-# ---- atomic writes -----------------------------------------------------------------------
-def _tmp(path: Path) -> Path:
-    """Temporary name beside ``path`` keeping its extension, for files streamed in place (the video segments)."""
-    return path.with_name(f"{path.stem}.tmp{path.suffix}")
 
 
 def write_parquet(path: Path, table: pa.Table) -> None:
@@ -100,14 +107,14 @@ def site_map(scene: Scene) -> np.ndarray:
 
 def manifest(scene: Scene, seed: int, frames_done: int, complete: bool) -> dict:
     return {
-        "scene": scene.name, "seed": seed, "config_hash": scene.config_hash(),
+        "format": FORMAT, "scene": scene.name, "seed": seed, "config_hash": scene.config_hash(),
         "versions": {"python": platform.python_version(), "numpy": np.__version__, "mujoco": mujoco.__version__,
                      "opencv": cv2.__version__, "simgen": simgen.__version__},
         "frames_total": scene.frames_total, "frames_done": frames_done, "complete": complete,
         "fps": scene.fps, "gt_dt": GT_DT, "seconds": scene.seconds, "detectors": list(scene.detectors),
         "steps_total": scene.steps_total, "chunk_seconds": scene.chunk_seconds,
         "rgb_reset_every_frames": _chunk_frames(scene), "rgb_warmup_frames": scene.rgb_warmup_frames,
-        "backend": backend(),
+        "backend": backend(), "quality": scene.quality,
     }  # fmt: skip
 
 
@@ -176,25 +183,65 @@ def _warm_up(stage: Stage, detectors: list, frame: int) -> None:
                 det.feed(k, stage.rgb())
 
 
-def _run_chunk(stage: Stage, detectors: list, c: int, parts: Path, bar: tqdm) -> None:
+def _part_names(c: int) -> list[str]:
+    """Chunk c's files in the dataset folder, in the order they are written (the last one marks it done)."""
+    return [f"{PARTS}/{c:05d}.mp4", f"{PARTS}/{c:05d}.gt.parquet", f"{PARTS}/{c:05d}.det.parquet"]
+
+
+def _run_chunk(stage: Stage, detectors: list, c: int, parts: Path, tick=lambda frames: None) -> None:
+    """Render chunk c into ``parts`` (its video segment, gt and detections); ``tick(1)`` after each frame."""
     scene = stage.scene
     gt, batches = [], []
-    video, cam = parts / f"{c:05d}.mp4", scene.camera
-    with SegmentWriter(_tmp(video), cam.width, cam.height, scene.fps) as writer:
-        for t, frame, step in _timeline(scene, c):
-            state = stage.set_time(t)
-            ids = stage.agent_ids()
-            if step is not None:
-                gt.append(gt_columns(step, cam, state, ids))
-            if frame is not None:
-                rgb = stage.rgb()
-                writer.append(rgb)
-                batches += [d.detect(frame, frame / scene.fps, rgb, ids) for d in detectors]
-                bar.update(1)
-    os.replace(_tmp(video), video)
+    cam = scene.camera
+
+    def render(tmp: Path) -> None:
+        with SegmentWriter(tmp, cam.width, cam.height, scene.fps) as writer:
+            for t, frame, step in _timeline(scene, c):
+                state = stage.set_time(t)
+                ids = stage.agent_ids()
+                if step is not None:
+                    gt.append(gt_columns(step, cam, state, ids))
+                if frame is not None:
+                    rgb = stage.rgb()
+                    writer.append(rgb)
+                    batches.extend(d.detect(frame, frame / scene.fps, rgb, ids) for d in detectors)
+                    tick(1)
+
+    write_atomic(parts / f"{c:05d}.mp4", render)
     columns = {name: np.concatenate([g[name] for g in gt]) for name in GT_SCHEMA.names}
     write_parquet(parts / f"{c:05d}.gt.parquet", pa.Table.from_pydict(columns, schema=GT_SCHEMA))
     write_parquet(parts / f"{c:05d}.det.parquet", detections_table(batches))
+
+
+def render_chunks(scene: Scene, seed: int, out: str | Path, chunks: list[int], lp_threads: int | None = None,
+                  tick=lambda frames: None, on_chunk=lambda c: None) -> list[int]:
+    """Render the given chunks (ascending) of ``scene`` with ``seed`` into ``out/_parts``; returns ``chunks``.
+
+    What a worker process runs (and the serial run, in its own process). ``lp_threads``: Mesa llvmpipe's
+    rendering threads (``LP_NUM_THREADS``) for this process, set before its GL context is made, so that
+    N workers on N cores do not oversubscribe them. The rgb detector is warmed up before each chunk that
+    does not follow the previous one, as on resume: the bytes do not depend on how chunks are split.
+    ``tick(1)`` after each frame, ``on_chunk(c)`` after each chunk.
+    """
+    if lp_threads is not None:
+        os.environ["LP_NUM_THREADS"] = str(lp_threads)
+    parts, per = Path(out) / PARTS, _chunk_frames(scene)
+    with Stage(scene, seed) as stage:
+        detectors, previous = [], None
+        for c in chunks:
+            if previous is None or c != previous + 1:
+                detectors = make_detectors(scene)
+                _warm_up(stage, detectors, c * per)
+            _run_chunk(stage, detectors, c, parts, tick)
+            on_chunk(c)
+            previous = c
+    return chunks
+
+
+def _blocks(chunks: list[int], n: int) -> list[list[int]]:
+    """``chunks`` cut into at most n contiguous blocks of nearly equal length."""
+    n = min(n, len(chunks))
+    return [chunks[len(chunks) * i // n : len(chunks) * (i + 1) // n] for i in range(n)]
 
 
 # ---- the final files -------------------------------------------------------------------------
@@ -212,43 +259,138 @@ def _finalize(scene: Scene, out: Path) -> None:
 
 
 # ---- the run -------------------------------------------------------------------------------
-def generate(scene: Scene, seed: int, out: str | Path, resume: bool = False, progress: bool = True) -> Path:
-    """Write (or with ``resume`` continue) the dataset of ``scene`` with ``seed`` into ``out``."""
-    out = Path(out)
-    frames_done = 0
-    if (out / "manifest.json").is_file() and resume:
-        m = json.loads((out / "manifest.json").read_text())
-        if m.get("config_hash") != scene.config_hash() or m.get("seed") != seed:
-            raise DatasetError(f"{out}: --resume: it was made with another scene config, run options or seed")
-        if m.get("backend") != backend():
-            raise DatasetError(f"{out}: --resume: it was rendered with MUJOCO_GL={m.get('backend')}; resume with the same backend")
-        if m.get("complete"):
-            shutil.rmtree(out / PARTS, ignore_errors=True)
-            return out
-        frames_done = int(m["frames_done"])
-    elif out.exists() and any(out.iterdir()) and not resume:
-        raise DatasetError(f"{out}: exists and is not empty (use --resume to continue it, or another --out)")
+class Run:
+    """One ``generate`` run on a held output folder: which chunks are left, progress in the manifest."""
 
-    with Stage(scene, seed) as stage:  # fails (backend) before anything is written
-        out.mkdir(parents=True, exist_ok=True)
-        for stale in out.rglob("*.tmp*"):
-            stale.unlink()
-        _write_static(scene, out)
-        write_json_atomic(out / "manifest.json", manifest(scene, seed, frames_done, False))
-        if not (out / "calibration.parquet").is_file():
-            write_parquet(out / "calibration.parquet", calibration_table(stage))
-        parts = out / PARTS
-        parts.mkdir(exist_ok=True)
-        detectors = make_detectors(scene)
-        first = frames_done // _chunk_frames(scene)
-        _warm_up(stage, detectors, first * _chunk_frames(scene))
-        with tqdm(total=scene.frames_total, initial=first * _chunk_frames(scene), unit="frame",
-                  desc=scene.name, disable=not progress, smoothing=0.05) as bar:
-            for c in range(first, _chunk_count(scene)):
-                _run_chunk(stage, detectors, c, parts, bar)
-                done = min((c + 1) * _chunk_frames(scene), scene.frames_total)
-                write_json_atomic(out / "manifest.json", manifest(scene, seed, done, False))
-    _finalize(scene, out)
-    write_json_atomic(out / "manifest.json", manifest(scene, seed, scene.frames_total, True))
-    shutil.rmtree(out / PARTS)
-    return out
+    def __init__(self, scene: Scene, seed: int, folder: OutputFolder) -> None:
+        self.scene, self.seed, self.out = scene, seed, folder.path
+        self.n, self.recorded = _chunk_count(scene), None
+
+    def frames(self, chunks: list[int]) -> int:
+        per = _chunk_frames(self.scene)
+        return sum(min(per, self.scene.frames_total - c * per) for c in chunks)
+
+    def done(self, c: int) -> bool:
+        return all((self.out / name).is_file() for name in _part_names(c))
+
+    def todo(self) -> list[int]:
+        return [c for c in range(self.n) if not self.done(c)]
+
+    def record(self) -> None:
+        """manifest.json's frames_done: the frames of the chunks done without a gap from the start."""
+        first_missing = next((c for c in range(self.n) if not self.done(c)), self.n)
+        frames = min(first_missing * _chunk_frames(self.scene), self.scene.frames_total)
+        if frames != self.recorded:
+            write_json_atomic(self.out / "manifest.json", manifest(self.scene, self.seed, frames, False))
+            self.recorded = frames
+
+
+class _ParentWatch:
+    """A worker's ``tick``: exit when the process that started it is gone (a killed run leaves no writer)."""
+
+    def __init__(self) -> None:
+        self.parent = os.getpid()
+
+    def __call__(self, frames: int) -> None:
+        if os.getppid() != self.parent:
+            os._exit(1)
+
+
+def _follow(run: Run, todo: list[int], futures: list, bar: tqdm) -> None:
+    """Wait for the futures (concurrent or Dask), moving the bar and manifest.json as chunks land; the first
+    failure cancels the rest and is raised."""
+    shown = 0
+    try:
+        while True:
+            frames = run.frames([c for c in todo if run.done(c)])
+            bar.update(frames - shown)
+            shown = frames
+            failed = next((f for f in futures if f.done() and f.exception() is not None), None)
+            if failed is not None:
+                failed.result()
+            run.record()
+            if all(f.done() for f in futures):
+                return
+            time.sleep(0.5)
+    finally:
+        for f in futures:
+            f.cancel()
+
+
+def _render_in_processes(run: Run, todo: list[int], workers: int, bar: tqdm) -> None:
+    """Blocks of chunks in ``workers`` spawned processes, LP_NUM_THREADS = cores // workers (at least 1) each."""
+    threads = max(1, (os.cpu_count() or 1) // workers)
+    with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
+        futures = [pool.submit(render_chunks, run.scene, run.seed, run.out, block, threads, _ParentWatch())
+                   for block in _blocks(todo, workers)]
+        _follow(run, todo, futures, bar)
+
+
+def _dask_client(address: str):
+    """A Dask client of the scheduler at ``address``; DatasetError (one line) if it cannot connect."""
+    from distributed import Client  # noqa: PLC0415  (optional: only --scheduler needs it)
+
+    try:
+        return Client(address, timeout="10s")
+    except (OSError, ValueError) as e:
+        raise DatasetError(f"--scheduler {address}: cannot connect ({str(e).splitlines()[0]})") from None
+
+
+def _render_on_dask(run: Run, todo: list[int], client, bar: tqdm) -> None:
+    """One block of chunks per worker of the Dask cluster; each worker's LP_NUM_THREADS is its host's cores
+    over the workers on that host (at least 1). Workers should run one thread each."""
+    workers = sorted(client.scheduler_info()["workers"].items())
+    cores, hosts = client.run(os.cpu_count), Counter(info["host"] for _, info in workers)
+    futures = [client.submit(render_chunks, run.scene, run.seed, str(run.out), block,
+                             max(1, cores[address] // hosts[info["host"]]), workers=[address], pure=False)
+               for (address, info), block in zip(workers, _blocks(todo, len(workers)))]  # fmt: skip
+    _follow(run, todo, futures, bar)
+
+
+def _check_resumable(scene: Scene, seed: int, folder: OutputFolder) -> dict | None:
+    """The manifest of the run being resumed (None for a new folder); DatasetError if it is another run's."""
+    if not folder.resumed:
+        return None
+    m = json.loads(folder.marker.read_text(encoding="utf-8"))
+    if m.get("config_hash") != scene.config_hash() or m.get("seed") != seed:
+        raise DatasetError(f"{folder.path}: --resume: it was made with another scene config, run options or seed")
+    if m.get("backend") != backend():
+        raise DatasetError(f"{folder.path}: --resume: it was rendered with MUJOCO_GL={m.get('backend')}; resume with the same backend")
+    return m
+
+
+def generate(scene: Scene, seed: int, out: str | Path, resume: bool = False, progress: bool = True,
+             workers: int = 1, scheduler: str | None = None) -> Path:
+    """Write (or with ``resume`` continue) the dataset of ``scene`` with ``seed`` into ``out``.
+
+    ``workers`` > 1 renders blocks of chunks in that many processes; ``scheduler`` (a Dask scheduler
+    address) on the workers of that cluster (one block per worker; they must see ``out`` at the same path).
+    The bytes are the same either way. Raises DatasetError or OutputFolderError (one line) when ``out``
+    cannot be used; nothing of a folder that is not a simgen dataset is touched.
+    """
+    with _dask_client(scheduler) if scheduler else nullcontext() as client, output_folder(out, FORMAT, resume) as folder:
+        m = _check_resumable(scene, seed, folder)
+        if m is not None and m.get("complete"):
+            shutil.rmtree(folder.path / PARTS, ignore_errors=True)
+            return folder.path
+        run = Run(scene, seed, folder)
+        folder.remove_temporaries([*FINAL, *(name for c in range(run.n) for name in _part_names(c))])
+        with Stage(scene, seed) as stage:  # fails (backend) before anything but the lock is written
+            run.record()  # the marker, first
+            _write_static(scene, folder.path)
+            if not (folder.path / "calibration.parquet").is_file():
+                write_parquet(folder.path / "calibration.parquet", calibration_table(stage))
+        (folder.path / PARTS).mkdir(exist_ok=True)
+        todo = run.todo()
+        with tqdm(total=scene.frames_total, initial=scene.frames_total - run.frames(todo),
+                  unit="frame", desc=scene.name, disable=not progress, smoothing=0.05) as bar:
+            if client is not None:
+                _render_on_dask(run, todo, client, bar)
+            elif workers > 1:
+                _render_in_processes(run, todo, workers, bar)
+            else:
+                render_chunks(scene, seed, folder.path, todo, tick=bar.update, on_chunk=lambda c: run.record())
+        _finalize(scene, folder.path)
+        write_json_atomic(folder.path / "manifest.json", manifest(scene, seed, scene.frames_total, True))
+        shutil.rmtree(folder.path / PARTS)
+        return folder.path

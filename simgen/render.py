@@ -14,6 +14,12 @@ import simgen  # noqa: F401  (sets the MUJOCO_GL default before mujoco is import
 
 PACKAGES = {"egl": "libegl1 libgl1-mesa-dri libopengl0", "osmesa": "libosmesa6"}
 
+QUALITY = {  # preset -> (offscreen multisamples, shadows; shadow map size): ``[render] quality``, ``--quality``
+    "draft": (0, 0),  # no anti-aliasing: edges stair-stepped, about 2.5x faster RGB on llvmpipe
+    "default": (4, 0),  # MuJoCo's 4 samples, shadows off (what every dataset before the presets used)
+    "high": (8, 4096),  # 8 samples and the scene's lights cast shadows (4096 px shadow map)
+}
+
 
 class BackendError(RuntimeError):
     """No usable OpenGL backend; the message is one line."""
@@ -40,6 +46,14 @@ except Exception as e:  # osmesa without libosmesa6 fails here with an Attribute
     raise BackendError(backend_message(e)) from e
 
 from simgen.model import CAMERA  # noqa: E402
+
+
+def apply_quality(model: mujoco.MjModel, quality: str) -> None:
+    """Set ``model``'s offscreen samples and shadows to the preset ``quality`` (before a Renderer is made)."""
+    samples, shadow_size = QUALITY[quality]
+    model.vis.quality.offsamples = samples
+    model.vis.quality.shadowsize = shadow_size
+    model.light_castshadow[:] = shadow_size > 0
 
 
 class FrameRenderer:

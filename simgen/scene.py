@@ -6,6 +6,7 @@ whose one-line message names the field (``scene.toml: camera.tilt_deg: ...``).
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import hashlib
 import json
 import math
@@ -20,6 +21,8 @@ from homocal.geometry.camera import PinholeCamera
 GT_DT = 0.05  # ground-truth period, seconds (paper Section 5.1)
 GT_RATE = 20  # 1 / GT_DT, samples per second, for exact integer time arithmetic
 DETECTORS = ("segmentation", "rgb")
+QUALITIES = ("draft", "default", "high")  # render presets (simgen.render.QUALITY)
+HAND_PLACED_MAX_PX = 2.0  # a hand-placed vertex lies 1 to 2 px from the exact one (data_schema.md)
 
 
 class ConfigError(ValueError):
@@ -69,6 +72,7 @@ class Scene:
     hand_placed_map: np.ndarray  # (4, 2) int64 map px
     ground: Ground
     raw: dict = field(repr=False)
+    quality: str = "default"  # render preset, one of QUALITIES
 
     # ---- derived numbers ---------------------------------------------------------------
     @property
@@ -104,35 +108,102 @@ class Scene:
     def config_hash(self) -> str:
         """sha256 over the resolved config, the run options and the bytes of the scene's files."""
         h = hashlib.sha256()
-        run = {"seconds": self.seconds, "fps": self.fps, "detectors": list(self.detectors)}
+        run = {"seconds": self.seconds, "fps": self.fps, "detectors": list(self.detectors), "quality": self.quality}
         h.update(json.dumps([self.raw, run], sort_keys=True).encode())
         for p in (self.model_path, self.ground.texture):
             h.update(p.read_bytes())
         return h.hexdigest()
 
-    def with_run(self, seconds: float | None = None, fps: int | None = None, detectors=None) -> "Scene":
+    def with_run(self, seconds: float | None = None, fps: int | None = None, detectors=None, quality: str | None = None) -> "Scene":
         """The same scene with run options overridden (from the command line), re-validated."""
         s = dataclasses.replace(
             self,
             seconds=self.seconds if seconds is None else seconds,
             fps=self.fps if fps is None else fps,
             detectors=self.detectors if detectors is None else tuple(detectors),
+            quality=self.quality if quality is None else quality,
         )
         _check_run(s)
         return s
 
 
-def _get(d: dict, key: str, kind=float):
-    """d["a.b.c"] converted by ``kind``; ConfigError naming the key when missing or wrong."""
+_MISSING = object()
+
+
+def _get(d: dict, key: str, kind=float, default=_MISSING):
+    """d["a.b.c"] converted by ``kind`` (``default`` if missing and given); ConfigError naming the key when
+    missing or wrong (a float must be finite)."""
     cur = d
     for part in key.split("."):
         if not isinstance(cur, dict) or part not in cur:
-            raise ConfigError(f"scene.toml: {key}: missing")
+            if default is not _MISSING:
+                return default
+            near = difflib.get_close_matches(part, list(dict.keys(cur)), n=1) if isinstance(cur, dict) else []
+            raise ConfigError(f"scene.toml: {key}: missing" + (f" (is {near[0]} a typo of {part}?)" if near else ""))
         cur = cur[part]
     accepted = (int, float) if kind is float else kind
     if not isinstance(cur, accepted) or (isinstance(cur, bool) and kind is not bool):
         raise ConfigError(f"scene.toml: {key}: expected {kind.__name__}, got {cur!r}")
+    if kind is float and not math.isfinite(cur):
+        raise ConfigError(f"scene.toml: {key}: must be a finite number, got {cur}")
     return kind(cur)
+
+
+class _ReadKeys(dict):
+    """A TOML table that records the dotted paths of the keys looked up in it (``in``, ``[]``, ``get``)."""
+
+    def __init__(self, table: dict, path: tuple, read: set) -> None:
+        super().__init__({k: _track(v, (*path, k), read) for k, v in table.items()})
+        self._path, self._read = path, read
+
+    def __contains__(self, key) -> bool:
+        self._read.add((*self._path, key))
+        return super().__contains__(key)
+
+    def __getitem__(self, key):
+        self._read.add((*self._path, key))
+        return super().__getitem__(key)
+
+    def get(self, key, default=None):
+        self._read.add((*self._path, key))
+        return super().get(key, default)
+
+
+def _track(value, path: tuple, read: set):
+    if isinstance(value, dict):
+        return _ReadKeys(value, path, read)
+    if isinstance(value, list):
+        return [_track(v, (*path, i), read) if isinstance(v, dict) else v for i, v in enumerate(value)]
+    return value
+
+
+def _leaves(value, path: tuple = ()):
+    """Dotted paths (tuples) of the values of a TOML document, tables of arrays entered."""
+    if isinstance(value, dict):
+        for k, v in value.items():
+            yield from _leaves(v, (*path, k))
+    elif isinstance(value, list) and any(isinstance(v, dict) for v in value):
+        for i, v in enumerate(value):
+            yield from _leaves(v, (*path, i))
+    else:
+        yield path
+
+
+def _dotted(path: tuple) -> str:
+    return "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in path).lstrip(".")
+
+
+def _check_unknown_keys(raw: dict, read: set) -> None:
+    """Refuse the first key of ``raw`` the loader never looked up, naming the nearest known key (difflib)."""
+    for leaf in _leaves(raw):
+        if leaf in read or any(leaf[:n] in read and not any(r[:n] == leaf[:n] and len(r) > n for r in read)
+                               for n in range(1, len(leaf))):
+            continue  # looked up, or inside a value read whole
+        n = next(n for n in range(1, len(leaf) + 1) if not any(r[:n] == leaf[:n] for r in read))
+        siblings = sorted({r[n - 1] for r in read if len(r) >= n and r[: n - 1] == leaf[: n - 1] and isinstance(r[n - 1], str)})
+        near = difflib.get_close_matches(str(leaf[n - 1]), siblings, n=1)
+        hint = f" (did you mean {_dotted((*leaf[: n - 1], near[0]))}?)" if near else f" (known here: {', '.join(siblings)})"
+        raise ConfigError(f"scene.toml: {_dotted(leaf[:n])}: unknown key{hint}")
 
 
 def _points(d: dict, key: str, n: int | None = None, integer: bool = False) -> np.ndarray:
@@ -143,6 +214,8 @@ def _points(d: dict, key: str, n: int | None = None, integer: bool = False) -> n
         raise ConfigError(f"scene.toml: {key}: expected a list of [x, y] pairs") from None
     if a.ndim != 2 or a.shape[1] != 2 or (n is not None and len(a) != n) or len(a) < 2:
         raise ConfigError(f"scene.toml: {key}: expected {n or 'at least 2'} [x, y] pairs, got shape {a.shape}")
+    if not np.isfinite(a).all():
+        raise ConfigError(f"scene.toml: {key}: coordinates must be finite numbers")
     if integer:
         if not np.all(a == np.round(a)):
             raise ConfigError(f"scene.toml: {key}: vertices must be integer pixels")
@@ -153,7 +226,7 @@ def _points(d: dict, key: str, n: int | None = None, integer: bool = False) -> n
 def _range(d: dict, key: str, low: float = 0.0) -> tuple[float, float]:
     """d[key] as a (min, max) pair with low <= min <= max."""
     v = _get(d, key, list)
-    if len(v) != 2 or not all(isinstance(x, (int, float)) for x in v) or not low <= v[0] <= v[1]:
+    if len(v) != 2 or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v) or not low <= v[0] <= v[1] < math.inf:
         raise ConfigError(f"scene.toml: {key}: expected [min, max] with {low} <= min <= max, got {v!r}")
     return float(v[0]), float(v[1])
 
@@ -189,6 +262,8 @@ def _check_run(s: Scene) -> None:
     for key, v in (("run.seconds", s.seconds), ("run.chunk_seconds", s.chunk_seconds)):
         if abs(v * s.fps - round(v * s.fps)) > 1e-9:
             raise ConfigError(f"scene.toml: {key}: {v} s is not a whole number of frames at {s.fps} fps")
+    if s.quality not in QUALITIES:
+        raise ConfigError(f"scene.toml: render.quality: expected one of {', '.join(QUALITIES)}, got {s.quality!r}")
     unknown = [d for d in s.detectors if d not in DETECTORS]
     if unknown or not s.detectors or len(set(s.detectors)) != len(s.detectors):
         raise ConfigError(f"scene.toml: detection.detectors: expected distinct names from {DETECTORS}, got {list(s.detectors)}")
@@ -215,9 +290,13 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
     if not path.is_file():
         raise ConfigError(f"{path}: no such scene config")
     try:
-        raw = tomllib.loads(path.read_text())
+        plain = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"scene.toml: not valid TOML: {e}") from None
+    except UnicodeDecodeError as e:
+        raise ConfigError(f"{path}: not UTF-8 text ({e.reason} at byte {e.start})") from None
+    read: set[tuple] = set()
+    raw = _ReadKeys(plain, (), read)  # records every key looked up, for _check_unknown_keys
 
     model_path = folder / _get(raw, "model", str)
     if not model_path.is_file():
@@ -277,8 +356,10 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
         hand_placed_image=_points(raw, "trapezoid.hand_placed_image", 4, integer=True),
         hand_placed_map=_points(raw, "trapezoid.hand_placed_map", 4, integer=True),
         ground=_read_ground(model_path),
-        raw=raw,
+        raw=plain,
+        quality=_get(raw, "render.quality", str, default="default"),
     )
+    _check_unknown_keys(plain, read)
     _check_run(scene)
     if scene.agent_count < 0 or scene.rgb_warmup_frames < 0:
         raise ConfigError("scene.toml: agents.count and detection.rgb_warmup_frames must be >= 0")
@@ -305,4 +386,18 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
         ):
             if np.any(q < 0) or np.any(q[:, 0] > w - 1) or np.any(q[:, 1] > h - 1):
                 raise ConfigError(f"scene.toml: {key}: a vertex lies outside the {w}x{h} image")
+        _check_hand_placed(scene)
     return scene
+
+
+def _check_hand_placed(scene: Scene) -> None:
+    """Each hand-placed vertex within HAND_PLACED_MAX_PX of the exact one (the camera and trapezoid.ground_m)."""
+    for key, hand, exact in (("trapezoid.hand_placed_image", scene.hand_placed_image, scene.trapezoid_exact_image),
+                             ("trapezoid.hand_placed_map", scene.hand_placed_map, scene.trapezoid_exact_map)):
+        off = np.hypot(*(hand - exact).T)
+        if np.any(off > HAND_PLACED_MAX_PX + 1e-9):
+            i = int(np.argmax(off))
+            raise ConfigError(
+                f"scene.toml: {key}: vertex {i + 1} is {off[i]:.1f} px from the exact one (at most {HAND_PLACED_MAX_PX:g} "
+                f"px; the camera or trapezoid.ground_m changed?): rewrite it with python scenes/make_scene_assets.py {scene.folder}"
+            )

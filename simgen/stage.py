@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from simgen.render import FrameRenderer, id_map, mujoco  # render first: it guards the mujoco import
+from simgen.render import FrameRenderer, apply_quality, id_map, mujoco  # render first: it guards the mujoco import
 from simgen.agents import Crowd
 from simgen.model import PARKED, build_model, yaw_quat
 from simgen.scene import Scene
@@ -31,6 +31,7 @@ class Stage:
         self.scene = scene
         self.run_model = build_model(scene, seed)
         self.model = self.run_model.model
+        apply_quality(self.model, scene.quality)
         self.data = mujoco.MjData(self.model)
         mujoco.mj_forward(self.model, self.data)  # camera poses are set by mj_forward, not mj_kinematics
         self.crowd = Crowd(scene, seed, scene.seconds if t_end is None else t_end)

@@ -7,6 +7,7 @@ depend only on the frames, so a resumed run's video equals an uninterrupted run'
 from __future__ import annotations
 
 import subprocess
+import tempfile
 from pathlib import Path
 
 import cv2
@@ -14,7 +15,8 @@ import imageio_ffmpeg
 import numpy as np
 
 BITEXACT = ["-fflags", "+bitexact", "-map_metadata", "-1"]
-ENCODE = ["-preset", "ultrafast", "-crf", "20", "-flags:v", "+bitexact", *BITEXACT]
+ENCODE = ["-preset", "ultrafast", "-crf", "20", "-threads", "1", "-flags:v", "+bitexact", *BITEXACT]
+"""x264 on one thread: its output depends on its thread count, which would otherwise follow the machine's cores."""
 
 
 class SegmentWriter:
@@ -41,14 +43,16 @@ class SegmentWriter:
 
 
 def concat(segments: list[Path], out: Path) -> None:
-    """Join MP4 segments (same codec and size) into ``out`` by stream copy."""
-    listing = out.with_name(out.name + ".txt")
-    listing.write_text("".join(f"file '{p.resolve()}'\n" for p in segments))
-    try:
-        subprocess.run(
+    """Join MP4 segments (same codec and size) into ``out`` by stream copy (the list of segments ffmpeg
+    reads is a file in the system's temporary folder)."""
+    with tempfile.NamedTemporaryFile("w", suffix=".txt", encoding="utf-8") as listing:
+        listing.write("".join(f"file '{p.resolve()}'\n" for p in segments))
+        listing.flush()
+        done = subprocess.run(
             [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-loglevel", "error", "-f", "concat", "-safe", "0",
-             "-i", str(listing), "-c", "copy", *BITEXACT, str(out)],
-            check=True,
+             "-i", listing.name, "-c", "copy", *BITEXACT, str(out)],
+            capture_output=True, text=True,
         )  # fmt: skip
-    finally:
-        listing.unlink(missing_ok=True)
+    if done.returncode:
+        reason = (done.stderr.strip().splitlines() or ["no message"])[-1]
+        raise OSError(f"{out}: ffmpeg could not join the video segments ({reason})")

@@ -11,6 +11,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.compute  # noqa: F401  (pa.compute)
 import pyarrow.parquet as pq
 import pytest
 
@@ -105,14 +107,14 @@ def test_same_seed_same_bytes(run, tmp_path):
 
 
 # kill points: during calibration, between chunks, while a video segment is written, while the final files are
-@pytest.mark.parametrize("kill_when", ["manifest.json", "_parts/00001.gt.parquet", "_parts/00002.tmp.mp4", "gt.parquet"])
+@pytest.mark.parametrize("kill_when", ["manifest.json", "_parts/00001.gt.parquet", "_parts/00002.tmp*.mp4", "gt.parquet"])
 def test_resume_after_kill_gives_the_same_bytes(run, tmp_path, kill_when):
     scene, reference = run
     out = tmp_path / "killed"
     cmd = [sys.executable, "-m", "simgen.cli", *_generate_args(scene, out)]
     proc = subprocess.Popen(cmd, stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 60
-    while not (out / kill_when).exists() and proc.poll() is None and time.monotonic() < deadline:
+    while not any(out.glob(kill_when)) and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.002)
     if proc.poll() is None:
         os.kill(proc.pid, signal.SIGKILL)
@@ -149,28 +151,90 @@ def test_import_mot_adds_an_external_detector(run, tmp_path):
     assert json.loads((out / "manifest.json").read_text())["detectors"].count("oracle") == 1
 
 
-@pytest.mark.parametrize(
-    "how,message",
-    [("reserved name", "reserved"), ("bad line", "line 2"), ("incomplete", "not complete"), ("no file", "No such file")],
-)  # fmt: skip
-def test_import_mot_refuses_bad_input(run, tmp_path, capsys, how, message):
+MOT_LINE = "1,-1,100,60,10,20,0.9,-1,-1,-1\n"  # a valid detection in the 320x180, 40-frame dataset
+MOT_BAD = [
+    # (id, file content (bytes) or None for no file, --name, extra flags, message)
+    ("reserved name", MOT_LINE.encode(), "rgb", [], "reserved"),
+    ("bad line", (MOT_LINE + "2,-1,ten,10,5,20,0.9,-1,-1,-1\n").encode(), "yolo", [], "det.txt: line 2: not a number"),
+    ("no file", None, "yolo", [], "missing.txt: No such file"),
+    ("empty file", b"", "yolo", [], "det.txt: no detections"),
+    ("blank lines only", b"\n \n", "yolo", [], "det.txt: no detections"),
+    ("frame beyond the video", b"41,-1,100,60,10,20,0.9,-1,-1,-1\n", "yolo", [], "det.txt: line 1: frame 41 is beyond the video (40 frames)"),
+    ("conf 5", b"1,-1,100,60,10,20,5.0,-1,-1,-1\n", "yolo", [], "det.txt: line 1: conf must be in [0, 1]"),
+    ("conf -0.1", b"1,-1,100,60,10,20,-0.1,-1,-1,-1\n", "yolo", [], "det.txt: line 1: conf must be in [0, 1]"),
+    ("box right of the image", b"1,-1,400,60,10,20,0.9,-1,-1,-1\n", "yolo", [], "det.txt: line 1: box 400,60,10,20 does not overlap"),
+    ("box above the image", b"1,-1,100,-100,10,20,0.9,-1,-1,-1\n", "yolo", [], "does not overlap the 320x180 image"),
+    ("huge box", b"1,-1,1,1,1e308,1e308,0.9,-1,-1,-1\n", "yolo", [], "reaches more than one image size beyond it"),
+    ("wide box", b"1,-1,1,1,1000,20,0.9,-1,-1,-1\n", "yolo", [], "reaches more than one image size beyond it"),
+    ("inf box", b"1,-1,1,1,inf,20,0.9,-1,-1,-1\n", "yolo", [], "det.txt: line 1: non-finite value"),
+    ("not UTF-8", b"1,-1,100,60,10,20,0.9,-1,-1,-1\n\xff\xfe\x00bad\n", "yolo", [], "det.txt: not UTF-8 text"),
+    ("--min-iou 2", MOT_LINE.encode(), "yolo", ["--min-iou", "2"], "argument --min-iou: must be a finite number in (0, 1], got 2"),
+    ("--min-iou nan", MOT_LINE.encode(), "yolo", ["--min-iou", "nan"], "argument --min-iou: must be a finite number in (0, 1]"),
+    ("--min-iou -1", MOT_LINE.encode(), "yolo", ["--min-iou", "-1"], "argument --min-iou"),
+    ("--min-iou 0", MOT_LINE.encode(), "yolo", ["--min-iou", "0"], "argument --min-iou"),
+    ("incomplete", MOT_LINE.encode(), "yolo", [], "not complete"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("how, content, name, extra, message", MOT_BAD, ids=[b[0] for b in MOT_BAD])
+def test_import_mot_refuses_bad_input(run, tmp_path, capsys, how, content, name, extra, message):
     _, reference = run
     out = tmp_path / "copy"
     shutil.copytree(reference, out)
-    before = _files(out)
-    mot, name = out / "mot" / "gt.txt", "yolo"
-    if how == "reserved name":
-        name = "rgb"
-    elif how == "bad line":
-        mot = tmp_path / "det.txt"
-        mot.write_text("1,-1,10,10,5,20,0.9,-1,-1,-1\n2,-1,ten,10,5,20,0.9,-1,-1,-1\n")
-    elif how == "incomplete":
+    mot = tmp_path / ("missing.txt" if content is None else "det.txt")
+    if content is not None:
+        mot.write_bytes(content)
+    if how == "incomplete":
         manifest = json.loads((out / "manifest.json").read_text())
         (out / "manifest.json").write_text(json.dumps({**manifest, "complete": False}, indent=2) + "\n")
-        before = _files(out)
-    else:
-        mot = tmp_path / "missing.txt"
-    assert main(["import-mot", str(out), str(mot), "--name", name]) == 2
+    before = _files(out)
+    assert main(["import-mot", str(out), str(mot), "--name", name, *extra]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("simgen: error: import-mot:") and message in err and len(err.splitlines()) == 1
+    assert err.startswith("simgen: error: import-mot:") and message in err and len(err.splitlines()) == 1, err
     assert _files(out) == before
+
+
+def test_import_mot_accepts_the_limits(run, tmp_path):
+    """The edges of what is accepted: last frame, conf 0 and 1, a box partly outside the image."""
+    _, reference = run
+    out = tmp_path / "copy"
+    shutil.copytree(reference, out)
+    (tmp_path / "det.txt").write_text("40,-1,100,60,10,20,1,-1,-1,-1\n1,-1,-5,170,30,40,0,-1,-1,-1\n")
+    assert main(["import-mot", str(out), str(tmp_path / "det.txt"), "--name", "yolo", "--min-iou", "1"]) == 0
+    det = pq.read_table(out / "detections.parquet")
+    yolo = det.filter(pa.compute.equal(det.column("detector"), "yolo"))
+    assert yolo.num_rows == 2 and np.isfinite(np.column_stack([yolo.column(c).to_numpy() for c in ("x1", "y1", "x2", "y2")])).all()
+
+
+def test_two_workers_give_the_serial_bytes(run, tmp_path, capsys):
+    scene, reference = run
+    assert main(_generate_args(scene, tmp_path / "w2", "--workers", "2")) == 0
+    assert _files(tmp_path / "w2") == _files(reference)
+    assert "simgen generate: " in capsys.readouterr().out
+
+
+def test_killed_parallel_run_resumes_serially_to_the_same_bytes(run, tmp_path):
+    """Chunks finished out of order by workers are kept; resume renders only the missing ones."""
+    scene, reference = run
+    out = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "simgen.cli", *_generate_args(scene, out, "--workers", "2")]
+    proc = subprocess.Popen(cmd, stderr=subprocess.DEVNULL, stdout=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while not any(out.glob("_parts/*.det.parquet")) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.002)
+    if proc.poll() is None:
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+    time.sleep(1.0)  # the workers notice their parent is gone (at their next frame) and exit
+    assert main(_generate_args(scene, out, "--resume")) == 0
+    assert _files(out) == _files(reference)
+
+
+def test_dask_local_cluster_gives_the_serial_bytes(run, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    scene, reference = run
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        with distributed.Client(cluster) as client:
+            assert len(client.scheduler_info()["workers"]) == 2
+        assert main(_generate_args(scene, tmp_path / "dask", "--scheduler", cluster.scheduler_address)) == 0
+    assert _files(tmp_path / "dask") == _files(reference)

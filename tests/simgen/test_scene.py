@@ -1,11 +1,16 @@
 """Scene configs: the shipped scenes match the paper, bad configs are refused with one line naming the field."""
 from __future__ import annotations
 
+import re
+import shutil
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
 from simgen.cli import main
-from simgen.scene import load_scene
+from simgen.scene import ConfigError, load_scene
 
 from scene_copies import SCENES, copy_scene, edit_toml
 
@@ -34,6 +39,22 @@ BAD = [
     ("run", "fps", "0", "run.fps"),
     ("agents", "speed_mps", "[2.0, 1.0]", "agents.speed_mps"),
     ("", "model", "'missing.xml'", "model: "),
+    ("camera", "mount_height_m", "nan", "camera.mount_height_m: must be a finite number, got nan"),
+    ("camera", "tilt_deg", "inf", "camera.tilt_deg: must be a finite number, got inf"),
+    ("camera", "hfov_deg", "-inf", "camera.hfov_deg: must be a finite number"),
+    ("site_map", "scale_px_per_m", "nan", "site_map.scale_px_per_m: must be a finite number"),
+    ("agents", "speed_mps", "[1.0, inf]", "agents.speed_mps"),
+    ("agents", "speed_mps", "[1.0, nan]", "agents.speed_mps"),
+    ("trapezoid", "ground_m", "[[-3.25, nan], [3.25, 40.0], [3.25, 10.0], [-3.25, 10.0]]", "trapezoid.ground_m: coordinates must be finite"),
+    ("camera", "tilt_deg", "15.0\ntlit_deg = 16.0", "camera.tlit_deg: unknown key (did you mean camera.tilt_deg?)"),
+    ("run", "fps", "20\nfsp = 10", "run.fsp: unknown key (did you mean run.fps?)"),
+    ("", "model", "'scene.xml'\nmodle = 'x.xml'", "modle: unknown key (did you mean model?)"),
+    ("agents", "count", "24\nspeed = 1.0", "agents.speed: unknown key (did you mean agents.speed_mps?)"),
+    # the camera moved but the hand-placed trapezoid was not rewritten: 100+ px off
+    ("camera", "tilt_deg", "12.0", "trapezoid.hand_placed_image: vertex 2 is 31.9 px from the exact one"),
+    ("camera", "mount_height_m", "5.0", "trapezoid.hand_placed_image: vertex 3 is 49.8 px"),
+    ("trapezoid", "ground_m", "[[-3.25, 41.0], [3.25, 40.0], [3.25, 10.0], [-3.25, 10.0]]", "trapezoid.hand_placed_"),
+    ("trapezoid", "hand_placed_map", "[[266, 800], [333, 800], [333, 1099], [265, 1098]]", "trapezoid.hand_placed_map: vertex 4 is 2.5 px"),
 ]
 
 
@@ -47,6 +68,60 @@ def test_bad_config_is_refused_with_one_line(tmp_path, capsys, section, key, val
     assert code == 2
     assert len(err.strip().splitlines()) == 1 and err.startswith("simgen: error: scene.toml: ") and message in err, err
     assert not out.exists()
+
+
+APPENDED = [
+    # (text appended to scene.toml, the message)
+    ("[render]\nquality = 'draft'\n", None),
+    ("[render]\nquality = 'best'\n", "render.quality: expected one of draft, default, high, got 'best'"),
+    ("[render]\nqualty = 'draft'\n", "render.qualty: unknown key (did you mean render.quality?)"),
+    ("[rendr]\nquality = 'draft'\n", "rendr: unknown key (did you mean render?)"),
+    ("[[agents.routes]]\nname = 'x'\npoints = [[0.0, 0.0], [1.0, 1.0]]\nwidth_m = 1.0\nboth_ways = true\nweigth = 1.0\n",
+     "agents.routes[6].weight: missing (is weigth a typo of weight?)"),
+    ("[calibration.extra]\nx = 1\n", "calibration.extra: unknown key"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("text, message", APPENDED, ids=[a[1] or "accepted" for a in APPENDED])
+def test_appended_tables(tmp_path, text, message):
+    folder = copy_scene(tmp_path, small=False)
+    with open(folder / "scene.toml", "a") as f:
+        f.write("\n" + text)
+    if message is None:
+        assert load_scene(folder).quality == "draft"
+    else:
+        with pytest.raises(ConfigError, match=re.escape(message)):
+            load_scene(folder)
+
+
+def test_non_utf8_config_names_the_file(tmp_path):
+    folder = copy_scene(tmp_path, small=False)
+    with open(folder / "scene.toml", "ab") as f:
+        f.write(b"# caf\xe9\n")
+    with pytest.raises(ConfigError, match=r"scene\.toml: not UTF-8 text"):
+        load_scene(folder)
+
+
+def test_copied_and_edited_scene_gets_its_own_trapezoid(tmp_path):
+    """scenes/make_scene_assets.py DIR derives the hand-placed trapezoid of any folder from its camera."""
+    folder = copy_scene(tmp_path, small=False)
+    edit_toml(folder / "scene.toml", "camera", "tilt_deg", "12.0")
+    with pytest.raises(ConfigError, match="make_scene_assets.py"):
+        load_scene(folder)
+    subprocess.run([sys.executable, str(SCENES / "make_scene_assets.py"), str(folder)], check=True, capture_output=True)
+    scene = load_scene(folder)
+    for hand, exact in ((scene.hand_placed_image, scene.trapezoid_exact_image), (scene.hand_placed_map, scene.trapezoid_exact_map)):
+        off = np.hypot(*(hand - exact).T)
+        assert np.all((off >= 1.0) & (off <= 2.0)), off
+
+
+@pytest.mark.parametrize("name", ["scene1", "scene2"])
+def test_shipped_trapezoids_are_the_derivation(tmp_path, name):
+    """Rerunning the derivation on a copy of a shipped scene gives its scene.toml byte for byte."""
+    folder = tmp_path / name
+    shutil.copytree(SCENES / name, folder)
+    subprocess.run([sys.executable, str(SCENES / "make_scene_assets.py"), str(folder)], check=True, capture_output=True)
+    assert (folder / "scene.toml").read_bytes() == (SCENES / name / "scene.toml").read_bytes()
 
 
 @pytest.mark.parametrize("option, message", [(["--seconds", "0.123"], "run.seconds"), (["--detectors", "yolo"], "detection.detectors")])

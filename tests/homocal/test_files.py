@@ -1,0 +1,150 @@
+"""homocal.files: output folders (marker, lock, cleanup of the tool's own temporaries) and atomic writes."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from homocal.files import LOCK_NAME, OutputFolderError, output_folder, temporaries_of, write_text_atomic
+
+TOOL = "demo-tool"
+OURS = json.dumps({"format": TOOL})
+
+
+def _tree(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def _make(root: Path, files: dict[str, str] | None) -> Path:
+    out = root / "out"
+    if files is not None:
+        out.mkdir()
+        for name, text in files.items():
+            (out / name).write_text(text)
+    return out
+
+
+@pytest.mark.parametrize("files, resume, resumed", [
+    (None, False, False),                                   # missing folder: created
+    (None, True, False),                                    # --resume on a missing folder starts it
+    ({}, False, False),                                     # empty folder
+    ({LOCK_NAME: ""}, False, False),                        # only a lock file of ours (a run killed at once)
+    ({LOCK_NAME: json.dumps({"pid": 1, "host": "h", "since": "s"})}, False, False),
+    ({"manifest.json": OURS}, True, True),                  # ours: resumed
+    ({"manifest.json": OURS, "notes.txt": "x"}, True, True),
+])  # fmt: skip
+def test_accepted(tmp_path, files, resume, resumed):
+    out = _make(tmp_path, files)
+    with output_folder(out, TOOL, resume) as folder:
+        assert folder.path == out and folder.resumed is resumed and folder.marker == out / "manifest.json"
+        assert (out / LOCK_NAME).is_file() and json.loads((out / LOCK_NAME).read_text())["pid"] == os.getpid()
+    assert not (out / LOCK_NAME).exists()
+
+
+@pytest.mark.parametrize("files, resume, message", [
+    ({"video.mp4": "user's"}, False, "exists and is not empty"),
+    ({"manifest.json": OURS}, False, "exists and is not empty"),
+    ({"video.mp4": "user's", "a.tmp1.mp4": "user's"}, True, "not a demo-tool output folder"),
+    ({"manifest.json": json.dumps({"format": "other-tool"})}, True, "not a demo-tool output folder"),
+    ({"manifest.json": "not json"}, True, "not a demo-tool output folder"),
+    ({"manifest.json": "[1, 2]"}, True, "not a demo-tool output folder"),
+    ({LOCK_NAME: "a user's file"}, True, "not a demo-tool output folder"),  # a .lock that is not ours counts
+    ({LOCK_NAME: "a user's file"}, False, "exists and is not empty"),
+])  # fmt: skip
+def test_refused_untouched(tmp_path, files, resume, message):
+    out = _make(tmp_path, files)
+    before = _tree(out)
+    with pytest.raises(OutputFolderError, match=message):
+        with output_folder(out, TOOL, resume):
+            pytest.fail("entered")
+    assert _tree(out) == before
+
+
+def test_refused_file(tmp_path):
+    (tmp_path / "out").write_text("x")
+    with pytest.raises(OutputFolderError, match="exists and is not a folder"):
+        with output_folder(tmp_path / "out", TOOL, True):
+            pass
+    assert (tmp_path / "out").read_text() == "x"
+
+
+def test_second_holder_named_same_process(tmp_path):
+    out = tmp_path / "out"
+    with output_folder(out, TOOL, False):
+        (out / "manifest.json").write_text(OURS)
+        for resume in (False, True):
+            with pytest.raises(OutputFolderError, match=rf"locked by pid {os.getpid()} on {socket.gethostname()} since 20"):
+                with output_folder(out, TOOL, resume):
+                    pass
+        assert (out / LOCK_NAME).is_file()  # the refused one left the holder's lock alone
+    with output_folder(out, TOOL, True) as folder:  # released on exit
+        assert folder.resumed
+
+
+_HOLDER = textwrap.dedent("""
+    import sys, time
+    from homocal.files import output_folder
+    with output_folder(sys.argv[1], "demo-tool", False):
+        open(sys.argv[1] + "/manifest.json", "w").write('{"format": "demo-tool"}')
+        print("held", flush=True)
+        time.sleep(60)
+""")
+
+
+def test_other_process_then_killed(tmp_path):
+    """Another process's lock is named (its pid); once it is killed (no cleanup), resume takes the folder."""
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-c", _HOLDER, str(out)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline() == "held\n"
+        with pytest.raises(OutputFolderError, match=rf"locked by pid {proc.pid} on "):
+            with output_folder(out, TOOL, True):
+                pass
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+    assert (out / LOCK_NAME).is_file()  # left by the killed holder, and not a lock any more
+    with output_folder(out, TOOL, True) as folder:
+        assert folder.resumed
+
+
+def test_remove_temporaries_only_ours(tmp_path):
+    out = tmp_path / "out"
+    user = ["camera.tmpx.json", "other.tmp1.json", "camera.tmp1.txt", "notes.tmp", "sub/camera.tmp1.json"]
+    ours = ["camera.tmp123.json", "camera.tmp.json", "_parts/00001.tmp.mp4", "_parts/00001.gt.tmp9.parquet"]
+    with output_folder(out, TOOL, False) as folder:
+        for name in user + ours:
+            (out / name).parent.mkdir(exist_ok=True)
+            (out / name).write_text("x")
+        assert temporaries_of(out / "camera.json") == [out / "camera.tmp.json", out / "camera.tmp123.json"]
+        folder.remove_temporaries(["camera.json", "_parts/00001.mp4", "_parts/00001.gt.parquet", "missing/x.json"])
+        assert sorted(_tree(out)) == sorted(user + [LOCK_NAME])
+
+
+def test_write_atomic_leaves_nothing_on_failure(tmp_path):
+    with pytest.raises(UnicodeEncodeError):
+        write_text_atomic(tmp_path / "a.txt", "\udcff")  # unencodable: fails mid-write
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("existed", [False, True])
+def test_failure_before_any_write_leaves_no_new_folder(tmp_path, existed):
+    out = tmp_path / "out"
+    if existed:
+        out.mkdir()
+    with pytest.raises(RuntimeError, match="no backend"):
+        with output_folder(out, TOOL, False):
+            raise RuntimeError("no backend")
+    assert out.exists() is existed and (not existed or list(out.iterdir()) == [])
+    with pytest.raises(RuntimeError, match="late"):
+        with output_folder(out, TOOL, False):
+            (out / "manifest.json").write_text(OURS)
+            raise RuntimeError("late")
+    assert sorted(p.name for p in out.iterdir()) == ["manifest.json"]  # what was written stays, to resume

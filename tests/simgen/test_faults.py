@@ -1,0 +1,168 @@
+"""simgen under faults (issue 12): folders that are not ours, two writers, a full disk, bad numbers at the flags."""
+from __future__ import annotations
+
+import json
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from simgen.cli import main
+
+from scene_copies import SCENES
+
+
+def _tree(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def _generate(scene: Path, out: Path, *extra: str) -> list[str]:
+    return ["generate", str(scene), "--out", str(out), "--seconds", "0.5", "--no-progress", *extra]
+
+
+NOT_OURS = [
+    # (id, files in the folder, --resume, message)
+    ("user's video, resume", {"video.mp4": b"user", "clip.tmp1.mp4": b"user", "mot/gt.tmp.txt": b"user"}, True, "not a simgen-dataset output folder"),
+    ("user's video, no resume", {"video.mp4": b"user"}, False, "exists and is not empty"),
+    ("another tool's manifest", {"manifest.json": b'{"format": "homocal-study"}', "video.mp4": b"user"}, True, "not a simgen-dataset output folder"),
+    ("manifest without format", {"manifest.json": b'{"seed": 0, "complete": false}'}, True, "not a simgen-dataset output folder"),
+    ("manifest not JSON", {"manifest.json": b"\xff\xfe"}, True, "not a simgen-dataset output folder"),
+    ("user's .lock file", {".lock": b"mine", "notes.txt": b"x"}, True, "not a simgen-dataset output folder"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("files, resume, message", [c[1:] for c in NOT_OURS], ids=[c[0] for c in NOT_OURS])
+def test_folder_that_is_not_ours_is_refused_untouched(small_scene, tmp_path, capsys, files, resume, message):
+    out = tmp_path / "out"
+    for name, data in files.items():
+        (out / name).parent.mkdir(parents=True, exist_ok=True)
+        (out / name).write_bytes(data)
+    before = _tree(out)
+    assert main(_generate(small_scene, out, *(["--resume"] if resume else []))) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"simgen: error: {out}: ") and message in err and len(err.splitlines()) == 1, err
+    assert _tree(out) == before
+
+
+def test_out_is_a_file(small_scene, tmp_path, capsys):
+    (tmp_path / "out").write_text("user")
+    assert main(_generate(small_scene, tmp_path / "out", "--resume")) == 2
+    assert "exists and is not a folder" in capsys.readouterr().err and (tmp_path / "out").read_text() == "user"
+
+
+_HOLD = """
+import sys, time
+from homocal.files import output_folder
+from simgen.dataset import FORMAT
+with output_folder(sys.argv[1], FORMAT, False):
+    open(sys.argv[1] + "/manifest.json", "w").write('{"format": "simgen-dataset"}')
+    print("held", flush=True)
+    time.sleep(60)
+"""
+
+
+@pytest.mark.parametrize("resume", [False, True])
+def test_second_writer_is_told_who_holds_the_folder(small_scene, tmp_path, capsys, resume):
+    """A run holding --out (here a process holding it as generate does) makes a second generate exit 2."""
+    out = tmp_path / "out"
+    holder = subprocess.Popen([sys.executable, "-c", _HOLD, str(out)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline() == "held\n"
+        before = _tree(out)
+        assert main(_generate(small_scene, out, *(["--resume"] if resume else []))) == 2
+        err = capsys.readouterr().err
+        assert f"locked by pid {holder.pid} on {socket.gethostname()} since 20" in err and len(err.splitlines()) == 1, err
+        assert _tree(out) == before
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_second_generate_while_one_runs(small_scene, tmp_path, capsys):
+    """Two real generate commands on one --out: the second names the first's pid and exits 2."""
+    out = tmp_path / "out"
+    first = subprocess.Popen([sys.executable, "-m", "simgen.cli", *_generate(small_scene, out)[:-3], "--seconds", "3", "--no-progress"],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 120
+        while not (out / "manifest.json").exists() and first.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert first.poll() is None, "the first run ended before the second could start"
+        assert main(_generate(small_scene, out, "--resume")) == 2
+        err = capsys.readouterr().err
+        assert f"locked by pid {first.pid} on " in err and len(err.splitlines()) == 1, err
+    finally:
+        first.kill()
+        first.wait()
+
+
+def test_full_disk_is_one_line_and_leaves_no_temporary(small_scene, tmp_path, capsys, monkeypatch):
+    """Parquet writes go to /dev/full (a real ENOSPC from the kernel) from the calibration table on.
+
+    (Through an open file object: given a path, pyarrow deletes the file when a write fails.)"""
+    write_table = pq.write_table
+
+    def full_disk(table, where, **kw):
+        with open("/dev/full", "wb") as f:
+            write_table(table, f, **kw)
+
+    monkeypatch.setattr(pq, "write_table", full_disk)
+    out = tmp_path / "out"
+    assert main(_generate(small_scene, out)) == 2
+    err = capsys.readouterr().err
+    assert err == f"simgen: error: {out / 'calibration.parquet'}: No space left on device\n", err
+    assert not [p for p in out.rglob("*") if ".tmp" in p.name or p.name == ".lock"]
+    monkeypatch.setattr(pq, "write_table", write_table)  # space again: the run resumes
+    assert main(_generate(small_scene, out, "--resume")) == 0
+    assert json.loads((out / "manifest.json").read_text())["complete"]
+
+
+def test_unwritable_parent_is_one_line(small_scene, tmp_path, capsys):
+    """A folder where --out cannot be made (its parent is a file): one line naming it."""
+    (tmp_path / "file").write_text("user")
+    assert main(_generate(small_scene, tmp_path / "file" / "out")) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"simgen: error: {tmp_path / 'file' / 'out'}: Not a directory") and len(err.splitlines()) == 1, err
+
+
+BAD_FLAGS = [
+    (["--seconds", "inf"], "argument --seconds: must be a finite number > 0, got inf"),
+    (["--seconds", "nan"], "argument --seconds: must be a finite number > 0"),
+    (["--seconds", "1e400"], "argument --seconds: must be a finite number > 0"),
+    (["--seconds", "0"], "argument --seconds: must be a finite number > 0"),
+    (["--seconds", "-2"], "argument --seconds"),
+    (["--seconds", "two"], "argument --seconds: expected a number, got 'two'"),
+    (["--seconds", "0.123"], "run.seconds: must be a positive multiple of 0.05 s"),
+    (["--seed", "-1"], "argument --seed: must be an integer >= 0, got -1"),
+    (["--seed", "1.5"], "argument --seed: expected an integer"),
+    (["--fps", "0"], "argument --fps: must be an integer >= 1"),
+    (["--fps", "-20"], "argument --fps"),
+    (["--workers", "0"], "argument --workers: must be an integer >= 1"),
+    (["--quality", "ultra"], "argument --quality: invalid choice"),
+    (["--detectors", "yolo"], "detection.detectors"),
+    (["--scheduler", "tcp://127.0.0.1:1"], "--scheduler tcp://127.0.0.1:1: cannot connect"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("flags, message", BAD_FLAGS, ids=[" ".join(f) for f, _ in BAD_FLAGS])
+def test_bad_number_is_one_line_naming_the_flag(tmp_path, capsys, flags, message):
+    out = tmp_path / "out"
+    args = ["generate", str(SCENES / "scene1"), "--out", str(out), "--no-progress", *flags]
+    if "--seconds" not in flags:
+        args += ["--seconds", "0.5"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("simgen: error: ") and message in err and len(err.splitlines()) == 1, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("flags, message", [(["--t", "-1"], "argument --t"), (["--t", "inf"], "argument --t"),
+                                            (["--seed", "-1"], "argument --seed")])
+def test_preview_bad_number(tmp_path, capsys, flags, message):
+    assert main(["preview", str(SCENES / "scene1"), "-o", str(tmp_path / "a.png"), *flags]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.splitlines()) == 1 and not (tmp_path / "a.png").exists()
