@@ -48,6 +48,7 @@ LIFT = 0.07  # swing foot clearance
 ARM_UP, ARM_LOW, SHOULDER_Y, SHOULDER_Z = 0.29, 0.27, 0.17, 0.52  # shoulder height above the hip
 TORSO_Z, TORSO_R, HEAD_R = (0.07, 0.45), 0.14, 0.11
 STRIDE = 0.75  # stride = STRIDE * height * sqrt(speed / 1.4 m/s)
+STAND_HIP = ANKLE_Z + np.sqrt((REACH * (THIGH + SHIN)) ** 2 - ANKLE_BACK**2)  # hip height standing, feet together
 
 
 @dataclass(frozen=True)
@@ -105,7 +106,7 @@ def pose(height: np.ndarray, width: np.ndarray, stride: np.ndarray, phase: np.nd
     ankles = [f + np.column_stack([-ANKLE_BACK * k, np.zeros(n), (ANKLE_Z - FOOT_R) * k]) for f in feet]
     thigh, shin = THIGH * k, SHIN * k
     reach = REACH * (thigh + shin)
-    hip_z = reach + ANKLE_Z * k  # standing: the legs at full reach
+    hip_z = STAND_HIP * k  # never above standing height
     for a in ankles:
         hip_z = np.minimum(hip_z, a[:, 2] + np.sqrt(reach**2 - a[:, 0] ** 2))
     segs, radii = np.zeros((n, len(PARTS), 2, 3)), np.zeros((n, len(PARTS)))
@@ -117,7 +118,7 @@ def pose(height: np.ndarray, width: np.ndarray, stride: np.ndarray, phase: np.nd
         return np.column_stack(np.broadcast_arrays(x, y, z))
 
     top = hip_z + SHOULDER_Z * k
-    head = at(0, 0, top + (1.75 - HEAD_R - REACH * (THIGH + SHIN) - ANKLE_Z - SHOULDER_Z) * k)  # top at height, standing
+    head = at(0, 0, top + (1.75 - HEAD_R - STAND_HIP - SHOULDER_Z) * k)  # the top at the person's height when standing
     put(0, head, head, HEAD_R * k)
     put(1, at(0, 0, hip_z + TORSO_Z[0] * k), at(0, 0, hip_z + TORSO_Z[1] * k), TORSO_R * kw)
     put(2, at(0, (SHOULDER_Y - 0.02) * kw, top), at(0, -(SHOULDER_Y - 0.02) * kw, top), 0.07 * kw)

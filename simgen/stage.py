@@ -26,7 +26,7 @@ class Stage:
         self.renderer = FrameRenderer(self.model, scene.camera.width, scene.camera.height)
         self._geom_agent = np.full(self.model.ngeom, -1, np.int32)
 
-    def _place(self, state: AgentState) -> None:
+    def place(self, state: AgentState) -> None:
         """Pose the agents of ``state`` in their slots, park the other bodies, render-ready the scene."""
         d, rm = self.data, self.run_model
         d.mocap_pos[rm.slot_mocap.ravel()] = PARKED
@@ -41,7 +41,7 @@ class Stage:
     def set_time(self, t: float) -> AgentState:
         """Pose every agent at time t (seconds); returns the active agents' state."""
         state = self.crowd.state(t)
-        self._place(state)
+        self.place(state)
         return state
 
     def set_calibration(self, xy: tuple[float, float], agent_id: int = 0) -> AgentState:
@@ -51,7 +51,7 @@ class Stage:
         heading = np.array([np.arctan2(-xy[0, 1], -xy[0, 0])])  # facing the camera's ground point
         state = AgentState(np.array([agent_id], np.int32), np.array([len(self.run_model.slot_mocap) - 1]), xy, heading,
                            np.zeros(1), to_world(segments[None], xy, heading), radii[None], CALIBRATION.rgba[None])
-        self._place(state)
+        self.place(state)
         return state
 
     def rgb(self) -> np.ndarray:
