@@ -36,6 +36,7 @@ import simgen
 from homocal.files import OutputFolder, output_folder, write_atomic, write_json_atomic
 from simgen.detection import (
     BackgroundSubtractionDetector,
+    HogDetector,
     SegmentationDetector,
     detections_table,
     match_to_gt,
@@ -129,13 +130,13 @@ def _write_static(scene: Scene, out: Path) -> None:
 
 # ---- calibration ---------------------------------------------------------------------------
 def calibration_table(stage: Stage) -> pa.Table:
-    """One row per calibration distance: the object alone at (0, d), detected by the segmentation detector."""
+    """One row per calibration distance: the object alone at its point (scene.calibration_xy), detected by the segmentation detector."""
     scene, detector = stage.scene, SegmentationDetector()
-    d = scene.calibration_distances
-    xy = np.column_stack([np.zeros_like(d), d])
+    xy = scene.calibration_xy
+    d = np.hypot(xy[:, 0], xy[:, 1])  # the distances themselves with layout "line"
     box = np.full((len(d), 4), np.nan)
-    for i, dist in enumerate(d):
-        stage.set_calibration(float(dist))
+    for i, point in enumerate(xy):
+        stage.set_calibration(point)
         batch = detector.detect(-1, 0.0, None, stage.agent_ids())
         if len(batch):
             box[i] = batch.xyxy[np.flatnonzero(batch.agent_id == 0)[0]]
@@ -170,6 +171,7 @@ def make_detectors(scene: Scene) -> list:
     make = {
         "segmentation": SegmentationDetector,
         "rgb": lambda: BackgroundSubtractionDetector(reset_every=_chunk_frames(scene), warmup=scene.rgb_warmup_frames),
+        "hog": HogDetector,
     }
     return [make[name]() for name in scene.detectors]
 

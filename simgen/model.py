@@ -1,8 +1,10 @@
 """The MuJoCo model of a run: the scene's MJCF plus the camera, the pedestrians and a calibration object.
 
-A pedestrian is a mocap body whose frame sits on the ground-contact point (z = 0), facing its +x;
-its geoms (``PERSON``) are capsules and spheres, about 1.7 m tall, with contype = conaffinity = 0.
-Idle bodies are parked at ``PARKED``, far behind the camera.
+A person (humanoid.py) is ``len(PARTS)`` mocap bodies, one geom each (a capsule along the body's z,
+or the head's sphere) with contype = conaffinity = 0; ``pose_geoms`` puts each body at its segment's
+midpoint, turns its z along the segment and sets the geom's radius, half-length and colour, so one
+slot shows one agent after another, each with its own size and clothes. No physics: only
+``mj_kinematics`` runs. Idle bodies are parked at ``PARKED``, far behind the camera.
 """
 from __future__ import annotations
 
@@ -12,26 +14,15 @@ import mujoco
 import numpy as np
 
 from homocal.geometry.camera import PinholeCamera
-from simgen.rng import keyed_rng
+from simgen.humanoid import PARTS, Person, pose
 from simgen.scene import Scene
 
 CAMERA = "simgen_camera"
 PARKED = np.array([0.0, -1000.0, 0.0])  # behind the camera and beyond zfar
-
-# (p0, p1, radius, part) in the body frame (x forward, y left, z up), metres; p0 == p1 is a sphere.
-PERSON = (
-    ((0.0, 0.10, 0.08), (0.0, 0.10, 0.84), 0.08, "legs"),
-    ((0.0, -0.10, 0.08), (0.0, -0.10, 0.84), 0.08, "legs"),
-    ((0.0, 0.0, 1.02), (0.0, 0.0, 1.30), 0.17, "shirt"),
-    ((0.0, 0.25, 1.40), (0.03, 0.27, 0.88), 0.055, "shirt"),
-    ((0.0, -0.25, 1.40), (0.03, -0.27, 0.88), 0.055, "shirt"),
-    ((0.0, 0.0, 1.585), (0.0, 0.0, 1.585), 0.115, "skin"),
-)
-SHIRTS = ((0.80, 0.15, 0.12), (0.12, 0.30, 0.75), (0.90, 0.75, 0.15), (0.20, 0.55, 0.25), (0.85, 0.85, 0.85),
-          (0.15, 0.15, 0.18), (0.55, 0.20, 0.60), (0.95, 0.45, 0.10))
-LEGS = ((0.10, 0.12, 0.25), (0.20, 0.20, 0.22), (0.35, 0.28, 0.20), (0.45, 0.45, 0.50))
-SKINS = ((0.93, 0.78, 0.65), (0.78, 0.57, 0.42), (0.55, 0.38, 0.26), (0.36, 0.24, 0.17))
-CALIBRATION_COLOURS = {"legs": (0.15, 0.15, 0.20), "shirt": (1.0, 0.45, 0.0), "skin": (0.85, 0.70, 0.55)}
+# the calibration object: a standing person 1.75 m tall in an orange shirt
+CALIBRATION = Person(1.75, 1.0, np.array([[*{"skin": (0.85, 0.70, 0.55), "shirt": (1.0, 0.45, 0.0), "sleeve": (1.0, 0.45, 0.0),
+                                              "trousers": (0.15, 0.15, 0.20), "shoes": (0.1, 0.1, 0.1)}[key], 1.0]
+                                           for _, key in PARTS]))
 
 
 @dataclass(frozen=True)
@@ -40,14 +31,14 @@ class RunModel:
 
     Attributes:
         model: the MjModel.
-        slot_mocap: (S,) mocap index of each pedestrian slot.
-        calib_mocap: mocap index of the calibration object.
+        slot_mocap: (S + 1, G) mocap index of each geom's body of each pedestrian slot; row S: the calibration object.
+        slot_geom: (S + 1, G) geom id of the same.
         geom_slot: (ngeom,) int32: slot of each pedestrian geom, S for the calibration object, -1 otherwise.
     """
 
     model: mujoco.MjModel
     slot_mocap: np.ndarray
-    calib_mocap: int
+    slot_geom: np.ndarray
     geom_slot: np.ndarray
 
 
@@ -60,37 +51,54 @@ def add_camera(spec: mujoco.MjSpec, camera: PinholeCamera) -> None:
     spec.visual.global_.offheight = max(spec.visual.global_.offheight, camera.height)
 
 
-def _add_person(spec: mujoco.MjSpec, name: str, colours: dict[str, tuple]) -> None:
-    body = spec.worldbody.add_body(name=name, mocap=True, pos=PARKED.tolist())
-    for i, (p0, p1, r, part) in enumerate(PERSON):
-        common = dict(name=f"{name}_{i}", size=[r, 0, 0], rgba=[*colours[part], 1.0], contype=0, conaffinity=0)
-        if p0 == p1:
-            body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, pos=list(p0), **common)
-        else:
-            body.add_geom(type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=[*p0, *p1], **common)
+def _add_person(spec: mujoco.MjSpec, name: str) -> None:
+    for part, _ in PARTS:
+        body = spec.worldbody.add_body(name=f"{name}_{part}", mocap=True, pos=PARKED.tolist())
+        kind = mujoco.mjtGeom.mjGEOM_SPHERE if part == "head" else mujoco.mjtGeom.mjGEOM_CAPSULE
+        body.add_geom(name=f"{name}_{part}", type=kind, size=[0.05, 0.05, 0], contype=0, conaffinity=0)
 
 
-def build_model(scene: Scene, seed: int) -> RunModel:
-    """Compile the scene MJCF with the camera, ``scene.agent_count`` pedestrians and the calibration object."""
+def build_model(scene: Scene) -> RunModel:
+    """Compile the scene MJCF with the camera, ``scene.agent_count`` pedestrian slots and the calibration object."""
     spec = mujoco.MjSpec.from_file(str(scene.model_path))
     add_camera(spec, scene.camera)
-    for k in range(scene.agent_count):
-        rng = keyed_rng(seed, scene.name, "colour", k)
-        colours = {"shirt": SHIRTS[rng.integers(len(SHIRTS))], "legs": LEGS[rng.integers(len(LEGS))],
-                   "skin": SKINS[rng.integers(len(SKINS))]}
-        _add_person(spec, f"agent_{k}", colours)
-    _add_person(spec, "calibration", CALIBRATION_COLOURS)
+    names = [f"agent_{k}" for k in range(scene.agent_count)] + ["calibration"]
+    for name in names:
+        _add_person(spec, name)
     model = spec.compile()
-
-    n = scene.agent_count
-    body_mocap = lambda name: int(model.body_mocapid[model.body(name).id])  # noqa: E731
+    bodies = np.array([[model.body(f"{name}_{part}").id for part, _ in PARTS] for name in names], np.int64).reshape(len(names), -1)
+    slot_geom = np.array([[model.geom(f"{name}_{part}").id for part, _ in PARTS] for name in names], np.int64).reshape(len(names), -1)
     geom_slot = np.full(model.ngeom, -1, np.int32)
-    for k, name in enumerate([f"agent_{k}" for k in range(n)] + ["calibration"]):
-        geom_slot[model.geom_bodyid == model.body(name).id] = k
-    return RunModel(model, np.array([body_mocap(f"agent_{k}") for k in range(n)], np.int64), body_mocap("calibration"), geom_slot)
+    geom_slot[slot_geom] = np.arange(len(names))[:, None]
+    return RunModel(model, model.body_mocapid[bodies].astype(np.int64), slot_geom, geom_slot)
 
 
-def yaw_quat(heading: np.ndarray) -> np.ndarray:
-    """(N,) yaw angles, rad -> (N, 4) MuJoCo quaternions (w, x, y, z) about +z."""
-    h = np.asarray(heading, dtype=np.float64) / 2.0
-    return np.column_stack([np.cos(h), np.zeros_like(h), np.zeros_like(h), np.sin(h)])
+def segment_quat(segments: np.ndarray) -> np.ndarray:
+    """(N, 2, 3) segments -> (N, 4) quaternions (w, x, y, z) turning +z along p1 - p0 (or p0 - p1,
+    whichever points up: a capsule is symmetric); identity for a zero-length segment."""
+    d = segments[:, 1] - segments[:, 0]
+    d = np.where(d[:, 2:3] < 0, -d, d)
+    norm = np.linalg.norm(d, axis=1, keepdims=True)
+    d = np.divide(d, norm, out=np.tile([0.0, 0.0, 1.0], (len(d), 1)), where=norm > 0)
+    q = np.column_stack([1.0 + d[:, 2], -d[:, 1], d[:, 0], np.zeros(len(d))])  # half-way rotation from +z to d
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def pose_geoms(model: mujoco.MjModel, data: mujoco.MjData, mocap: np.ndarray, geoms: np.ndarray,
+               segments: np.ndarray, radii: np.ndarray, rgba: np.ndarray) -> None:
+    """Put N single-geom mocap bodies on segments (N, 2, 3) m with radii (N,) m and colours (N, 4).
+
+    Args:
+        mocap: (N,) mocap indices; geoms: (N,) their geoms' ids.
+    """
+    data.mocap_pos[mocap] = segments.mean(axis=1)
+    data.mocap_quat[mocap] = segment_quat(segments)
+    model.geom_size[geoms, 0] = radii
+    model.geom_size[geoms, 1] = np.linalg.norm(segments[:, 1] - segments[:, 0], axis=1) / 2
+    model.geom_rgba[geoms] = rgba
+
+
+def standing(person: Person) -> tuple[np.ndarray, np.ndarray]:
+    """Body-frame segments (G, 2, 3) and radii (G,) of ``person`` standing with the feet together."""
+    segments, radii = pose(np.array([person.height]), np.array([person.width]), np.zeros(1), np.zeros(1), np.zeros(1))
+    return segments[0], radii[0]

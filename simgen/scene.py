@@ -20,7 +20,7 @@ from homocal.geometry.camera import PinholeCamera
 
 GT_DT = 0.05  # ground-truth period, seconds (paper Section 5.1)
 GT_RATE = 20  # 1 / GT_DT, samples per second, for exact integer time arithmetic
-DETECTORS = ("segmentation", "rgb")
+DETECTORS = ("segmentation", "rgb", "hog")
 QUALITIES = ("draft", "default", "high")  # render presets (simgen.render.QUALITY)
 HAND_PLACED_MAX_PX = 2.0  # a hand-placed vertex lies 1 to 2 px from the exact one (data_schema.md)
 
@@ -38,6 +38,8 @@ class Route:
     width_m: float
     both_ways: bool
     weight: float
+    wait_s: tuple[float, float] = (0.0, 0.0)  # a waiting walker's wait, uniform, seconds (agents.py)
+    wait_share: float = 0.0  # fraction of walkers who wait
 
 
 @dataclass(frozen=True)
@@ -67,6 +69,7 @@ class Scene:
     gap_s: tuple[float, float]
     routes: tuple[Route, ...]
     calibration_distances: np.ndarray  # (M,) metres
+    calibration_xy: np.ndarray  # (M, 2) metres: (0, d) for layout "line", (+-lateral_m, d) alternating for "zigzag"
     trapezoid_ground: np.ndarray  # (4, 2) metres, TL TR BR BL
     hand_placed_image: np.ndarray  # (4, 2) int64 px
     hand_placed_map: np.ndarray  # (4, 2) int64 map px
@@ -326,7 +329,11 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
             width_m=_get(rd, f"{key}.width_m"),
             both_ways=_get(rd, f"{key}.both_ways", bool),
             weight=_get(rd, f"{key}.weight"),
+            wait_s=_range(rd, f"{key}.wait_s") if "wait_s" in r else (0.0, 0.0),
+            wait_share=_get(rd, f"{key}.wait_share") if "wait_share" in r else 0.0,
         )
+        if not 0 <= route.wait_share <= 1:
+            raise ConfigError(f"scene.toml: {key}.wait_share: must be in [0, 1], got {route.wait_share}")
         if route.weight <= 0 or route.width_m < 0 or np.any(np.hypot(*np.diff(route.points, axis=0).T) == 0):
             raise ConfigError(f"scene.toml: {key}: needs weight > 0, width_m >= 0 and no repeated points")
         routes.append(route)
@@ -335,6 +342,13 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
     calib = np.linspace(_get(raw, key + ".start"), _get(raw, key + ".stop"), _get(raw, key + ".count", int))
     if len(calib) < 3:
         raise ConfigError(f"scene.toml: {key}.count: must be >= 3")
+    layout = _get(raw, "calibration.layout", str) if "layout" in raw["calibration"] else "line"
+    lateral = _get(raw, "calibration.lateral_m") if "lateral_m" in raw["calibration"] else 0.0
+    if layout not in ("line", "zigzag") or lateral < 0 or (layout == "line" and lateral):
+        raise ConfigError(f"scene.toml: calibration.layout, lateral_m: expected \"line\" (lateral_m 0) or \"zigzag\" "
+                          f"with lateral_m >= 0, got {layout!r}, {lateral}")
+    sign = np.where(np.arange(len(calib)) % 2 == 0, 1.0, -1.0) if layout == "zigzag" else np.zeros(len(calib))
+    calib_xy = np.column_stack([sign * lateral, calib])
 
     scene = Scene(
         name=folder.resolve().name,
@@ -352,6 +366,7 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
         gap_s=_range(raw, "agents.gap_s"),
         routes=tuple(routes),
         calibration_distances=calib,
+        calibration_xy=calib_xy,
         trapezoid_ground=_points(raw, "trapezoid.ground_m", 4),
         hand_placed_image=_points(raw, "trapezoid.hand_placed_image", 4, integer=True),
         hand_placed_map=_points(raw, "trapezoid.hand_placed_map", 4, integer=True),
@@ -369,7 +384,6 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
         raise ConfigError(f"scene.toml: site_map.scale_px_per_m: must be > 0, got {scene.map_scale}")
 
     x0, x1, y0, y1 = scene.ground.extent
-    calib_xy = np.column_stack([np.zeros_like(calib), calib])
     bad = ~_visible(camera, calib_xy) | (calib <= 0) | (calib > y1)
     if bad.any():
         near = camera.mount_height_m / math.tan(math.radians(camera.tilt_deg + camera.vfov_deg / 2))

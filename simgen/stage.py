@@ -4,24 +4,13 @@
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from simgen.render import FrameRenderer, apply_quality, id_map, mujoco  # render first: it guards the mujoco import
-from simgen.agents import Crowd
-from simgen.model import PARKED, build_model, yaw_quat
+from simgen.agents import AgentState, Crowd
+from simgen.humanoid import to_world
+from simgen.model import CALIBRATION, PARKED, build_model, pose_geoms, standing
 from simgen.scene import Scene
-
-
-@dataclass(frozen=True)
-class AgentState:
-    """Active agents at one time: agent_id (A,) int32, xy (A, 2) m, heading (A,) rad, speed (A,) m/s."""
-
-    agent_id: np.ndarray
-    xy: np.ndarray
-    heading: np.ndarray
-    speed: np.ndarray
 
 
 class Stage:
@@ -29,7 +18,7 @@ class Stage:
 
     def __init__(self, scene: Scene, seed: int, t_end: float | None = None) -> None:
         self.scene = scene
-        self.run_model = build_model(scene, seed)
+        self.run_model = build_model(scene)
         self.model = self.run_model.model
         apply_quality(self.model, scene.quality)
         self.data = mujoco.MjData(self.model)
@@ -38,32 +27,33 @@ class Stage:
         self.renderer = FrameRenderer(self.model, scene.camera.width, scene.camera.height)
         self._geom_agent = np.full(self.model.ngeom, -1, np.int32)
 
-    def _place(self, slot_xy: np.ndarray, slot_heading: np.ndarray, calib_y: float | None) -> None:
-        """Move the mocap bodies (idle slots: NaN xy, parked) and render-ready the scene."""
-        pos = np.tile(PARKED, (len(slot_xy), 1))
-        active = np.isfinite(slot_xy[:, 0])
-        pos[active, :2] = slot_xy[active]
+    def place(self, state: AgentState) -> None:
+        """Pose the agents of ``state`` in their slots, park the other bodies, render-ready the scene."""
         d, rm = self.data, self.run_model
-        d.mocap_pos[rm.slot_mocap] = pos
-        d.mocap_quat[rm.slot_mocap] = yaw_quat(np.where(active, slot_heading, 0.0))
-        d.mocap_pos[rm.calib_mocap] = PARKED if calib_y is None else (0.0, calib_y, 0.0)
-        d.mocap_quat[rm.calib_mocap] = yaw_quat([-np.pi / 2])[0]  # facing the camera
+        d.mocap_pos[rm.slot_mocap.ravel()] = PARKED
+        pose_geoms(self.model, d, rm.slot_mocap[state.slot].ravel(), rm.slot_geom[state.slot].ravel(),
+                   state.segments.reshape(-1, 2, 3), state.radii.ravel(), state.rgba.reshape(-1, 4))
         mujoco.mj_kinematics(self.model, d)
         self.renderer.update(d)
+        geom_agent = np.full(len(rm.slot_mocap), -1, np.int32)
+        geom_agent[state.slot] = state.agent_id
+        self._geom_agent = np.append(geom_agent, np.int32(-1))[rm.geom_slot]
 
     def set_time(self, t: float) -> AgentState:
         """Pose every agent at time t (seconds); returns the active agents' state."""
-        ids, xy, heading, speed = self.crowd.state(t)
-        self._place(xy, heading, None)
-        self._geom_agent = np.append(ids, np.int32(-1))[self.run_model.geom_slot]
-        a = ids >= 0
-        return AgentState(ids[a], xy[a], heading[a], speed[a])
+        state = self.crowd.state(t)
+        self.place(state)
+        return state
 
-    def set_calibration(self, distance_m: float, agent_id: int = 0) -> None:
-        """Only the calibration object, at (0, distance_m) facing the camera; it shows as ``agent_id``."""
-        n = self.scene.agent_count
-        self._place(np.full((n, 2), np.nan), np.zeros(n), distance_m)
-        self._geom_agent = np.where(self.run_model.geom_slot == n, agent_id, -1).astype(np.int32)
+    def set_calibration(self, xy: tuple[float, float], agent_id: int = 0) -> AgentState:
+        """Only the calibration object, standing at ground point ``xy`` (m) facing the camera; it shows as ``agent_id``."""
+        segments, radii = standing(CALIBRATION)
+        xy = np.array([xy], dtype=np.float64)
+        heading = np.array([np.arctan2(-xy[0, 1], -xy[0, 0])])  # facing the camera's ground point
+        state = AgentState(np.array([agent_id], np.int32), np.array([len(self.run_model.slot_mocap) - 1]), xy, heading,
+                           np.zeros(1), to_world(segments[None], xy, heading), radii[None], CALIBRATION.rgba[None])
+        self.place(state)
+        return state
 
     def rgb(self) -> np.ndarray:
         """(H, W, 3) uint8 render of the current pose."""

@@ -1,7 +1,7 @@
 """Ground truth of one 50 ms step: positions, exact projections, visible boxes and visible fractions.
 
 The visible fraction divides an agent's visible pixels (segmentation render) by the pixels of its
-unoccluded, unclipped silhouette, which is computed here from the geometry (``model.PERSON``): a
+unoccluded, unclipped silhouette, which is computed here from the posed geoms (``AgentState.segments``): a
 sphere projects to the projection of its tangent circle, a capsule (the convex hull of two spheres)
 to the convex hull of its two end spheres' silhouettes; polygons are filled with OpenCV.
 """
@@ -12,10 +12,9 @@ import numpy as np
 import pyarrow as pa
 
 from homocal.geometry.camera import PinholeCamera
+from simgen.agents import AgentState
 from simgen.detection import id_boxes
-from simgen.model import PERSON
 from simgen.scene import in_frame
-from simgen.stage import AgentState
 
 GT_SCHEMA = pa.schema([
     ("t", pa.float64()), ("step", pa.int64()), ("agent_id", pa.int32()),
@@ -31,8 +30,8 @@ _SUPER = 4  # small silhouettes are filled on a 4x finer grid (large ones on coa
 _MAX_SPAN = 8192  # px: a silhouette larger than this (an agent almost at the lens) has no area (NaN)
 
 
-def _sphere_outline(camera: PinholeCamera, centres: np.ndarray, radius: float) -> np.ndarray:
-    """(N, 3) world sphere centres -> (N, 24, 2) pixel outline of their silhouettes (NaN if not in front)."""
+def _sphere_outline(camera: PinholeCamera, centres: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """(N, 3) world sphere centres, (N,) radii -> (N, 24, 2) pixel outline of their silhouettes (NaN if not in front)."""
     cc = centres @ camera.R.T + camera.t  # camera frame
     d2 = np.einsum("ij,ij->i", cc, cc)
     centre = cc * (1.0 - radius**2 / d2)[:, None]  # the tangent circle, in the plane normal to cc
@@ -45,36 +44,30 @@ def _sphere_outline(camera: PinholeCamera, centres: np.ndarray, radius: float) -
     uvw = ring @ camera.K.T
     with np.errstate(divide="ignore", invalid="ignore"):
         uv = uvw[..., :2] / uvw[..., 2:]
-    uv[~(ring[..., 2] > radius)] = np.nan
+    uv[~(ring[..., 2] > radius[:, None])] = np.nan
     return uv
 
 
-def silhouette_outlines(camera: PinholeCamera, xy: np.ndarray, heading: np.ndarray) -> np.ndarray:
+def silhouette_outlines(camera: PinholeCamera, segments: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """Outline points of each agent's geoms: (A, G, 48, 2) pixels, NaN where not in front of the camera.
 
     Args:
-        xy: (A, 2) contact points, metres; heading: (A,) radians.
+        segments: (A, G, 2, 3) world segment ends of the geoms, metres; radii: (A, G) metres.
     Each geom's silhouette is the convex hull of its 48 points (24 per end sphere).
     """
-    c, s = np.cos(heading), np.sin(heading)
-    outlines = []  # per geom: (A, 48, 2)
-    for p0, p1, r, _ in PERSON:
-        ends = []
-        for p in (p0, p1):
-            world = np.column_stack([xy[:, 0] + c * p[0] - s * p[1], xy[:, 1] + s * p[0] + c * p[1], np.full(len(xy), p[2])])
-            ends.append(_sphere_outline(camera, world, r))
-        outlines.append(np.concatenate(ends, axis=1))
-    return np.stack(outlines, axis=1)
+    a, g = radii.shape
+    ends = _sphere_outline(camera, segments.reshape(-1, 3), np.repeat(radii.ravel(), 2))
+    return ends.reshape(a, g, 48, 2)
 
 
-def silhouette_pixels(camera: PinholeCamera, xy: np.ndarray, heading: np.ndarray) -> np.ndarray:
+def silhouette_pixels(camera: PinholeCamera, segments: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """Area of each agent's unoccluded, unclipped silhouette: (A,) float64 pixels, NaN if partly behind the camera.
 
     Args:
-        xy: (A, 2) contact points, metres; heading: (A,) radians.
+        segments: (A, G, 2, 3) world segment ends of the geoms, metres; radii: (A, G) metres.
     """
-    out = np.full(len(xy), np.nan)
-    for a, geoms in enumerate(silhouette_outlines(camera, xy, heading)):
+    out = np.full(len(segments), np.nan)
+    for a, geoms in enumerate(silhouette_outlines(camera, segments, radii)):
         if not np.isfinite(geoms).all():
             continue
         lo = np.floor(geoms.reshape(-1, 2).min(axis=0)) - 1
@@ -108,7 +101,7 @@ def gt_columns(step: int, camera: PinholeCamera, state: AgentState, agent_ids: n
     where = np.searchsorted(seen, ids[hit])
     box[hit], pixels[hit] = xyxy[where], counts[where]
     fraction = np.zeros(len(ids))
-    area = silhouette_pixels(camera, xy[hit], state.heading[order][hit])  # only agents with visible pixels
+    area = silhouette_pixels(camera, state.segments[order][hit], state.radii[order][hit])  # only agents with visible pixels
     with np.errstate(invalid="ignore", divide="ignore"):
         fraction[hit] = np.where(np.isfinite(area), np.clip(pixels[hit] / area, 0.0, 1.0), 1.0)
     return {

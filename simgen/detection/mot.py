@@ -35,7 +35,7 @@ from homocal.files import write_atomic, write_json_atomic
 from simgen.detection.association import TIE_TOLERANCE_S, associate, match_to_gt, nearest_sample
 from simgen.detection.core import DetectionBatch, detections_table
 
-BUILTIN_DETECTORS = ("segmentation", "rgb")
+BUILTIN_DETECTORS = ("segmentation", "rgb", "hog")
 
 MOT_COLUMNS = (9, 10)
 MOT_OFFSET = 1.5

@@ -75,11 +75,15 @@ def test_gt_projection_and_boxes_agree(run):
     front = y > 0.5
     np.testing.assert_allclose(uvw[front, :2] / uvw[front, 2:], np.column_stack([u, v])[front], atol=1e-6)
     x1, x2, y2, frac = (gt.column(c).to_numpy() for c in ("x1", "x2", "y2", "visible_fraction"))
-    clear = frac > 0.8  # barely occluded: the box bottom centre is the contact point's pixel
+    clear = frac > 0.8  # barely occluded: the box bottom is the nearer foot's sole
     assert clear.sum() > 50
     width = x2[clear] - x1[clear]
     assert np.all(np.abs((x1[clear] + x2[clear]) / 2 - u[clear]) < 0.5 * width + 1)
-    assert np.all(np.abs(y2[clear] - v[clear]) < 2.5)
+    # the foot point is the feet's midpoint: the nearer sole reaches at most 0.6 m (a quarter stride + half a foot) nearer
+    r = np.hypot(x[clear], y[clear])
+    near = np.column_stack([x[clear], y[clear], np.ones(clear.sum())]) * np.column_stack([1 - 0.6 / r, 1 - 0.6 / r, np.ones_like(r)])
+    near = near @ np.array(cam["ground_to_image"]).T
+    assert np.all(y2[clear] >= v[clear] - 1.0) and np.all(y2[clear] <= near[:, 1] / near[:, 2] + 1.0)
     assert np.all(np.isnan(x1[frac == 0]))
 
 
@@ -90,7 +94,10 @@ def test_calibration_and_detections(run):
     np.testing.assert_allclose(cal.column("distance_m").to_numpy(), np.arange(5.0, 45.0))
     du = cal.column("u").to_numpy() - cal.column("u_exact").to_numpy()
     dv = cal.column("v").to_numpy() - cal.column("v_exact").to_numpy()
-    assert np.all(np.abs(du) <= 1.0) and np.all(np.abs(dv) <= 1.5)
+    # the toes reach 0.125 m nearer than the foot point (1.8 px at 5 m at 320x180); beyond 38 m the legs are
+    # thinner than a pixel at this resolution and the box ends above the ground
+    near = cal.column("distance_m").to_numpy() <= 38.0
+    assert np.all(np.abs(du) <= 1.0) and np.all(np.abs(dv[near]) <= 2.0) and np.all(np.abs(dv) <= 2.5)
     det = pq.read_table(out / "detections.parquet")
     names = det.column("detector").to_numpy(zero_copy_only=False)
     assert set(names) == {"segmentation", "rgb"} and list(dict.fromkeys(names)) == ["segmentation", "rgb"]

@@ -48,7 +48,7 @@ def test_segmentation_ids_are_the_right_agents():
             state = stage.set_time(t)
             seen, xyxy, counts = id_boxes(stage.agent_ids())
             assert set(seen) <= set(state.agent_id)
-            outlines = silhouette_outlines(scene.camera, state.xy, state.heading)
+            outlines = silhouette_outlines(scene.camera, state.segments, state.radii)
             for agent, box in zip(seen, xyxy):
                 pts = outlines[list(state.agent_id).index(agent)].reshape(-1, 2)
                 lo, hi = pts.min(axis=0), pts.max(axis=0)
@@ -61,7 +61,7 @@ def test_segmentation_ids_are_the_right_agents():
 def test_calibration_object_is_alone_and_only_it_is_seen():
     scene = load_scene(SCENES / "scene1")
     with Stage(scene, seed=0) as stage:
-        stage.set_calibration(12.0, agent_id=7)
+        stage.set_calibration((0.0, 12.0), agent_id=7)
         seen, xyxy, _ = id_boxes(stage.agent_ids())
     assert seen.tolist() == [7]
     u, v = scene.camera.project_ground([[0.0, 12.0]])[0]
@@ -86,7 +86,7 @@ def test_preview_writes_an_annotated_frame(small_scene, tmp_path):
 
     from simgen.cli import main
 
-    assert main(["preview", str(small_scene), "-o", str(tmp_path / "frame.png"), "--t", "1.0"]) == 0
+    assert main(["preview", str(small_scene), "-o", str(tmp_path / "frame.png"), "--t", "0.0"]) == 0  # two people 25-36 px tall
     img = cv2.imread(str(tmp_path / "frame.png"))
     assert img.shape == (180, 320, 3)
     green = (img[:, :, 1] == 200) & (img[:, :, 0] == 0) & (img[:, :, 2] == 0)  # box outlines
