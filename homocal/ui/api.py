@@ -137,31 +137,15 @@ def view(session: Session, req: dict) -> dict:
     map_corners = session.site_map.to_metres(np.array([[-0.5, -0.5], [mw - 0.5, -0.5], [mw - 0.5, mh - 0.5],
                                                        [-0.5, mh - 0.5]]))
     max_range = float(np.hypot(*(map_corners - origin).T).max())
-    grid = overlay.ground_grid(transformer.transform_points, transformer, w, h, origin)
+    field = overlay.sample_mapping(transformer.transform_points, transformer, w, h)
     return {
         "complete": True,
         "horizon": overlay.horizon_segment(transformer, w, h),
-        "grid": grid,
+        "grid": overlay.ground_grid(field, origin),
         "footprint": overlay.footprint(transformer, w, h, session.site_map, origin, max_range),
-        "errorbars": error_bars(session, transformer, grid_nodes(transformer, w, h), origin,
+        "errorbars": error_bars(session, transformer, overlay.grid_nodes(field, transformer), origin,
                                 _number(req, "tolerance_m", 0.5, positive=True), **_sigmas(req)),
     }
-
-
-def grid_nodes(transformer: ViewTransformer, width: int, height: int) -> np.ndarray:
-    """Image points (K, 2) px of the 10 m grid's nodes that fall in the frame where its lines are drawn."""
-    us, vs, X, Y, mpp = overlay.sample_mapping(transformer.transform_points, transformer, width, height)
-    keep = np.isfinite(mpp) & (mpp * overlay.MIN_LINE_GAP_PX <= 10.0)
-    if not keep.any():
-        return np.zeros((0, 2))
-    xs = np.arange(np.ceil(X[keep].min() / 10), np.floor(X[keep].max() / 10) + 1) * 10
-    ys = np.arange(np.ceil(Y[keep].min() / 10), np.floor(Y[keep].max() / 10) + 1) * 10
-    nodes = transformer.inverse_transform_points(np.array([[x, y] for y in ys for x in xs]).reshape(-1, 2))
-    col = np.clip(np.searchsorted(us, nodes[:, 0]), 0, len(us) - 1)
-    row = np.clip(np.searchsorted(vs, nodes[:, 1]), 0, len(vs) - 1)
-    inside = (np.isfinite(nodes).all(axis=1) & (nodes[:, 0] >= -0.5) & (nodes[:, 0] <= width - 0.5)
-              & (nodes[:, 1] >= -0.5) & (nodes[:, 1] <= height - 0.5))
-    return nodes[inside & keep[row, col]]
 
 
 def fit(session: Session, req: dict) -> dict:
@@ -179,7 +163,8 @@ def fit(session: Session, req: dict) -> dict:
         "corrected": corrected.tolist(),
         "residual_before": np.hypot(*(mapped - points[:, 2:]).T).tolist(),
         "residual_after": np.hypot(*(corrected - points[:, 2:]).T).tolist(),
-        "corrected_grid": overlay.ground_grid(corrector.transform_points, transformer, w, h, _camera_origin(req)),
+        "corrected_grid": overlay.ground_grid(overlay.sample_mapping(corrector.transform_points, transformer, w, h),
+                                              _camera_origin(req)),
         "correction": corrector.to_dict(),
     }
 

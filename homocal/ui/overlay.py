@@ -8,6 +8,7 @@ traced with contourpy (matplotlib's contour engine).
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import contourpy
 import numpy as np
@@ -36,12 +37,25 @@ def horizon_segment(transformer: ViewTransformer, width: int, height: int) -> li
     return [[float(u), float(v)] for u, v in ends] if inside else None
 
 
-def sample_mapping(mapping: Mapping, transformer: ViewTransformer, width: int, height: int):
-    """The mapping on a lattice of image points below the horizon.
+@dataclass(frozen=True)
+class Field:
+    """A mapping sampled on a lattice of image points: us (n_u,), vs (n_v,) px; X, Y (n_v, n_u) ground m (NaN
+    above the horizon); metres_per_px (n_v, n_u), the ground length of one image pixel there (the RMS of the
+    mapping's 2x2 Jacobian's singular values)."""
 
-    Returns us (n_u,), vs (n_v,) px, X, Y (n_v, n_u) m (NaN where left out) and the ground length of one
-    image pixel there, metres per px (n_v, n_u): the RMS of the 2x2 Jacobian's singular values.
-    """
+    us: np.ndarray
+    vs: np.ndarray
+    X: np.ndarray
+    Y: np.ndarray
+    metres_per_px: np.ndarray
+
+    def drawn(self, spacing_m: float) -> np.ndarray:
+        """(n_v, n_u) bool: where lines spacing_m apart are at least MIN_LINE_GAP_PX apart in the image."""
+        return np.isfinite(self.metres_per_px) & (self.metres_per_px * MIN_LINE_GAP_PX <= spacing_m)
+
+
+def sample_mapping(mapping: Mapping, transformer: ViewTransformer, width: int, height: int) -> Field:
+    """The mapping on a lattice of LATTICE_COLUMNS image columns, below the transformer's horizon."""
     step = width / LATTICE_COLUMNS
     us = np.arange(-0.5, width - 0.5 + step / 2, step)
     vs = np.arange(-0.5, height - 0.5 + step / 2, step)
@@ -54,27 +68,40 @@ def sample_mapping(mapping: Mapping, transformer: ViewTransformer, width: int, h
     X, Y = xy[:, 0].reshape(uu.shape), xy[:, 1].reshape(uu.shape)
     Xv, Xu = np.gradient(X, vs, us)
     Yv, Yu = np.gradient(Y, vs, us)
-    metres_per_px = np.sqrt((Xu**2 + Xv**2 + Yu**2 + Yv**2) / 2)
-    return us, vs, X, Y, metres_per_px
+    return Field(us, vs, X, Y, np.sqrt((Xu**2 + Xv**2 + Yu**2 + Yv**2) / 2))
 
 
-def ground_grid(mapping: Mapping, transformer: ViewTransformer, width: int, height: int,
-                camera_origin: np.ndarray) -> dict:
-    """Image polylines of the ground grid under a mapping: {"minor": 1 m lines, "major": 10 m lines,
+def ground_grid(field: Field, camera_origin: np.ndarray) -> dict:
+    """Image polylines of the ground grid of a sampled mapping: {"minor": 1 m lines, "major": 10 m lines,
     "rings": [{"r": metres, "lines": [...]}]} (range rings around camera_origin (2,) m), each line a list of
     [u, v] px. A family is traced only where its lines are >= MIN_LINE_GAP_PX apart in the image."""
-    us, vs, X, Y, mpp = sample_mapping(mapping, transformer, width, height)
-    R = np.hypot(X - camera_origin[0], Y - camera_origin[1])
+    f = field
     out: dict = {"minor": [], "major": [], "rings": []}
     for spacing, key in ((1.0, "minor"), (10.0, "major")):
-        keep = np.isfinite(mpp) & (mpp * MIN_LINE_GAP_PX <= spacing)
-        for Z in (X, Y):
+        keep = f.drawn(spacing)
+        for Z in (f.X, f.Y):
             levels = [k for k in _levels(Z[keep], spacing) if key == "major" or k % 10 != 0]
-            out[key] += [line for lines in _iso_lines(us, vs, Z, keep, levels) for line in lines]
-    keep = np.isfinite(mpp) & (mpp * MIN_LINE_GAP_PX <= RING_STEP_M)
+            out[key] += [line for lines in _iso_lines(f.us, f.vs, Z, keep, levels) for line in lines]
+    R, keep = np.hypot(f.X - camera_origin[0], f.Y - camera_origin[1]), f.drawn(RING_STEP_M)
     radii = [r for r in _levels(R[keep], RING_STEP_M) if r > 0]
-    out["rings"] = [{"r": r, "lines": lines} for r, lines in zip(radii, _iso_lines(us, vs, R, keep, radii))]
+    out["rings"] = [{"r": r, "lines": lines} for r, lines in zip(radii, _iso_lines(f.us, f.vs, R, keep, radii))]
     return out
+
+
+def grid_nodes(field: Field, transformer: ViewTransformer, spacing_m: float = 10.0) -> np.ndarray:
+    """Image points (K, 2) px of the nodes of the spacing_m grid (a plain transformer's field) that fall on
+    the lattice where that grid is drawn."""
+    f, keep = field, field.drawn(spacing_m)
+    if not keep.any():
+        return np.zeros((0, 2))
+    xs, ys = _levels(f.X[keep], spacing_m), _levels(f.Y[keep], spacing_m)
+    nodes = transformer.inverse_transform_points(np.array([[x, y] for y in ys for x in xs]).reshape(-1, 2))
+    inside = (np.isfinite(nodes).all(axis=1) & (nodes[:, 0] >= f.us[0]) & (nodes[:, 0] <= f.us[-1])
+              & (nodes[:, 1] >= f.vs[0]) & (nodes[:, 1] <= f.vs[-1]))
+    nodes = nodes[inside]
+    col = np.clip(np.searchsorted(f.us, nodes[:, 0]), 0, len(f.us) - 1)
+    row = np.clip(np.searchsorted(f.vs, nodes[:, 1]), 0, len(f.vs) - 1)
+    return nodes[keep[row, col]]
 
 
 def footprint(transformer: ViewTransformer, width: int, height: int, site_map: SiteMap,

@@ -29,6 +29,7 @@ CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic
                   "--disable-background-networking", "--disable-component-update", "--disable-sync",
                   "--window-size=1400,1000")
 METHOD = "hybrid"
+ENV = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}  # this checkout's homocal
 CALIBRATION_ROWS = (0, 15, 35)  # the calibration objects at 5, 20 and 40 m
 
 
@@ -49,7 +50,7 @@ def server(tiny_dataset, tmp_path):
     out = tmp_path / "out"
     out.mkdir()
     proc = subprocess.Popen([sys.executable, "-m", "homocal.cli", "ui", str(tiny_dataset), "--out", str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
     try:
         line = proc.stdout.readline()
         match = re.search(r"http://127\.0\.0\.1:\d+/", line)
@@ -165,7 +166,7 @@ def test_click_fit_save_load_in_a_browser(browser, server, tiny_dataset, tmp_pat
            "--points", str(out / "reference_points.csv"), "--method", METHOD, "-o", str(cli_out),
            f"--camera-origin={saved['camera_origin'][0]!r},{saved['camera_origin'][1]!r}",
            "--seed", str(saved["params"]["seed"]), "--threshold", repr(saved["params"]["threshold"])]
-    subprocess.run(cmd, check=True, capture_output=True, text=True)
+    subprocess.run(cmd, check=True, capture_output=True, text=True, env=ENV)
     assert json.loads(cli_out.read_text()) == saved
     assert saved["camera_origin"] == ds.camera_origin.tolist()
 
