@@ -3,16 +3,25 @@
 The flat public API (supervision's style): geometry, the Section 3 error model, the Section 4
 correctors and the dataset loader. The study lives in homocal.study.
 """
-from homocal.correctors import Corrector, DescentCorrector, HybridCorrector, RegressionCorrector, load_corrector
+from homocal.correctors import (
+    Corrector,
+    DescentCorrector,
+    HorizonCorrector,
+    HybridCorrector,
+    RegressionCorrector,
+    load_corrector,
+)
 from homocal.dataset import Dataset, load_dataset
 from homocal.error_model import ColumnModel, column_model, first_order_error, horizon_shift, quadratic_error
 from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer, homography_from_quads, validate_quad
+from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius
 
 __all__ = [
     "ColumnModel",
     "Corrector",
     "Dataset",
     "DescentCorrector",
+    "HorizonCorrector",
     "HybridCorrector",
     "PinholeCamera",
     "RegressionCorrector",
@@ -20,10 +29,13 @@ __all__ = [
     "ViewTransformer",
     "column_model",
     "first_order_error",
+    "ground_uncertainty",
     "homography_from_quads",
     "horizon_shift",
     "load_corrector",
     "load_dataset",
+    "max_trustworthy_range",
     "quadratic_error",
+    "sigma_radius",
     "validate_quad",
 ]

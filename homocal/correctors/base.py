@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -21,11 +22,11 @@ from homocal.correctors.serialization import (
     FORMAT,
     FORMAT_VERSION,
     float_or_none,
-    none_to_nan,
+    number,
     read_json,
 )
 from homocal.files import write_text_atomic
-from homocal.geometry import ViewTransformer, as_points
+from homocal.geometry import ViewTransformer, as_points, check_magnitude
 
 
 def mean_error(points: np.ndarray, ground_points: np.ndarray) -> float:
@@ -43,8 +44,11 @@ def check_calibration(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Validate calibration input; return q (N, 2) px, p = transformer(q) (N, 2), g (N, 2), o (2,), float64.
 
-    Raises ValueError naming the problem: fewer than 3 pairs, mismatched shapes, a NaN/inf (with the
-    point's index), or an image point on or above the horizon of the transformer (it maps to NaN).
+    Raises ValueError naming the problem: fewer than 3 pairs, mismatched shapes, a NaN/inf or a coordinate
+    beyond +/-1e9 (with the point's index), two pairs with the same image point or the same ground point (they
+    would count twice), or an image point on or above the horizon of the transformer (it maps to NaN).
+    Warns (UserWarning) for a ground point behind the camera (y < camera_origin y: homocal's y axis points
+    forward), which is usually a sign error.
     """
     if not isinstance(transformer, ViewTransformer):
         raise TypeError(f"transformer: expected a homocal.ViewTransformer, got {type(transformer).__name__}")
@@ -63,6 +67,15 @@ def check_calibration(
         bad = np.flatnonzero(~np.isfinite(arr).all(axis=1))
         if bad.size:
             raise ValueError(f"{name}[{bad[0]}] is not finite: {arr[bad[0]].tolist()}")
+        check_magnitude(arr, name)
+        for i in range(len(arr)):
+            same = np.flatnonzero((arr[i + 1 :] == arr[i]).all(axis=1))
+            if same.size:
+                raise ValueError(f"{name}[{i}] and {name}[{i + 1 + same[0]}] are the same point {arr[i].tolist()}: "
+                                 "each reference point must be measured once")
+    for i in np.flatnonzero(g[:, 1] < o[1]):
+        warnings.warn(f"ground_points[{i}] = {g[i].tolist()} is behind the camera (y < {o[1]:g}, the camera "
+                      "origin's y; y points forward): a sign error?", UserWarning, stacklevel=3)
     p = transformer.transform_points(q)
     bad = np.flatnonzero(np.isnan(p).any(axis=1))
     if bad.size:
@@ -187,18 +200,45 @@ class Corrector:
         if cls is not Corrector and target_cls is not cls:
             raise ValueError(f"{where}: holds a {method!r} correction, not {cls.method!r}")
         try:
-            obj = target_cls(**data["params"])
-            obj.base_transformer_ = ViewTransformer(data["transformer"]["source"], data["transformer"]["target"])
-            obj.camera_origin_ = np.array(data["camera_origin"], dtype=np.float64)
-            if obj.camera_origin_.shape != (2,) or not np.isfinite(obj.camera_origin_).all():
-                raise ValueError(f"camera_origin must be 2 finite numbers, got {data['camera_origin']!r}")
-            obj.error_before_ = float(data["error_before"])
-            obj.error_after_ = float(data["error_after"])
-            obj.calibration_improvement_ = none_to_nan(data["calibration_improvement"])
-            obj._set_fitted_state(data["fitted"])
+            obj = target_cls._from_fields(data)
         except (KeyError, TypeError, ValueError) as e:
             detail = f"missing key {e}" if isinstance(e, KeyError) else str(e)
             raise ValueError(f"{where}: bad {method} correction ({detail})") from None
+        return obj
+
+    @classmethod
+    def _from_fields(cls, data: dict) -> Corrector:
+        """The corrector of a file's fields, each checked against what fit could have produced (ValueError
+        "field NAME: ..." otherwise): the constructor's checks of params, valid quads, finite numbers, errors
+        >= 0, the improvement that follows from them, and the method's own fitted state (_set_fitted_state)."""
+        if not isinstance(data["params"], dict):
+            raise ValueError(f"field params: expected an object, got {data['params']!r}")
+        try:
+            obj = cls(**data["params"])
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"field params: {e}") from None
+        try:
+            obj.base_transformer_ = ViewTransformer(data["transformer"]["source"], data["transformer"]["target"])
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"field transformer: {e}") from None
+        obj.camera_origin_ = np.array(data["camera_origin"], dtype=np.float64)
+        if obj.camera_origin_.shape != (2,) or not np.isfinite(obj.camera_origin_).all():
+            raise ValueError(f"field camera_origin: must be 2 finite numbers, got {data['camera_origin']!r}")
+        obj.error_before_ = number(data["error_before"], "error_before", minimum=0)
+        obj.error_after_ = number(data["error_after"], "error_after", minimum=0)
+        expected = improvement_percent(obj.error_before_, obj.error_after_)
+        stored = data["calibration_improvement"]
+        if math.isnan(expected):
+            consistent = stored is None
+        else:
+            consistent = stored is not None and abs(number(stored, "calibration_improvement") - expected) <= 1e-6
+        if not consistent:
+            raise ValueError(f"field calibration_improvement: {stored!r} does not follow from error_before and "
+                             f"error_after ({float_or_none(expected)!r})")
+        obj.calibration_improvement_ = expected
+        if not isinstance(data["fitted"], dict):
+            raise ValueError(f"field fitted: expected an object, got {data['fitted']!r}")
+        obj._set_fitted_state(data["fitted"])
         return obj
 
     @classmethod

@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from homocal.correctors.base import Corrector, mean_error
+from homocal.correctors.serialization import integer, number
 from homocal.geometry import ViewTransformer, apply_homography, homography_from_quads, validate_quad
 from homocal.keyed_rng import shuffled_order
 
@@ -155,6 +156,19 @@ class DescentCorrector(Corrector):
         }
 
     def _set_fitted_state(self, state: dict) -> None:
-        self.transformer_ = ViewTransformer(state["source"], self.base_transformer_.target)
-        self.loss_initial_, self.loss_final_ = float(state["loss_initial"]), float(state["loss_final"])
-        self.evaluations_ = int(state["evaluations"])
+        """Check what fit could have produced: a valid quad within delta_max of the clicked one, finite losses
+        0 <= loss_final <= loss_initial, 0 <= evaluations <= max_evals."""
+        try:
+            self.transformer_ = ViewTransformer(state["source"], self.base_transformer_.target)
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"field fitted.source: {e}") from None
+        moved = float(np.abs(self.transformer_.source - self.base_transformer_.source).max())
+        if moved > self.delta_max * (1 + 1e-12):
+            raise ValueError(f"field fitted.source: a corner moved {moved:g} px from the clicked trapezoid, more than "
+                             f"delta_max = {self.delta_max:g}")
+        self.loss_initial_ = number(state["loss_initial"], "fitted.loss_initial", minimum=0)
+        self.loss_final_ = number(state["loss_final"], "fitted.loss_final", minimum=0)
+        if self.loss_final_ > self.loss_initial_:
+            raise ValueError(f"field fitted.loss_final: {self.loss_final_} is above loss_initial {self.loss_initial_} "
+                             "(descent never ends above its start)")
+        self.evaluations_ = integer(state["evaluations"], "fitted.evaluations", 0, self.max_evals)

@@ -46,8 +46,18 @@ class HybridCorrector(Corrector):
         return {"chosen": self.chosen_, "regression": self.regression_.to_dict(), "descent": self.descent_.to_dict()}
 
     def _set_fitted_state(self, state: dict) -> None:
-        if state["chosen"] not in ("regression", "descent"):
-            raise ValueError(f"chosen must be 'regression' or 'descent', got {state['chosen']!r}")
-        self.chosen_ = state["chosen"]
-        self.regression_ = RegressionCorrector.from_dict(state["regression"], "hybrid regression")
-        self.descent_ = DescentCorrector.from_dict(state["descent"], "hybrid descent")
+        """Check what fit could have produced: both corrections valid, with the hybrid's params and trapezoid,
+        and the choice the threshold makes."""
+        self.regression_ = RegressionCorrector.from_dict(state["regression"], "field fitted.regression")
+        self.descent_ = DescentCorrector.from_dict(state["descent"], "field fitted.descent")
+        for name, sub in (("regression", self.regression_), ("descent", self.descent_)):
+            if any(getattr(self, k) != v for k, v in sub.get_params().items() if k in self.param_names):
+                raise ValueError(f"field fitted.{name}.params: {sub.get_params()} differ from the hybrid's params")
+            if not (np.array_equal(sub.base_transformer_.source, self.base_transformer_.source)
+                    and np.array_equal(sub.base_transformer_.target, self.base_transformer_.target)):
+                raise ValueError(f"field fitted.{name}.transformer: not the hybrid's trapezoid")
+        expected = "regression" if self.regression_.calibration_improvement_ >= self.threshold else "descent"
+        if state["chosen"] != expected:
+            raise ValueError(f"field fitted.chosen: {state['chosen']!r}, but the threshold {self.threshold:g} % and "
+                             f"regression's improvement {self.regression_.calibration_improvement_:.6g} % choose {expected!r}")
+        self.chosen_ = expected

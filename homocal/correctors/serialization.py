@@ -32,10 +32,31 @@ def read_json(path: str | Path) -> dict:
     return data
 
 
+def number(value, field: str, minimum: float | None = None) -> float:
+    """A loaded field that must be a finite JSON number (>= minimum if given); ValueError naming the field."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"field {field}: expected a number, got {value!r}")
+    if not math.isfinite(value):
+        raise ValueError(f"field {field}: expected a finite number, got {value!r}")
+    if minimum is not None and value < minimum:
+        raise ValueError(f"field {field}: must be >= {minimum:g}, got {value!r}")
+    return float(value)
+
+
+def integer(value, field: str, minimum: int, maximum: int) -> int:
+    """A loaded field that must be a JSON integer in [minimum, maximum]; ValueError naming the field."""
+    if isinstance(value, bool) or not isinstance(value, int) or not minimum <= value <= maximum:
+        raise ValueError(f"field {field}: expected an integer in [{minimum}, {maximum}], got {value!r}")
+    return value
+
+
+def boolean(value, field: str) -> bool:
+    """A loaded field that must be JSON true or false; ValueError naming the field."""
+    if not isinstance(value, bool):
+        raise ValueError(f"field {field}: expected true or false, got {value!r}")
+    return value
+
+
 def float_or_none(x: float) -> float | None:
     """NaN as JSON null (strict JSON has no NaN)."""
     return None if math.isnan(x) else float(x)
-
-
-def none_to_nan(x: float | None) -> float:
-    return math.nan if x is None else float(x)

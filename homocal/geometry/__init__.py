@@ -4,7 +4,10 @@ from homocal.geometry.homography import (
     ViewTransformer,
     apply_homography,
     as_points,
+    check_magnitude,
+    check_orientation,
     homography_from_quads,
+    signed_area,
     validate_quad,
 )
 from homocal.geometry.sitemap import SiteMap
@@ -15,6 +18,9 @@ __all__ = [
     "ViewTransformer",
     "apply_homography",
     "as_points",
+    "check_magnitude",
+    "check_orientation",
     "homography_from_quads",
+    "signed_area",
     "validate_quad",
 ]

@@ -11,6 +11,7 @@ import itertools
 import numpy as np
 
 QUAD_ORDER = "TL, TR, BR, BL"
+MAX_COORDINATE = 1e9  # larger |coordinates| (a billion pixels or metres) are an overflow or a typo, not a click
 
 
 def as_points(points: np.ndarray, name: str = "points") -> np.ndarray:
@@ -28,14 +29,15 @@ def as_points(points: np.ndarray, name: str = "points") -> np.ndarray:
 def validate_quad(quad: np.ndarray, name: str = "quad") -> np.ndarray:
     """Check a quadrilateral (4, 2) is a usable convex quad in order TL, TR, BR, BL; return it as float64.
 
-    Raises ValueError naming the problem: wrong shape, NaN/inf, a repeated vertex, three collinear
-    vertices (which includes zero area), self-intersection, or a non-convex quad.
+    Raises ValueError naming the problem: wrong shape, NaN/inf, a coordinate beyond +/-MAX_COORDINATE, a
+    repeated vertex, three collinear vertices (which includes zero area), self-intersection, or a non-convex quad.
     """
     q = as_points(quad, name)
     if q.shape != (4, 2):
         raise ValueError(f"{name}: a trapezoid needs exactly 4 vertices ({QUAD_ORDER}), got {len(q)}")
     if not np.isfinite(q).all():
         raise ValueError(f"{name}: vertices contain NaN or inf: {q.tolist()}")
+    check_magnitude(q, name, "vertex")
     scale = max(float(np.ptp(q, axis=0).max()), 1e-300)
     for i, j in itertools.combinations(range(4), 2):
         if np.hypot(*(q[i] - q[j])) <= 1e-12 * scale:
@@ -49,6 +51,38 @@ def validate_quad(quad: np.ndarray, name: str = "quad") -> np.ndarray:
     if not (all(t > 0 for t in turns) or all(t < 0 for t in turns)):
         raise ValueError(f"{name}: the trapezoid is not convex")
     return q
+
+
+def check_magnitude(points: np.ndarray, name: str, what: str = "point") -> None:
+    """ValueError naming the first of points (N, 2) with a |coordinate| > MAX_COORDINATE (an overflow or a typo:
+    the geometry's products of coordinates would overflow or lose every digit)."""
+    big = np.flatnonzero((np.abs(points) > MAX_COORDINATE).any(axis=1))
+    if big.size:
+        raise ValueError(f"{name}: {what} {big[0]} = {points[big[0]].tolist()} is out of range (|coordinate| > "
+                         f"{MAX_COORDINATE:g}): an overflow or a typo?")
+
+
+def signed_area(quad: np.ndarray) -> float:
+    """Shoelace signed area of a polygon (N, 2): > 0 if its vertices turn counter-clockwise in a y-up frame
+    (clockwise as drawn in a y-down frame such as the image)."""
+    x, y = quad[:, 0], quad[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def check_orientation(image_quad: np.ndarray, ground_quad: np.ndarray, target_y_up: bool = True) -> None:
+    """Refuse a map trapezoid whose corners go round the other way from the image trapezoid's.
+
+    Both are given in the same order (TL, TR, BR, BL as seen in the image). The image's v axis points down; a
+    ground frame in metres (homocal's world: y forward) has y up on a map, so a correct pair has signed areas of
+    OPPOSITE sign (target_y_up=True); a site map in pixels (py down, like the image) has the SAME sign
+    (target_y_up=False). A mirrored (left-right) or upside-down (near-far) map flips the sign: such a pair still
+    gives a homography, but one that maps the scene mirrored (17 m errors in the probe of issue 12).
+    A map rotated by 180 degrees keeps the orientation and is not detectable here.
+    """
+    a_img, a_map = signed_area(np.asarray(image_quad, float)), signed_area(np.asarray(ground_quad, float))
+    if (a_img * a_map < 0) != target_y_up:
+        raise ValueError(f"the map trapezoid's corners go round the other way from the image's (mirrored or upside "
+                         f"down?): give both in the order {QUAD_ORDER} as seen in the image")
 
 
 def homography_from_quads(source: np.ndarray, target: np.ndarray) -> np.ndarray:

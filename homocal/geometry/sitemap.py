@@ -56,5 +56,11 @@ class SiteMap:
 
     @classmethod
     def from_json(cls, path: str | Path) -> "SiteMap":
-        """Read a dataset's site_map.json."""
-        return cls.from_dict(json.loads(Path(path).read_text()), str(path))
+        """Read a dataset's site_map.json; ValueError naming the file if it is not UTF-8 JSON."""
+        try:
+            data = json.loads(Path(path).read_text(encoding="utf-8"))
+        except (UnicodeDecodeError, json.JSONDecodeError) as e:
+            raise ValueError(f"{path}: not a JSON file ({e})") from None
+        if not isinstance(data, dict):
+            raise ValueError(f"{path}: expected a JSON object, got {type(data).__name__}")
+        return cls.from_dict(data, str(path))

@@ -11,13 +11,18 @@ from hypothesis import strategies as st
 from homocal.correctors import (
     Corrector,
     DescentCorrector,
+    HorizonCorrector,
     HybridCorrector,
     RegressionCorrector,
+    fit_horizon_shift,
     fit_quadratic_error,
+    fit_quadratic_intercept,
     load_corrector,
     radial_correction,
 )
-from homocal.geometry import PinholeCamera, ViewTransformer
+from homocal.correctors.horizon import row_shift
+from homocal.error_model import horizon_shift
+from homocal.geometry import PinholeCamera, ViewTransformer, apply_homography
 
 CAM = PinholeCamera()  # the paper's camera: 1280x720, 95 deg hfov, 4 m high, 15 deg down
 GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])  # TL, TR, BR, BL (far edge on top)
@@ -69,6 +74,36 @@ class TestFitQuadraticError:
         assert degenerate and a == 0.0 and b == pytest.approx(b_ref, rel=1e-12)
 
 
+class TestFitQuadraticIntercept:
+    @pytest.mark.parametrize("seed", range(8))
+    @pytest.mark.parametrize("n", [3, 4, 7])
+    def test_matches_lstsq(self, seed, n):
+        rng = np.random.default_rng(seed)
+        d, e = rng.uniform(5.0, 50.0, n), rng.normal(0.0, 2.0, n)
+        a, b, c, degenerate = fit_quadratic_intercept(d, e)
+        ref, *_ = np.linalg.lstsq(np.column_stack([d**2, d, np.ones(n)]), e, rcond=None)
+        assert not degenerate
+        np.testing.assert_allclose([a, b, c], ref, rtol=1e-8, atol=1e-10 * np.abs(ref).max())
+
+    @pytest.mark.parametrize("d", [[10.0, 20.0, 35.0], [5.0, 5.5, 48.0], [30.0, 31.0, 32.0]])
+    def test_exact_through_three_points(self, d):
+        d = np.array(d)
+        e = np.array([0.3, -0.4, 1.1])
+        a, b, c, _ = fit_quadratic_intercept(d, e)
+        np.testing.assert_allclose([a, b, c], np.polyfit(d, e, 2), rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(a * d**2 + b * d + c, e, atol=1e-9)
+
+    def test_two_equal_distances_fit_a_line(self):
+        d, e = np.array([10.0, 10.0, 30.0]), np.array([0.2, 0.4, 1.0])
+        a, b, c, degenerate = fit_quadratic_intercept(d, e)
+        (b_ref, c_ref), *_ = np.linalg.lstsq(np.column_stack([d, np.ones(3)]), e, rcond=None)
+        assert degenerate and a == 0.0
+        assert (b, c) == pytest.approx((b_ref, c_ref), rel=1e-9)
+
+    def test_all_equal_distances_fit_a_constant(self):
+        assert fit_quadratic_intercept(np.full(3, 20.0), np.array([0.1, 0.2, 0.6])) == (0.0, 0.0, pytest.approx(0.3), True)
+
+
 class TestRadialCorrection:
     @pytest.mark.parametrize("a,b", [(0.002, 0.01), (-0.003, 0.02), (0.0, -0.05)])
     def test_moves_points_radially_by_c(self, a, b):
@@ -81,6 +116,11 @@ class TestRadialCorrection:
         np.testing.assert_allclose(  # the bearing from o is kept (eq. (24) moves along (o - p))
             np.arctan2(*(out - o).T[::-1]), np.arctan2(*(p - o).T[::-1]), atol=1e-12
         )
+
+    def test_intercept_adds_a_constant_shift(self):
+        p = np.array([[3.0, 4.0], [0.0, 10.0]])
+        out = radial_correction(p, np.zeros(2), 0.01, 0.1, -0.5)
+        np.testing.assert_allclose(np.linalg.norm(out, axis=1), [5 + 0.25 + 0.5 - 0.5, 10 + 1 + 1 - 0.5])
 
     def test_origin_and_nan_stay(self):
         p = np.array([[1.0, 2.0], [np.nan, np.nan]])
@@ -132,6 +172,92 @@ class TestRegressionCorrector:
     def test_exact_mapping_has_nan_improvement(self):
         reg = RegressionCorrector().fit(ViewTransformer(IMAGE, GROUND), CALIB_Q, CALIB_G, ORIGIN)
         assert reg.error_before_ == pytest.approx(0.0, abs=1e-9)
+
+
+    def test_intercept_fits_signed_errors_without_clamping(self):
+        p = np.array([[3.0, 10.0], [-2.0, 25.0], [5.0, 40.0]])
+        e = np.array([-0.3, 0.4, -1.0])  # signed range errors g - p along the ray
+        reg = RegressionCorrector(signed=True, intercept=True).fit(IDENTITY, p, radial_ground(p, e), ORIGIN)
+        a, b, c = np.polyfit(np.linalg.norm(p, axis=1), e, 2)
+        assert (reg.a_, reg.b_, reg.c_) == pytest.approx((a, b, c), rel=1e-9)
+        assert reg.error_after_ < 1e-12 and reg.calibration_improvement_ == pytest.approx(100.0)
+
+    def test_intercept_needs_signed(self):
+        with pytest.raises(ValueError, match="intercept=True needs signed=True"):
+            RegressionCorrector(intercept=True)
+
+    @pytest.mark.parametrize("offsets", [HAND_ERROR, [[0, 3], [0, 3], [0, 0], [0, 0]], [[1, -3], [-2, 0], [3, 2], [0, -1]]])
+    def test_intercept_corrects_the_calibration_line(self, offsets):
+        vt = perturbed(offsets)
+        reg = RegressionCorrector(signed=True, intercept=True).fit(vt, CALIB_Q, CALIB_G, ORIGIN)
+        line_g = np.column_stack([np.zeros(18), np.linspace(6.0, 40.0, 18)])
+        line_q = CAM.project_ground(line_g)
+        corrected_range = np.linalg.norm(reg.transform_points(CALIB_Q), axis=1)
+        np.testing.assert_allclose(corrected_range, np.linalg.norm(CALIB_G, axis=1), atol=1e-9)  # 3 points: exact
+        assert mean_error(reg.transform_points(line_q), line_g) < 0.3 * mean_error(vt.transform_points(line_q), line_g)
+
+
+def shifted_mapping(eps: float) -> ViewTransformer:
+    """The paper camera's exact mapping with its horizon eps pixels lower (eq. (9)): H(u, v - eps)."""
+    H = CAM.image_to_ground @ row_shift(-eps)
+    return ViewTransformer(IMAGE, apply_homography(H, IMAGE))
+
+
+class TestHorizonCorrector:
+    @pytest.mark.parametrize("eps", [-12.0, -3.0, 0.7, 5.0, 20.0])
+    def test_recovers_an_injected_horizon_shift(self, eps):
+        vt = shifted_mapping(eps)
+        assert horizon_shift(CAM.image_to_ground, vt.m, 639.5) == pytest.approx(eps, abs=1e-9)
+        hc = HorizonCorrector().fit(vt, CALIB_Q, CALIB_G, ORIGIN)
+        assert hc.horizon_shift_ == pytest.approx(eps, abs=1e-8)
+        far_g = np.stack(np.meshgrid(np.linspace(-8.0, 8.0, 5), np.linspace(5.0, 60.0, 12)), -1).reshape(-1, 2)
+        np.testing.assert_allclose(hc.transform_points(CAM.project_ground(far_g)), far_g, atol=1e-6)
+        H_true = CAM.image_to_ground / np.sign(CAM.image_to_ground[2, 1])
+        np.testing.assert_allclose(hc.m, H_true, atol=1e-10)  # .m is the true image-to-ground homography
+
+    @pytest.mark.parametrize("tilt_error", [-1.0, -0.5, 0.5, 1.0])
+    def test_a_tilt_error_is_mostly_a_horizon_shift(self, tilt_error):
+        # The trapezoid clicked where a camera tilted tilt_error degrees more would see it: the true error is a
+        # rotation (K R_x K^-1), not a row shift, so the fit is close, not exact (measured: within 6 % of the
+        # true shift, corrected points within 0.16 m out to 50 m where uncorrected ones are 4-14 m off).
+        vt = ViewTransformer(PinholeCamera(tilt_deg=CAM.tilt_deg + tilt_error).project_ground(GROUND), GROUND)
+        hc = HorizonCorrector().fit(vt, CALIB_Q, CALIB_G, ORIGIN)
+        true_shift = horizon_shift(CAM.image_to_ground, vt.m, 639.5)
+        assert abs(true_shift) > 5 and hc.horizon_shift_ == pytest.approx(true_shift, rel=0.06)
+        test_g = np.stack(np.meshgrid(np.linspace(-5.0, 5.0, 5), np.linspace(6.0, 50.0, 10)), -1).reshape(-1, 2)
+        test_q = CAM.project_ground(test_g)
+        assert np.abs(vt.transform_points(test_q) - test_g).max() > 4.0
+        assert np.abs(hc.transform_points(test_q) - test_g).max() < 0.2
+
+    @pytest.mark.parametrize("offsets", [HAND_ERROR, [[1, -3], [-2, 0], [3, 2], [0, -1]], [[0, 3], [0, 3], [0, 0], [0, 0]]])
+    def test_least_squares_against_a_dense_scan(self, offsets):
+        vt = perturbed(offsets)
+        eps, delta = fit_horizon_shift(vt.m, CALIB_Q, CALIB_G)
+        scan = np.linspace(-delta, delta, 400001)[1:]
+        # independent of the corrector's code: the base mapping applied to the shifted points (u, v + eps)
+        shifted = np.repeat(CALIB_Q[None], len(scan), axis=0) + np.stack([np.zeros_like(scan), scan], -1)[:, None]
+        losses = np.sum((apply_homography(vt.m, shifted.reshape(-1, 2)).reshape(-1, 3, 2) - CALIB_G) ** 2, axis=(1, 2))
+
+        def sq(e):
+            return np.sum((apply_homography(vt.m, CALIB_Q + [0.0, e]) - CALIB_G) ** 2)
+
+        best = scan[np.argmin(losses)]
+        assert eps == pytest.approx(best, abs=2 * delta / 400000)
+        assert sq(eps) <= (1 + 1e-11) * min(sq(best), sq(0.0))
+        h = 1e-5  # the derivative vanishes at the fit (an interior minimum)
+        assert abs(sq(eps + h) - sq(eps - h)) / (2 * h) < 1e-6 * max(1.0, sq(0.0))
+
+    def test_search_range_is_below_the_nearest_reference_point(self):
+        vt = perturbed(HAND_ERROR)
+        hc = HorizonCorrector().fit(vt, CALIB_Q, CALIB_G, ORIGIN)
+        v_h = vt.horizon_row(CALIB_Q[:, 0])
+        assert hc.search_half_width_ == pytest.approx(np.min(CALIB_Q[:, 1] - v_h), rel=1e-12)
+        assert -hc.search_half_width_ < hc.horizon_shift_ <= hc.search_half_width_
+
+    def test_matrix_is_what_transform_points_applies(self):
+        hc = HorizonCorrector().fit(perturbed(HAND_ERROR), CALIB_Q, CALIB_G, ORIGIN)
+        np.testing.assert_array_equal(hc.transform_points(TEST_Q), apply_homography(hc.m, TEST_Q))
+        assert np.linalg.norm(hc.m) == pytest.approx(1.0) and hc.get_params() == {}
 
 
 class TestDescentCorrector:
@@ -225,6 +351,8 @@ class TestHybridCorrector:
 FITTED = {
     "regression": lambda: RegressionCorrector(),
     "regression-signed": lambda: RegressionCorrector(signed=True),
+    "regression-intercept": lambda: RegressionCorrector(signed=True, intercept=True),
+    "horizon": lambda: HorizonCorrector(),
     "descent": lambda: DescentCorrector(seed=3, max_evals=100),
     "hybrid": lambda: HybridCorrector(threshold=50.0, max_evals=50),
 }
@@ -241,9 +369,18 @@ class TestJson:
             assert loaded.calibration_improvement_ == c.calibration_improvement_
         assert [p.name for p in tmp_path.iterdir()] == ["c.json"]  # no temporary file left
 
+    def test_regression_file_without_intercept_loads(self, tmp_path):
+        c = RegressionCorrector(signed=True).fit(perturbed(HAND_ERROR), CALIB_Q, CALIB_G, ORIGIN)
+        d = c.to_dict()
+        del d["params"]["intercept"], d["fitted"]["c"]  # as written before the intercept existed
+        (tmp_path / "old.json").write_text(json.dumps(d))
+        old = load_corrector(tmp_path / "old.json")
+        assert old.intercept is False and old.c_ == 0.0
+        np.testing.assert_array_equal(old.transform_points(TEST_Q), c.transform_points(TEST_Q))
+
     def test_nan_improvement_is_strict_json(self):
-        zero = np.zeros((3, 2))  # maps exactly onto itself: no error before correction
-        c = RegressionCorrector().fit(IDENTITY, zero, zero, [-1.0, -1.0])
+        q = SQUARE[1:]
+        c = RegressionCorrector().fit(IDENTITY, q, IDENTITY.transform_points(q), [-1.0, -1.0])  # no error before
         assert c.error_before_ == 0.0 and math.isnan(c.calibration_improvement_)
         assert json.loads(c.to_json())["calibration_improvement"] is None
         assert math.isnan(Corrector.from_json(c.to_json()).calibration_improvement_)
@@ -271,6 +408,43 @@ class TestJson:
         with pytest.raises(ValueError, match=match):
             load_corrector(tmp_path / "c.json")
 
+    @pytest.mark.parametrize("name,edit,match", [  # issue 12 class 5: hand-edited files
+        ("regression", lambda d: d["fitted"].update(a=-5.0), r"field fitted\.a: must be >= 0"),
+        ("regression", lambda d: d["fitted"].update(b=math.nan), r"field fitted\.b: expected a finite number"),
+        ("regression", lambda d: d["fitted"].update(a="0.1"), r"field fitted\.a: expected a number"),
+        ("regression", lambda d: d["fitted"].update(degenerate="false"), r"field fitted\.degenerate: expected true"),
+        ("regression", lambda d: d["fitted"].update(c=0.5), r"field fitted\.c: must be 0 without the intercept"),
+        ("regression", lambda d: d["fitted"].update(degenerate=True), r"field fitted\.a: must be 0 for a degenerate"),
+        ("regression", lambda d: d["params"].update(intercept=True), r"field params: intercept=True needs signed"),
+        ("regression-signed", lambda d: d["fitted"].update(a=math.inf), r"field fitted\.a: expected a finite"),
+        ("regression-intercept", lambda d: d["fitted"].update(c=None), r"field fitted\.c: expected a number"),
+        ("regression", lambda d: d.update(error_before=-1.0), r"field error_before: must be >= 0"),
+        ("regression", lambda d: d.update(error_after=math.nan), r"field error_after: expected a finite"),
+        ("regression", lambda d: d.update(calibration_improvement=50.0), r"field calibration_improvement: 50\.0 does"),
+        ("regression", lambda d: d.update(calibration_improvement=None), r"field calibration_improvement: None does"),
+        ("regression", lambda d: d["transformer"]["source"][0].__setitem__(0, 1e308), r"field transformer: .*out of range"),
+        ("regression", lambda d: d.update(camera_origin=[0.0, math.nan]), r"field camera_origin"),
+        ("regression", lambda d: d.update(params=[True]), r"field params: expected an object"),
+        ("descent", lambda d: d["fitted"]["source"][1].__setitem__(1, d["fitted"]["source"][1][1] + 20), r"moved .*delta_max"),
+        ("descent", lambda d: d["fitted"].update(source=[[0, 0]] * 4), r"field fitted\.source: .*same point"),
+        ("descent", lambda d: d["fitted"].update(loss_final=d["fitted"]["loss_initial"] + 1), r"above loss_initial"),
+        ("descent", lambda d: d["fitted"].update(evaluations=101), r"field fitted\.evaluations: expected an integer"),
+        ("descent", lambda d: d["fitted"].update(evaluations=1.5), r"field fitted\.evaluations"),
+        ("hybrid", lambda d: d["fitted"].update(chosen="regression" if d["fitted"]["chosen"] == "descent" else "descent"),
+         r"field fitted\.chosen"),
+        ("hybrid", lambda d: d["fitted"]["regression"]["fitted"].update(a=-5.0), r"field fitted\.regression: .*fitted\.a"),
+        ("hybrid", lambda d: d["fitted"]["descent"]["params"].update(max_evals=500), r"field fitted\.descent\.params"),
+        ("horizon", lambda d: d["fitted"].update(horizon_shift=1e6), r"field fitted\.horizon_shift: .*search range"),
+        ("horizon", lambda d: d["fitted"].update(search_half_width=-1.0), r"field fitted\.search_half_width: must be"),
+        ("horizon", lambda d: d["fitted"].pop("horizon_shift"), r"missing key 'horizon_shift'"),
+    ])
+    def test_hand_edited_fields_are_refused(self, name, edit, match, tmp_path):
+        d = json.loads(FITTED[name]().fit(perturbed(HAND_ERROR), CALIB_Q, CALIB_G, ORIGIN).to_json())
+        edit(d)
+        (tmp_path / "c.json").write_text(json.dumps(d))
+        with pytest.raises(ValueError, match=f"c.json: bad .*{match}"):
+            load_corrector(tmp_path / "c.json")
+
     @pytest.mark.parametrize("text,match", [(None, "no such file"), ("{not json", "not a JSON"), ("[1]", "object")])
     def test_bad_file(self, text, match, tmp_path):
         if text is not None:
@@ -280,7 +454,7 @@ class TestJson:
 
 
 class TestFitInputChecks:
-    @pytest.mark.parametrize("cls", [RegressionCorrector, DescentCorrector, HybridCorrector])
+    @pytest.mark.parametrize("cls", [RegressionCorrector, DescentCorrector, HybridCorrector, HorizonCorrector])
     @pytest.mark.parametrize(
         "q,g,o,match",
         [
@@ -297,6 +471,25 @@ class TestFitInputChecks:
     def test_bad_input_names_the_problem(self, cls, q, g, o, match):
         with pytest.raises(ValueError, match=match):
             cls().fit(perturbed(HAND_ERROR), q, g, o)
+
+    @pytest.mark.parametrize("which,index", [("image_points", 2), ("ground_points", 1)])
+    def test_duplicate_reference_points(self, which, index):
+        q, g = CALIB_Q.copy(), CALIB_G.copy()
+        (q if which == "image_points" else g)[index] = (q if which == "image_points" else g)[0]
+        with pytest.raises(ValueError, match=rf"{which}\[0\] and {which}\[{index}\] are the same point"):
+            RegressionCorrector().fit(perturbed(HAND_ERROR), q, g, ORIGIN)
+
+    @pytest.mark.parametrize("which", ["image_points", "ground_points"])
+    def test_overflow_has_its_own_message(self, which):
+        q, g = CALIB_Q.copy(), CALIB_G.copy()
+        (q if which == "image_points" else g)[1, 0] = 1e308
+        with pytest.raises(ValueError, match=rf"{which}: point 1 = \[1e\+308, .*out of range"):
+            RegressionCorrector().fit(perturbed(HAND_ERROR), q, g, ORIGIN)
+
+    def test_point_behind_the_camera_warns(self):
+        g = CALIB_G * [[1.0, -1.0], [1.0, 1.0], [1.0, 1.0]]  # a sign error: y negative
+        with pytest.warns(UserWarning, match=r"ground_points\[0\] = \[0\.0, -10\.0\] is behind the camera"):
+            RegressionCorrector().fit(perturbed(HAND_ERROR), CALIB_Q, g, ORIGIN)
 
     def test_not_fitted(self):
         with pytest.raises(RuntimeError, match="not fitted"):

@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer, validate_quad
+from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer, check_orientation, signed_area, validate_quad
 
 CAM = PinholeCamera()  # the paper's camera: 1280x720, 95 deg hfov, 4 m high, 15 deg down
 GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])  # TL, TR, BR, BL (far edge on top)
@@ -115,6 +115,8 @@ BAD_QUADS = {
     "nan": ([[0, 0], [10, np.nan], [10, 10], [0, 10]], "NaN"),
     "three vertices": ([[0, 0], [10, 0], [10, 10]], "exactly 4"),
     "zero area": ([[1, 1], [1, 1], [1, 1], [1, 1]], "same point"),
+    "overflow": ([[0, 0], [1e308, 0], [10, 10], [0, 10]], r"vertex 1 = \[1e\+308, 0\.0\] is out of range"),
+    "overflow negative": ([[0, 0], [10, 0], [10, 10], [0, -1e12]], r"vertex 3 .* out of range"),
 }
 
 
@@ -139,6 +141,35 @@ def test_any_quad_gives_a_transformer_or_a_clear_error(coords):
     out = vt.transform_points(quad)
     assert not np.isinf(out).any()
     np.testing.assert_allclose(out, GROUND, atol=1e-6 * 1e4)
+
+
+class TestOrientation:
+    """check_orientation against the paper camera's exact quads: metres (y up) and site-map pixels (y down)."""
+
+    SITE_MAP = SiteMap(10.0, (400.0, 600.0))
+    IMAGE = CAM.project_ground(GROUND)
+    VARIANTS = {  # the map's corners relabelled: (order of GROUND's rows, orientation kept?)
+        "as clicked": ([0, 1, 2, 3], True),
+        "mirrored left-right": ([1, 0, 3, 2], False),
+        "upside down": ([3, 2, 1, 0], False),
+        "rotated 180 degrees": ([2, 3, 0, 1], True),  # keeps the orientation: not detectable by this check
+    }
+
+    @pytest.mark.parametrize("variant", VARIANTS)
+    @pytest.mark.parametrize("units", ["metres", "site-map pixels"])
+    def test_signed_areas(self, variant, units):
+        order, kept = self.VARIANTS[variant]
+        ground = GROUND[order]
+        target, y_up = (ground, True) if units == "metres" else (self.SITE_MAP.to_pixels(ground), False)
+        if kept:
+            check_orientation(self.IMAGE, target, target_y_up=y_up)
+        else:
+            with pytest.raises(ValueError, match="other way from the image's"):
+                check_orientation(self.IMAGE, target, target_y_up=y_up)
+
+    def test_signed_area_sign_convention(self):
+        square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+        assert signed_area(square) == 1.0 and signed_area(square[::-1]) == -1.0
 
 
 class TestSiteMap:

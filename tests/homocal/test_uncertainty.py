@@ -1,0 +1,98 @@
+"""homocal.ground_uncertainty against Monte Carlo on the paper's camera, sigma_radius against eigenvalues,
+max_trustworthy_range against a dense scan of the same radii; bad input."""
+import math
+
+import numpy as np
+import pytest
+
+from homocal import PinholeCamera, ViewTransformer, ground_uncertainty, max_trustworthy_range, sigma_radius
+from homocal.geometry import homography_from_quads, apply_homography
+from homocal.uncertainty import straight_ahead_column
+
+CAM = PinholeCamera()
+GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])
+VT = ViewTransformer(CAM.project_ground(GROUND), GROUND)
+POINTS_G = np.array([[0.0, 5.0], [0.0, 10.0], [0.0, 20.0], [0.0, 35.0], [0.0, 50.0], [-6.0, 15.0], [8.0, 40.0]])
+POINTS_Q = CAM.project_ground(POINTS_G)
+
+
+def monte_carlo(click, point, map_sigma, draws=4000, seed=0):
+    """Sample covariances (N, 2, 2) of the mapped points under the same independent Gaussian errors."""
+    rng = np.random.default_rng(seed)
+    out = np.empty((draws, len(POINTS_Q), 2))
+    for n in range(draws):
+        H = homography_from_quads(VT.source + rng.normal(0, click, (4, 2)), VT.target + rng.normal(0, map_sigma, (4, 2)))
+        out[n] = apply_homography(H, POINTS_Q + rng.normal(0, point, POINTS_Q.shape))
+    d = out - out.mean(axis=0)
+    return np.einsum("sni,snj->nij", d, d) / (draws - 1)
+
+
+@pytest.mark.parametrize("click,point,map_sigma", [(1.5, 1.0, 0.0), (1.5, 0.0, 0.0), (0.0, 1.0, 0.0), (0.5, 0.5, 0.1)])
+def test_radii_match_monte_carlo_out_to_50_m(click, point, map_sigma):
+    cov = ground_uncertainty(VT, POINTS_Q, click_sigma_px=click, point_sigma_px=point, map_sigma_px=map_sigma)
+    mc = monte_carlo(click, point, map_sigma)
+    np.testing.assert_allclose(sigma_radius(cov), sigma_radius(mc), rtol=0.10)
+    np.testing.assert_allclose(np.sqrt(np.trace(cov, axis1=1, axis2=2)), np.sqrt(np.trace(mc, axis1=1, axis2=2)),
+                               rtol=0.10)
+
+
+def test_radius_grows_with_range_beyond_the_trapezoid():
+    r = sigma_radius(ground_uncertainty(VT, POINTS_Q[1:5]))  # 10-50 m (5 m, below the trapezoid, is extrapolated)
+    assert np.all(np.diff(r) > 0) and r[-1] > 10 * r[0]
+
+
+def test_sigma_radius_is_the_largest_eigenvalue():
+    rng = np.random.default_rng(1)
+    A = rng.normal(size=(20, 2, 2))
+    cov = A @ A.transpose(0, 2, 1)
+    np.testing.assert_allclose(sigma_radius(cov), np.sqrt(np.linalg.eigvalsh(cov)[:, -1]), rtol=1e-12)
+
+
+def test_above_horizon_is_nan():
+    cov = ground_uncertainty(VT, [[640.0, 100.0], [640.0, 500.0]])
+    assert np.isnan(cov[0]).all() and np.isfinite(cov[1]).all()
+
+
+def test_zero_sigmas_give_zero():
+    np.testing.assert_array_equal(ground_uncertainty(VT, POINTS_Q, 0.0, 0.0), 0.0)
+
+
+@pytest.mark.parametrize("kwargs,match", [
+    ({"click_sigma_px": -1.0}, "click_sigma_px"),
+    ({"point_sigma_px": math.nan}, "point_sigma_px"),
+    ({"map_sigma_px": math.inf}, "map_sigma_px"),
+])
+def test_bad_sigmas(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        ground_uncertainty(VT, POINTS_Q, **kwargs)
+
+
+class TestMaxTrustworthyRange:
+    def test_straight_ahead_is_the_principal_column(self):
+        assert straight_ahead_column(VT) == pytest.approx(CAM.K[0, 2], abs=1e-6)
+
+    @pytest.mark.parametrize("tolerance", [0.1, 0.5, 2.0])
+    @pytest.mark.parametrize("u", [639.5, 300.0])
+    def test_matches_a_dense_scan(self, tolerance, u):
+        rows = VT.horizon_row(u) + np.geomspace(VT.source[:, 1].max() - VT.horizon_row(u), 0.5, 20000)
+        q = np.column_stack([np.full(len(rows), u), rows])
+        ok = sigma_radius(ground_uncertainty(VT, q)) <= tolerance
+        first_bad = np.argmin(ok)
+        assert ok[0] and not ok[first_bad]
+        expected = np.linalg.norm(VT.transform_points(q[first_bad - 1 : first_bad + 1]), axis=1)
+        r = max_trustworthy_range(VT, tolerance, columns=[u])
+        assert r.shape == (1,) and expected[0] <= r[0] <= expected[1]
+
+    def test_default_column_and_scalar_result(self):
+        r = max_trustworthy_range(VT, 0.5)
+        assert isinstance(r, float) and r == max_trustworthy_range(VT, 0.5, columns=[straight_ahead_column(VT)])[0]
+        assert 10.0 < r < 80.0
+
+    def test_limits(self):
+        assert max_trustworthy_range(VT, 1e-6) == 0.0
+        assert max_trustworthy_range(VT, 0.5, click_sigma_px=0.0, point_sigma_px=0.0) == math.inf
+
+    @pytest.mark.parametrize("tolerance", [0.0, -1.0, math.nan, math.inf])
+    def test_bad_tolerance(self, tolerance):
+        with pytest.raises(ValueError, match="tolerance_m"):
+            max_trustworthy_range(VT, tolerance)
