@@ -19,7 +19,7 @@ from homocal.correctors.base import Corrector, load_corrector
 from homocal.correctors.regression import RegressionCorrector
 from homocal.correctors.serialization import read_json
 from homocal.files import write_json_atomic, write_text_atomic
-from homocal.geometry import SiteMap, ViewTransformer, validate_quad
+from homocal.geometry import SiteMap, ViewTransformer, signed_area, validate_quad
 from homocal.ui import overlay
 from homocal.ui.errorbars import error_bars
 from homocal.ui.session import Session
@@ -65,9 +65,8 @@ def check_corner_order(quad: np.ndarray, side: str) -> None:
     """Refuse a convex quad (4, 2) (pixels, y down) whose corners TL, TR, BR, BL do not go clockwise on screen
     with TL, TR above BR, BL. On the site map (map up = forward, data_schema.md) that is a mirrored or an
     upside-down map; in the image, corners clicked out of order."""
-    x, y = quad.T
-    clockwise = np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) > 0
-    top_above = y[0] + y[1] < y[2] + y[3]
+    clockwise = signed_area(quad) > 0  # clockwise as drawn in a y-down frame
+    top_above = quad[0, 1] + quad[1, 1] < quad[2, 1] + quad[3, 1]
     if side == "map" and not clockwise:
         raise ValueError("map corners: mirrored (TL, TR, BR, BL must go clockwise on the map, as in the image); "
                          "is the map image flipped?")
@@ -128,7 +127,8 @@ def _sigmas(req: dict) -> dict:
 
 # ---- endpoints ------------------------------------------------------------------------------------
 def view(session: Session, req: dict) -> dict:
-    """Horizon, ground grid, footprint, error bars and trustworthy range of the trapezoid clicked so far."""
+    """Horizon, ground grid, footprint, error bars and trustworthy range of the trapezoid clicked so far
+    ("errorbars": false leaves the last two out: the page asks so while a corner is dragged)."""
     transformer = transformer_of(session, *trapezoid(req))
     if transformer is None:
         return {"complete": False}
@@ -143,8 +143,9 @@ def view(session: Session, req: dict) -> dict:
         "horizon": overlay.horizon_segment(transformer, w, h),
         "grid": overlay.ground_grid(field, origin),
         "footprint": overlay.footprint(transformer, w, h, session.site_map, origin, max_range),
-        "errorbars": error_bars(session, transformer, overlay.grid_nodes(field, transformer), origin,
-                                _number(req, "tolerance_m", 0.5, positive=True), **_sigmas(req)),
+        "errorbars": None if req.get("errorbars") is False else error_bars(
+            session, transformer, overlay.grid_nodes(field, transformer), origin,
+            _number(req, "tolerance_m", 0.5, positive=True), **_sigmas(req)),
     }
 
 
@@ -183,8 +184,7 @@ def locate(session: Session, req: dict) -> dict:
         corrector = Corrector.from_dict(req["correction"], "correction")
         corrected = corrector.transform_points(point)[0]
         out["corrected"] = corrected.tolist() if np.isfinite(corrected).all() else None
-    out["errorbars"] = error_bars(session, transformer, point, origin, _number(req, "tolerance_m", 0.5, positive=True),
-                                  **_sigmas(req))
+    out["errorbars"] = error_bars(session, transformer, point, origin, None, **_sigmas(req))
     return out
 
 

@@ -18,6 +18,7 @@ from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer
 from homocal.ui import api, overlay
 from homocal.ui.server import UIServer
 from homocal.ui.session import from_files, read_frame
+from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius
 
 CAM = PinholeCamera()  # 1280x720, 4 m high, tilted 15 degrees down
 W, H = CAM.width, CAM.height
@@ -260,3 +261,26 @@ def test_bad_command_lines(tmp_path, monkeypatch, capsys, args, message):
     assert main(["ui", *args]) == 2
     err = capsys.readouterr().err
     assert err.startswith("homocal: error: ") and message in err and err.count("\n") == 1
+
+
+# ---- error bars ------------------------------------------------------------------------------------------
+def test_error_ellipses_are_the_librarys_1_sigma_covariances(session):
+    """Every ellipse vertex p satisfies (p - c)^T Sigma^-1 (p - c) = 1 for the library's covariance Sigma, the map
+    clicking sigma being converted from map px to metres; the trustworthy range is the library's."""
+    sigmas = {"click_sigma_px": 2.0, "point_sigma_px": 0.5, "map_sigma_px": 3.0}
+    bars = api.view(session, request(tolerance_m=0.4, **sigmas))["errorbars"]
+    transformer = ViewTransformer(IMAGE, GROUND)
+    q = np.array(bars["image_points"])
+    assert len(q) >= 5
+    cov = ground_uncertainty(transformer, q, 2.0, 0.5, 3.0 / SITE.scale_px_per_m)
+    for c, sigma, ellipse_map, s in zip(bars["points"], bars["sigma"], bars["map"], cov):
+        d = SITE.to_metres(np.array(ellipse_map)) - c
+        rounding = 0.005 * np.sqrt(2) / SITE.scale_px_per_m  # vertices are rounded to 0.01 map px
+        tolerance = 2 * rounding / sigma[1] + (rounding / sigma[1]) ** 2
+        np.testing.assert_allclose(np.einsum("ni,ij,nj->n", d, np.linalg.inv(s), d), 1.0, atol=tolerance)
+        np.testing.assert_allclose(sigma[0], sigma_radius(s), rtol=1e-9)
+    expected = max_trustworthy_range(transformer, 0.4, click_sigma_px=2.0, point_sigma_px=0.5, map_sigma_px=0.3)
+    assert bars["trustworthy_range_m"] == pytest.approx(expected, rel=1e-12)
+    for line in bars["trustworthy_image"]:
+        np.testing.assert_allclose(np.hypot(*transformer.transform_points(np.array(line)).T), expected, rtol=2e-3)
+    assert api.view(session, request(errorbars=False))["errorbars"] is None

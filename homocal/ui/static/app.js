@@ -61,23 +61,28 @@ function say(text, kind) {
   m.className = text ? kind : "";
 }
 
-let viewBusy = false, viewAgain = false;
-// Ask for the overlays of the current trapezoid; resolves to true if the server accepted it.
-async function refreshView() {
-  if (viewBusy) { viewAgain = true; return true; }
-  viewBusy = true;
-  let ok = true;
-  try {
-    S.view = await api("view", viewRequest());
-    if ($("message").className === "error") say("", "");
-  } catch (e) {
-    S.view = null; ok = false;
-    say(e.message, "error");
+let viewSeq = 0, viewShown = 0;  // the newest answer shown wins over older ones that arrive late
+// Ask for the overlays of the current trapezoid; light: without the error bars (while dragging: they are the
+// slow part). Resolves to null if the server accepted it, else to its message.
+async function refreshView(light) {
+  const seq = ++viewSeq;
+  let error = null, answer = null;
+  try { answer = await api("view", { ...viewRequest(), errorbars: !light }); } catch (e) { error = e.message; }
+  if (seq > viewShown) {
+    viewShown = seq;
+    S.view = answer;
+    if (error) say(error, "error");
+    else if ($("message").className === "error") say("", "");
+    render();
   }
-  viewBusy = false;
-  if (viewAgain) { viewAgain = false; return refreshView(); }
-  render();
-  return ok;
+  return error;
+}
+
+let dragBusy = false, dragAgain = false;
+function dragView() {  // at most one light request in flight while a corner is dragged
+  if (dragBusy) { dragAgain = true; return; }
+  dragBusy = true;
+  refreshView(true).finally(() => { dragBusy = false; if (dragAgain) { dragAgain = false; dragView(); } });
 }
 
 function invalidateFit() {
@@ -90,9 +95,8 @@ async function changeTrapezoid(undo) {
   invalidateFit();
   S.probe = null;
   render();
-  const ok = await refreshView();
-  if (!ok && undo) {
-    const reason = $("message").textContent;
+  const reason = await refreshView();
+  if (reason && undo) {
     undo();
     await refreshView();
     say("refused: " + reason, "error");
@@ -116,7 +120,7 @@ function groundToMap(g) {
   const m = S.info.map;
   return [m.origin_px[0] + g[0] * m.scale_px_per_m, m.origin_px[1] - g[1] * m.scale_px_per_m];
 }
-const round = (x, step) => Math.round(x / step) * step;
+const round = (x, step) => Math.round(x / step) / Math.round(1 / step);  // step: 0.1 or 0.01
 
 // ---- drawing ----------------------------------------------------------------------------------------
 function polyline(ctx, name, pts, close) {
@@ -186,11 +190,16 @@ function renderFrame() {
     if (S.fit && $("show-corrected").checked) {
       drawGrid(ctx, S.fit.corrected_grid, ["rgba(255,157,46,0.35)", "rgba(255,157,46,0.9)", "rgba(255,157,46,0.9)"]);
     }
-    if (view.horizon) { style(ctx, "#ff5050", 2, [10, 6]); polyline(ctx, "frame", view.horizon); label(ctx, "frame", view.horizon[0], "horizon", "#ff5050", 40, -6); }
+    if (view.horizon) {
+      const [[u0, v0], [u1, v1]] = view.horizon, u = 0, v = v0 + (v1 - v0) * (u - u0) / (u1 - u0);
+      style(ctx, "#ff5050", 2, [10, 6]); polyline(ctx, "frame", view.horizon); label(ctx, "frame", [u, v], "horizon", "#ff5050", 4, -6);
+    }
     if (view.errorbars) {
       drawEllipses(ctx, "frame", view.errorbars, "image", view.errorbars.image_points);
       style(ctx, "#ff4fd8", 2.5, [4, 4]);
       view.errorbars.trustworthy_image.forEach((l) => polyline(ctx, "frame", l));
+      const ring = view.errorbars.trustworthy_image.reduce((a, b) => (b.length > a.length ? b : a), []);
+      if (ring.length) label(ctx, "frame", ring[Math.floor(ring.length * 0.3)], "trustworthy", "#ff4fd8");
     }
   }
   drawTrapezoid(ctx, "frame", S.trap.image);
@@ -293,7 +302,7 @@ function renderPanels(keepTable) {
 
   const bars = S.view && S.view.errorbars;
   if (!S.view || !S.view.complete) $("errorbar-summary").textContent = "";
-  else if (!bars) $("errorbar-summary").textContent = "error bars: not available in this homocal";
+  else if (!bars) $("errorbar-summary").textContent = "error bars: when the corner is let go";
   else {
     const r = bars.trustworthy_range_m;
     $("errorbar-summary").textContent = `trustworthy range (1-sigma error <= ${number("tolerance")} m): ` +
@@ -304,7 +313,7 @@ function renderPanels(keepTable) {
     $("probe-summary").textContent = `probe (${fmt(S.probe.u, 1)}, ${fmt(S.probe.v, 1)}) px -> ground ` +
       `(${fmt(a.ground[0], 2)}, ${fmt(a.ground[1], 2)}) m at ${fmt(a.distance, 2)} m` +
       (a.corrected ? `; corrected (${fmt(a.corrected[0], 2)}, ${fmt(a.corrected[1], 2)}) m` : "") +
-      (b ? `; 1 sigma ${fmt(b.sigma[0][0], 3)} x ${fmt(b.sigma[0][1], 3)} m` : "");
+      (b.sigma.length ? `; 1-sigma ellipse ${fmt(b.sigma[0][0], 3)} x ${fmt(b.sigma[0][1], 3)} m` : "; no error bar (at the horizon)");
   }
 }
 
@@ -360,7 +369,7 @@ function onMove(name, e) {
   const q = [round(p[0], 0.1), round(p[1], 0.1)];
   if (drag.kind === "corner") {
     S.trap[name === "frame" ? "image" : "map"][drag.i] = q;
-    invalidateFit(); refreshView();
+    invalidateFit(); dragView();
   } else {
     const pt = S.points[drag.i];
     if (name === "frame") { pt.u = q[0]; pt.v = q[1]; }
@@ -530,5 +539,5 @@ async function start() {
   document.body.dataset.ready = "1";
 }
 
-window.homocalUI = { S, views, toScreen, idle: () => inFlight === 0 && !viewBusy && !viewAgain };
+window.homocalUI = { S, views, toScreen, idle: () => inFlight === 0 && !dragAgain };
 start().catch((e) => say(e.message, "error"));
