@@ -8,24 +8,32 @@ import argparse
 import csv
 import io
 import math
+import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from homocal.correctors.base import Corrector, load_corrector
 from homocal.correctors.descent import DescentCorrector
+from homocal.correctors.horizon import HorizonCorrector
 from homocal.correctors.hybrid import HybridCorrector
 from homocal.correctors.regression import RegressionCorrector
 from homocal.correctors.serialization import read_json
 from homocal.files import write_text_atomic
-from homocal.geometry import SiteMap, ViewTransformer, validate_quad
+from homocal.geometry import SiteMap, ViewTransformer, check_orientation, validate_quad
+from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius, straight_ahead_column
 
 METHODS = {
     "regression": lambda args: RegressionCorrector(),
     "regression-signed": lambda args: RegressionCorrector(signed=True),
+    "regression-intercept": lambda args: RegressionCorrector(signed=True, intercept=True),
+    "horizon": lambda args: HorizonCorrector(),
     "descent": lambda args: DescentCorrector(seed=args.seed),
     "hybrid": lambda args: HybridCorrector(threshold=args.threshold, seed=args.seed),
 }
+TRUST_TOLERANCE_M = 0.5  # homocal fit reports how far the 1-sigma error stays under this
+STATUS = ("ok", "beyond_horizon", "not_finite")  # homocal apply's status column
 
 FIT_FORMATS = """\
 TRAP.json, the trapezoid (vertices in the order TL, TR, BR, BL as seen in the image):
@@ -37,16 +45,28 @@ TRAP.json, the trapezoid (vertices in the order TL, TR, BR, BL as seen in the im
   site_map.json beside it.
 REF.csv, three or more reference points, a header line then one row per point:
   u,v,x,y        u, v: the image foot point (pixels); x, y: its true ground position (metres)
-  Other columns are ignored. Points are counted from 0 in error messages.
+  Other columns are ignored. Points are counted from 0 in error messages. Each point must be measured
+  once (a repeated image or ground point is refused); a point with y < the camera origin's y (behind
+  the camera) gets a warning.
+The map trapezoid must go round the same way as the image's (the same corner order TL, TR, BR, BL as
+seen in the image): a mirrored or upside-down map is refused.
 The camera origin (--camera-origin, metres, default 0,0) is the ground point under the camera; write
 a negative value as --camera-origin=-1.5,0.
-The correction JSON holds everything needed to apply it later (homocal apply)."""
+The correction JSON holds everything needed to apply it later (homocal apply). The last line printed is
+the range straight ahead out to which the 1-sigma error of a mapped point (1.5 px clicking error on each
+trapezoid corner, 1 px on the foot point: homocal.max_trustworthy_range) stays under 0.5 m."""
 
 APPLY_FORMATS = """\
 FEET.csv: a header line then one row per point; columns u, v (image foot point, pixels) are required,
-other columns are carried through to the output. The output has the same rows and columns plus x, y,
-the corrected ground position in metres (replacing any x, y of the input); a point on or above the
-horizon gets x, y = nan."""
+other columns are carried through to the output. The output has the same rows and columns plus
+  x, y      the corrected ground position in metres (replacing any x, y of the input);
+  sigma_m   its 1-sigma radius in metres (sqrt of the largest eigenvalue of the first-order covariance,
+            homocal.ground_uncertainty) for a clicking error of --click-sigma-px on each trapezoid corner
+            and --point-sigma-px on the foot point; of the trapezoid the correction maps with (descent's
+            and horizon's own, the clicked one for the regressions);
+  status    ok; beyond_horizon (on or above the horizon: x, y, sigma_m = nan); not_finite (u or v is
+            nan or inf in the input: x, y, sigma_m = nan).
+Rows are never dropped; the summary line names the lines of the non-finite rows."""
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -59,7 +79,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     fit.add_argument("--trapezoid", required=True, type=Path, metavar="TRAP.json", help="the trapezoid (see below)")
     fit.add_argument("--points", required=True, type=Path, metavar="REF.csv", help="reference points u,v,x,y")
     fit.add_argument("--method", required=True, choices=METHODS, help="regression (the paper's, clamped), "
-                     "regression-signed (also corrects overestimated range), descent, hybrid")
+                     "regression-signed (also corrects overestimated range), regression-intercept (signed, "
+                     "a d^2 + b d + c), horizon (fits the horizon shift of Section 3), descent, hybrid")
     fit.add_argument("-o", "--output", required=True, type=Path, metavar="CORRECTION.json", help="the correction to write")
     fit.add_argument("--camera-origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
                      help="ground point under the camera, metres (default 0,0)")
@@ -75,42 +96,63 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     apply.add_argument("correction", type=Path, metavar="CORRECTION.json", help="written by homocal fit")
     apply.add_argument("--points", required=True, type=Path, metavar="FEET.csv", help="image foot points u,v")
     apply.add_argument("-o", "--output", required=True, type=Path, metavar="CORRECTED.csv", help="the CSV to write")
+    apply.add_argument("--click-sigma-px", type=_sigma, default=1.5, metavar="PX",
+                       help="sigma_m: clicking error of each trapezoid coordinate, pixels (default 1.5)")
+    apply.add_argument("--point-sigma-px", type=_sigma, default=1.0, metavar="PX",
+                       help="sigma_m: error of each foot point coordinate, pixels (default 1.0)")
     apply.set_defaults(handler=run_apply)
 
 
 def run_fit(args: argparse.Namespace) -> int:
     transformer = load_trapezoid(args.trapezoid)
-    _, _, cols = read_points_csv(args.points, ("u", "v", "x", "y"), finite=True)
+    _, _, cols, _ = read_points_csv(args.points, ("u", "v", "x", "y"), finite=True)
     _check_output_folder(args.output)
     corrector = METHODS[args.method](args)
     try:
-        corrector.fit(transformer, np.column_stack([cols["u"], cols["v"]]), np.column_stack([cols["x"], cols["y"]]),
-                      args.camera_origin)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            corrector.fit(transformer, np.column_stack([cols["u"], cols["v"]]),
+                          np.column_stack([cols["x"], cols["y"]]), args.camera_origin)
     except ValueError as e:
         raise ValueError(f"{args.points}: {e}") from None
+    for w in caught:
+        print(f"homocal: warning: {args.points}: {w.message}", file=sys.stderr)
     corrector.save(args.output)
     print(f"homocal fit: {args.method} correction from {len(cols['u'])} reference points written to {args.output}: "
           f"{_quality(corrector)}.{_method_note(corrector)}")
+    mapping = _mapping(corrector)
+    trust = max_trustworthy_range(mapping, TRUST_TOLERANCE_M, camera_origin=args.camera_origin)
+    print(f"Error bars (1.5 px clicking error on each trapezoid corner, 1 px on a foot point): the 1-sigma error "
+          f"stays under {TRUST_TOLERANCE_M:g} m out to {trust:.1f} m straight ahead (image column "
+          f"{straight_ahead_column(mapping):.0f}).")
     return 0
 
 
 def run_apply(args: argparse.Namespace) -> int:
     corrector = load_corrector(args.correction)
-    fields, rows, cols = read_points_csv(args.points, ("u", "v"), finite=False)
+    fields, rows, cols, lines = read_points_csv(args.points, ("u", "v"), finite=False)
     _check_output_folder(args.output)
-    xy = corrector.transform_points(np.column_stack([cols["u"], cols["v"]]))
-    out_fields = [f for f in fields if f not in ("x", "y")] + ["x", "y"]
+    q = np.column_stack([cols["u"], cols["v"]])
+    xy = corrector.transform_points(q)
+    sigma = sigma_radius(ground_uncertainty(_mapping(corrector), q, args.click_sigma_px, args.point_sigma_px))
+    not_finite = ~np.isfinite(q).all(axis=1)
+    status = np.where(not_finite, "not_finite", np.where(np.isnan(xy).any(axis=1), "beyond_horizon", "ok"))
+    added = ("x", "y", "sigma_m", "status")
+    out_fields = [f for f in fields if f not in added] + list(added)
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(out_fields)
-    for row, (x, y) in zip(rows, xy):
-        row = {**row, "x": repr(float(x)), "y": repr(float(y))}
+    for row, (x, y), sm, st in zip(rows, xy, sigma, status):
+        row = {**row, "x": repr(float(x)), "y": repr(float(y)), "sigma_m": repr(float(sm)), "status": st}
         writer.writerow([row[f] for f in out_fields])
     write_text_atomic(args.output, buffer.getvalue())
-    beyond = int(np.isnan(xy).any(axis=1).sum())
+    beyond = int((status == "beyond_horizon").sum())
+    bad_lines = [lines[i] for i in np.flatnonzero(not_finite)]
+    bad = (f"; {len(bad_lines)} with a non-finite u or v (status not_finite, line"
+           f"{'s' if len(bad_lines) > 1 else ''} {_line_list(bad_lines)})" if bad_lines else "")
     print(f"homocal apply: {len(rows)} points mapped with the {_label(corrector)} correction of {args.correction} "
-          f"and written to {args.output}; {beyond} on or above the horizon (x, y = nan). "
-          f"The correction was fitted with {_quality(corrector)}.")
+          f"and written to {args.output}; {beyond} on or above the horizon (status beyond_horizon){bad}; x, y, "
+          f"sigma_m = nan for those. The correction was fitted with {_quality(corrector)}.")
     return 0
 
 
@@ -130,6 +172,7 @@ def load_trapezoid(path: Path) -> ViewTransformer:
         image, ground = validate_quad(entry["image"], "image"), validate_quad(entry["map"], "map")
         if site_map is not None:
             ground = site_map.to_metres(ground)
+        check_orientation(image, ground, target_y_up=True)  # metres now (site-map pixels converted)
         return ViewTransformer(image, ground)
     except KeyError as e:
         raise ValueError(f"{path}: missing key {e} (expected \"image\" and \"map\", see homocal fit --help)") from None
@@ -139,38 +182,72 @@ def load_trapezoid(path: Path) -> ViewTransformer:
 
 def read_points_csv(
     path: Path, required: tuple[str, ...], finite: bool
-) -> tuple[list[str], list[dict[str, str]], dict[str, np.ndarray]]:
-    """Read a CSV with a header; return (column names, rows as dicts of text, required columns as float64).
+) -> tuple[list[str], list[dict[str, str]], dict[str, np.ndarray], list[int]]:
+    """Read a CSV with a header; return (column names, rows as dicts of text, required columns as float64, the
+    line number of each row).
 
-    ValueError naming the file (and line) for: a missing file or column, a row of the wrong length, a value
-    that is not a number (or not finite, if ``finite``).
+    ValueError naming the file (and line) for: a missing file or column, a column name given twice, text that
+    is not UTF-8, a row of the wrong length, a value that is not a number (or not finite, if ``finite``).
     """
     if not path.is_file():
         raise ValueError(f"{path}: no such file")
-    with path.open(newline="", encoding="utf-8-sig") as f:
-        reader = csv.reader(f)
-        header = [name.strip() for name in next(reader, [])]
-        missing = [c for c in required if c not in header]
-        if missing:
-            raise ValueError(f"{path}: missing column(s) {', '.join(missing)} in the header line "
-                             f"(found: {', '.join(header) or 'nothing'}; expected {','.join(required)})")
-        rows, values = [], {c: [] for c in required}
-        for fields in reader:
-            if not fields:
-                continue
-            if len(fields) != len(header):
-                raise ValueError(f"{path}, line {reader.line_num}: {len(fields)} fields, the header has {len(header)}")
-            row = dict(zip(header, fields))
-            for c in required:
-                try:
-                    value = float(row[c])
-                except ValueError:
-                    raise ValueError(f"{path}, line {reader.line_num}: column {c}: {row[c]!r} is not a number") from None
-                if finite and not math.isfinite(value):
-                    raise ValueError(f"{path}, line {reader.line_num}: column {c}: {row[c]!r} is not a finite number")
-                values[c].append(value)
-            rows.append(row)
-    return header, rows, {c: np.array(v, dtype=np.float64) for c, v in values.items()}
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as f:
+            return _read_points(csv.reader(f), path, required, finite)
+    except UnicodeDecodeError as e:
+        raise ValueError(f"{path}: not UTF-8 text ({e})") from None
+
+
+def _read_points(reader, path: Path, required: tuple[str, ...], finite: bool):
+    header = [name.strip() for name in next(reader, [])]
+    twice = sorted({name for name in header if header.count(name) > 1})
+    if twice:
+        raise ValueError(f"{path}: column(s) {', '.join(map(repr, twice))} appear more than once in the header line")
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise ValueError(f"{path}: missing column(s) {', '.join(missing)} in the header line "
+                         f"(found: {', '.join(header) or 'nothing'}; expected {','.join(required)})")
+    rows, values, lines = [], {c: [] for c in required}, []
+    for fields in reader:
+        if not fields:
+            continue
+        if len(fields) != len(header):
+            raise ValueError(f"{path}, line {reader.line_num}: {len(fields)} fields, the header has {len(header)}")
+        row = dict(zip(header, fields))
+        for c in required:
+            try:
+                value = float(row[c])
+            except ValueError:
+                raise ValueError(f"{path}, line {reader.line_num}: column {c}: {row[c]!r} is not a number") from None
+            if finite and not math.isfinite(value):
+                raise ValueError(f"{path}, line {reader.line_num}: column {c}: {row[c]!r} is not a finite number")
+            values[c].append(value)
+        rows.append(row)
+        lines.append(reader.line_num)
+    return header, rows, {c: np.array(v, dtype=np.float64) for c, v in values.items()}, lines
+
+
+def _mapping(corrector: Corrector) -> ViewTransformer:
+    """The trapezoid mapping a correction maps with: descent's and horizon's own, the hybrid's chosen one's,
+    the clicked one for the regressions (their radial correction is not in the error bars)."""
+    if isinstance(corrector, HybridCorrector):
+        return _mapping(corrector.regression_ if corrector.chosen_ == "regression" else corrector.descent_)
+    return getattr(corrector, "transformer_", corrector.base_transformer_)
+
+
+def _line_list(lines: list[int], most: int = 10) -> str:
+    shown = ", ".join(map(str, lines[:most]))
+    return shown + (f" and {len(lines) - most} more" if len(lines) > most else "")
+
+
+def _sigma(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of pixels, got {text!r}") from None
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
+    return value
 
 
 def _xy(text: str) -> tuple[float, float]:
@@ -191,7 +268,9 @@ def _check_output_folder(path: Path) -> None:
 def _label(corrector: Corrector) -> str:
     if isinstance(corrector, HybridCorrector):
         return f"hybrid ({corrector.chosen_})"
-    return "regression-signed" if isinstance(corrector, RegressionCorrector) and corrector.signed else corrector.method
+    if isinstance(corrector, RegressionCorrector) and corrector.signed:
+        return "regression-intercept" if corrector.intercept else "regression-signed"
+    return corrector.method
 
 
 def _quality(corrector: Corrector) -> str:
@@ -208,6 +287,10 @@ def _method_note(corrector: Corrector) -> str:
     if isinstance(corrector, DescentCorrector):
         return f" Descent used {corrector.evaluations_} phase-2 evaluations."
     if isinstance(corrector, RegressionCorrector):
-        note = " (linear-only fallback: the reference distances are nearly equal)" if corrector.degenerate_ else ""
-        return f" Error law e(d) = {corrector.a_:.6g} d^2 + {corrector.b_:.6g} d{note}."
+        note = " (fallback of lower order: the reference distances are nearly equal)" if corrector.degenerate_ else ""
+        constant = f" + {corrector.c_:.6g}" if corrector.intercept else ""
+        return f" Error law e(d) = {corrector.a_:.6g} d^2 + {corrector.b_:.6g} d{constant}{note}."
+    if isinstance(corrector, HorizonCorrector):
+        return (f" Horizon shift epsilon = {corrector.horizon_shift_:.3f} px (the clicked trapezoid's horizon lies that "
+                f"far below the fitted one; corrected trapezoid: the clicked one moved {corrector.horizon_shift_:.3f} px up).")
     return ""

@@ -1,5 +1,6 @@
-"""``homocal fit`` / ``homocal apply`` end to end in a subprocess: formats, results, and bad input that
-ends with one "homocal: error:" line, exit code 2 and no output file."""
+"""``homocal fit`` / ``homocal apply`` end to end in a subprocess: formats, results; and bad input that
+ends with one "homocal: error:" line, exit code 2 and no output file (those tables run homocal.cli.main
+in-process: the same code from argv to stderr, without a 3 s interpreter start per case)."""
 import csv
 import json
 import os
@@ -10,10 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from homocal.correctors import DescentCorrector, RegressionCorrector, load_corrector
+from homocal.cli import main
+from homocal.correctors import DescentCorrector, HorizonCorrector, RegressionCorrector, load_corrector
 from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer
+from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius
 
 REPO = Path(__file__).resolve().parents[2]
+STREET = REPO / "examples" / "street"
 CAM = PinholeCamera()
 GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])
 IMAGE = np.round(CAM.project_ground(GROUND)) + [[2, -1], [-1, 2], [3, 1], [-2, -2]]  # hand-placed, integers
@@ -27,6 +31,17 @@ def homocal(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     return subprocess.run([sys.executable, "-m", "homocal.cli", *args], cwd=cwd, env=env, capture_output=True,
                           text=True, timeout=60)
+
+
+def homocal_main(*args: str, cwd: Path, capsys, monkeypatch) -> subprocess.CompletedProcess:
+    """homocal.cli.main(args) run in-process in cwd, as a CompletedProcess (usage errors exit through SystemExit)."""
+    monkeypatch.chdir(cwd)
+    try:
+        code = main(list(args))
+    except SystemExit as e:
+        code = e.code
+    out = capsys.readouterr()
+    return subprocess.CompletedProcess(args, code, out.out, out.err)
 
 
 def write_csv(path: Path, header: list[str], rows) -> None:
@@ -45,6 +60,8 @@ def work(tmp_path: Path) -> Path:
 @pytest.mark.parametrize("method,expected", [
     ("regression", lambda: RegressionCorrector()),
     ("regression-signed", lambda: RegressionCorrector(signed=True)),
+    ("regression-intercept", lambda: RegressionCorrector(signed=True, intercept=True)),
+    ("horizon", lambda: HorizonCorrector()),
     ("descent", lambda: DescentCorrector()),
 ])
 def test_fit_and_apply_match_the_library(work, method, expected):
@@ -53,16 +70,66 @@ def test_fit_and_apply_match_the_library(work, method, expected):
     assert fit.returncode == 0, fit.stderr
     reference = expected().fit(ViewTransformer(IMAGE, GROUND), REF_Q, REF_G, (0.0, 0.0))
     assert f"{reference.calibration_improvement_:.1f} %" in fit.stdout and method in fit.stdout
-    app = homocal("apply", "c.json", "--points", "feet.csv", "-o", "out.csv", cwd=work)
+    mapping = getattr(reference, "transformer_", reference.base_transformer_)
+    assert f"under 0.5 m out to {max_trustworthy_range(mapping, 0.5):.1f} m straight ahead" in fit.stdout
+    app = homocal("apply", "c.json", "--points", "feet.csv", "-o", "out.csv", "--click-sigma-px", "2",
+                  "--point-sigma-px", "0.5", cwd=work)
     assert app.returncode == 0, app.stderr
-    assert "1 on or above the horizon" in app.stdout
+    assert "1 on or above the horizon (status beyond_horizon)" in app.stdout
     with (work / "out.csv").open() as f:
         rows = list(csv.DictReader(f))
-    assert list(rows[0]) == ["id", "u", "v", "label", "x", "y"]  # extra columns carried through
+    assert list(rows[0]) == ["id", "u", "v", "label", "x", "y", "sigma_m", "status"]  # extra columns carried through
     assert [r["label"] for r in rows] == ["p0", "p1", "p2", "p3"]
+    assert [r["status"] for r in rows] == ["ok", "ok", "ok", "beyond_horizon"]
     xy = np.array([[float(r["x"]), float(r["y"])] for r in rows])
     np.testing.assert_array_equal(xy, reference.transform_points(FEET_Q))  # full precision, NaN beyond horizon
+    sigma = np.array([float(r["sigma_m"]) for r in rows])
+    np.testing.assert_array_equal(sigma, sigma_radius(ground_uncertainty(mapping, FEET_Q, 2.0, 0.5)))
+    assert np.isnan(sigma[3]) and np.all(sigma[:3] > 0)
     assert sorted(p.name for p in work.iterdir()) == ["c.json", "feet.csv", "out.csv", "ref.csv", "trap.json"]
+
+
+def test_apply_marks_non_finite_rows_and_names_their_lines(work):
+    assert homocal("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "--method", "regression-intercept",
+                   "-o", "c.json", cwd=work).returncode == 0
+    write_csv(work / "feet.csv", ["u", "v"], [(640, 500), ("nan", 500), (640, 100), (640, "inf"), (600, 450)])
+    app = homocal("apply", "c.json", "--points", "feet.csv", "-o", "out.csv", cwd=work)
+    assert app.returncode == 0, app.stderr
+    assert "1 on or above the horizon (status beyond_horizon); 2 with a non-finite u or v (status not_finite, " \
+           "lines 3, 5)" in app.stdout
+    with (work / "out.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert [r["status"] for r in rows] == ["ok", "not_finite", "beyond_horizon", "not_finite", "ok"]
+    for r in rows:
+        assert (r["status"] == "ok") == all(np.isfinite(float(r[c])) for c in ("x", "y", "sigma_m"))
+
+
+def test_point_behind_the_camera_is_a_warning(work):
+    rows = np.column_stack([REF_Q, REF_G * [[1, 1], [1, 1], [1, -1]]])
+    write_csv(work / "ref.csv", ["u", "v", "x", "y"], rows)
+    fit = homocal("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "--method", "horizon", "-o", "c.json",
+                  cwd=work)
+    assert fit.returncode == 0, fit.stderr
+    assert fit.stderr == "homocal: warning: ref.csv: ground_points[2] = [0.0, -35.0] is behind the camera (y < 0, " \
+                         "the camera origin's y; y points forward): a sign error?\n"
+    assert (work / "c.json").is_file()
+
+
+def _street_variants():
+    """examples/street's trapezoid with the map's corners relabelled (the image's order kept)."""
+    base = json.loads((STREET / "trapezoid.json").read_text())
+    out = {}
+    for name, order in [("mirrored", [1, 0, 3, 2]), ("upside down", [3, 2, 1, 0])]:
+        out[name] = {**base, "map": [base["map"][i] for i in order]}
+    metres = SiteMap(10.0, (400.0, 600.0)).to_metres(base["map"]).tolist()
+    out["metres mirrored"] = {"image": base["image"], "map": [metres[i] for i in (1, 0, 3, 2)]}
+    return out
+
+
+def test_street_example_fits(tmp_path):
+    fit = homocal("fit", "--trapezoid", str(STREET / "trapezoid.json"), "--points", str(STREET / "reference_points.csv"),
+                  "--method", "regression-intercept", "-o", "c.json", cwd=tmp_path)
+    assert fit.returncode == 0 and fit.stderr == "", fit.stderr
 
 
 def test_hybrid_reports_its_choice(work):
@@ -115,40 +182,77 @@ def _bad_fit_inputs():
         ("bad camera origin", {}, ["--camera-origin", "1;2"], "X,Y"),
         ("unknown method", {}, ["--method", "magic"], "invalid choice"),
         ("missing output folder", {}, ["-o", "no/such/dir/c.json"], "does not exist"),
+        ("duplicate column", {"ref.csv": "u,v,x,y,u\n" + rows.replace("\n", ",1\n")}, [], "'u' appear more than once"),
+        ("points not UTF-8", {"ref.csv": b"u,v,x,y\n\xff\xfe1,2,3,4\n"}, [], "ref.csv: not UTF-8 text"),
+        ("trapezoid not UTF-8", {"trap.json": b'{"image": "\xff"}'}, [], "trap.json: not a JSON file"),
+        ("duplicate image point", {"ref.csv": ref_header + rows + f"{REF_Q[0, 0]},{REF_Q[0, 1]},0,50\n"}, [],
+         "image_points[0] and image_points[3] are the same point"),
+        ("duplicate ground point", {"ref.csv": ref_header + rows + "600,300,0.0,10.0\n"}, [],
+         "ground_points[0] and ground_points[3] are the same point"),
+        ("overflow vertex", {"trap.json": json.dumps({"image": [[1e308, 0]] + IMAGE.tolist()[1:], "map": GROUND.tolist()})},
+         [], "vertex 0 = [1e+308, 0.0] is out of range"),
+        ("overflow reference point", {"ref.csv": ref_header + rows + "640,500,1e308,5\n"}, [],
+         "ground_points: point 3 = [1e+308, 5.0] is out of range"),
+        *[(f"street {name}", {"trap.json": json.dumps(trap)}, [], "other way from the image's (mirrored or upside down?)")
+          for name, trap in _street_variants().items()],
+        ("mirrored metres", {"trap.json": json.dumps({"image": IMAGE.tolist(), "map": GROUND[[1, 0, 3, 2]].tolist()})},
+         [], "other way from the image's"),
     ]
 
 
 @pytest.mark.parametrize("name,files,extra,message", _bad_fit_inputs(), ids=[c[0] for c in _bad_fit_inputs()])
-def test_bad_fit_input(work, name, files, extra, message):
+def test_bad_fit_input(work, name, files, extra, message, capsys, monkeypatch):
     for file, text in files.items():
         (work / file).unlink()
-        if text is not None:
+        if isinstance(text, bytes):
+            (work / file).write_bytes(text)
+        elif text is not None:
             (work / file).write_text(text)
     before = sorted(p.name for p in work.rglob("*"))
     args = ["--trapezoid", "trap.json", "--points", "ref.csv", "--method", "descent", "-o", "c.json"]
-    result = homocal("fit", *args, *extra, cwd=work)
+    result = homocal_main("fit", *args, *extra, cwd=work, capsys=capsys, monkeypatch=monkeypatch)
     assert result.returncode == 2
     assert result.stderr.startswith("homocal: error:") and result.stderr.count("\n") == 1, result.stderr
     assert message in result.stderr
     assert sorted(p.name for p in work.rglob("*")) == before  # no output, no temporary file
 
 
-@pytest.mark.parametrize("name,correction,feet,message", [
-    ("missing correction", None, None, "c.json: no such file"),
-    ("correction of another kind", '{"format": "x"}', None, "not a homocal correction"),
-    ("feet without v", "ok", "u,w\n1,2\n", "missing column(s) v"),
-    ("unparsable foot point", "ok", "u,v\n640,500\n640,x5\n", "line 3: column v: 'x5'"),
+def _edited_correction(edit) -> str:
+    d = RegressionCorrector().fit(ViewTransformer(IMAGE, GROUND), REF_Q, REF_G, (0.0, 0.0)).to_dict()
+    edit(d)
+    return json.dumps(d)
+
+
+@pytest.mark.parametrize("name,correction,feet,extra,message", [
+    ("missing correction", None, None, [], "c.json: no such file"),
+    ("correction of another kind", '{"format": "x"}', None, [], "not a homocal correction"),
+    ("feet without v", "ok", "u,w\n1,2\n", [], "missing column(s) v"),
+    ("unparsable foot point", "ok", "u,v\n640,500\n640,x5\n", [], "line 3: column v: 'x5'"),
+    ("duplicate u column", "ok", "u,v,u\n640,500,600\n", [], "feet.csv: column(s) 'u' appear more than once"),
+    ("feet not UTF-8", "ok", b"u,v\n640,500\n\xe9,1\n", [], "feet.csv: not UTF-8 text"),
+    ("correction not UTF-8", b'{"format": "\xff"}', None, [], "c.json: not a JSON file"),
+    ("hand-edited negative a", _edited_correction(lambda d: d["fitted"].update(a=-5.0)), None, [],
+     "c.json: bad regression correction (field fitted.a: must be >= 0"),
+    ("hand-edited NaN b", _edited_correction(lambda d: d["fitted"].update(b=float("nan"))), None, [],
+     "c.json: bad regression correction (field fitted.b: expected a finite number"),
+    ("negative click sigma", "ok", None, ["--click-sigma-px", "-1"], "--click-sigma-px: expected a finite number >= 0"),
+    ("NaN point sigma", "ok", None, ["--point-sigma-px", "nan"], "--point-sigma-px: expected a finite number >= 0"),
 ])
-def test_bad_apply_input(work, name, correction, feet, message):
+def test_bad_apply_input(work, name, correction, feet, extra, message, capsys, monkeypatch):
     if correction == "ok":
         fitted = RegressionCorrector().fit(ViewTransformer(IMAGE, GROUND), REF_Q, REF_G, (0.0, 0.0))
         fitted.save(work / "c.json")
+    elif isinstance(correction, bytes):
+        (work / "c.json").write_bytes(correction)
     elif correction is not None:
         (work / "c.json").write_text(correction)
-    if feet is not None:
+    if isinstance(feet, bytes):
+        (work / "feet.csv").write_bytes(feet)
+    elif feet is not None:
         (work / "feet.csv").write_text(feet)
     before = sorted(p.name for p in work.iterdir())
-    result = homocal("apply", "c.json", "--points", "feet.csv", "-o", "out.csv", cwd=work)
+    result = homocal_main("apply", "c.json", "--points", "feet.csv", "-o", "out.csv", *extra, cwd=work, capsys=capsys,
+                          monkeypatch=monkeypatch)
     assert result.returncode == 2
     assert result.stderr.startswith("homocal: error:") and result.stderr.count("\n") == 1, result.stderr
     assert message in result.stderr
