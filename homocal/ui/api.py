@@ -16,7 +16,7 @@ import numpy as np
 
 from homocal.correctors import commands
 from homocal.correctors.base import Corrector, load_corrector
-from homocal.correctors.regression import RegressionCorrector
+from homocal.correctors.hybrid import HybridCorrector
 from homocal.correctors.serialization import read_json
 from homocal.files import write_json_atomic, write_text_atomic
 from homocal.geometry import SiteMap, ViewTransformer, signed_area, validate_quad
@@ -156,8 +156,13 @@ def fit(session: Session, req: dict) -> dict:
     mapped = transformer.transform_points(points[:, :2])
     corrected = corrector.transform_points(points[:, :2])
     w, h = session.frame_size
+    tolerance = _number(req, "tolerance_m", 0.5, positive=True)
+    trust = error_bars(session, commands._mapping(corrector), np.zeros((0, 2)), _camera_origin(req), tolerance,
+                       **_sigmas(req))["trustworthy_range_m"]
+    trust_note = (f" With its mapping the 1-sigma error stays under {tolerance:g} m out to "
+                  + ("any range" if trust is None else f"{trust:.1f} m") + " straight ahead.")
     return {
-        "summary": f"{args.method}: {commands._quality(corrector)}.{commands._method_note(corrector)}",
+        "summary": f"{args.method}: {commands._quality(corrector)}.{commands._method_note(corrector)}{trust_note}",
         "error_before": corrector.error_before_,
         "error_after": corrector.error_after_,
         "mapped": mapped.tolist(),
@@ -231,14 +236,13 @@ def load(session: Session, req: dict) -> dict:
     out = {"trapezoid": {"image": image.tolist(), "map": map_px.tolist()},
            "points": [], "fit": None, "loaded": [TRAPEZOID_FILE]}
     if (folder / POINTS_FILE).is_file():
-        _, _, cols = commands.read_points_csv(folder / POINTS_FILE, ("u", "v", "x", "y"), finite=True)
+        _, _, cols, _ = commands.read_points_csv(folder / POINTS_FILE, ("u", "v", "x", "y"), finite=True)
         out["points"] = np.column_stack([cols[c] for c in ("u", "v", "x", "y")]).tolist()
         out["loaded"].append(POINTS_FILE)
     if (folder / CORRECTION_FILE).is_file():
         corrector = load_corrector(folder / CORRECTION_FILE)
-        signed = isinstance(corrector, RegressionCorrector) and corrector.signed
         params = corrector.get_params()
-        out["fit"] = {"method": "regression-signed" if signed else corrector.method,
+        out["fit"] = {"method": "hybrid" if isinstance(corrector, HybridCorrector) else commands._label(corrector),
                       "camera_origin": corrector.camera_origin_.tolist(),
                       "seed": params.get("seed", 0), "threshold": params.get("threshold", 75.0),
                       "error_before": corrector.error_before_, "error_after": corrector.error_after_}

@@ -3,6 +3,7 @@ requests, save, load), and the command line's errors."""
 from __future__ import annotations
 
 import json
+import re
 import threading
 import urllib.error
 import urllib.request
@@ -194,7 +195,7 @@ def test_locate_maps_a_point_and_corrects_it(session):
 
 
 # ---- save and load ---------------------------------------------------------------------------------------
-@pytest.mark.parametrize("method", ["regression-signed", "hybrid"])  # hybrid fits descent too
+@pytest.mark.parametrize("method", ["regression-signed", "regression-intercept", "horizon", "hybrid"])  # hybrid: descent too
 def test_saved_files_give_homocal_fits_correction(server, session, tmp_path, capsys, method):
     status, answer = post(server.url + "api/save", request(method=method, seed=3, threshold=80.0))
     assert status == 200, answer
@@ -205,6 +206,9 @@ def test_saved_files_give_homocal_fits_correction(server, session, tmp_path, cap
     assert json.loads(cli.read_text()) == json.loads((out / "correction.json").read_text())
     _, fitted = post(server.url + "api/fit", request(method=method, seed=3, threshold=80.0))
     assert fitted["correction"] == json.loads(cli.read_text())
+    printed = capsys.readouterr().out  # fit's summary and trustworthy range at its default sigmas, as the page's
+    assert re.search(r"mean calibration error .*? %\)", printed).group(0) in fitted["summary"]
+    assert re.search(r"stays under 0\.5 m out to [\d.]+ m", printed).group(0) in fitted["summary"]
     status, loaded = post(server.url + "api/load", {})
     assert status == 200
     assert loaded["trapezoid"] == TRAP and loaded["points"] == POINTS
