@@ -12,8 +12,9 @@ import sys
 
 from homocal.correctors import commands as corrector_commands
 from homocal.study import cli as study_cli, report as study_report, sweep as study_sweep
+from homocal.ui import cli as ui_cli
 
-SUBCOMMANDS = (corrector_commands, study_cli, study_sweep, study_report)
+SUBCOMMANDS = (corrector_commands, study_cli, study_sweep, study_report, ui_cli)
 
 
 class _Parser(argparse.ArgumentParser):

@@ -1,0 +1,67 @@
+"""``homocal ui``: the browser page to click the trapezoid and the reference points (served on 127.0.0.1)."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from homocal.correctors.commands import _xy
+from homocal.geometry import SiteMap
+from homocal.ui import session as sessions
+from homocal.ui.server import UIServer
+
+EPILOG = """\
+With DATASET (a simgen dataset folder) the frame is video.mp4's, the site map site_map.png with the scale and
+origin of site_map.json; the page can also take its hand-placed trapezoid and its calibration objects.
+Otherwise give --frame, --site-map and --scale. The site map must have map up = forward (away from the
+camera); a mirrored or upside-down map is refused when its corners are clicked.
+Save writes trapezoid.json, reference_points.csv and correction.json into --out, in the formats of
+homocal fit and homocal apply; it asks before replacing a file it did not write. Load reads them back."""
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``ui``."""
+    ui = subparsers.add_parser(
+        "ui", help="click the trapezoid and reference points in a browser page", epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Serve a local page to click the trapezoid and reference points, see the ground grid, "
+                    "fit a correction with its error bars, and save the files homocal fit and apply read.",
+    )
+    ui.add_argument("dataset", nargs="?", type=Path, metavar="DATASET", help="a simgen dataset folder")
+    ui.add_argument("--frame", type=Path, metavar="FRAME.png|VIDEO.mp4", help="the camera frame (an image or a video)")
+    ui.add_argument("--frame-index", type=int, default=0, metavar="N", help="video frame to show, from 0 (default 0)")
+    ui.add_argument("--site-map", type=Path, metavar="MAP.png", help="the site map image (top-down, map up = forward)")
+    ui.add_argument("--scale", type=float, metavar="PX_PER_M", help="site map pixels per metre")
+    ui.add_argument("--origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
+                    help="site map pixel of the ground origin (default 0,0: the top-left pixel)")
+    ui.add_argument("--camera-origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
+                    help="ground point under the camera, metres (default 0,0; the page can change it)")
+    ui.add_argument("--out", type=Path, default=Path("."), metavar="DIR", help="folder Save writes to (default .)")
+    ui.add_argument("--port", type=int, default=0, help="port on 127.0.0.1 (default 0: a free one)")
+    ui.set_defaults(handler=run_ui)
+
+
+def run_ui(args: argparse.Namespace) -> int:
+    if args.dataset is not None:
+        extra = [f for f, v in (("--frame", args.frame), ("--site-map", args.site_map), ("--scale", args.scale)) if v]
+        if extra:
+            raise ValueError(f"give either DATASET or --frame/--site-map/--scale, not both ({', '.join(extra)})")
+        session = sessions.from_dataset(args.dataset, args.out, args.frame_index)
+    else:
+        missing = [f for f, v in (("--frame", args.frame), ("--site-map", args.site_map), ("--scale", args.scale))
+                   if v is None]
+        if missing:
+            raise ValueError(f"give a DATASET folder, or --frame, --site-map and --scale (missing {', '.join(missing)})")
+        session = sessions.from_files(args.frame, args.site_map, SiteMap(args.scale, args.origin), args.camera_origin,
+                                      args.out, args.frame_index)
+    if not 0 <= args.port < 65536:
+        raise ValueError(f"--port: expected 0 to 65535, got {args.port}")
+    server = UIServer(session, args.port)
+    print(f"homocal ui: {session.title} on {server.url} (saves to {session.out_dir}; Ctrl-C to stop)", flush=True)
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.server_close()
+    return 0
+

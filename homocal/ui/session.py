@@ -1,0 +1,103 @@
+"""What ``homocal ui`` serves: the camera frame, the site map with its scale and origin, the camera's ground
+point, the folder Save writes to and, for a simgen dataset, its hand-placed trapezoid and calibration objects."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from homocal.correctors.commands import METHODS
+from homocal.dataset import load_dataset
+from homocal.geometry import SiteMap
+
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
+
+
+@dataclass
+class Session:
+    """The page's fixed inputs. Images are PNG bytes; sizes in pixels; camera_origin (2,) metres."""
+
+    frame_png: bytes
+    frame_size: tuple[int, int]
+    map_png: bytes
+    map_size: tuple[int, int]
+    site_map: SiteMap
+    camera_origin: np.ndarray
+    out_dir: Path
+    title: str
+    dataset: dict | None = None  # {"hand_placed": {"image", "map"}, "calibration": [[u, v, x, y], ...]}
+    written: set[Path] = field(default_factory=set)  # files this server wrote (Save may overwrite them)
+
+    def info(self) -> dict:
+        """The JSON the page starts from."""
+        return {
+            "title": self.title,
+            "frame": {"width": self.frame_size[0], "height": self.frame_size[1]},
+            "map": {"width": self.map_size[0], "height": self.map_size[1],
+                    "scale_px_per_m": self.site_map.scale_px_per_m, "origin_px": list(self.site_map.origin_px)},
+            "camera_origin": self.camera_origin.tolist(),
+            "out_dir": str(self.out_dir),
+            "dataset": self.dataset,
+            "methods": list(METHODS),
+        }
+
+
+def from_files(frame: Path, site_map_image: Path, site_map: SiteMap, camera_origin, out_dir: Path,
+               frame_index: int = 0) -> Session:
+    """A session from a frame (an image, or a video's frame ``frame_index``) and a site-map image."""
+    frame_png, frame_size = read_frame(frame, frame_index)
+    map_png, map_size = _png(cv2.imread(str(site_map_image), cv2.IMREAD_COLOR), site_map_image)
+    return Session(frame_png, frame_size, map_png, map_size, site_map, np.asarray(camera_origin, float),
+                   _folder(out_dir), f"{frame.name} on {site_map_image.name}")
+
+
+def from_dataset(path: Path, out_dir: Path, frame_index: int = 0) -> Session:
+    """A session from a simgen dataset folder (data_schema.md): video.mp4, site_map.png / .json,
+    trapezoids.json (hand_placed) and calibration.parquet (the detected foot points of the calibration objects)."""
+    ds = load_dataset(path)
+    session = from_files(path / "video.mp4", path / "site_map.png", ds.site_map, ds.camera_origin, out_dir,
+                         frame_index)
+    image, ground, _ = ds.calibration_points(source="segmentation")
+    session.title = f"{ds.name} ({path})"
+    session.dataset = {
+        "hand_placed": {"image": ds.trapezoid_image.tolist(), "map": ds.trapezoid_map.tolist()},
+        "calibration": np.column_stack([image, ground]).tolist(),
+    }
+    return session
+
+
+def read_frame(path: Path, index: int) -> tuple[bytes, tuple[int, int]]:
+    """PNG bytes and (width, height) of an image file, or of frame ``index`` (0-based) of a video."""
+    if not path.is_file():
+        raise ValueError(f"{path}: no such file")
+    if path.suffix.lower() not in VIDEO_SUFFIXES:
+        return _png(cv2.imread(str(path), cv2.IMREAD_COLOR), path)
+    capture = cv2.VideoCapture(str(path))
+    try:
+        if not capture.isOpened():
+            raise ValueError(f"{path}: cannot open the video")
+        count = int(capture.get(cv2.CAP_PROP_FRAME_COUNT))
+        if not 0 <= index < max(count, 1):
+            raise ValueError(f"{path}: no frame {index} (the video has {count} frames, counted from 0)")
+        capture.set(cv2.CAP_PROP_POS_FRAMES, index)
+        ok, image = capture.read()
+    finally:
+        capture.release()
+    return _png(image if ok else None, path)
+
+
+def _png(image: np.ndarray | None, path: Path) -> tuple[bytes, tuple[int, int]]:
+    if image is None:
+        raise ValueError(f"{path}: not a readable image" if path.is_file() else f"{path}: no such file")
+    ok, data = cv2.imencode(".png", image)
+    if not ok:
+        raise ValueError(f"{path}: could not encode it as PNG")
+    return data.tobytes(), (image.shape[1], image.shape[0])
+
+
+def _folder(path: Path) -> Path:
+    if not path.is_dir():
+        raise ValueError(f"{path}: the output folder does not exist")
+    return path.resolve()

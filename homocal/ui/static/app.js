@@ -1,0 +1,543 @@
+// homocal ui: the page. Plain JavaScript and canvas; every computation is a call to the local server's JSON
+// API (homocal/ui/api.py), which runs the library. Image pixels follow OpenCV (pixel centres at integers);
+// a view maps image (or map) pixel p to canvas pixel (p + 0.5) * zoom + pan.
+"use strict";
+
+const CORNERS = ["TL", "TR", "BR", "BL"];
+const HANDLE_PX = 9;  // grab radius of corners and points, canvas pixels
+const $ = (id) => document.getElementById(id);
+
+const S = {
+  info: null,
+  trap: { image: [], map: [] },
+  points: [],          // {u, v, x, y}; x, y null until its ground position is given
+  camera: [0, 0],
+  mode: "trapezoid",
+  view: null,          // last /api/view answer
+  fit: null,           // last /api/fit answer, null when out of date
+  fitStale: null,      // the previous fit's summary, shown struck through
+  probe: null,         // {u, v, answer}
+};
+const images = { frame: new Image(), map: new Image() };
+const views = { frame: { zoom: 1, panX: 0, panY: 0 }, map: { zoom: 1, panX: 0, panY: 0 } };
+
+// ---- server -----------------------------------------------------------------------------------------
+let inFlight = 0;  // requests to the server not yet answered
+async function api(name, body) {
+  inFlight++;
+  let response, data;
+  try {
+    response = await fetch("/api/" + name, {
+      method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body),
+    });
+    data = await response.json();
+  } finally { inFlight--; }
+  if (!response.ok) {
+    const error = new Error(data.error || response.statusText);
+    error.status = response.status;
+    throw error;
+  }
+  return data;
+}
+
+function number(id) { return parseFloat($(id).value); }
+
+function viewRequest() {
+  return {
+    trapezoid: { image: S.trap.image, map: S.trap.map }, camera_origin: S.camera,
+    click_sigma_px: number("click-sigma"), point_sigma_px: number("point-sigma"), map_sigma_px: number("map-sigma"),
+    tolerance_m: number("tolerance"),
+  };
+}
+
+function fitRequest() {
+  return { ...viewRequest(), points: S.points.map((p) => [p.u, p.v, p.x, p.y]), method: $("method").value,
+           seed: number("seed"), threshold: number("threshold") };
+}
+
+function say(text, kind) {
+  const m = $("message");
+  m.textContent = text;
+  m.className = text ? kind : "";
+}
+
+let viewSeq = 0, viewShown = 0;  // the newest answer shown wins over older ones that arrive late
+// Ask for the overlays of the current trapezoid; light: without the error bars (while dragging: they are the
+// slow part). Resolves to null if the server accepted it, else to its message.
+async function refreshView(light) {
+  const seq = ++viewSeq;
+  let error = null, answer = null;
+  try { answer = await api("view", { ...viewRequest(), errorbars: !light }); } catch (e) { error = e.message; }
+  if (seq > viewShown) {
+    viewShown = seq;
+    S.view = answer;
+    if (error) say(error, "error");
+    else if ($("message").className === "error") say("", "");
+    render();
+  }
+  return error;
+}
+
+let dragBusy = false, dragAgain = false;
+function dragView() {  // at most one light request in flight while a corner is dragged
+  if (dragBusy) { dragAgain = true; return; }
+  dragBusy = true;
+  refreshView(true).finally(() => { dragBusy = false; if (dragAgain) { dragAgain = false; dragView(); } });
+}
+
+function invalidateFit() {
+  if (S.fit) S.fitStale = S.fit.summary;
+  S.fit = null;
+}
+
+// A change of the trapezoid; undo() takes it back if the server refuses it (mirrored map, bad order...).
+async function changeTrapezoid(undo) {
+  invalidateFit();
+  S.probe = null;
+  render();
+  const reason = await refreshView();
+  if (reason && undo) {
+    undo();
+    await refreshView();
+    say("refused: " + reason, "error");
+  }
+}
+
+// ---- views: zoom, pan, coordinates ------------------------------------------------------------------
+function fitView(name) {
+  const c = $(name), img = images[name], v = views[name];
+  v.zoom = Math.min(c.width / img.naturalWidth, c.height / img.naturalHeight);
+  v.panX = (c.width - img.naturalWidth * v.zoom) / 2;
+  v.panY = (c.height - img.naturalHeight * v.zoom) / 2;
+}
+function toScreen(name, p) { const v = views[name]; return [(p[0] + 0.5) * v.zoom + v.panX, (p[1] + 0.5) * v.zoom + v.panY]; }
+function toPixel(name, x, y) { const v = views[name]; return [(x - v.panX) / v.zoom - 0.5, (y - v.panY) / v.zoom - 0.5]; }
+function mapToGround(p) {  // site-map pixels -> ground metres (data_schema.md: px = ox + s x, py = oy - s y)
+  const m = S.info.map;
+  return [(p[0] - m.origin_px[0]) / m.scale_px_per_m, (m.origin_px[1] - p[1]) / m.scale_px_per_m];
+}
+function groundToMap(g) {
+  const m = S.info.map;
+  return [m.origin_px[0] + g[0] * m.scale_px_per_m, m.origin_px[1] - g[1] * m.scale_px_per_m];
+}
+const round = (x, step) => Math.round(x / step) / Math.round(1 / step);  // step: 0.1 or 0.01
+
+// ---- drawing ----------------------------------------------------------------------------------------
+function polyline(ctx, name, pts, close) {
+  ctx.beginPath();
+  pts.forEach((p, i) => { const s = toScreen(name, p); i ? ctx.lineTo(s[0], s[1]) : ctx.moveTo(s[0], s[1]); });
+  if (close) ctx.closePath();
+  ctx.stroke();
+}
+function style(ctx, color, width, dash) { ctx.strokeStyle = color; ctx.lineWidth = width; ctx.setLineDash(dash || []); }
+function label(ctx, name, p, text, color, dx, dy) {
+  const s = toScreen(name, p);
+  ctx.font = "bold 12px sans-serif";
+  ctx.lineWidth = 3; ctx.strokeStyle = "rgba(0,0,0,0.8)"; ctx.setLineDash([]);
+  ctx.strokeText(text, s[0] + (dx || 6), s[1] + (dy || -6));
+  ctx.fillStyle = color;
+  ctx.fillText(text, s[0] + (dx || 6), s[1] + (dy || -6));
+}
+function dot(ctx, name, p, r, color, fill) {
+  const s = toScreen(name, p);
+  ctx.beginPath(); ctx.arc(s[0], s[1], r, 0, 2 * Math.PI);
+  ctx.setLineDash([]);
+  if (fill) { ctx.fillStyle = color; ctx.fill(); }
+  ctx.strokeStyle = fill ? "#000" : color; ctx.lineWidth = 2; ctx.stroke();
+}
+function scaled(poly, centre, k) { return poly.map((p) => [centre[0] + k * (p[0] - centre[0]), centre[1] + k * (p[1] - centre[1])]); }
+
+function drawGrid(ctx, grid, colors) {
+  style(ctx, colors[0], 1); grid.minor.forEach((l) => polyline(ctx, "frame", l));
+  style(ctx, colors[1], 1.6); grid.major.forEach((l) => polyline(ctx, "frame", l));
+  style(ctx, colors[2], 1.6, [6, 4]);
+  grid.rings.forEach((ring) => ring.lines.forEach((l) => polyline(ctx, "frame", l)));
+}
+
+function drawEllipses(ctx, name, bars, key, centres) {
+  const k = number("ellipse-scale") || 1;
+  style(ctx, "#ff4fd8", 1.6);
+  bars[key].forEach((e, i) => polyline(ctx, name, scaled(e, centres[i], k), true));
+}
+
+function drawTrapezoid(ctx, name, quad) {
+  style(ctx, "#33e0ff", 2);
+  if (quad.length > 1) polyline(ctx, name, quad, quad.length === 4);
+  quad.forEach((p, i) => { dot(ctx, name, p, 5, "#33e0ff", true); label(ctx, name, p, CORNERS[i], "#33e0ff"); });
+}
+
+// keepTable: leave the reference-point inputs in place (the user is typing in them), only clear its residuals.
+function render(keepTable) {
+  if (!S.info) return;
+  renderFrame();
+  renderMap();
+  renderPanels(keepTable);
+}
+
+function renderFrame() {
+  const c = $("frame"), ctx = c.getContext("2d"), v = views.frame;
+  ctx.setTransform(1, 0, 0, 1, 0, 0); ctx.clearRect(0, 0, c.width, c.height);
+  ctx.setTransform(v.zoom, 0, 0, v.zoom, v.panX + 0.5 * v.zoom, v.panY + 0.5 * v.zoom);
+  ctx.drawImage(images.frame, -0.5, -0.5);
+  ctx.setTransform(1, 0, 0, 1, 0, 0);
+  const view = S.view;
+  if (view && view.complete) {
+    drawGrid(ctx, view.grid, ["rgba(255,255,255,0.28)", "rgba(255,255,255,0.75)", "rgba(255,235,90,0.9)"]);
+    view.grid.rings.forEach((ring) => {
+      const line = ring.lines.reduce((a, b) => (b.length > a.length ? b : a), []);
+      if (line.length) label(ctx, "frame", line[Math.floor(line.length / 2)], ring.r + " m", "#ffeb5a");
+    });
+    if (S.fit && $("show-corrected").checked) {
+      drawGrid(ctx, S.fit.corrected_grid, ["rgba(255,157,46,0.35)", "rgba(255,157,46,0.9)", "rgba(255,157,46,0.9)"]);
+    }
+    if (view.horizon) {
+      const [[u0, v0], [u1, v1]] = view.horizon, u = 0, v = v0 + (v1 - v0) * (u - u0) / (u1 - u0);
+      style(ctx, "#ff5050", 2, [10, 6]); polyline(ctx, "frame", view.horizon); label(ctx, "frame", [u, v], "horizon", "#ff5050", 4, -6);
+    }
+    if (view.errorbars) {
+      drawEllipses(ctx, "frame", view.errorbars, "image", view.errorbars.image_points);
+      style(ctx, "#ff4fd8", 2.5, [4, 4]);
+      view.errorbars.trustworthy_image.forEach((l) => polyline(ctx, "frame", l));
+      const ring = view.errorbars.trustworthy_image.reduce((a, b) => (b.length > a.length ? b : a), []);
+      if (ring.length) label(ctx, "frame", ring[Math.floor(ring.length * 0.3)], "trustworthy", "#ff4fd8");
+    }
+  }
+  drawTrapezoid(ctx, "frame", S.trap.image);
+  S.points.forEach((p, i) => { dot(ctx, "frame", [p.u, p.v], 5, "#7dff6b", true); label(ctx, "frame", [p.u, p.v], "P" + i, "#7dff6b"); });
+  if (S.probe) {
+    dot(ctx, "frame", [S.probe.u, S.probe.v], 4, "#ff4fd8", true);
+    const bars = S.probe.answer.errorbars;
+    if (bars) drawEllipses(ctx, "frame", bars, "image", bars.image_points);
+  }
+}
+
+function renderMap() {
+  const c = $("map"), ctx = c.getContext("2d"), v = views.map, m = S.info.map;
+  ctx.setTransform(1, 0, 0, 1, 0, 0); ctx.clearRect(0, 0, c.width, c.height);
+  ctx.setTransform(v.zoom, 0, 0, v.zoom, v.panX + 0.5 * v.zoom, v.panY + 0.5 * v.zoom);
+  ctx.drawImage(images.map, -0.5, -0.5);
+  ctx.setTransform(1, 0, 0, 1, 0, 0);
+  const view = S.view;
+  const cam = groundToMap(S.camera), s = m.scale_px_per_m * v.zoom, camS = toScreen("map", cam);
+  if (view && view.complete) {
+    ctx.save();  // the footprint reaches far beyond the map: clip it to the map image
+    const tl = toScreen("map", [-0.5, -0.5]);
+    ctx.beginPath(); ctx.rect(tl[0], tl[1], m.width * v.zoom, m.height * v.zoom); ctx.clip();
+    ctx.fillStyle = "rgba(51,224,255,0.16)";
+    ctx.beginPath();
+    view.footprint.forEach((p, i) => { const q = toScreen("map", p); i ? ctx.lineTo(q[0], q[1]) : ctx.moveTo(q[0], q[1]); });
+    ctx.closePath(); ctx.fill();
+    style(ctx, "rgba(51,224,255,0.8)", 1.5); ctx.stroke();
+    ctx.restore();
+    view.grid.rings.forEach((ring) => {
+      style(ctx, "rgba(255,235,90,0.8)", 1.2, [6, 4]);
+      ctx.beginPath(); ctx.arc(camS[0], camS[1], ring.r * s, 0, 2 * Math.PI); ctx.stroke();
+      label(ctx, "map", [cam[0], cam[1] - ring.r * m.scale_px_per_m], ring.r + " m", "#ffeb5a", 3, -3);
+    });
+    if (view.errorbars) {
+      drawEllipses(ctx, "map", view.errorbars, "map", view.errorbars.points.map(groundToMap));
+      const r = view.errorbars.trustworthy_range_m;
+      if (r !== null) {
+        style(ctx, "#ff4fd8", 2.5, [4, 4]);
+        ctx.beginPath(); ctx.arc(camS[0], camS[1], r * s, 0, 2 * Math.PI); ctx.stroke();
+      }
+    }
+  }
+  dot(ctx, "map", cam, 5, "#ffffff", true); label(ctx, "map", cam, "camera", "#ffffff");
+  drawTrapezoid(ctx, "map", S.trap.map);
+  S.points.forEach((p, i) => {
+    if (p.x === null || p.y === null) return;
+    const g = groundToMap([p.x, p.y]);
+    if (S.fit) {
+      const before = groundToMap(S.fit.mapped[i]), after = groundToMap(S.fit.corrected[i]);
+      style(ctx, "#ffffff", 1.2); polyline(ctx, "map", [g, before]);
+      style(ctx, "#ff9d2e", 1.2); polyline(ctx, "map", [g, after]);
+      dot(ctx, "map", before, 3, "#ffffff", true); dot(ctx, "map", after, 3, "#ff9d2e", true);
+    }
+    dot(ctx, "map", g, 5, "#7dff6b", true); label(ctx, "map", g, "P" + i, "#7dff6b");
+  });
+  if (S.probe) {
+    const a = S.probe.answer;
+    dot(ctx, "map", groundToMap(a.ground), 4, "#ff4fd8", true);
+    if (a.corrected) dot(ctx, "map", groundToMap(a.corrected), 4, "#ff9d2e", true);
+    if (a.errorbars) drawEllipses(ctx, "map", a.errorbars, "map", a.errorbars.points.map(groundToMap));
+  }
+}
+
+// ---- panels -----------------------------------------------------------------------------------------
+const fmt = (x, d) => (x === null || x === undefined || Number.isNaN(x) ? "-" : x.toFixed(d));
+
+function renderPanels(keepTable) {
+  const rows = CORNERS.map((c, i) => {
+    const a = S.trap.image[i], b = S.trap.map[i];
+    return `<tr><th>${c}</th><td>${a ? fmt(a[0], 1) + ", " + fmt(a[1], 1) : "-"}</td><td>${b ? fmt(b[0], 1) + ", " + fmt(b[1], 1) : "-"}</td></tr>`;
+  });
+  $("corners-table").innerHTML = "<tr><th></th><th>image px</th><th>map px</th></tr>" + rows.join("");
+  const nextImage = S.trap.image.length, nextMap = S.trap.map.length;
+  let prompt = "";
+  if (S.mode === "trapezoid") {
+    const parts = [];
+    if (nextImage < 4) parts.push(`click image corner ${CORNERS[nextImage]} (${nextImage + 1} of 4) on the frame`);
+    if (nextMap < 4) parts.push(`map corner ${CORNERS[nextMap]} (${nextMap + 1} of 4) on the map`);
+    prompt = parts.length ? "Next: " + parts.join(" · ") : "Trapezoid complete: drag a corner to adjust it";
+  } else if (S.mode === "reference") {
+    const open = S.points.findIndex((p) => p.x === null || p.y === null);
+    prompt = open >= 0 ? `P${open}: click its true ground position on the map, or type x, y below`
+                       : "Click a reference point's foot on the frame";
+  } else if (S.mode === "probe") {
+    prompt = "Click any image point: its ground position and error bar";
+  } else {
+    prompt = "Click the ground point under the camera on the map";
+  }
+  $("prompt").textContent = prompt;
+
+  const table = $("points-table");
+  if (keepTable) table.querySelectorAll(".residual").forEach((td) => { td.textContent = ""; });
+  else table.innerHTML = pointRows();
+
+  const summary = $("fit-summary");
+  if (S.fit) { summary.textContent = S.fit.summary; summary.className = "out"; }
+  else if (S.fitStale) { summary.textContent = S.fitStale + "\n(out of date: press Fit)"; summary.className = "out stale"; }
+  else summary.textContent = "no fit yet: a complete trapezoid and 3 or more reference points";
+
+  const bars = S.view && S.view.errorbars;
+  if (!S.view || !S.view.complete) $("errorbar-summary").textContent = "";
+  else if (!bars) $("errorbar-summary").textContent = "error bars: when the corner is let go";
+  else {
+    const r = bars.trustworthy_range_m;
+    $("errorbar-summary").textContent = `trustworthy range (1-sigma error <= ${number("tolerance")} m): ` +
+      (r === null ? "none" : r.toFixed(1) + " m") + "  (dashed pink ring)";
+  }
+  if (S.probe) {
+    const a = S.probe.answer, b = a.errorbars;
+    $("probe-summary").textContent = `probe (${fmt(S.probe.u, 1)}, ${fmt(S.probe.v, 1)}) px -> ground ` +
+      `(${fmt(a.ground[0], 2)}, ${fmt(a.ground[1], 2)}) m at ${fmt(a.distance, 2)} m` +
+      (a.corrected ? `; corrected (${fmt(a.corrected[0], 2)}, ${fmt(a.corrected[1], 2)}) m` : "") +
+      (b.sigma.length ? `; 1-sigma ellipse ${fmt(b.sigma[0][0], 3)} x ${fmt(b.sigma[0][1], 3)} m` : "; no error bar (at the horizon)");
+  }
+}
+
+function pointRows() {
+  const head = "<tr><th>#</th><th>u</th><th>v</th><th>x</th><th>y</th><th>err before</th><th>after</th><th></th></tr>";
+  return head + S.points.map((p, i) => {
+    const input = (key, step) => `<input data-i="${i}" data-key="${key}" type="number" step="${step}" value="${p[key] === null ? "" : p[key]}">`;
+    const before = S.fit ? fmt(S.fit.residual_before[i], 3) : "", after = S.fit ? fmt(S.fit.residual_after[i], 3) : "";
+    return `<tr><th>P${i}</th><td>${input("u", 0.1)}</td><td>${input("v", 0.1)}</td><td>${input("x", 0.01)}</td>` +
+           `<td>${input("y", 0.01)}</td><td class="residual">${before}</td><td class="residual">${after}</td><td><button data-del="${i}">x</button></td></tr>`;
+  }).join("");
+}
+
+// ---- mouse ------------------------------------------------------------------------------------------
+function eventPixel(name, e) { const r = $(name).getBoundingClientRect(); return [e.clientX - r.left, e.clientY - r.top]; }
+
+function handleAt(name, sx, sy) {
+  const near = (p) => { const s = toScreen(name, p); return Math.hypot(s[0] - sx, s[1] - sy) <= HANDLE_PX; };
+  const quad = S.trap[name === "frame" ? "image" : "map"];
+  for (let i = 0; i < quad.length; i++) if (near(quad[i])) return { kind: "corner", i };
+  for (let i = 0; i < S.points.length; i++) {
+    const p = S.points[i];
+    if (name === "frame" && near([p.u, p.v])) return { kind: "point", i };
+    if (name === "map" && p.x !== null && near(groundToMap([p.x, p.y]))) return { kind: "point", i };
+  }
+  return null;
+}
+
+let drag = null;  // {name, kind, i, start, moved, pan: [x, y]}
+
+function onDown(name, e) {
+  e.preventDefault();
+  const [sx, sy] = eventPixel(name, e);
+  if (e.button === 2 || e.shiftKey) { drag = { name, kind: "pan", last: [sx, sy], moved: false }; return; }
+  if (e.button !== 0) return;
+  const hit = handleAt(name, sx, sy);
+  drag = { name, kind: hit ? hit.kind : "click", i: hit ? hit.i : -1, down: [sx, sy], moved: false,
+           start: JSON.parse(JSON.stringify({ trap: S.trap, points: S.points })) };
+}
+
+function onMove(name, e) {
+  const [sx, sy] = eventPixel(name, e);
+  const p = toPixel(name, sx, sy);
+  $("cursor").textContent = name === "frame" ? `frame u=${p[0].toFixed(1)} v=${p[1].toFixed(1)} px`
+    : `map px=${p[0].toFixed(1)} py=${p[1].toFixed(1)} -> x=${mapToGround(p)[0].toFixed(2)} y=${mapToGround(p)[1].toFixed(2)} m`;
+  if (!drag || drag.name !== name) return;
+  if (drag.kind === "pan") {
+    views[name].panX += sx - drag.last[0]; views[name].panY += sy - drag.last[1];
+    drag.last = [sx, sy]; drag.moved = true; render(); return;
+  }
+  if (drag.kind === "click" || Math.hypot(sx - drag.down[0], sy - drag.down[1]) < 2) return;
+  drag.moved = true;
+  const q = [round(p[0], 0.1), round(p[1], 0.1)];
+  if (drag.kind === "corner") {
+    S.trap[name === "frame" ? "image" : "map"][drag.i] = q;
+    invalidateFit(); dragView();
+  } else {
+    const pt = S.points[drag.i];
+    if (name === "frame") { pt.u = q[0]; pt.v = q[1]; }
+    else { const g = mapToGround(p); pt.x = round(g[0], 0.01); pt.y = round(g[1], 0.01); }
+    invalidateFit();
+  }
+  render();
+}
+
+async function onUp(name, e) {
+  if (!drag || drag.name !== name) return;
+  const d = drag;
+  drag = null;
+  if (d.kind === "corner" && d.moved) {
+    await changeTrapezoid(() => { S.trap = d.start.trap; });
+  } else if (d.kind === "click" || (d.kind !== "pan" && !d.moved)) {
+    const [sx, sy] = eventPixel(name, e);
+    const p = toPixel(name, sx, sy);
+    await clickAt(name, [round(p[0], 0.1), round(p[1], 0.1)], p);
+  }
+}
+
+async function clickAt(name, q, exact) {
+  if (S.mode === "trapezoid") {
+    const quad = S.trap[name === "frame" ? "image" : "map"];
+    if (quad.length >= 4) { say(`all 4 ${name === "frame" ? "image" : "map"} corners are placed: drag one to move it, or Clear`, "info"); return; }
+    quad.push(q);
+    await changeTrapezoid(() => quad.pop());
+  } else if (S.mode === "reference") {
+    const open = S.points.find((p) => p.x === null || p.y === null);
+    if (name === "frame") S.points.push({ u: q[0], v: q[1], x: null, y: null });
+    else if (open) { const g = mapToGround(exact); open.x = round(g[0], 0.01); open.y = round(g[1], 0.01); }
+    else { say("click the reference point's foot on the frame first", "error"); return; }
+    invalidateFit(); render();
+  } else if (S.mode === "probe") {
+    if (name !== "frame") { say("probe: click a point of the frame", "error"); return; }
+    try {
+      const answer = await api("locate", { ...viewRequest(), point: q, correction: S.fit ? S.fit.correction : null });
+      S.probe = { u: q[0], v: q[1], answer };
+      say("", "");
+    } catch (e) { say(e.message, "error"); }
+    render();
+  } else if (name === "map") {
+    const g = mapToGround(exact);
+    S.camera = [round(g[0], 0.01), round(g[1], 0.01)];
+    $("camera-x").value = S.camera[0]; $("camera-y").value = S.camera[1];
+    await changeTrapezoid(null);
+  }
+}
+
+function onWheel(name, e) {
+  e.preventDefault();
+  const [sx, sy] = eventPixel(name, e), v = views[name];
+  const k = Math.exp(-e.deltaY * 0.0015);
+  v.panX = sx - (sx - v.panX) * k; v.panY = sy - (sy - v.panY) * k; v.zoom *= k;
+  render();
+}
+
+// ---- buttons ----------------------------------------------------------------------------------------
+async function doFit() {
+  const open = S.points.findIndex((p) => p.x === null || p.y === null);
+  if (open >= 0) { say(`P${open} has no ground position yet: click it on the map or type x, y`, "error"); return; }
+  try {
+    S.fit = await api("fit", fitRequest());
+    S.fitStale = null;
+    say("fitted: " + S.fit.summary, "info");
+  } catch (e) { S.fit = null; say(e.message, "error"); }
+  render();
+}
+
+async function doSave() {
+  let request = fitRequest();
+  try {
+    let answer;
+    try { answer = await api("save", request); }
+    catch (e) {
+      if (e.status !== 409 || !window.confirm(e.message + ". Replace?")) throw e;
+      answer = await api("save", { ...request, overwrite: true });
+    }
+    $("files-summary").textContent = "wrote " + answer.written.join(", ") + "\nsame as: " + answer.command;
+    say("saved", "info");
+  } catch (e) { say(e.message, "error"); }
+}
+
+async function doLoad() {
+  try {
+    const answer = await api("load", {});
+    S.trap = answer.trapezoid;
+    S.points = answer.points.map((p) => ({ u: p[0], v: p[1], x: p[2], y: p[3] }));
+    S.fit = null; S.fitStale = null; S.probe = null;
+    if (answer.fit) {
+      $("method").value = answer.fit.method; $("seed").value = answer.fit.seed; $("threshold").value = answer.fit.threshold;
+      S.camera = answer.fit.camera_origin;
+      $("camera-x").value = S.camera[0]; $("camera-y").value = S.camera[1];
+    }
+    await refreshView();
+    if (answer.fit && S.points.length >= 3) await doFit();
+    $("files-summary").textContent = "loaded " + answer.loaded.join(", ");
+  } catch (e) { say(e.message, "error"); }
+}
+
+function bind() {
+  for (const name of ["frame", "map"]) {
+    const c = $(name);
+    c.addEventListener("mousedown", (e) => onDown(name, e));
+    c.addEventListener("mousemove", (e) => onMove(name, e));
+    c.addEventListener("mouseup", (e) => onUp(name, e));
+    c.addEventListener("wheel", (e) => onWheel(name, e), { passive: false });
+    c.addEventListener("contextmenu", (e) => e.preventDefault());
+  }
+  document.querySelectorAll("input[name=mode]").forEach((r) => r.addEventListener("change", () => { S.mode = r.value; render(); }));
+  $("clear-trapezoid").onclick = () => { S.trap = { image: [], map: [] }; changeTrapezoid(null); };
+  $("clear-points").onclick = () => { S.points = []; invalidateFit(); render(); };
+  $("fit").onclick = doFit;
+  $("save").onclick = doSave;
+  $("load").onclick = doLoad;
+  $("points-table").addEventListener("change", (e) => {
+    const t = e.target;
+    if (!t.dataset.key) return;
+    const value = t.value === "" ? null : parseFloat(t.value);
+    S.points[+t.dataset.i][t.dataset.key] = value;
+    invalidateFit(); render(true);
+  });
+  $("points-table").addEventListener("click", (e) => {
+    if (e.target.dataset.del === undefined) return;
+    S.points.splice(+e.target.dataset.del, 1);
+    invalidateFit(); render();
+  });
+  for (const id of ["camera-x", "camera-y"]) {
+    $(id).addEventListener("change", () => { S.camera = [number("camera-x"), number("camera-y")]; changeTrapezoid(null); });
+  }
+  for (const id of ["click-sigma", "point-sigma", "map-sigma", "tolerance"]) $(id).addEventListener("change", () => refreshView());
+  $("ellipse-scale").addEventListener("change", render);
+  $("show-corrected").addEventListener("change", render);
+  $("method").addEventListener("change", () => { invalidateFit(); render(); });
+  $("use-hand-placed").onclick = () => { S.trap = JSON.parse(JSON.stringify(S.info.dataset.hand_placed)); changeTrapezoid(null); };
+  $("use-calibration").onclick = () => {
+    S.points = S.info.dataset.calibration.map((p) => ({ u: p[0], v: p[1], x: p[2], y: p[3] }));
+    invalidateFit(); render();
+  };
+  window.addEventListener("resize", () => { sizeCanvases(); render(); });
+}
+
+function sizeCanvases() {
+  for (const name of ["frame", "map"]) {
+    const c = $(name), r = c.getBoundingClientRect();
+    c.width = Math.round(r.width); c.height = Math.round(r.height);
+    fitView(name);
+  }
+}
+
+async function start() {
+  S.info = await (await fetch("/api/session")).json();
+  S.camera = S.info.camera_origin;
+  $("title").textContent = S.info.title;
+  $("out-dir").textContent = "folder: " + S.info.out_dir;
+  $("camera-x").value = S.camera[0]; $("camera-y").value = S.camera[1];
+  $("method").innerHTML = S.info.methods.map((m) => `<option>${m}</option>`).join("");
+  if (S.info.dataset) { $("use-hand-placed").hidden = false; $("use-calibration").hidden = false; }
+  await Promise.all(["frame", "map"].map((name) => new Promise((resolve, reject) => {
+    images[name].onload = resolve; images[name].onerror = () => reject(new Error(`cannot load /${name}.png`));
+    images[name].src = `/${name}.png`;
+  })));
+  sizeCanvases();
+  bind();
+  render();
+  document.body.dataset.ready = "1";
+}
+
+window.homocalUI = { S, views, toScreen, idle: () => inFlight === 0 && !dragAgain };
+start().catch((e) => say(e.message, "error"));

@@ -1,0 +1,290 @@
+"""`homocal ui` without a browser: the overlays against the pinhole camera, the JSON API over real HTTP (bad
+requests, save, load), and the command line's errors."""
+from __future__ import annotations
+
+import json
+import re
+import threading
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import cv2
+import imageio.v2 as imageio
+import numpy as np
+import pytest
+
+from homocal.cli import main
+from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer
+from homocal.ui import api, overlay
+from homocal.ui.server import UIServer
+from homocal.ui.session import from_files, read_frame
+from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius
+
+CAM = PinholeCamera()  # 1280x720, 4 m high, tilted 15 degrees down
+W, H = CAM.width, CAM.height
+SITE = SiteMap(10.0, (200.0, 700.0))
+MAP_SIZE = (400, 800)  # covers x in [-20, 20] m, y in [-10, 70] m
+GROUND = np.array([[-3.5, 40.0], [3.5, 40.0], [3.5, 10.0], [-3.5, 10.0]])  # TL, TR, BR, BL, metres
+IMAGE = CAM.project_ground(GROUND)
+MAP = SITE.to_pixels(GROUND)
+REF_G = np.array([[0.0, 8.0], [1.0, 20.0], [-1.0, 35.0]])
+REF_Q = CAM.project_ground(REF_G) + [[0.4, 1.0], [-0.3, 0.8], [0.2, 0.9]]  # feet found a little off
+TRAP = {"image": IMAGE.tolist(), "map": MAP.tolist()}
+POINTS = np.column_stack([REF_Q, REF_G]).tolist()
+
+
+@pytest.fixture
+def session(tmp_path: Path):
+    frame, site_map = tmp_path / "frame.png", tmp_path / "map.png"
+    cv2.imwrite(str(frame), np.full((H, W, 3), 90, np.uint8))
+    cv2.imwrite(str(site_map), np.full((MAP_SIZE[1], MAP_SIZE[0], 3), 60, np.uint8))
+    out = tmp_path / "out"
+    out.mkdir()
+    return from_files(frame, site_map, SITE, (0.0, 0.0), out)
+
+
+@pytest.fixture
+def server(session):
+    srv = UIServer(session)
+    thread = threading.Thread(target=srv.serve_forever, kwargs={"poll_interval": 0.02}, daemon=True)
+    thread.start()
+    yield srv
+    srv.shutdown()
+    srv.server_close()
+
+
+def post(url: str, body, content_type: str = "application/json", host: str | None = None) -> tuple[int, dict]:
+    data = body if isinstance(body, bytes) else json.dumps(body).encode()
+    request = urllib.request.Request(url, data=data, headers={"Content-Type": content_type})
+    if host:
+        request.add_header("Host", host)
+    try:
+        with urllib.request.urlopen(request, timeout=30) as response:
+            return response.status, json.loads(response.read())
+    except urllib.error.HTTPError as e:
+        return e.code, json.loads(e.read())
+
+
+def request(**fields) -> dict:
+    return {"trapezoid": TRAP, "camera_origin": [0.0, 0.0], "points": POINTS, "method": "regression-signed", **fields}
+
+
+# ---- overlays against the camera they should show ----------------------------------------------------
+def test_horizon_is_the_cameras(session):
+    view = api.view(session, request())
+    (u0, v0), (u1, v1) = view["horizon"]
+    assert (u0, u1) == (-W, 2 * W)
+    np.testing.assert_allclose([v0, v1], CAM.horizon_row, atol=1e-6)
+
+
+def test_grid_lines_and_rings_lie_on_the_ground_lines_they_name(session):
+    """Every traced vertex, back-projected by the camera (a ray meeting the ground, independent of the
+    trapezoid homography), is on a grid line (x or y a multiple of the spacing) or on its range ring, to 0.3 px."""
+    grid = api.view(session, request())["grid"]
+    assert len(grid["minor"]) > 20 and len(grid["major"]) > 5 and [r["r"] for r in grid["rings"]][:3] == [10, 20, 30]
+    for key, spacing in (("minor", 1.0), ("major", 10.0)):
+        for line in grid[key]:
+            g = CAM.ray_to_ground(np.array(line))
+            off = np.abs(g - np.round(g / spacing) * spacing).max(axis=0)  # worst offset along x and along y
+            px = off / _metres_per_px(line).max()
+            assert px.min() < 0.3, (key, line[:3])
+    for ring in grid["rings"]:
+        for line in ring["lines"]:
+            r = np.hypot(*CAM.ray_to_ground(np.array(line)).T)
+            assert (np.abs(r - ring["r"]) / _metres_per_px(line)).max() < 0.3
+
+
+def _metres_per_px(line) -> np.ndarray:
+    """Ground metres per image pixel at each vertex, by finite differences of the camera's back-projection."""
+    q = np.array(line)
+    g0, gu, gv = (CAM.ray_to_ground(q + d) for d in ([0, 0], [0.5, 0], [0, 0.5]))
+    return np.maximum(np.hypot(*(gu - g0).T), np.hypot(*(gv - g0).T)) / 0.5
+
+
+def test_footprint_is_the_frame_border_on_the_map(session):
+    """Each footprint vertex projects (camera) onto the frame's border or the horizon margin, or lies on the
+    range cap (the map corner farthest from the camera). Vertices are rounded to 0.1 map px (1 cm): within
+    1 image px of the border near the camera."""
+    footprint = np.array(api.view(session, request())["footprint"])
+    ground = SITE.to_metres(footprint)
+    q = CAM.project_ground(ground)
+    on_border = (np.isclose(q[:, 0], -0.5, atol=1) | np.isclose(q[:, 0], W - 0.5, atol=1)
+                 | np.isclose(q[:, 1], H - 0.5, atol=1)
+                 | np.isclose(q[:, 1], CAM.horizon_row + overlay.HORIZON_MARGIN_PX, atol=1))
+    cap = np.hypot(*SITE.to_metres(np.array([[-0.5, -0.5], [MAP_SIZE[0] - 0.5, -0.5]])).T).max()
+    on_cap = np.isclose(np.hypot(*ground.T), cap, atol=0.05)
+    assert (on_border | on_cap).all() and on_border.sum() > 50 and on_cap.sum() > 10
+
+
+def test_error_bar_nodes_are_on_the_10_m_grid(session):
+    field = overlay.sample_mapping(CAM.ray_to_ground, ViewTransformer(IMAGE, GROUND), W, H)
+    nodes = overlay.grid_nodes(field, ViewTransformer(IMAGE, GROUND))
+    g = CAM.ray_to_ground(nodes)
+    assert len(nodes) >= 5
+    np.testing.assert_allclose(g, np.round(g / 10) * 10, atol=1e-6)
+
+
+# ---- corner order --------------------------------------------------------------------------------------
+MIRRORED = MAP[[1, 0, 3, 2]]
+UPSIDE_DOWN = 2 * MAP.mean(axis=0) - MAP  # turned 180 degrees: still clockwise
+
+
+@pytest.mark.parametrize("image, map_px, message", [
+    (IMAGE, MIRRORED, "map corners: mirrored"),
+    (IMAGE, UPSIDE_DOWN, "map corners: upside down"),
+    (IMAGE[[0, 3, 2, 1]], MAP, "image corners: click them in the order TL, TR, BR, BL"),
+    (IMAGE[[2, 3, 0, 1]], MAP, "image corners: click them in the order TL, TR, BR, BL"),
+    (IMAGE[[0, 2, 1, 3]], MAP, "image corners: the trapezoid is self-intersecting"),
+    (IMAGE[:2], MIRRORED, "map corners: mirrored"),  # refused before the image side is complete
+])  # fmt: skip
+def test_corner_order_is_refused(server, image, map_px, message):
+    status, answer = post(server.url + "api/view", request(trapezoid={"image": image.tolist(), "map": map_px.tolist()}))
+    assert status == 400 and answer["error"].startswith(message)
+
+
+# ---- bad requests over HTTP ------------------------------------------------------------------------------
+@pytest.mark.parametrize("path, body, kind, host, status, message", [
+    ("api/view", request(), "text/plain", None, 415, "send JSON"),
+    ("api/view", b"{not json", "application/json", None, 400, "not valid JSON"),
+    ("api/view", [1, 2], "application/json", None, 400, "expected a JSON object"),
+    ("api/nothing", {}, "application/json", None, 404, "no such endpoint"),
+    ("api/view", request(), "application/json", "attacker.example:80", 403, "unexpected Host header"),
+    ("api/view", {"camera_origin": [0, 0]}, "application/json", None, 400, "trapezoid: expected"),
+    ("api/view", request(trapezoid={"image": IMAGE.tolist() + [[1, 2]], "map": []}), "application/json", None, 400,
+     "trapezoid image: expected a list of at most 4 points"),
+    ("api/view", b'{"trapezoid": {"image": [[NaN, 1]], "map": []}, "camera_origin": [0, 0]}', "application/json",
+     None, 400, "trapezoid image[0]: expected 2 finite numbers"),
+    ("api/view", request(click_sigma_px=-1), "application/json", None, 400, "click_sigma_px: expected a number >= 0"),
+    ("api/view", request(camera_origin=[0]), "application/json", None, 400, "camera_origin[0]: expected 2 finite"),
+    ("api/fit", request(points=POINTS[:2]), "application/json", None, 400, "need at least 3 calibration points"),
+    ("api/fit", request(method="magic"), "application/json", None, 400, "method: expected one of regression,"),
+    ("api/fit", request(seed=1.5, method="descent"), "application/json", None, 400, "seed: expected an integer"),
+    ("api/fit", request(trapezoid={"image": IMAGE.tolist(), "map": MAP[:3].tolist()}), "application/json", None,
+     400, "click all 4 image corners and all 4 map corners first"),
+    ("api/fit", request(points=POINTS[:2] + [[640.0, 100.0, 0.0, 50.0]]), "application/json", None, 400,
+     "image_points[2] = [640.0, 100.0] is on or above the horizon"),
+    ("api/locate", request(point=[640.0, 100.0]), "application/json", None, 400, "is on or above the horizon"),
+    ("api/load", {}, "application/json", None, 400, "trapezoid.json: no such file"),
+])  # fmt: skip
+def test_bad_requests_get_4xx_and_a_message(server, path, body, kind, host, status, message):
+    got_status, answer = post(server.url + path, body, kind, host)
+    assert got_status == status and message in answer["error"]
+
+
+def test_pages_are_served(server):
+    for path, kind in (("", "text/html"), ("app.js", "text/javascript"), ("frame.png", "image/png"),
+                       ("map.png", "image/png"), ("api/session", "application/json")):
+        with urllib.request.urlopen(server.url + path, timeout=10) as response:
+            assert response.headers["Content-Type"].startswith(kind)
+    info = json.loads(urllib.request.urlopen(server.url + "api/session", timeout=10).read())
+    assert info["frame"] == {"width": W, "height": H} and info["map"]["scale_px_per_m"] == 10.0
+    assert "regression-signed" in info["methods"] and info["dataset"] is None
+    with pytest.raises(urllib.error.HTTPError, match="404"):
+        urllib.request.urlopen(server.url + "nothing.html", timeout=10)
+
+
+def test_locate_maps_a_point_and_corrects_it(session):
+    correction = api.fit(session, request())["correction"]
+    q = CAM.project_ground([[2.0, 25.0]])[0]
+    answer = api.locate(session, request(point=q.tolist(), correction=correction))
+    np.testing.assert_allclose(answer["ground"], [2.0, 25.0], atol=1e-9)  # the exact trapezoid maps exactly
+    assert answer["distance"] == pytest.approx(np.hypot(2.0, 25.0))
+    fitted = api._fitted(session, request())[0]
+    np.testing.assert_array_equal(answer["corrected"], fitted.transform_points(q[None])[0])
+
+
+# ---- save and load ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("method", ["regression-signed", "regression-intercept", "horizon", "hybrid"])  # hybrid: descent too
+def test_saved_files_give_homocal_fits_correction(server, session, tmp_path, capsys, method):
+    status, answer = post(server.url + "api/save", request(method=method, seed=3, threshold=80.0))
+    assert status == 200, answer
+    out = session.out_dir
+    cli = tmp_path / "cli.json"
+    assert main(["fit", "--trapezoid", str(out / "trapezoid.json"), "--points", str(out / "reference_points.csv"),
+                 "--method", method, "-o", str(cli), "--seed", "3", "--threshold", "80"]) == 0
+    assert json.loads(cli.read_text()) == json.loads((out / "correction.json").read_text())
+    _, fitted = post(server.url + "api/fit", request(method=method, seed=3, threshold=80.0))
+    assert fitted["correction"] == json.loads(cli.read_text())
+    printed = capsys.readouterr().out  # fit's summary and trustworthy range at its default sigmas, as the page's
+    assert re.search(r"mean calibration error .*? %\)", printed).group(0) in fitted["summary"]
+    assert re.search(r"stays under 0\.5 m out to [\d.]+ m", printed).group(0) in fitted["summary"]
+    status, loaded = post(server.url + "api/load", {})
+    assert status == 200
+    assert loaded["trapezoid"] == TRAP and loaded["points"] == POINTS
+    assert loaded["fit"]["method"] == method and loaded["fit"]["camera_origin"] == [0.0, 0.0]
+
+
+def test_save_asks_before_replacing_a_file_it_did_not_write(server, session):
+    foreign = session.out_dir / "reference_points.csv"
+    foreign.write_text("u,v,x,y\n1,2,3,4\n")
+    status, answer = post(server.url + "api/save", request())
+    assert status == 409 and "reference_points.csv already in" in answer["error"]
+    assert foreign.read_text() == "u,v,x,y\n1,2,3,4\n" and sorted(p.name for p in session.out_dir.iterdir()) == [
+        "reference_points.csv"]  # nothing written
+    assert post(server.url + "api/save", request(overwrite=True))[0] == 200
+    assert foreign.read_text().startswith("u,v,x,y\n") and len(foreign.read_text().splitlines()) == 4
+    assert post(server.url + "api/save", request())[0] == 200  # its own files: replaced without asking
+
+
+def test_load_converts_a_trapezoid_in_metres_to_map_pixels(session):
+    (session.out_dir / "trapezoid.json").write_text(json.dumps({"image": IMAGE.tolist(), "map": GROUND.tolist()}))
+    loaded = api.load(session, {})
+    np.testing.assert_allclose(loaded["trapezoid"]["map"], MAP, atol=1e-9)
+    assert loaded["points"] == [] and loaded["fit"] is None and loaded["loaded"] == ["trapezoid.json"]
+
+
+# ---- the command line ------------------------------------------------------------------------------------
+def test_a_video_frame_is_read(tmp_path):
+    video = tmp_path / "clip.mp4"
+    imageio.mimwrite(video, [np.full((64, 96, 3), 40 * k, np.uint8) for k in range(4)], fps=10, macro_block_size=1)
+    png, size = read_frame(video, 2)
+    assert size == (96, 64)
+    assert abs(cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_GRAYSCALE).mean() - 80) < 4
+    with pytest.raises(ValueError, match="no frame 4 \\(the video has 4 frames"):
+        read_frame(video, 4)
+
+
+@pytest.mark.parametrize("args, message", [
+    ([], "give a DATASET folder, or --frame, --site-map and --scale (missing --frame, --site-map, --scale)"),
+    (["--frame", "f.png", "--site-map", "m.png"], "(missing --scale)"),
+    (["DS", "--frame", "f.png"], "give either DATASET or --frame/--site-map/--scale, not both (--frame)"),
+    (["--frame", "none.png", "--site-map", "m.png", "--scale", "10"], "none.png: no such file"),
+    (["--frame", "f.png", "--site-map", "m.png", "--scale", "-2"], "scale_px_per_m must be a positive number"),
+    (["--frame", "f.png", "--site-map", "m.png", "--scale", "10", "--out", "nowhere"],
+     "nowhere: the output folder does not exist"),
+    (["--frame", "f.png", "--site-map", "f.txt", "--scale", "10"], "f.txt: not a readable image"),
+    (["NODATA"], "NODATA: not a dataset folder"),
+])  # fmt: skip
+def test_bad_command_lines(tmp_path, monkeypatch, capsys, args, message):
+    monkeypatch.chdir(tmp_path)
+    cv2.imwrite("f.png", np.zeros((8, 8, 3), np.uint8))
+    cv2.imwrite("m.png", np.zeros((8, 8, 3), np.uint8))
+    Path("f.txt").write_text("not an image")
+    Path("DS").mkdir()
+    assert main(["ui", *args]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("homocal: error: ") and message in err and err.count("\n") == 1
+
+
+# ---- error bars ------------------------------------------------------------------------------------------
+def test_error_ellipses_are_the_librarys_1_sigma_covariances(session):
+    """Every ellipse vertex p satisfies (p - c)^T Sigma^-1 (p - c) = 1 for the library's covariance Sigma, the map
+    clicking sigma being converted from map px to metres; the trustworthy range is the library's."""
+    sigmas = {"click_sigma_px": 2.0, "point_sigma_px": 0.5, "map_sigma_px": 3.0}
+    bars = api.view(session, request(tolerance_m=0.4, **sigmas))["errorbars"]
+    transformer = ViewTransformer(IMAGE, GROUND)
+    q = np.array(bars["image_points"])
+    assert len(q) >= 5
+    cov = ground_uncertainty(transformer, q, 2.0, 0.5, 3.0 / SITE.scale_px_per_m)
+    for c, sigma, ellipse_map, s in zip(bars["points"], bars["sigma"], bars["map"], cov):
+        d = SITE.to_metres(np.array(ellipse_map)) - c
+        rounding = 0.005 * np.sqrt(2) / SITE.scale_px_per_m  # vertices are rounded to 0.01 map px
+        tolerance = 2 * rounding / sigma[1] + (rounding / sigma[1]) ** 2
+        np.testing.assert_allclose(np.einsum("ni,ij,nj->n", d, np.linalg.inv(s), d), 1.0, atol=tolerance)
+        np.testing.assert_allclose(sigma[0], sigma_radius(s), rtol=1e-9)
+    expected = max_trustworthy_range(transformer, 0.4, click_sigma_px=2.0, point_sigma_px=0.5, map_sigma_px=0.3)
+    assert bars["trustworthy_range_m"] == pytest.approx(expected, rel=1e-12)
+    for line in bars["trustworthy_image"]:
+        np.testing.assert_allclose(np.hypot(*transformer.transform_points(np.array(line)).T), expected, rtol=2e-3)
+    assert api.view(session, request(errorbars=False))["errorbars"] is None

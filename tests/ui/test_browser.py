@@ -1,0 +1,199 @@
+"""`homocal ui` in a real headless browser (Debian's chromium driven by selenium through chromium-driver):
+click a trapezoid on a simgen frame and its site map, add three reference points, fit, probe, save, load,
+and check that the saved files give the same correction as `homocal fit` on them.
+
+Set HOMOCAL_UI_SCREENSHOT=docs/ui.jpg to also write the README's screenshot of the page."""
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from selenium import webdriver
+from selenium.webdriver.chrome.service import Service
+from selenium.webdriver.common.actions.action_builder import ActionBuilder
+from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import Select, WebDriverWait
+
+from homocal.dataset import load_dataset
+from homocal.geometry import ViewTransformer
+
+# Without these, chromium tries to reach the network at start (refused on a machine without one).
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                  "--window-size=1400,1200")
+METHOD = "hybrid"
+ENV = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}  # this checkout's homocal
+CALIBRATION_ROWS = (0, 15, 35)  # the calibration objects at 5, 20 and 40 m
+
+
+@pytest.fixture(scope="module")
+def browser(tmp_path_factory):
+    options = webdriver.ChromeOptions()
+    options.binary_location = "/usr/bin/chromium"
+    for flag in (*CHROMIUM_FLAGS, f"--user-data-dir={tmp_path_factory.mktemp('chromium')}"):
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
+    yield driver
+    driver.quit()
+
+
+@pytest.fixture
+def server(tiny_dataset, tmp_path):
+    """`homocal ui DATASET` as a user starts it; yields its URL and its --out folder."""
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = subprocess.Popen([sys.executable, "-m", "homocal.cli", "ui", str(tiny_dataset), "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+    try:
+        line = proc.stdout.readline()
+        match = re.search(r"http://127\.0\.0\.1:\d+/", line)
+        assert match, f"no URL in {line!r}: {proc.stderr.read() if proc.poll() is not None else ''}"
+        yield match.group(0), out
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+
+
+def js(driver, script: str, *args):
+    return driver.execute_script(f"return {script};", *args)
+
+
+def wait_for(driver, script: str, *args, timeout: float = 10):
+    return WebDriverWait(driver, timeout).until(lambda d: js(d, script, *args), message=script)
+
+
+def click(driver, canvas: str, point) -> None:
+    """A real mouse click on the canvas where image (or map) pixel ``point`` is drawn."""
+    x, y = js(driver, "((s, r) => [s[0] + r.left, s[1] + r.top])(window.homocalUI.toScreen(arguments[0], arguments[1]), "
+                      "document.getElementById(arguments[0]).getBoundingClientRect())", canvas, [float(v) for v in point])
+    actions = ActionBuilder(driver)
+    actions.pointer_action.move_to_location(round(x), round(y)).click()
+    actions.perform()
+
+
+def idle(driver) -> None:
+    """Wait until the page has no request to the server in flight."""
+    wait_for(driver, "window.homocalUI.idle()")
+
+
+def test_click_fit_save_load_in_a_browser(browser, server, tiny_dataset, tmp_path):
+    url, out = server
+    ds = load_dataset(tiny_dataset)
+    image_quad, map_quad = ds.trapezoid_image, ds.trapezoid_map
+    cal_image, cal_ground, _ = ds.calibration_points(source="segmentation")
+    d = browser
+    d.get(url)
+    wait_for(d, "document.body.dataset.ready === '1'")
+    S = "window.homocalUI.S"
+
+    # A mirrored map is refused at its fourth corner: the corner is taken back and the reason shown.
+    for i in (1, 0, 3, 2):
+        click(d, "map", map_quad[i])
+        idle(d)
+    assert js(d, f"{S}.trap.map.length") == 3
+    assert "mirrored" in d.find_element(By.ID, "message").text
+    d.find_element(By.ID, "clear-trapezoid").click()
+    idle(d)
+
+    # The trapezoid, in order TL, TR, BR, BL: image corners on the frame, map corners on the site map.
+    for i in range(4):
+        click(d, "frame", image_quad[i])
+        click(d, "map", map_quad[i])
+        idle(d)
+    trap = js(d, f"{S}.trap")
+    assert np.abs(np.array(trap["image"]) - image_quad).max() < 1.0  # one CSS pixel is ~1.4 frame pixels
+    assert np.abs(np.array(trap["map"]) - map_quad).max() < 2.5
+    assert js(d, f"{S}.view.complete") and js(d, f"{S}.view.grid.major.length") > 0
+    assert js(d, f"{S}.view.footprint.length") > 0 and js(d, f"{S}.view.horizon") is not None
+    assert js(d, f"{S}.view.errorbars.points.length") > 0
+    assert re.match(r"trustworthy range .*: \d+\.\d m", d.find_element(By.ID, "errorbar-summary").text)
+
+    # Three reference points: the feet of three calibration objects; the first ground position clicked on the
+    # map, the others typed.
+    d.find_element(By.ID, "mode-reference").click()
+    for n, row in enumerate(CALIBRATION_ROWS):
+        click(d, "frame", cal_image[row])
+        if n == 0:
+            click(d, "map", ds.site_map.to_pixels(cal_ground[row:row + 1])[0])
+        else:
+            for key, value in zip("xy", cal_ground[row]):
+                field = d.find_element(By.CSS_SELECTOR, f'#points-table input[data-i="{n}"][data-key="{key}"]')
+                field.clear()
+                field.send_keys(repr(float(value)) + "\t")
+    points = np.array(js(d, f"{S}.points.map((p) => [p.u, p.v, p.x, p.y])"), dtype=float)
+    assert points.shape == (3, 4)
+    assert np.abs(points[:, :2] - cal_image[list(CALIBRATION_ROWS)]).max() < 1.5
+    assert np.abs(points[:, 2:] - cal_ground[list(CALIBRATION_ROWS)]).max() < 0.25
+
+    # A bad setting is refused by the server and its message shown.
+    tolerance = d.find_element(By.ID, "tolerance")
+    tolerance.clear()
+    tolerance.send_keys("-1\t")
+    idle(d)
+    assert "tolerance_m: expected a number >= 0" in d.find_element(By.ID, "message").text
+    tolerance.clear()
+    tolerance.send_keys("0.5\t")
+    idle(d)
+
+    Select(d.find_element(By.ID, "method")).select_by_visible_text(METHOD)
+    d.find_element(By.ID, "fit").click()
+    wait_for(d, f"{S}.fit !== null")
+    summary = d.find_element(By.ID, "fit-summary").text
+    assert summary.startswith(f"{METHOD}: mean calibration error")
+
+    d.find_element(By.ID, "mode-probe").click()
+    click(d, "frame", (700.0, 520.0))
+    wait_for(d, f"{S}.probe !== null")
+    probe = js(d, f"{S}.probe")
+    assert re.search(r"-> ground .* m; corrected .* m; 1-sigma ellipse", d.find_element(By.ID, "probe-summary").text)
+    if os.environ.get("HOMOCAL_UI_SCREENSHOT"):
+        save_screenshot(d, Path(os.environ["HOMOCAL_UI_SCREENSHOT"]))
+
+    d.find_element(By.ID, "save").click()
+    wait_for(d, "document.getElementById('files-summary').textContent.startsWith('wrote')")
+    saved = json.loads((out / "correction.json").read_text())
+    fit = js(d, f"{S}.fit")
+    assert saved == fit["correction"]  # the file holds the fit the page shows
+
+    # `homocal fit` on the saved trapezoid and points gives the same correction, to the bit.
+    cli_out = tmp_path / "cli.json"
+    cmd = [sys.executable, "-m", "homocal.cli", "fit", "--trapezoid", str(out / "trapezoid.json"),
+           "--points", str(out / "reference_points.csv"), "--method", METHOD, "-o", str(cli_out),
+           f"--camera-origin={saved['camera_origin'][0]!r},{saved['camera_origin'][1]!r}",
+           "--seed", str(saved["params"]["seed"]), "--threshold", repr(saved["params"]["threshold"])]
+    subprocess.run(cmd, check=True, capture_output=True, text=True, env=ENV)
+    assert json.loads(cli_out.read_text()) == saved
+    assert saved["camera_origin"] == ds.camera_origin.tolist()
+
+    # The probe's ground position is the saved trapezoid's mapping of the clicked pixel.
+    transformer = ViewTransformer(np.array(trap["image"]), ds.site_map.to_metres(np.array(trap["map"])))
+    expected = transformer.transform_points(np.array([[probe["u"], probe["v"]]]))[0]
+    np.testing.assert_allclose(probe["answer"]["ground"], expected, rtol=0, atol=1e-9)
+
+    # Load reads the files back into an emptied page, and the refit shows the same correction.
+    d.find_element(By.ID, "clear-trapezoid").click()
+    d.find_element(By.ID, "clear-points").click()
+    idle(d)
+    d.find_element(By.ID, "load").click()
+    wait_for(d, "document.getElementById('files-summary').textContent.startsWith('loaded')")
+    idle(d)
+    assert js(d, f"{S}.trap") == trap
+    np.testing.assert_array_equal(js(d, f"{S}.points.map((p) => [p.u, p.v, p.x, p.y])"), points)
+    assert js(d, f"{S}.fit.correction") == saved
+    assert [entry for entry in d.get_log("browser") if entry["source"] == "javascript"] == []  # no script error
+
+
+def save_screenshot(driver, path: Path) -> None:
+    """The browser's screenshot of the page, shrunk to 1120 px wide, as JPEG quality 85 (about 200 kB)."""
+    image = cv2.imdecode(np.frombuffer(driver.get_screenshot_as_png(), np.uint8), cv2.IMREAD_COLOR)
+    scale = 1120 / image.shape[1]
+    small = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    assert cv2.imwrite(str(path), small, [cv2.IMWRITE_JPEG_QUALITY, 85])
