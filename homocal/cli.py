@@ -11,6 +11,7 @@ import argparse
 import sys
 
 from homocal.correctors import commands as corrector_commands
+from homocal.files import OutputFolderError
 from homocal.study import cli as study_cli, report as study_report, sweep as study_sweep
 from homocal.ui import cli as ui_cli
 
@@ -36,7 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.handler(args)
-    except (ValueError, OSError) as e:
+    except (ValueError, OSError, OutputFolderError) as e:
         message = " ".join(str(e).split("\n"))
         print(f"homocal: error: {message}", file=sys.stderr)
         return 2

@@ -26,13 +26,14 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 from tqdm import tqdm
 
-from homocal.files import write_atomic, write_json_atomic
+from homocal.files import output_folder, write_atomic, write_json_atomic
 from homocal.study.perturb import ShiftSpec, draw_base_error, draw_variant
 from homocal.study.scene import Scene, StudyParams, compute_shard, shard_reason
 from homocal.study.triples import n_samples
 
 PRESETS = {"paper": dict(n_variants=1000, n_test=2000), "quick": dict(n_variants=50, n_test=2000)}
 GROUP = 8  # variants per Dask task
+FORMAT = "homocal-study"  # study.json's "format": marks a results directory as homocal study's (homocal.files.output_folder)
 
 
 def shard_path(out: Path, scene: str, variant: int) -> Path:
@@ -101,43 +102,40 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
     out = Path(out)
     scenes = load_scenes(paths, params)
     parameters = study_parameters(preset, params, scenes, paths)
-    study_file = out / "study.json"
-    previous = json.loads(study_file.read_text()) if study_file.is_file() else None
-    if previous is not None and not resume:
-        raise ValueError(f"{out} already holds a study; pass --resume to continue it or choose another --out")
-    if previous is not None and {k: previous.get(k) for k in parameters} != parameters:
-        raise ValueError(f"{out} holds a study with other parameters; --resume needs the same datasets and options")
-    if previous is None and not resume and out.exists() and any(out.iterdir()):
-        raise ValueError(f"{out} exists and is not empty")
-    for tmp in out.glob("**/*.tmp*"):
-        tmp.unlink()
     n_shards = len(scenes) * (params.n_variants + 1)
-    timing_file = out / "timing.json"
-    elapsed = json.loads(timing_file.read_text()).get("elapsed_seconds", 0.0) if timing_file.is_file() else 0.0
-    study = {**parameters, "samples_total": sum(len(s.triples) * (params.n_variants + 1) for s in scenes),
-             "complete": False, "versions": versions()}
-    write_json_atomic(study_file, study)
-    reasons = {(s.name, v): shard_reason(shard_path(out, s.name, v))
-               for s in scenes for v in range(params.n_variants + 1) if shard_path(out, s.name, v).is_file()}
-    todo = [(s, v) for s in scenes for v in range(params.n_variants + 1) if (s.name, v) not in reasons]
-    bar = tqdm(total=len(todo), unit="shard", desc="study", disable=not progress)
-    with ThreadPoolExecutor(max_workers=1) as writer:  # writes overlap the next shard's computation
-        writes = []
-        for scene, variant, table, reason in _execute(todo, paths, scenes, params, workers, scheduler):
-            writes.append(writer.submit(write_table, shard_path(out, scene.name, variant), table))
-            writes[-1].add_done_callback(lambda _: bar.update())
-            reasons[scene.name, variant] = reason
-        for w in writes:
-            w.result()
-    bar.close()
-    for scene in scenes:
-        write_table(out / "variants" / f"{scene.name}.parquet",
-                    variants_table(scene, params, [reasons[scene.name, v] for v in range(params.n_variants + 1)]))
-    study.update(_counts(scenes, reasons))
-    study["complete"] = study["shards_done"] == n_shards
-    write_json_atomic(study_file, study)
-    elapsed += time.perf_counter() - start
-    write_json_atomic(timing_file, {"elapsed_seconds": elapsed})
+    with output_folder(out, FORMAT, resume, marker="study.json") as folder:
+        study_file, timing_file = out / "study.json", out / "timing.json"
+        if folder.resumed:
+            previous = json.loads(study_file.read_text())
+            if {k: previous.get(k) for k in parameters} != parameters:
+                raise ValueError(f"{out} holds a study with other parameters; --resume needs the same datasets and options")
+        shards = [shard_path(out, s.name, v).relative_to(out) for s in scenes for v in range(params.n_variants + 1)]
+        folder.remove_temporaries(["study.json", "timing.json", *(f"variants/{s.name}.parquet" for s in scenes), *map(str, shards)])
+        elapsed = json.loads(timing_file.read_text()).get("elapsed_seconds", 0.0) if timing_file.is_file() else 0.0
+        study = {"format": FORMAT, **parameters, "samples_total": sum(len(s.triples) * (params.n_variants + 1) for s in scenes),
+                 "complete": False, "versions": versions()}
+        write_json_atomic(study_file, study)
+        reasons = {(s.name, v): shard_reason(shard_path(out, s.name, v))
+                   for s in scenes for v in range(params.n_variants + 1) if shard_path(out, s.name, v).is_file()}
+        todo = [(s, v) for s in scenes for v in range(params.n_variants + 1) if (s.name, v) not in reasons]
+        bar = tqdm(total=len(todo), unit="shard", desc="study", disable=not progress)
+        with ThreadPoolExecutor(max_workers=1) as writer:  # writes overlap the next shard's computation
+            writes = []
+            for scene, variant, table, reason in _execute(todo, paths, scenes, params, workers, scheduler):
+                writes.append(writer.submit(write_table, shard_path(out, scene.name, variant), table))
+                writes[-1].add_done_callback(lambda _: bar.update())
+                reasons[scene.name, variant] = reason
+            for w in writes:
+                w.result()
+        bar.close()
+        for scene in scenes:
+            write_table(out / "variants" / f"{scene.name}.parquet",
+                        variants_table(scene, params, [reasons[scene.name, v] for v in range(params.n_variants + 1)]))
+        study.update(_counts(scenes, reasons))
+        study["complete"] = study["shards_done"] == n_shards
+        write_json_atomic(study_file, study)
+        elapsed += time.perf_counter() - start
+        write_json_atomic(timing_file, {"elapsed_seconds": elapsed})
     return study | {"elapsed_seconds": elapsed}
 
 

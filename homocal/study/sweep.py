@@ -21,12 +21,12 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from homocal.files import write_atomic, write_json_atomic, write_text_atomic
+from homocal.files import output_folder, write_atomic, write_json_atomic, write_text_atomic
 from homocal.study.cli import add_study_options, params_from_args
 from homocal.study.engine import run_study
 from homocal.study.metrics import D_KEYS, METHODS, METRICS, OVERALL, PAPER, build_table, load_study, paper_distance, shard_files
 
-FORMAT = "homocal.sweep"
+FORMAT = "homocal-sweep"  # sweep.json's "format": marks a sweep folder (homocal.files.output_folder)
 SWEEPABLE = ("horizon_shift", "click_noise", "test_lateral_max", "max_test_distance", "metric", "seed", "descent_delta_max")
 CSV_KEYS = ("n", *D_KEYS, "median_cal", "iqr_cal", "std_cal")
 
@@ -66,29 +66,24 @@ def run_sweep(paths: list[str], out: str | Path, param: str, values: list[str], 
     fixed.pop(param, None)
     meta = {"format": FORMAT, "param": param, "values": values, "preset": args.preset, "fixed": fixed,
             "datasets": [str(Path(p).resolve()) for p in paths]}
-    meta_file = out / "sweep.json"
-    if meta_file.is_file():
-        previous = json.loads(meta_file.read_text())
-        if not resume:
-            raise ValueError(f"{out} already holds a sweep; pass --resume to continue it or choose another --out")
-        if previous != meta:
-            raise ValueError(f"{out} holds a sweep of other parameters; --resume needs the same datasets and options")
-    elif out.exists() and any(out.iterdir()):
-        raise ValueError(f"{out} exists and is not empty (and holds no sweep.json)")
     params = [params_from_args(args, **{param: _typed(param, v)}) for v in values]  # every value checked first
-    write_json_atomic(meta_file, meta)
-    for value, p in zip(values, params):
-        run_dir = out / "runs" / run_name(param, value)
-        run_study(paths, run_dir, p, preset=args.preset, resume=(run_dir / "study.json").is_file(), progress=progress)
-    rows = []
-    for value in values:
-        run_dir = out / "runs" / run_name(param, value)
-        table = build_table(shard_files(run_dir, load_study(run_dir)))
-        D = paper_distance(table)
-        rows += [{"param": param, "value": value, "method": m, "D": D,
-                  **{k: table.value(m, k) for k in CSV_KEYS}} for m in METHODS]
-    write_text_atomic(out / "sweep.csv", to_csv(rows))
-    write_atomic(out / "sweep.png", lambda tmp: sweep_figure(rows, param).savefig(tmp, dpi=110))
+    with output_folder(out, FORMAT, resume, marker="sweep.json") as folder:
+        if folder.resumed and json.loads((out / "sweep.json").read_text()) != meta:
+            raise ValueError(f"{out} holds a sweep of other parameters; --resume needs the same datasets and options")
+        folder.remove_temporaries(["sweep.json", "sweep.csv", "sweep.png"])
+        write_json_atomic(out / "sweep.json", meta)
+        for value, p in zip(values, params):
+            run_dir = out / "runs" / run_name(param, value)
+            run_study(paths, run_dir, p, preset=args.preset, resume=(run_dir / "study.json").is_file(), progress=progress)
+        rows = []
+        for value in values:
+            run_dir = out / "runs" / run_name(param, value)
+            table = build_table(shard_files(run_dir, load_study(run_dir)))
+            D = paper_distance(table)
+            rows += [{"param": param, "value": value, "method": m, "D": D,
+                      **{k: table.value(m, k) for k in CSV_KEYS}} for m in METHODS]
+        write_text_atomic(out / "sweep.csv", to_csv(rows))
+        write_atomic(out / "sweep.png", lambda tmp: sweep_figure(rows, param).savefig(tmp, dpi=110))
     return rows
 
 

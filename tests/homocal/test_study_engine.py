@@ -92,7 +92,7 @@ def test_resume_from_any_partial_state(datasets, reference, tmp_path):
     for scene, v in [("scene_a", 0), ("scene_a", 7), ("scene_a", 40), ("scene_b", 3), ("scene_b", 39)]:
         path = out / "shards" / scene / f"variant_{v:05d}.parquet"
         path.unlink()
-        path.with_name(path.name + ".tmp1234").write_bytes(b"half a parquet file")
+        path.with_name(f"{path.stem}.tmp1234{path.suffix}").write_bytes(b"half a parquet file")  # our temporaries' names
     study = json.loads((out / "study.json").read_text())
     (out / "study.json").write_text(json.dumps({**study, "complete": False}))
     assert main(["study", *datasets, "--out", str(out), "--variants", "40", "--n-test", "200", "--resume"]) == 0
@@ -172,3 +172,28 @@ def test_shard_function_is_deterministic(datasets):
     a, _ = compute_shard(scene, StudyParams(n_test=100), 3)
     b, _ = compute_shard(scene, StudyParams(n_test=100), 3)
     assert a.equals(b)
+
+
+@pytest.mark.parametrize("command", ["study", "sweep"])
+def test_resume_refuses_a_folder_that_is_not_ours(datasets, tmp_path, capsys, command):
+    """--resume on a user's folder: one line, exit 2, every file of the folder untouched (temporaries too)."""
+    out = tmp_path / "mine"
+    out.mkdir()
+    user = {"video.mp4": b"the user's video", "notes.tmp1.txt": b"not ours", "study.json": b'{"format": "other"}'}
+    for name, data in user.items():
+        (out / name).write_bytes(data)
+    sweep = ["--horizon-shift", "0,4"] if command == "sweep" else []
+    assert main([command, *datasets, "-o", str(out), "--variants", "1", "--n-test", "50", *sweep, "--resume"]) == 2
+    assert "not a homocal-" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == user
+
+
+def test_a_second_writer_is_refused_with_who_holds_the_lock(datasets, tmp_path, capsys):
+    from homocal.files import output_folder
+
+    out = tmp_path / "busy"
+    with output_folder(out, "homocal-study", resume=False, marker="study.json"):
+        assert main(["study", *datasets, "-o", str(out), "--variants", "1", "--n-test", "50"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"pid {os.getpid()}" in err[0]
+    assert main(["study", *datasets, "-o", str(out), "--variants", "1", "--n-test", "50"]) == 0  # free again
