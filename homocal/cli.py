@@ -33,8 +33,25 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+SIGNED_VALUES = ("--horizon-shift", "--camera-origin")  # options whose value may start with '-' (-12:16:2, -1.5,0)
+
+
+def join_signed_values(argv: list[str]) -> list[str]:
+    """['--horizon-shift', '-12:16:2'] -> ['--horizon-shift=-12:16:2'] for SIGNED_VALUES (argparse would take a
+    value starting with '-' that is not a plain number for an option)."""
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i] in SIGNED_VALUES and i + 1 < len(argv) and argv[i + 1].startswith("-") and not argv[i + 1].startswith("--"):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_args(join_signed_values(sys.argv[1:] if argv is None else list(argv)))
     try:
         return args.handler(args)
     except (ValueError, OSError, OutputFolderError) as e:

@@ -105,6 +105,15 @@ def test_shift_spec_parses(text, spec):
     assert ShiftSpec.parse(str(parsed)) == parsed
 
 
+def test_negative_values_after_the_flag(datasets, tmp_path, capsys):
+    """`--horizon-shift -12:16:2` and `--horizon-shift -3` reach the option (not taken for flags)."""
+    from homocal.cli import join_signed_values
+
+    assert join_signed_values(["study", "--horizon-shift", "-12:16:2", "-o", "x"]) == ["study", "--horizon-shift=-12:16:2", "-o", "x"]
+    assert main(["study", *datasets, "-o", str(tmp_path / "s"), "--variants", "1", "--n-test", "50", "--horizon-shift", "-3"]) == 0
+    assert json.loads((tmp_path / "s" / "study.json").read_text())["horizon_shift"] == "-3"
+
+
 @pytest.mark.parametrize("text", ["", "eight", "nan", "inf", "1e400", "normal:6", "normal:6:-1", "uniform:5:1",
                                   "gauss:1:2", "normal:a:b", "200", "8px", "1,2"])
 def test_bad_shift_spec_is_one_clear_error(datasets, tmp_path, capsys, text):
