@@ -49,7 +49,8 @@ def write_dataset(path: str | Path, scene: str = "synthetic", n_calibration: int
     files = {
         "manifest.json": {"scene": scene, "seed": seed, "config_hash": f"synthetic-{scene}-{seed}", "complete": True,
                           "detectors": ["segmentation"]},
-        "camera.json": {"camera_origin": [0.0, 0.0], "width": cam.width, "height": cam.height, "K": cam.K.tolist()},
+        "camera.json": {"camera_origin": [0.0, 0.0], "width": cam.width, "height": cam.height, "K": cam.K.tolist(),
+                        "horizon_row": cam.horizon_row},
         "trapezoids.json": {"order": "TL,TR,BR,BL", "hand_placed": {"image": hand_image.tolist(), "map": hand_map.tolist()},
                             "exact": {"image": exact_image.tolist(), "map": exact_map.tolist()},
                             "ground_m": GROUND_RECT.tolist()},

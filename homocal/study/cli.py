@@ -30,9 +30,10 @@ def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
     p.add_argument("--test-lateral-max", type=typed(metres_or_none), metavar="M", **quiet,
                    help="test points at most M metres to the side of the calibration line x = 0 (default: none)")
     p.add_argument("--horizon-shift", metavar="SPEC", **quiet,
-                   help="the clicked trapezoid's systematic error: its horizon SPEC px above the true one, as a tilt "
-                        "error would put it (positive: the mapping underestimates range); SPEC is a number or a "
-                        "per-variant distribution normal:MU:SIGMA or uniform:A:B (default 0, or the preset's)")
+                   help="the clicked trapezoid's systematic error: the hand-placed trapezoid moved as a tilt error "
+                        "moves it, so that its horizon lies SPEC px above the true one (positive: the mapping "
+                        "underestimates range); SPEC is a number or a per-variant distribution normal:MU:SIGMA or "
+                        "uniform:A:B (default: the hand-placed trapezoid as it is, or the preset's)")
     p.add_argument("--click-noise", type=typed(float), metavar="PX", **quiet,
                    help="per-variant Gaussian noise (standard deviation, px) on the 8 clicked image coordinates (default 0)")
     p.add_argument("--metric", **({} if sweep else dict(choices=METRICS)), **quiet,

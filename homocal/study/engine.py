@@ -27,8 +27,8 @@ import pyarrow.parquet as pq
 from tqdm import tqdm
 
 from homocal.files import output_folder, write_atomic, write_json_atomic
-from homocal.study.perturb import ShiftSpec, draw_base_error, draw_variant
-from homocal.study.scene import Scene, StudyParams, compute_shard, shard_reason
+from homocal.study.perturb import draw_base_error, draw_variant
+from homocal.study.scene import Scene, StudyParams, compute_shard, shard_reason, shift_spec
 from homocal.study.triples import n_samples
 
 PRESETS = {"paper": dict(n_variants=1000, n_test=2000), "quick": dict(n_variants=50, n_test=2000)}
@@ -47,15 +47,16 @@ def write_table(path: Path, table: pa.Table) -> None:
 
 
 def variants_table(scene: Scene, params: StudyParams, reasons: list[str]) -> pa.Table:
-    """variants/<scene>.parquet: variant, horizon_shift_px and click_0..7 (the base error, px), img_0..7, map_0..7
+    """variants/<scene>.parquet: variant, horizon_shift_px (the base horizon's height above the true one, null
+    without a horizon shift) and click_0..7 (the base error, px), img_0..7, map_0..7
     (px offsets), n_perturbed, degenerate, reason; reasons (n_variants + 1,) are the shards' ("" if not
     degenerate)."""
     n = params.n_variants + 1
     rows = [draw_variant(params.seed, scene.name, v) for v in range(n)]
-    base = [draw_base_error(params.seed, scene.name, v, ShiftSpec.parse(params.horizon_shift), params.click_noise)
-            for v in range(n)]
+    base = [draw_base_error(params.seed, scene.name, v, shift_spec(params), params.click_noise) for v in range(n)]
     offsets, click = np.array([r[0] for r in rows]), np.array([b[1] for b in base])
-    cols = {"variant": pa.array(np.arange(n, dtype=np.int32)), "horizon_shift_px": pa.array([b[0] for b in base])}
+    cols = {"variant": pa.array(np.arange(n, dtype=np.int32)),
+            "horizon_shift_px": pa.array([b[0] for b in base], pa.float64())}  # null: the hand-placed trapezoid as it is
     cols |= {f"click_{c}": pa.array(click[:, c]) for c in range(8)}
     cols |= {f"img_{c}": pa.array(offsets[:, c]) for c in range(8)}
     cols |= {f"map_{c}": pa.array(offsets[:, 8 + c]) for c in range(8)}

@@ -2,8 +2,9 @@
 
 A variant's image trapezoid is built in three steps, each seeded by (run seed, scene, variant):
   1. the base error of the clicking (the paper's "residual geometric errors", whose size it never gives):
-     a systematic horizon shift (``tilt_shift``: the vertices move as a change of the camera's tilt moves
-     them) and Gaussian click noise on the 8 image coordinates (``draw_base_error``);
+     the hand-placed trapezoid as it is, or moved so that its horizon lies a chosen number of pixels above
+     the true one (``tilt_shift``: the vertices move as a change of the camera's tilt moves them), and
+     Gaussian click noise on the 8 image coordinates (``draw_base_error``, ``base_quad``);
   2. the paper's perturbation: 2 to 16 of the 16 coordinates moved by 0-3 px (``draw_variant``).
 """
 from __future__ import annotations
@@ -54,12 +55,15 @@ class ShiftSpec:
         return f"{self.a:g}" if self.kind == "fixed" else f"{self.kind}:{self.a:g}:{self.b:g}"
 
 
-def draw_base_error(seed: int, scene: str, variant: int, shift: ShiftSpec, click_noise: float) -> tuple[float, np.ndarray]:
-    """(horizon shift (px), click noise (8,) px) of one variant's clicked base trapezoid, drawn from
-    np.random.default_rng(seed_from_key(seed, scene, variant, "base")): the shift from the spec, then 8
-    independent N(0, click_noise^2) offsets of the image coordinates. Every variant, the 0th too, has its own."""
+def draw_base_error(seed: int, scene: str, variant: int, shift: ShiftSpec | None, click_noise: float) -> tuple[float | None, np.ndarray]:
+    """(horizon shift (px; None without a spec), click noise (8,) px) of one variant's clicked base trapezoid,
+    drawn from np.random.default_rng(seed_from_key(seed, scene, variant, "base")): the shift from the spec,
+    then 8 independent N(0, click_noise^2) offsets of the image coordinates. Every variant, the 0th too, has
+    its own."""
     rng = np.random.default_rng(seed_from_key(seed, scene, variant, "base"))
-    if shift.kind == "normal":
+    if shift is None:
+        eps = None
+    elif shift.kind == "normal":
         eps = float(rng.normal(shift.a, shift.b))
     elif shift.kind == "uniform":
         eps = float(rng.uniform(shift.a, shift.b))
@@ -88,10 +92,13 @@ def tilt_shift(image: np.ndarray, K: np.ndarray, horizon_row: float, shift_px: f
     return moved[:, :2] / moved[:, 2:]
 
 
-def base_quad(image: np.ndarray, K: np.ndarray, horizon_row: float, shift_px: float, noise: np.ndarray) -> np.ndarray:
-    """The clicked base image quad (4, 2) px: the hand-placed image (4, 2) moved by tilt_shift (skipped when
-    shift_px is 0, so the default base is the hand-placed quad to the bit) plus click noise (8,) px."""
-    return (tilt_shift(image, K, horizon_row, shift_px) if shift_px else image) + noise.reshape(4, 2)
+def base_quad(image: np.ndarray, K: np.ndarray, horizon_row: float, true_row: float, shift_px: float | None,
+              noise: np.ndarray) -> np.ndarray:
+    """The clicked base image quad (4, 2) px: the hand-placed image quad (4, 2), whose mapping's horizon is at
+    horizon_row (px, principal column), moved by tilt_shift so that its horizon lies shift_px above the true
+    horizon true_row (left as it is when shift_px is None, the default), plus click noise (8,) px."""
+    moved = image if shift_px is None else tilt_shift(image, K, horizon_row, horizon_row - true_row + shift_px)
+    return moved + noise.reshape(4, 2)
 
 
 def draw_variant(seed: int, scene: str, variant: int) -> tuple[np.ndarray, int]:

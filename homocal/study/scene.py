@@ -29,8 +29,9 @@ METRICS = ("euclidean", "range")
 class StudyParams:
     """Everything that determines a study's numbers (written to study.json by to_dict).
 
-    horizon_shift: the clicked trapezoid's systematic error, a ShiftSpec string (px; positive: the horizon
-    above the true one). click_noise: standard deviation (px) of Gaussian noise on its 8 image coordinates.
+    horizon_shift: None (the hand-placed trapezoid as it is) or the clicked trapezoid's systematic error, a
+    ShiftSpec string: its horizon is put that many px above the true one (positive: the mapping
+    underestimates range). click_noise: standard deviation (px) of Gaussian noise on its 8 image coordinates.
     metric: "euclidean" (ground error ||p - g||) or "range" (| ||g - o|| - ||p - o|| |) for the calibration
     and path errors the improvements are computed from (the correctors themselves are unchanged).
     test_lateral_max: test points at most this many metres to the side of the calibration line x = o_x.
@@ -42,7 +43,7 @@ class StudyParams:
     n_test: int = 2000
     max_test_distance: float | None = 50.0  # metres from the camera; the paper's operating range (Fig. 2); None: all
     test_lateral_max: float | None = None
-    horizon_shift: str = "0"
+    horizon_shift: str | None = None
     click_noise: float = 0.0
     metric: str = "euclidean"
     threshold: float = 75.0
@@ -50,7 +51,8 @@ class StudyParams:
         delta_max=8.0, grid_offsets=(-4.0, -2.0, 0.0, 2.0, 4.0), initial_step=1.0, min_step=0.0625, max_evals=400))
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "horizon_shift", str(ShiftSpec.parse(self.horizon_shift)))  # one spelling
+        if self.horizon_shift is not None:
+            object.__setattr__(self, "horizon_shift", str(ShiftSpec.parse(self.horizon_shift)))  # one spelling
         grid = tuple(float(x) for x in self.descent["grid_offsets"])
         object.__setattr__(self, "descent", {**self.descent, "grid_offsets": grid})
         if self.metric not in METRICS:
@@ -94,6 +96,7 @@ class Scene:
     test_ground: np.ndarray
     triples: np.ndarray
     K: np.ndarray
+    true_horizon_row: float
     config_hash: str = ""
 
     @functools.cached_property
@@ -102,12 +105,11 @@ class Scene:
         return float(ViewTransformer(self.image_quad, self.site_map.to_metres(self.map_quad)).horizon_row(self.K[0, 2]))
 
     def base_image_quad(self, params: StudyParams, variant: int) -> np.ndarray:
-        """The variant's clicked base image trapezoid (4, 2) px: the hand-placed one with the variant's horizon
-        shift (perturb.tilt_shift) and click noise (perturb.draw_base_error); the hand-placed one itself when
-        both are 0 (the default)."""
-        eps, noise = draw_base_error(params.seed, self.name, variant, ShiftSpec.parse(params.horizon_shift),
-                                     params.click_noise)
-        return base_quad(self.image_quad, self.K, self.horizon_row, eps, noise)
+        """The variant's clicked base image trapezoid (4, 2) px (perturb.base_quad): the hand-placed one, its
+        horizon put the variant's horizon shift above the true one if params has a horizon shift, plus the
+        variant's click noise; the hand-placed one itself by default."""
+        eps, noise = draw_base_error(params.seed, self.name, variant, shift_spec(params), params.click_noise)
+        return base_quad(self.image_quad, self.K, self.horizon_row, self.true_horizon_row, eps, noise)
 
     @functools.cached_property
     def distance_features(self) -> tuple[np.ndarray, np.ndarray]:
@@ -127,7 +129,13 @@ class Scene:
                                                   max_lateral=params.test_lateral_max)
         return cls(ds.name, ds.site_map, ds.trapezoid_image, ds.trapezoid_map, np.asarray(ds.camera_origin, float),
                    cal_image, cal_ground, distance, test_image, test_ground, triples(len(cal_image)),
-                   np.asarray(ds.camera["K"], dtype=np.float64), str(ds.manifest.get("config_hash", "")))
+                   np.asarray(ds.camera["K"], dtype=np.float64), float(ds.camera["horizon_row"]),
+                   str(ds.manifest.get("config_hash", "")))
+
+
+def shift_spec(params: StudyParams) -> ShiftSpec | None:
+    """The study's horizon-shift spec, None if it has none."""
+    return None if params.horizon_shift is None else ShiftSpec.parse(params.horizon_shift)
 
 
 @dataclass

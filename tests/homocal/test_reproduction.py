@@ -136,22 +136,29 @@ def test_bad_study_options_are_one_clear_error(datasets, tmp_path, capsys, args,
 def test_base_error_draws():
     """Seeded per (seed, scene, variant); the fixed spec gives the number; the distributions their moments."""
     assert draw_base_error(0, "s", 3, ShiftSpec.parse("5"), 0.0)[0] == 5.0
+    assert draw_base_error(0, "s", 3, None, 0.0)[0] is None
     a, b = draw_base_error(0, "s", 3, ShiftSpec.parse("normal:6:2"), 1.5), draw_base_error(0, "s", 3, ShiftSpec.parse("normal:6:2"), 1.5)
     assert a[0] == b[0] and (a[1] == b[1]).all()
     draws = np.array([draw_base_error(1, "s", v, ShiftSpec.parse("normal:6:2"), 1.0)[0] for v in range(4000)])
     assert draws.mean() == pytest.approx(6, abs=0.15) and draws.std() == pytest.approx(2, abs=0.1)
     uniform = np.array([draw_base_error(1, "s", v, ShiftSpec.parse("uniform:-4:12"), 0.0)[0] for v in range(4000)])
     assert uniform.min() >= -4 and uniform.max() <= 12 and uniform.mean() == pytest.approx(4, abs=0.3)
-    noise = np.array([draw_base_error(2, "s", v, ShiftSpec.parse("0"), 1.5)[1] for v in range(2000)])
+    noise = np.array([draw_base_error(2, "s", v, None, 1.5)[1] for v in range(2000)])
     assert noise.shape == (2000, 8) and noise.std() == pytest.approx(1.5, rel=0.05)
 
 
-def test_default_base_is_the_hand_placed_trapezoid_and_shift_moves_it(datasets):
+@pytest.mark.parametrize("shift", [-6.0, 0.0, 8.0])
+def test_default_base_is_the_hand_placed_trapezoid_and_shift_places_its_horizon(datasets, shift):
+    """Without --horizon-shift the base is the hand-placed trapezoid to the bit; with it, the base mapping's
+    horizon lies `shift` px above the camera's true horizon (camera.json horizon_row), whatever the hand-placed
+    trapezoid's own horizon error."""
     scene = Scene.from_dataset(datasets[0], StudyParams(n_test=100))
     assert (scene.base_image_quad(StudyParams(), 7) == scene.image_quad).all()
-    shifted = scene.base_image_quad(StudyParams(horizon_shift="8"), 7)
+    assert abs(scene.horizon_row - scene.true_horizon_row) > 0.05  # the hand-placed one has an error of its own
+    shifted = scene.base_image_quad(StudyParams(horizon_shift=str(shift)), 7)
     vt = ViewTransformer(shifted, scene.site_map.to_metres(scene.map_quad))
-    assert vt.horizon_row(scene.K[0, 2]) == pytest.approx(scene.horizon_row - 8, abs=0.01)
+    assert vt.horizon_row(scene.K[0, 2]) == pytest.approx(CAM.horizon_row - shift, abs=0.01)
+    assert scene.true_horizon_row == pytest.approx(CAM.horizon_row, abs=1e-9)
 
 
 def test_lateral_limit_keeps_points_near_the_calibration_line(datasets):

@@ -219,7 +219,7 @@ def write_variants(path: Path) -> None:
     """variants/<scene>.parquet: variant 0 unperturbed, 1 degenerate, 2 and 3 perturbed (offsets in px)."""
     offsets = np.zeros((4, 16))
     offsets[1, 0], offsets[2, [1, 9]], offsets[3, [4, 5, 14]] = 3, (2, -1), (-3, 1, 2)
-    cols = {"variant": pa.array(range(4), pa.int32()), "horizon_shift_px": [0.0, 0.0, 5.0, 0.0]}
+    cols = {"variant": pa.array(range(4), pa.int32()), "horizon_shift_px": pa.array([None, None, 5.0, None], pa.float64())}
     cols |= {f"click_{k}": [0.0, 0.0, 0.0, 0.5] for k in range(8)}
     cols |= {f"{side}_{k}": offsets[:, 8 * s + k] for s, side in enumerate(("img", "map")) for k in range(8)}
     cols |= {"n_perturbed": pa.array((offsets != 0).sum(1), pa.int8()), "degenerate": [False, True, False, False],
@@ -238,7 +238,7 @@ class TestDatasetFigures:
 
     def test_variant_quads_skip_degenerate_and_carry_the_base_error(self, dataset_dir, tmp_path):
         """Variant 0 and the perturbed, non-degenerate variants, each its base quad (horizon shift, click noise)
-        plus its offsets; variant 2's horizon shift of 5 px raises its horizon by 5 px before its offsets."""
+        plus its offsets; variant 2's horizon shift of 5 px puts its horizon 5 px above the true one before its offsets."""
         ds = load_dataset(dataset_dir)
         write_variants(tmp_path / "v.parquet")
         picked = figures._variant_quads(ds, tmp_path / "v.parquet", 5)
@@ -249,9 +249,8 @@ class TestDatasetFigures:
         offsets[0, 1] = 2
         np.testing.assert_array_equal(map_quad, ds.trapezoid_map + [[0, -1], [0, 0], [0, 0], [0, 0]])
         K = np.asarray(ds.camera["K"])
-        before = ViewTransformer(ds.trapezoid_image, ds.site_map.to_metres(ds.trapezoid_map)).horizon_row(K[0, 2])
         shifted = ViewTransformer(image - offsets, ds.site_map.to_metres(ds.trapezoid_map)).horizon_row(K[0, 2])
-        assert shifted == pytest.approx(before - 5.0, abs=1e-6)
+        assert shifted == pytest.approx(ds.camera["horizon_row"] - 5.0, abs=1e-6)
         np.testing.assert_allclose(picked[2][1][0] - ds.trapezoid_image, [[0.5, 0.5], [0.5, 0.5], [-2.5, 1.5], [0.5, 0.5]])
 
     def test_report_draws_them(self, dataset_dir, tmp_path):
