@@ -435,7 +435,8 @@ async function doFit() {
   try {
     S.fit = await api("fit", fitRequest());
     S.fitStale = null;
-    say("fitted: " + S.fit.summary, "info");
+    say(S.fit.warnings.length ? "warning: " + S.fit.warnings.join("; ") : "fitted: " + S.fit.summary,
+        S.fit.warnings.length ? "error" : "info");
   } catch (e) { S.fit = null; say(e.message, "error"); }
   render();
 }
