@@ -10,7 +10,7 @@ import argparse
 import csv
 import io
 import math
-from pathlib import Path
+import warnings
 
 import numpy as np
 
@@ -25,7 +25,6 @@ from homocal.ui.errorbars import error_bars
 from homocal.ui.session import Session
 
 TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE = "trapezoid.json", "reference_points.csv", "correction.json"
-CORNERS = ("TL", "TR", "BR", "BL")
 
 
 # ---- request fields -------------------------------------------------------------------------------
@@ -95,14 +94,17 @@ def _complete_transformer(session: Session, req: dict) -> ViewTransformer:
     return transformer
 
 
-def _fitted(session: Session, req: dict) -> tuple[Corrector, ViewTransformer, np.ndarray, np.ndarray]:
-    """Fit the request's method as ``homocal fit`` does; return it with the transformer and points u,v,x,y."""
+def _fitted(session: Session, req: dict) -> tuple[Corrector, ViewTransformer, np.ndarray, argparse.Namespace, list]:
+    """Fit the request's method as ``homocal fit`` does; return it with the transformer, the points (N, 4) u,v,x,y,
+    homocal fit's arguments and the library's warnings (texts)."""
     transformer = _complete_transformer(session, req)
     points = _points(req.get("points"), "points", 4)
     args = fit_arguments(req)
     corrector = commands.METHODS[args.method](args)
-    corrector.fit(transformer, points[:, :2], points[:, 2:], _camera_origin(req))
-    return corrector, transformer, points, args
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        corrector.fit(transformer, points[:, :2], points[:, 2:], _camera_origin(req))
+    return corrector, transformer, points, args, [str(w.message) for w in caught]
 
 
 def fit_arguments(req: dict) -> argparse.Namespace:
@@ -152,7 +154,7 @@ def view(session: Session, req: dict) -> dict:
 def fit(session: Session, req: dict) -> dict:
     """Fit the chosen method on the reference points; errors before/after, per-point residuals, the
     corrected grid and the correction's JSON (what Save writes)."""
-    corrector, transformer, points, args = _fitted(session, req)
+    corrector, transformer, points, args, caught = _fitted(session, req)
     mapped = transformer.transform_points(points[:, :2])
     corrected = corrector.transform_points(points[:, :2])
     w, h = session.frame_size
@@ -163,6 +165,7 @@ def fit(session: Session, req: dict) -> dict:
                   + ("any range" if trust is None else f"{trust:.1f} m") + " straight ahead.")
     return {
         "summary": f"{args.method}: {commands._quality(corrector)}.{commands._method_note(corrector)}{trust_note}",
+        "warnings": caught,
         "error_before": corrector.error_before_,
         "error_after": corrector.error_after_,
         "mapped": mapped.tolist(),
@@ -197,7 +200,7 @@ def save(session: Session, req: dict) -> dict:
     """Write trapezoid.json, reference_points.csv and correction.json (the formats of ``homocal fit --help``)
     to the session's folder. A file this server did not write is overwritten only with "overwrite": true
     (the page asks first); otherwise FileExistsError."""
-    corrector, _, points, args = _fitted(session, req)
+    corrector, _, points, args, _ = _fitted(session, req)
     image, map_px = trapezoid(req)
     paths = [session.out_dir / name for name in (TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE)]
     foreign = [p for p in paths if p.exists() and p not in session.written]

@@ -56,8 +56,8 @@ def run_ui(args: argparse.Namespace) -> int:
     if not 0 <= args.port < 65536:
         raise ValueError(f"--port: expected 0 to 65535, got {args.port}")
     server = UIServer(session, args.port)
-    print(f"homocal ui: {session.title} on {server.url} (saves to {session.out_dir}; Ctrl-C to stop)", flush=True)
     try:
+        print(f"homocal ui: {session.title} on {server.url} (saves to {session.out_dir}; Ctrl-C to stop)", flush=True)
         server.serve_forever()
     except KeyboardInterrupt:
         pass

@@ -288,3 +288,10 @@ def test_error_ellipses_are_the_librarys_1_sigma_covariances(session):
     for line in bars["trustworthy_image"]:
         np.testing.assert_allclose(np.hypot(*transformer.transform_points(np.array(line)).T), expected, rtol=2e-3)
     assert api.view(session, request(errorbars=False))["errorbars"] is None
+
+
+def test_fit_passes_on_the_librarys_warnings(session):
+    behind = [*REF_Q[2], 0.0, -35.0]
+    answer = api.fit(session, request(points=POINTS[:2] + [behind]))
+    assert len(answer["warnings"]) == 1 and "ground_points[2] = [0.0, -35.0] is behind the camera" in answer["warnings"][0]
+    assert api.fit(session, request())["warnings"] == []

@@ -69,12 +69,28 @@ def wait_for(driver, script: str, *args, timeout: float = 10):
     return WebDriverWait(driver, timeout).until(lambda d: js(d, script, *args), message=script)
 
 
-def click(driver, canvas: str, point) -> None:
-    """A real mouse click on the canvas where image (or map) pixel ``point`` is drawn."""
+def viewport_xy(driver, canvas: str, point) -> tuple[int, int]:
+    """The browser-window pixel where the canvas draws image (or map) pixel ``point``."""
     x, y = js(driver, "((s, r) => [s[0] + r.left, s[1] + r.top])(window.homocalUI.toScreen(arguments[0], arguments[1]), "
                       "document.getElementById(arguments[0]).getBoundingClientRect())", canvas, [float(v) for v in point])
+    return round(x), round(y)
+
+
+def click(driver, canvas: str, point) -> None:
+    """A real mouse click on the canvas at image (or map) pixel ``point``."""
     actions = ActionBuilder(driver)
-    actions.pointer_action.move_to_location(round(x), round(y)).click()
+    actions.pointer_action.move_to_location(*viewport_xy(driver, canvas, point)).click()
+    actions.perform()
+
+
+def drag(driver, canvas: str, point, dx: int, dy: int) -> None:
+    """Press the mouse at image (or map) pixel ``point``, move it by (dx, dy) window pixels in 4 steps, release."""
+    x, y = viewport_xy(driver, canvas, point)
+    actions = ActionBuilder(driver)
+    actions.pointer_action.move_to_location(x, y).pointer_down()
+    for k in range(1, 5):
+        actions.pointer_action.move_to_location(x + dx * k // 4, y + dy * k // 4)
+    actions.pointer_action.pointer_up()
     actions.perform()
 
 
@@ -109,6 +125,18 @@ def test_click_fit_save_load_in_a_browser(browser, server, tiny_dataset, tmp_pat
         idle(d)
     trap = js(d, f"{S}.trap")
     assert np.abs(np.array(trap["image"]) - image_quad).max() < 1.0  # one CSS pixel is ~1.4 frame pixels
+
+    # Dragging a corner moves it and redraws; the error bars come back when it is let go.
+    zoom = js(d, "window.homocalUI.views.frame.zoom")
+    drag(d, "frame", trap["image"][2], 12, 0)
+    idle(d)
+    assert js(d, f"{S}.trap.image[2][0]") == pytest.approx(trap["image"][2][0] + 12 / zoom, abs=0.8)
+    assert js(d, f"{S}.trap.image[2][1]") == pytest.approx(trap["image"][2][1], abs=0.8)
+    assert js(d, f"{S}.view.errorbars") is not None
+    drag(d, "frame", js(d, f"{S}.trap.image[2]"), -12, 0)
+    idle(d)
+    trap = js(d, f"{S}.trap")
+    assert np.abs(np.array(trap["image"]) - image_quad).max() < 1.0
     assert np.abs(np.array(trap["map"]) - map_quad).max() < 2.5
     assert js(d, f"{S}.view.complete") and js(d, f"{S}.view.grid.major.length") > 0
     assert js(d, f"{S}.view.footprint.length") > 0 and js(d, f"{S}.view.horizon") is not None

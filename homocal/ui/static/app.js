@@ -1,6 +1,7 @@
-// homocal ui: the page. Plain JavaScript and canvas; every computation is a call to the local server's JSON
-// API (homocal/ui/api.py), which runs the library. Image pixels follow OpenCV (pixel centres at integers);
-// a view maps image (or map) pixel p to canvas pixel (p + 0.5) * zoom + pan.
+// homocal ui: the page. Plain JavaScript and canvas; every computation but the site map's scale and origin
+// (pixels <-> metres, to place a click) is a call to the local server's JSON API (homocal/ui/api.py), which runs
+// the library. Image pixels follow OpenCV (pixel centres at integers); a view maps image (or map) pixel p to
+// canvas pixel (p + 0.5) * zoom + pan.
 "use strict";
 
 const CORNERS = ["TL", "TR", "BR", "BL"];
@@ -342,7 +343,7 @@ function handleAt(name, sx, sy) {
   return null;
 }
 
-let drag = null;  // {name, kind, i, start, moved, pan: [x, y]}
+let drag = null;  // {name, kind: "pan" | "corner" | "point" | "click", i, down, last, moved, start}
 
 function onDown(name, e) {
   e.preventDefault();
@@ -385,7 +386,7 @@ async function onUp(name, e) {
   drag = null;
   if (d.kind === "corner" && d.moved) {
     await changeTrapezoid(() => { S.trap = d.start.trap; });
-  } else if (d.kind === "click" || (d.kind !== "pan" && !d.moved)) {
+  } else if (d.kind === "click") {  // (a click on a corner or point without moving it does nothing)
     const [sx, sy] = eventPixel(name, e);
     const p = toPixel(name, sx, sy);
     await clickAt(name, [round(p[0], 0.1), round(p[1], 0.1)], p);
@@ -412,7 +413,9 @@ async function clickAt(name, q, exact) {
       say("", "");
     } catch (e) { say(e.message, "error"); }
     render();
-  } else if (name === "map") {
+  } else if (name !== "map") {
+    say("camera ground point: click it on the map", "error");
+  } else {
     const g = mapToGround(exact);
     S.camera = [round(g[0], 0.01), round(g[1], 0.01)];
     $("camera-x").value = S.camera[0]; $("camera-y").value = S.camera[1];
@@ -435,13 +438,14 @@ async function doFit() {
   try {
     S.fit = await api("fit", fitRequest());
     S.fitStale = null;
-    say("fitted: " + S.fit.summary, "info");
+    say(S.fit.warnings.length ? "warning: " + S.fit.warnings.join("; ") : "fitted: " + S.fit.summary,
+        S.fit.warnings.length ? "error" : "info");
   } catch (e) { S.fit = null; say(e.message, "error"); }
   render();
 }
 
 async function doSave() {
-  let request = fitRequest();
+  const request = fitRequest();
   try {
     let answer;
     try { answer = await api("save", request); }
@@ -476,7 +480,6 @@ function bind() {
     const c = $(name);
     c.addEventListener("mousedown", (e) => onDown(name, e));
     c.addEventListener("mousemove", (e) => onMove(name, e));
-    c.addEventListener("mouseup", (e) => onUp(name, e));
     c.addEventListener("wheel", (e) => onWheel(name, e), { passive: false });
     c.addEventListener("contextmenu", (e) => e.preventDefault());
   }
@@ -510,6 +513,7 @@ function bind() {
     S.points = S.info.dataset.calibration.map((p) => ({ u: p[0], v: p[1], x: p[2], y: p[3] }));
     invalidateFit(); render();
   };
+  window.addEventListener("mouseup", (e) => { if (drag) onUp(drag.name, e); });  // also when let go outside
   window.addEventListener("resize", () => { sizeCanvases(); render(); });
 }
 
