@@ -33,7 +33,7 @@ def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
                    help="the clicked trapezoid's systematic error: the hand-placed trapezoid moved as a tilt error "
                         "moves it, so that its horizon lies SPEC px above the true one (positive: the mapping "
                         "underestimates range); SPEC is a number or a per-variant distribution normal:MU:SIGMA or "
-                        "uniform:A:B (default: the hand-placed trapezoid as it is, or the preset's)")
+                        "uniform:A:B; 'none': the hand-placed trapezoid as it is (the default, unless the preset sets one)")
     p.add_argument("--click-noise", type=typed(float), metavar="PX", **quiet,
                    help="per-variant Gaussian noise (standard deviation, px) on the 8 clicked image coordinates (default 0)")
     p.add_argument("--metric", **({} if sweep else dict(choices=METRICS)), **quiet,
@@ -48,6 +48,8 @@ def params_from_args(args: argparse.Namespace, **override) -> StudyParams:
     names = ("n_variants", "seed", "foot_source", "n_test", "max_test_distance", "test_lateral_max", "horizon_shift",
              "click_noise", "metric", "descent_delta_max")
     values = {**PRESETS[args.preset], **{n: getattr(args, n) for n in names if hasattr(args, n)}, **override}
+    if str(values.get("horizon_shift")).lower() == "none":  # the hand-placed trapezoid as it is (a preset's shift off)
+        values["horizon_shift"] = None
     if "descent_delta_max" in values:
         values["descent"] = descent_settings(values.pop("descent_delta_max"))
     if values.get("n_variants", 0) < 0:
