@@ -424,6 +424,7 @@ class TestJson:
         ("regression", lambda d: d.update(calibration_improvement=None), r"field calibration_improvement: None does"),
         ("regression", lambda d: d["transformer"]["source"][0].__setitem__(0, 1e308), r"field transformer: .*out of range"),
         ("regression", lambda d: d.update(camera_origin=[0.0, math.nan]), r"field camera_origin"),
+        ("regression", lambda d: d.update(camera_origin=["a", "b"]), r"field camera_origin: must be 2 finite"),
         ("regression", lambda d: d.update(params=[True]), r"field params: expected an object"),
         ("descent", lambda d: d["fitted"]["source"][1].__setitem__(1, d["fitted"]["source"][1][1] + 20), r"moved .*delta_max"),
         ("descent", lambda d: d["fitted"].update(source=[[0, 0]] * 4), r"field fitted\.source: .*same point"),
