@@ -1,8 +1,9 @@
 """Compiled kernels of the two correctors beyond the paper, for the study's per-sample loop: regression with an
 intercept (homocal.correctors.regression.fit_quadratic_intercept) and the horizon correction
 (homocal.correctors.horizon.fit_horizon_shift). Plain scalar functions of one calibration triple, the same
-algorithm, iteration counts and tolerances as the readable correctors (tests/homocal/test_method_kernels.py
-checks them decision for decision). Conventions as homocal.study.kernels: cal table rows d, rx, ry, ux, uy,
+algorithm, iteration counts and tolerances as the readable correctors; tests/homocal/test_method_kernels.py
+checks that their results agree to 1e-9 (rounding-level ties aside, every decision is the same; where one is
+not, both still converge to the same minimum). Conventions as homocal.study.kernels: cal table rows d, rx, ry, ux, uy,
 e_faithful, e_signed; test-point lengths in units of 2^-26 m (kernels.FIXED).
 
 Use in a per-sample loop (i, j, k the triple, H0 the variant's homography, q (M, 2) image and g (M, 2) ground
@@ -12,7 +13,9 @@ calibration points)::
     cal_after = (radial_error_intercept(cal, i, a, b, c) + ... j ... + ... k ...) / 3
     path_after = regression_path_intercept(test, a, b, c)
     eps, delta = fit_horizon_shift3(H0, q[i, 0], q[i, 1], g[i, 0], g[i, 1], ... j ..., ... k ...)
+    cal_after = horizon_mean_error3(H0, eps, q[i, 0], q[i, 1], g[i, 0], g[i, 1], ... j ..., ... k ...)
     horizon_homography_into(H0, eps, Hh)        # then dH = Hh - H0 into kernels.descent_path, as descent's
+(eps is NaN if the variant's mapping has h32 <= 0 or a calibration point beyond its horizon.)
 """
 from __future__ import annotations
 
@@ -146,6 +149,19 @@ def fit_horizon_shift3(H, u0, v0, gx0, gy0, u1, v1, gx1, gy1, u2, v2, gx2, gy2):
             break
         x = x - step if a < x - step < b else 0.5 * (a + b)
     return (x if horizon_loss3(*P, x) <= (1.0 + FLAT) * best else start), delta
+
+
+@nb.njit(**JIT)
+def horizon_mean_error3(H, eps, u0, v0, gx0, gy0, u1, v1, gx1, gy1, u2, v2, gx2, gy2):
+    """Mean Euclidean calibration error (eq. (25)'s L) of the horizon-corrected mapping H . row_shift(eps) on
+    three points: HorizonCorrector.error_after_."""
+    total = 0.0
+    for u, v, gx, gy in ((u0, v0, gx0, gy0), (u1, v1, gx1, gy1), (u2, v2, gx2, gy2)):
+        x = H[0, 0] * u + H[0, 1] * (v + eps) + H[0, 2]
+        y = H[1, 0] * u + H[1, 1] * (v + eps) + H[1, 2]
+        w = H[2, 0] * u + H[2, 1] * (v + eps) + H[2, 2]
+        total += math.hypot(x / w - gx, y / w - gy)
+    return total / 3.0
 
 
 @nb.njit(**JIT)
