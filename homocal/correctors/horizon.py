@@ -101,9 +101,9 @@ class HorizonCorrector(Corrector):
     and Offset of eq. (7) unchanged: Y_hat(v) = Offset + K / (v - v_h - epsilon). The transform of the image
     that does exactly this at every column is the row shift v -> v + epsilon applied before H (the mapping of
     eq. (10) with the horizon moved back). A change of the camera's tilt would induce K R_x(dtheta) K^-1
-    instead, which also shears the image laterally and shifts rows by 7-40 % more at the bottom than at the
-    horizon on the paper's camera; but it needs the intrinsics K (focal length, principal point), which a
-    correction file does not have (only the two trapezoids; the image size is unknown too). So the literal row
+    instead, which also shears the image laterally and moves the bottom row about 28 % more than the horizon
+    on the paper's camera (f dtheta sec^2 of the row's angle from the axis); but it needs the intrinsics K
+    (focal length, principal point), which a correction file does not have (only the two trapezoids; the image size is unknown too). So the literal row
     shift: it needs nothing beyond the trapezoid and is exact for the paper's model; for a true tilt error of
     +/-0.5-1 degree on the paper's camera it recovers the horizon shift within 6 % and leaves corrected points
     within 0.16 m out to 50 m, where the uncorrected ones are 4-14 m off
@@ -111,10 +111,10 @@ class HorizonCorrector(Corrector):
     consistently with the range correction, and a user gets a matrix (supervision style: ``.m``).
 
     Fit. epsilon minimises the sum of squared Euclidean calibration residuals, sum_i ||H_eps(q_i) - g_i||^2
-    (``fit_horizon_shift``: a bracketing grid, then safeguarded Newton steps inside the bracket; deterministic). Squared residuals,
-    not the mean Euclidean error of eq. (25): the loss is then smooth in epsilon (the norm has a kink wherever a
-    residual vanishes), so the Newton steps on L' = 0 are well founded, and it is
-    least squares as the regressions are. The search range is epsilon in (-delta, delta], delta =
+    (``fit_horizon_shift``: a bracketing grid, then safeguarded Newton steps inside the bracket; deterministic).
+    Squared residuals, not the mean Euclidean error of eq. (25): the loss is then smooth in epsilon (the norm
+    has a kink wherever a residual vanishes), so the Newton steps on L' = 0 are well founded, and it is least
+    squares as the regressions are. The search range is epsilon in (-delta, delta], delta =
     ``search_half_width`` (how far the reference point nearest the horizon lies below it, in pixels): the
     corrected horizon stays above every reference point, and the range scales with the image.
 

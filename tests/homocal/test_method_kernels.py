@@ -95,4 +95,5 @@ def test_horizon_agrees():
 
 def test_horizon_beyond_the_horizon_is_nan():
     q = np.array([[640.0, 100.0], *CANDIDATES_Q[:2]])  # the first point is above the horizon
-    assert np.isnan(mk.fit_horizon_shift3(ViewTransformer(IMAGE, GROUND).m, *np.column_stack([q, CANDIDATES_G[:3]]).ravel())).all()
+    args = np.column_stack([q, CANDIDATES_G[:3]]).ravel()
+    assert np.isnan(mk.fit_horizon_shift3(ViewTransformer(IMAGE, GROUND).m, *args)).all()
