@@ -44,6 +44,21 @@ def horizon_loss_derivatives(n: np.ndarray, h: np.ndarray, g: np.ndarray, eps: f
     return 2.0 * float(np.sum(r * r1)), 2.0 * float(np.sum(r1 * r1 + r * r2))
 
 
+def newton_step(a: float, b: float, x: float, d1: float, d2: float) -> tuple[float, float, float, bool]:
+    """One safeguarded Newton step on L' = 0 in the bracket [a, b] from x, given d1 = L'(x), d2 = L''(x)
+    (fit_horizon_shift's step 2; the compiled kernel calls this same function): (a, b, x, converged)."""
+    if d1 > 0:
+        b = x
+    elif d1 < 0:
+        a = x
+    else:
+        return a, b, x, True
+    step = d1 / d2 if d2 > 0 else math.inf
+    if abs(step) <= 1e-12 * (1.0 + abs(x)):  # converged: x is within ~1e-12 relative of the minimum
+        return a, b, x, True
+    return a, b, (x - step if a < x - step < b else 0.5 * (a + b)), False
+
+
 def search_half_width(H: np.ndarray, q: np.ndarray) -> float:
     """delta = min_i (v_i - v_h(u_i)), pixels: how far the nearest-to-horizon point q_i (N, 2) lies below H's
     horizon. epsilon must exceed -delta (else that point is beyond the corrected horizon)."""
@@ -78,17 +93,9 @@ def fit_horizon_shift(H: np.ndarray, q: np.ndarray, g: np.ndarray) -> tuple[floa
     b = grid[min(k + 1, GRID_INTERVALS - 1)]
     x = grid[k]
     for _ in range(NEWTON_STEPS):
-        d1, d2 = horizon_loss_derivatives(n, h, g, x)
-        if d1 > 0:
-            b = x
-        elif d1 < 0:
-            a = x
-        else:
+        a, b, x, converged = newton_step(a, b, x, *horizon_loss_derivatives(n, h, g, x))
+        if converged:
             break
-        step = d1 / d2 if d2 > 0 else math.inf
-        if abs(step) <= 1e-12 * (1.0 + abs(x)):  # converged: x is within ~1e-12 relative of the minimum
-            break
-        x = x - step if a < x - step < b else 0.5 * (a + b)
     return (x if horizon_loss(n, h, g, x) <= (1.0 + FLAT) * losses[k] else grid[k]), delta
 
 

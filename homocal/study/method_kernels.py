@@ -24,8 +24,10 @@ import math
 import numba as nb
 import numpy as np
 
-from homocal.correctors.horizon import FLAT, GRID_INTERVALS, NEWTON_STEPS
+from homocal.correctors.horizon import FLAT, GRID_INTERVALS, NEWTON_STEPS, newton_step
 from homocal.study.kernels import FIXED, JIT, PATH_JIT, _fixed
+
+_newton_step = nb.njit(inline="always", **JIT)(newton_step)  # the readable corrector's step, compiled
 
 
 @nb.njit(**JIT)
@@ -137,17 +139,9 @@ def fit_horizon_shift3(H, u0, v0, gx0, gy0, u1, v1, gx1, gy1, u2, v2, gx2, gy2):
         p0, q0 = _newton_terms(x0, y0, w0, gx0, gy0, hx, hy, hw, x)
         p1, q1 = _newton_terms(x1, y1, w1, gx1, gy1, hx, hy, hw, x)
         p2, q2 = _newton_terms(x2, y2, w2, gx2, gy2, hx, hy, hw, x)
-        d1, d2 = 2.0 * (p0 + p1 + p2), 2.0 * (q0 + q1 + q2)
-        if d1 > 0:
-            b = x
-        elif d1 < 0:
-            a = x
-        else:
+        a, b, x, converged = _newton_step(a, b, x, 2.0 * (p0 + p1 + p2), 2.0 * (q0 + q1 + q2))
+        if converged:
             break
-        step = d1 / d2 if d2 > 0 else math.inf
-        if abs(step) <= 1e-12 * (1.0 + abs(x)):  # converged: x is within ~1e-12 relative of the minimum
-            break
-        x = x - step if a < x - step < b else 0.5 * (a + b)
     return (x if horizon_loss3(*P, x) <= (1.0 + FLAT) * best else start), delta
 
 
