@@ -25,9 +25,11 @@ import numba as nb
 import numpy as np
 
 from homocal.correctors.horizon import FLAT, GRID_INTERVALS, NEWTON_STEPS, newton_step
+from homocal.correctors.regression import solve_normal3
 from homocal.study.kernels import FIXED, JIT, PATH_JIT, _fixed
 
-_newton_step = nb.njit(inline="always", **JIT)(newton_step)  # the readable corrector's step, compiled
+_newton_step = nb.njit(inline="always", **JIT)(newton_step)  # the readable correctors' scalar steps, compiled
+_solve_normal3 = nb.njit(inline="always", **JIT)(solve_normal3)
 
 
 @nb.njit(**JIT)
@@ -43,19 +45,7 @@ def fit_quadratic_intercept3(d0, d1, d2, e0, e1, e2):
     S0, S1, S2 = 3.0, t0 + t1 + t2, t0 * t0 + t1 * t1 + t2 * t2
     S3, S4 = t0**3 + t1**3 + t2**3, t0**4 + t1**4 + t2**4
     T0, T1, T2 = e0 + e1 + e2, t0 * e0 + t1 * e1 + t2 * e2, t0 * t0 * e0 + t1 * t1 * e1 + t2 * t2 * e2
-    det = S4 * (S2 * S0 - S1 * S1) - S3 * (S3 * S0 - S1 * S2) + S2 * (S3 * S1 - S2 * S2)
-    degenerate = not det > 1e-12 * S4 * S2 * S0
-    if not degenerate:
-        alpha = (T2 * (S2 * S0 - S1 * S1) - S3 * (T1 * S0 - S1 * T0) + S2 * (T1 * S1 - S2 * T0)) / det
-        beta = (S4 * (T1 * S0 - S1 * T0) - T2 * (S3 * S0 - S1 * S2) + S2 * (S3 * T0 - T1 * S2)) / det
-        gamma = (S4 * (S2 * T0 - T1 * S1) - S3 * (S3 * T0 - T1 * S2) + T2 * (S3 * S1 - S2 * S2)) / det
-    else:
-        alpha = 0.0
-        det2 = S2 * S0 - S1 * S1
-        if det2 > 1e-12 * S2 * S0:
-            beta, gamma = (T1 * S0 - S1 * T0) / det2, (S2 * T0 - S1 * T1) / det2
-        else:
-            beta, gamma = 0.0, T0 / S0
+    alpha, beta, gamma, degenerate = _solve_normal3(S0, S1, S2, S3, S4, T0, T1, T2)
     return alpha / s**2, beta / s - 2 * alpha * m / s**2, alpha * m**2 / s**2 - beta * m / s + gamma, degenerate
 
 
