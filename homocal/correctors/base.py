@@ -221,7 +221,10 @@ class Corrector:
             obj.base_transformer_ = ViewTransformer(data["transformer"]["source"], data["transformer"]["target"])
         except (TypeError, ValueError) as e:
             raise ValueError(f"field transformer: {e}") from None
-        obj.camera_origin_ = np.array(data["camera_origin"], dtype=np.float64)
+        try:
+            obj.camera_origin_ = np.array(data["camera_origin"], dtype=np.float64)
+        except (TypeError, ValueError):
+            obj.camera_origin_ = np.full(1, np.nan)
         if obj.camera_origin_.shape != (2,) or not np.isfinite(obj.camera_origin_).all():
             raise ValueError(f"field camera_origin: must be 2 finite numbers, got {data['camera_origin']!r}")
         obj.error_before_ = number(data["error_before"], "error_before", minimum=0)

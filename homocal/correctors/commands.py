@@ -291,6 +291,7 @@ def _method_note(corrector: Corrector) -> str:
         constant = f" {'-' if corrector.c_ < 0 else '+'} {abs(corrector.c_):.6g}" if corrector.intercept else ""
         return f" Error law e(d) = {corrector.a_:.6g} d^2 + {corrector.b_:.6g} d{constant}{note}."
     if isinstance(corrector, HorizonCorrector):
-        return (f" Horizon shift epsilon = {corrector.horizon_shift_:.3f} px (the clicked trapezoid's horizon lies that "
-                f"far below the fitted one; corrected trapezoid: the clicked one moved {corrector.horizon_shift_:.3f} px up).")
+        eps = corrector.horizon_shift_
+        return (f" Horizon shift epsilon = {eps:.3f} px (the clicked trapezoid's horizon lies that far below the "
+                f"fitted one; corrected trapezoid: the clicked one moved {eps:.3f} px up).")
     return ""

@@ -58,6 +58,7 @@ class HybridCorrector(Corrector):
                 raise ValueError(f"field fitted.{name}.transformer: not the hybrid's trapezoid")
         expected = "regression" if self.regression_.calibration_improvement_ >= self.threshold else "descent"
         if state["chosen"] != expected:
+            improvement = self.regression_.calibration_improvement_
             raise ValueError(f"field fitted.chosen: {state['chosen']!r}, but the threshold {self.threshold:g} % and "
-                             f"regression's improvement {self.regression_.calibration_improvement_:.6g} % choose {expected!r}")
+                             f"regression's improvement {improvement:.6g} % choose {expected!r}")
         self.chosen_ = expected

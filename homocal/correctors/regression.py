@@ -48,12 +48,13 @@ def fit_quadratic_intercept(d: np.ndarray, e: np.ndarray) -> tuple[float, float,
     t = (d - m) / s
     S0, S1, S2, S3, S4 = float(len(t)), np.sum(t), np.sum(t**2), np.sum(t**3), np.sum(t**4)
     T0, T1, T2 = np.sum(e), np.sum(t * e), np.sum(t**2 * e)
-    alpha, beta, gamma, degenerate = _solve_normal3(S0, S1, S2, S3, S4, T0, T1, T2)
+    alpha, beta, gamma, degenerate = solve_normal3(S0, S1, S2, S3, S4, T0, T1, T2)
     return alpha / s**2, beta / s - 2 * alpha * m / s**2, alpha * m**2 / s**2 - beta * m / s + gamma, degenerate
 
 
-def _solve_normal3(S0, S1, S2, S3, S4, T0, T1, T2) -> tuple[float, float, float, bool]:
-    """(alpha, beta, gamma, degenerate) of fit_quadratic_intercept's normal equations (Cramer's rule)."""
+def solve_normal3(S0, S1, S2, S3, S4, T0, T1, T2) -> tuple[float, float, float, bool]:
+    """(alpha, beta, gamma, degenerate) of fit_quadratic_intercept's normal equations (Cramer's rule, with its
+    fallbacks); scalar code, which the compiled study kernel calls too."""
     det = S4 * (S2 * S0 - S1 * S1) - S3 * (S3 * S0 - S1 * S2) + S2 * (S3 * S1 - S2 * S2)
     if det > 1e-12 * S4 * S2 * S0:
         alpha = (T2 * (S2 * S0 - S1 * S1) - S3 * (T1 * S0 - S1 * T0) + S2 * (T1 * S1 - S2 * T0)) / det

@@ -1,8 +1,9 @@
 """Compiled kernels of the two correctors beyond the paper, for the study's per-sample loop: regression with an
 intercept (homocal.correctors.regression.fit_quadratic_intercept) and the horizon correction
 (homocal.correctors.horizon.fit_horizon_shift). Plain scalar functions of one calibration triple, the same
-algorithm, iteration counts and tolerances as the readable correctors (tests/homocal/test_method_kernels.py
-checks them decision for decision). Conventions as homocal.study.kernels: cal table rows d, rx, ry, ux, uy,
+algorithm, iteration counts and tolerances as the readable correctors; tests/homocal/test_method_kernels.py
+checks that their results agree to 1e-9 (rounding-level ties aside, every decision is the same; where one is
+not, both still converge to the same minimum). Conventions as homocal.study.kernels: cal table rows d, rx, ry, ux, uy,
 e_faithful, e_signed; test-point lengths in units of 2^-26 m (jit.FIXED).
 
 Use in a per-sample loop (i, j, k the triple, H0 the variant's homography, q (M, 2) image and g (M, 2) ground
@@ -12,7 +13,9 @@ calibration points)::
     cal_after = (radial_error_intercept(cal, i, a, b, c) + ... j ... + ... k ...) / 3
     path_after = regression_path_intercept(test, a, b, c)
     eps, delta = fit_horizon_shift3(H0, q[i, 0], q[i, 1], g[i, 0], g[i, 1], ... j ..., ... k ...)
+    cal_after = horizon_mean_error3(H0, eps, q[i, 0], q[i, 1], g[i, 0], g[i, 1], ... j ..., ... k ...)
     horizon_homography_into(H0, eps, Hh)        # then dH = Hh - H0 into kernels.descent_path, as descent's
+(eps is NaN if the variant's mapping has h32 <= 0 or a calibration point beyond its horizon.)
 """
 from __future__ import annotations
 
@@ -21,8 +24,12 @@ import math
 import numba as nb
 import numpy as np
 
-from homocal.correctors.horizon import FLAT, GOLDEN_ITERATIONS, GRID_INTERVALS, INV_PHI, NEWTON_STEPS
+from homocal.correctors.horizon import FLAT, GRID_INTERVALS, NEWTON_STEPS, newton_step
+from homocal.correctors.regression import solve_normal3
 from homocal.study.jit import FIXED, JIT, PATH_JIT, to_fixed
+
+_newton_step = nb.njit(inline="always", **JIT)(newton_step)  # the readable correctors' scalar steps, compiled
+_solve_normal3 = nb.njit(inline="always", **JIT)(solve_normal3)
 
 
 @nb.njit(**JIT)
@@ -38,19 +45,7 @@ def fit_quadratic_intercept3(d0, d1, d2, e0, e1, e2):
     S0, S1, S2 = 3.0, t0 + t1 + t2, t0 * t0 + t1 * t1 + t2 * t2
     S3, S4 = t0**3 + t1**3 + t2**3, t0**4 + t1**4 + t2**4
     T0, T1, T2 = e0 + e1 + e2, t0 * e0 + t1 * e1 + t2 * e2, t0 * t0 * e0 + t1 * t1 * e1 + t2 * t2 * e2
-    det = S4 * (S2 * S0 - S1 * S1) - S3 * (S3 * S0 - S1 * S2) + S2 * (S3 * S1 - S2 * S2)
-    degenerate = not det > 1e-12 * S4 * S2 * S0
-    if not degenerate:
-        alpha = (T2 * (S2 * S0 - S1 * S1) - S3 * (T1 * S0 - S1 * T0) + S2 * (T1 * S1 - S2 * T0)) / det
-        beta = (S4 * (T1 * S0 - S1 * T0) - T2 * (S3 * S0 - S1 * S2) + S2 * (S3 * T0 - T1 * S2)) / det
-        gamma = (S4 * (S2 * T0 - T1 * S1) - S3 * (S3 * T0 - T1 * S2) + T2 * (S3 * S1 - S2 * S2)) / det
-    else:
-        alpha = 0.0
-        det2 = S2 * S0 - S1 * S1
-        if det2 > 1e-12 * S2 * S0:
-            beta, gamma = (T1 * S0 - S1 * T0) / det2, (S2 * T0 - S1 * T1) / det2
-        else:
-            beta, gamma = 0.0, T0 / S0
+    alpha, beta, gamma, degenerate = _solve_normal3(S0, S1, S2, S3, S4, T0, T1, T2)
     return alpha / s**2, beta / s - 2 * alpha * m / s**2, alpha * m**2 / s**2 - beta * m / s + gamma, degenerate
 
 
@@ -78,88 +73,79 @@ def regression_path_intercept(test, a, b, c):
 
 
 @nb.njit(inline="always", **JIT)
-def _point_sq(H, m2, eps, u, v, gx, gy):
-    """||H_eps(u, v) - g||^2 with M = H . row_shift(eps) (m2 = ||M[2]||), +inf on or beyond the horizon by
-    apply_homography's rule (w <= 1e-12 (|u| + |v| + 1) ||M[2]||)."""
-    x = H[0, 0] * u + H[0, 1] * v + (H[0, 1] * eps + H[0, 2])
-    y = H[1, 0] * u + H[1, 1] * v + (H[1, 1] * eps + H[1, 2])
-    w = H[2, 0] * u + H[2, 1] * v + (H[2, 1] * eps + H[2, 2])
-    if not w > 1e-12 * (abs(u) + abs(v) + 1.0) * m2:
-        return math.inf
-    rx, ry = x / w - gx, y / w - gy
+def _sq(x, y, w, gx, gy, hx, hy, hw, eps):
+    """||H_eps(q) - g||^2 of one point from n = (x, y, w) = H (q, 1) and h = H[:, 1] (horizon_loss's terms)."""
+    inv = 1.0 / (w + eps * hw)
+    rx, ry = (x + eps * hx) * inv - gx, (y + eps * hy) * inv - gy
     return rx * rx + ry * ry
 
 
 @nb.njit(**JIT)
-def horizon_loss3(H, eps, u0, v0, gx0, gy0, u1, v1, gx1, gy1, u2, v2, gx2, gy2):
-    """horizon_loss of homocal.correctors.horizon for three points: sum ||H_eps(q_i) - g_i||^2, +inf beyond."""
-    m2 = math.sqrt(H[2, 0] ** 2 + H[2, 1] ** 2 + (H[2, 1] * eps + H[2, 2]) ** 2)
-    return (_point_sq(H, m2, eps, u0, v0, gx0, gy0) + _point_sq(H, m2, eps, u1, v1, gx1, gy1)
-            + _point_sq(H, m2, eps, u2, v2, gx2, gy2))
+def horizon_loss3(x0, y0, w0, gx0, gy0, x1, y1, w1, gx1, gy1, x2, y2, w2, gx2, gy2, hx, hy, hw, eps):
+    """horizon_loss of homocal.correctors.horizon for three points: (x, y, w) = H (q_i, 1), g_i, h = H[:, 1];
+    +inf if a point is on or beyond the horizon of H_eps."""
+    if not (w0 + eps * hw > 0 and w1 + eps * hw > 0 and w2 + eps * hw > 0):
+        return math.inf
+    return (_sq(x0, y0, w0, gx0, gy0, hx, hy, hw, eps) + _sq(x1, y1, w1, gx1, gy1, hx, hy, hw, eps)
+            + _sq(x2, y2, w2, gx2, gy2, hx, hy, hw, eps))
 
 
 @nb.njit(inline="always", **JIT)
-def _gauss_newton_terms(H, eps, u, v, gx, gy):
-    """(r.J, J.J) of one point: r = H_eps(q) - g, J = dr/deps = (h_xy w - n h_w) / w^2, h = H[:, 1]."""
-    x = H[0, 0] * u + H[0, 1] * v + (H[0, 1] * eps + H[0, 2])
-    y = H[1, 0] * u + H[1, 1] * v + (H[1, 1] * eps + H[1, 2])
-    w = H[2, 0] * u + H[2, 1] * v + (H[2, 1] * eps + H[2, 2])
-    jx = (H[0, 1] * w - x * H[2, 1]) / (w * w)
-    jy = (H[1, 1] * w - y * H[2, 1]) / (w * w)
-    return (x / w - gx) * jx + (y / w - gy) * jy, jx * jx + jy * jy
+def _newton_terms(x, y, w, gx, gy, hx, hy, hw, eps):
+    """(r.r', r'.r' + r.r'') of one point (horizon_loss_derivatives' terms)."""
+    inv = 1.0 / (w + eps * hw)
+    rx, ry = (x + eps * hx) * inv - gx, (y + eps * hy) * inv - gy
+    r1x, r1y = (hx * w - x * hw) * (inv * inv), (hy * w - y * hw) * (inv * inv)
+    r2x, r2y = -2.0 * hw * r1x * inv, -2.0 * hw * r1y * inv
+    return rx * r1x + ry * r1y, (r1x * r1x + rx * r2x) + (r1y * r1y + ry * r2y)
 
 
 @nb.njit(**JIT)
 def fit_horizon_shift3(H, u0, v0, gx0, gy0, u1, v1, gx1, gy1, u2, v2, gx2, gy2):
     """(epsilon, delta) of fit_horizon_shift for three image points (u, v) px and their ground truth (gx, gy):
-    the grid of GRID_INTERVALS over (-delta, delta] (first least), GOLDEN_ITERATIONS of golden section on the
-    bracket around it, NEWTON_STEPS Gauss-Newton steps kept if inside the range and not higher by FLAT. H (3, 3) the
-    variant's image-to-ground homography (H[2, 1] > 0, every point below its horizon: NaN otherwise)."""
-    if not H[2, 1] > 0:
+    the grid of GRID_INTERVALS over (-delta, delta] (first least), NEWTON_STEPS safeguarded Newton steps in the
+    bracket around it, the result kept unless its loss is above the grid's best by FLAT. H (3, 3) the variant's
+    image-to-ground homography (H[2, 1] > 0, every point below its horizon: NaN otherwise)."""
+    hx, hy, hw = H[0, 1], H[1, 1], H[2, 1]
+    x0, y0, w0 = H[0, 0] * u0 + hx * v0 + H[0, 2], H[1, 0] * u0 + hy * v0 + H[1, 2], H[2, 0] * u0 + hw * v0 + H[2, 2]
+    x1, y1, w1 = H[0, 0] * u1 + hx * v1 + H[0, 2], H[1, 0] * u1 + hy * v1 + H[1, 2], H[2, 0] * u1 + hw * v1 + H[2, 2]
+    x2, y2, w2 = H[0, 0] * u2 + hx * v2 + H[0, 2], H[1, 0] * u2 + hy * v2 + H[1, 2], H[2, 0] * u2 + hw * v2 + H[2, 2]
+    P = (x0, y0, w0, gx0, gy0, x1, y1, w1, gx1, gy1, x2, y2, w2, gx2, gy2, hx, hy, hw)
+    if not hw > 0:
         return math.nan, math.nan
-    w0 = H[2, 0] * u0 + H[2, 1] * v0 + H[2, 2]
-    w1 = H[2, 0] * u1 + H[2, 1] * v1 + H[2, 2]
-    w2 = H[2, 0] * u2 + H[2, 1] * v2 + H[2, 2]
-    delta = min(w0, min(w1, w2)) / H[2, 1]
+    delta = min(w0, min(w1, w2)) / hw
     if not delta > 0:
         return math.nan, math.nan
-    eps, best, kbest = -delta + 2.0 * delta / GRID_INTERVALS, math.inf, 0
+    best, kbest = math.inf, 0
     for k in range(GRID_INTERVALS):
-        e = -delta + 2.0 * delta * (k + 1) / GRID_INTERVALS
-        f = horizon_loss3(H, e, u0, v0, gx0, gy0, u1, v1, gx1, gy1, u2, v2, gx2, gy2)
+        f = horizon_loss3(*P, -delta + 2.0 * delta * (k + 1) / GRID_INTERVALS)
         if f < best:
-            eps, best, kbest = e, f, k
+            best, kbest = f, k
     a = -delta + 2.0 * delta * kbest / GRID_INTERVALS if kbest > 0 else -delta
     b = -delta + 2.0 * delta * (min(kbest + 1, GRID_INTERVALS - 1) + 1) / GRID_INTERVALS
-    c, d = b - INV_PHI * (b - a), a + INV_PHI * (b - a)
-    fc = horizon_loss3(H, c, u0, v0, gx0, gy0, u1, v1, gx1, gy1, u2, v2, gx2, gy2)
-    fd = horizon_loss3(H, d, u0, v0, gx0, gy0, u1, v1, gx1, gy1, u2, v2, gx2, gy2)
-    for _ in range(GOLDEN_ITERATIONS):
-        if fc < fd:
-            b, d, fd = d, c, fc
-            c = b - INV_PHI * (b - a)
-            fc = horizon_loss3(H, c, u0, v0, gx0, gy0, u1, v1, gx1, gy1, u2, v2, gx2, gy2)
-        else:
-            a, c, fc = c, d, fd
-            d = a + INV_PHI * (b - a)
-            fd = horizon_loss3(H, d, u0, v0, gx0, gy0, u1, v1, gx1, gy1, u2, v2, gx2, gy2)
-    golden, f_golden = (c, fc) if fc <= fd else (d, fd)
-    if f_golden < best:
-        eps, best = golden, f_golden
+    start = -delta + 2.0 * delta * (kbest + 1) / GRID_INTERVALS
+    x = start
     for _ in range(NEWTON_STEPS):
-        rj0, jj0 = _gauss_newton_terms(H, eps, u0, v0, gx0, gy0)
-        rj1, jj1 = _gauss_newton_terms(H, eps, u1, v1, gx1, gy1)
-        rj2, jj2 = _gauss_newton_terms(H, eps, u2, v2, gx2, gy2)
-        jj = jj0 + jj1 + jj2
-        if not jj > 0:
+        p0, q0 = _newton_terms(x0, y0, w0, gx0, gy0, hx, hy, hw, x)
+        p1, q1 = _newton_terms(x1, y1, w1, gx1, gy1, hx, hy, hw, x)
+        p2, q2 = _newton_terms(x2, y2, w2, gx2, gy2, hx, hy, hw, x)
+        a, b, x, converged = _newton_step(a, b, x, 2.0 * (p0 + p1 + p2), 2.0 * (q0 + q1 + q2))
+        if converged:
             break
-        cand = eps - (rj0 + rj1 + rj2) / jj
-        f_cand = math.inf
-        if -delta < cand <= delta:
-            f_cand = horizon_loss3(H, cand, u0, v0, gx0, gy0, u1, v1, gx1, gy1, u2, v2, gx2, gy2)
-        if f_cand <= (1.0 + FLAT) * best:
-            eps, best = cand, f_cand
-    return eps, delta
+    return (x if horizon_loss3(*P, x) <= (1.0 + FLAT) * best else start), delta
+
+
+@nb.njit(**JIT)
+def horizon_mean_error3(H, eps, u0, v0, gx0, gy0, u1, v1, gx1, gy1, u2, v2, gx2, gy2):
+    """Mean Euclidean calibration error (eq. (25)'s L) of the horizon-corrected mapping H . row_shift(eps) on
+    three points: HorizonCorrector.error_after_."""
+    total = 0.0
+    for u, v, gx, gy in ((u0, v0, gx0, gy0), (u1, v1, gx1, gy1), (u2, v2, gx2, gy2)):
+        x = H[0, 0] * u + H[0, 1] * (v + eps) + H[0, 2]
+        y = H[1, 0] * u + H[1, 1] * (v + eps) + H[1, 2]
+        w = H[2, 0] * u + H[2, 1] * (v + eps) + H[2, 2]
+        total += math.hypot(x / w - gx, y / w - gy)
+    return total / 3.0
 
 
 @nb.njit(**JIT)

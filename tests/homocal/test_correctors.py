@@ -20,7 +20,6 @@ from homocal.correctors import (
     load_corrector,
     radial_correction,
 )
-from homocal.correctors.horizon import row_shift
 from homocal.error_model import horizon_shift
 from homocal.geometry import PinholeCamera, ViewTransformer, apply_homography
 
@@ -195,6 +194,11 @@ class TestRegressionCorrector:
         corrected_range = np.linalg.norm(reg.transform_points(CALIB_Q), axis=1)
         np.testing.assert_allclose(corrected_range, np.linalg.norm(CALIB_G, axis=1), atol=1e-9)  # 3 points: exact
         assert mean_error(reg.transform_points(line_q), line_g) < 0.3 * mean_error(vt.transform_points(line_q), line_g)
+
+
+def row_shift(eps: float) -> np.ndarray:
+    """(3, 3) image homography (u, v) -> (u, v + eps), pixels."""
+    return np.array([[1.0, 0.0, 0.0], [0.0, 1.0, eps], [0.0, 0.0, 1.0]])
 
 
 def shifted_mapping(eps: float) -> ViewTransformer:
@@ -424,6 +428,7 @@ class TestJson:
         ("regression", lambda d: d.update(calibration_improvement=None), r"field calibration_improvement: None does"),
         ("regression", lambda d: d["transformer"]["source"][0].__setitem__(0, 1e308), r"field transformer: .*out of range"),
         ("regression", lambda d: d.update(camera_origin=[0.0, math.nan]), r"field camera_origin"),
+        ("regression", lambda d: d.update(camera_origin=["a", "b"]), r"field camera_origin: must be 2 finite"),
         ("regression", lambda d: d.update(params=[True]), r"field params: expected an object"),
         ("descent", lambda d: d["fitted"]["source"][1].__setitem__(1, d["fitted"]["source"][1][1] + 20), r"moved .*delta_max"),
         ("descent", lambda d: d["fitted"].update(source=[[0, 0]] * 4), r"field fitted\.source: .*same point"),

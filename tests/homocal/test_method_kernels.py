@@ -81,16 +81,19 @@ def test_horizon_agrees():
     for vt, sel in CASES:
         q, g = CANDIDATES_Q[sel], CANDIDATES_G[sel]
         hc = HorizonCorrector().fit(vt, q, g, ORIGIN)
-        eps, delta = mk.fit_horizon_shift3(vt.m, *np.column_stack([q, g]).ravel())
+        args = np.column_stack([q, g]).ravel()
+        eps, delta = mk.fit_horizon_shift3(vt.m, *args)
         assert delta == pytest.approx(hc.search_half_width_, rel=1e-12)
         assert eps == pytest.approx(hc.horizon_shift_, rel=1e-9, abs=1e-9)
-        args = np.column_stack([q, g]).ravel()
-        loss = mk.horizon_loss3(vt.m, eps, *args)
+        n = np.column_stack([q, np.ones(3)]) @ vt.m.T
+        loss = mk.horizon_loss3(*np.column_stack([n, g]).ravel(), vt.m[0, 1], vt.m[1, 1], vt.m[2, 1], eps)
         assert loss == pytest.approx(np.sum((hc.transform_points(q) - g) ** 2), rel=1e-9, abs=1e-15)
+        assert mk.horizon_mean_error3(vt.m, eps, *args) == pytest.approx(hc.error_after_, rel=1e-9, abs=1e-12)
         mk.horizon_homography_into(vt.m, eps, out)
         np.testing.assert_allclose(out, hc.m, rtol=0, atol=1e-12)
 
 
 def test_horizon_beyond_the_horizon_is_nan():
     q = np.array([[640.0, 100.0], *CANDIDATES_Q[:2]])  # the first point is above the horizon
-    assert np.isnan(mk.fit_horizon_shift3(ViewTransformer(IMAGE, GROUND).m, *np.column_stack([q, CANDIDATES_G[:3]]).ravel())).all()
+    args = np.column_stack([q, CANDIDATES_G[:3]]).ravel()
+    assert np.isnan(mk.fit_horizon_shift3(ViewTransformer(IMAGE, GROUND).m, *args)).all()

@@ -96,3 +96,19 @@ class TestMaxTrustworthyRange:
     def test_bad_tolerance(self, tolerance):
         with pytest.raises(ValueError, match="tolerance_m"):
             max_trustworthy_range(VT, tolerance)
+
+
+def test_readme_street_example_figures():
+    """The figures the README's Python example shows (examples/street)."""
+    from homocal import HorizonCorrector, SiteMap
+
+    site_map = SiteMap(scale_px_per_m=10.0, origin_px=(400, 600))
+    vt = ViewTransformer(source=[[573, 282], [707, 285], [875, 480], [404, 479]],
+                         target=site_map.to_metres([[365, 300], [435, 300], [435, 520], [365, 520]]))
+    cov = ground_uncertainty(vt, [[384.0, 394.7], [614.8, 253.6]])
+    assert cov.shape == (2, 2, 2) and np.round(sigma_radius(cov), 3).tolist() == [0.178, 1.751]
+    assert round(max_trustworthy_range(vt, 0.5), 1) == 28.1
+    assert np.round(max_trustworthy_range(vt, 0.5, columns=[300.0, 980.0]), 1).tolist() == [17.1, 16.7]
+    hc = HorizonCorrector().fit(vt, [[639.5, 429.4], [648.1, 321.7], [636.1, 272.1]],
+                                [[0.0, 10.0], [0.3, 20.0], [-0.2, 35.0]], camera_origin=[0.0, 0.0])
+    assert round(hc.horizon_shift_, 3) == 0.313 and hc.m.shape == (3, 3)
