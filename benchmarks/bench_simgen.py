@@ -17,14 +17,17 @@ pipeline spends inside its own render calls against everything else it does in t
 ``--presets``: one renderer per quality preset (simgen.render.QUALITY) on the same Stage; each frame is
 rendered (RGB) by every preset in turn, so all see the same load; prints the median ms/frame of each.
 ``--parallel N``: whole ``simgen generate`` runs (separate processes, as a user types them), serial and
-with ``--workers N`` alternately, ``--repeats`` times each; prints each wall time, the medians and their
-ratio (the speed-up), and checks that the datasets are byte-identical.
+with ``--workers N`` alternately, ``--repeats`` times each; prints each wall time and CPU time (all the
+run's processes), the medians and their ratio (the speed-up), and checks that the datasets are
+byte-identical. On a machine shared with other jobs the wall-time ratio measures the share of the cores
+each run got as much as the code; the CPU times say whether the workers waste any.
 """
 from __future__ import annotations
 
 import argparse
 import filecmp
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -90,16 +93,19 @@ def presets(scene, seed: int, frames: int) -> None:
 def parallel(scene_dir: Path, seconds: float, seed: int, workers: int, repeats: int) -> None:
     """Serial and ``--workers`` generate runs, alternately; wall-time medians and the speed-up."""
     walls: dict[int, list[float]] = {1: [], workers: []}
+    cpus: dict[int, list[float]] = {1: [], workers: []}
     with tempfile.TemporaryDirectory() as tmp:
         for r in range(repeats):
             for w in (1, workers):
                 out = Path(tmp) / f"w{w}_{r}"
                 cmd = [sys.executable, "-m", "simgen.cli", "generate", str(scene_dir), "--out", str(out), "--seconds",
                        str(seconds), "--seed", str(seed), "--workers", str(w), "--no-progress"]  # fmt: skip
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), _children_cpu()
                 subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
                 walls[w].append(time.perf_counter() - t0)
-                print(f"  repeat {r}, --workers {w}: {walls[w][-1]:.1f} s", flush=True)
+                cpus[w].append(_children_cpu() - c0)
+                print(f"  repeat {r}, --workers {w}: {walls[w][-1]:.1f} s wall, {cpus[w][-1]:.1f} s CPU "
+                      f"(load average {os.getloadavg()[0]:.1f})", flush=True)
         a, b = Path(tmp) / "w1_0", Path(tmp) / f"w{workers}_0"
         files = sorted(str(p.relative_to(a)) for p in a.rglob("*") if p.is_file())
         same = filecmp.cmpfiles(a, b, files, shallow=False)[0] == files
@@ -108,6 +114,14 @@ def parallel(scene_dir: Path, seconds: float, seed: int, workers: int, repeats: 
     print(f"serial: median {s:.1f} s ({frames / s:.2f} frames/s); --workers {workers}: median {p:.1f} s "
           f"({frames / p:.2f} frames/s); speed-up {s / p:.2f}x (medians of {repeats}, interleaved, end to end); "
           f"datasets byte-identical: {same}; {os.cpu_count()} cores")
+    print(f"CPU time (all processes of the run, ffmpeg included): serial median {statistics.median(cpus[1]):.1f} s, "
+          f"--workers {workers} median {statistics.median(cpus[workers]):.1f} s")
+
+
+def _children_cpu() -> float:
+    """User + system CPU seconds of this process's finished descendants."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
 
 
 def main() -> None:

@@ -339,12 +339,14 @@ def _dask_client(address: str):
 
 
 def _render_on_dask(run: Run, todo: list[int], client, bar: tqdm) -> None:
-    """One block of chunks per worker of the Dask cluster; each worker's LP_NUM_THREADS is its host's cores
-    over the workers on that host (at least 1). Workers should run one thread each."""
+    """One block of chunks per worker of the Dask cluster (another worker takes it over if that one is lost);
+    each worker's LP_NUM_THREADS is its host's cores over the workers on that host (at least 1). Workers
+    should run one thread each (``dask worker ADDRESS --nthreads 1``)."""
     workers = sorted(client.scheduler_info()["workers"].items())
     cores, hosts = client.run(os.cpu_count), Counter(info["host"] for _, info in workers)
     futures = [client.submit(render_chunks, run.scene, run.seed, str(run.out), block,
-                             max(1, cores[address] // hosts[info["host"]]), workers=[address], pure=False)
+                             max(1, cores[address] // hosts[info["host"]]), workers=[address],
+                             allow_other_workers=True, pure=False)
                for (address, info), block in zip(workers, _blocks(todo, len(workers)))]  # fmt: skip
     _follow(run, todo, futures, bar)
 
