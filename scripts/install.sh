@@ -15,4 +15,11 @@ if [ -n "$missing" ]; then
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends $missing
 fi
+# opencv-contrib-python-headless (a superset, with the HOG people detector) replaces opencv-python-headless:
+# both install the same cv2 package, so only one may be present
+if python3 -m pip show -q opencv-python-headless >/dev/null 2>&1; then
+  python3 -m pip uninstall -q -y opencv-python-headless
+  # reinstalled: files the two shared went with the one removed
+  python3 -m pip install -q --disable-pip-version-check --force-reinstall --no-deps "opencv-contrib-python-headless>=4.8"
+fi
 python3 -m pip install -q --disable-pip-version-check -e ".[dask,test]"

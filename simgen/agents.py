@@ -22,7 +22,7 @@ from simgen.humanoid import PARTS, Person, draw_person, pose, stride_length, to_
 from simgen.rng import keyed_rng
 from simgen.scene import Scene
 
-ARM_SWING = 0.35  # arm swing amplitude at 1.4 m/s, radians, proportional to speed
+ARM_SWING = 0.35  # arm swing amplitude at 1.4 m/s, radians, proportional to speed (arms hang while waiting)
 
 
 @dataclass(frozen=True)
@@ -122,7 +122,7 @@ class Crowd:
 
     def state(self, t: float) -> AgentState:
         """The active agents at time t, in slot order, posed (humanoid.pose; the gait phase is 0 where
-        the walk stops, so a waiting agent stands on both feet)."""
+        the walk stops, so a waiting agent stands on both feet, one ahead of the other, arms hanging)."""
         rows = []
         for k, walks in enumerate(self.slots):
             j = bisect.bisect_right(self._starts[k], t) - 1
@@ -137,8 +137,7 @@ class Crowd:
         slot, walks, *numbers = zip(*rows)
         x, y, heading, speed, phase = map(np.array, numbers)
         height, width = (np.array([getattr(w.person, a) for w in walks]) for a in ("height", "width"))
-        cruise = np.array([w.speed for w in walks])
-        segments, radii = pose(height, width, np.array([w.stride for w in walks]), phase, ARM_SWING * cruise / 1.4)
+        segments, radii = pose(height, width, np.array([w.stride for w in walks]), phase, ARM_SWING * speed / 1.4)
         xy = np.column_stack([x, y])
         return AgentState(np.array([w.agent_id for w in walks], np.int32), np.array(slot, np.int64), xy, heading, speed,
                           to_world(segments, xy, heading), radii, np.stack([w.person.rgba for w in walks]))

@@ -1,4 +1,4 @@
-"""``simgen preview``: one frame of a scene, annotated with boxes, foot points, trapezoids and the horizon."""
+"""``simgen preview``: one frame of a scene, annotated with boxes, foot points (detected and true), trapezoids and the horizon."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -18,9 +18,10 @@ def _px(points: np.ndarray) -> np.ndarray:
     return np.round(np.asarray(points, dtype=np.float64) * (1 << _SHIFT)).astype(np.int32)
 
 
-def annotate(scene: Scene, rgb: np.ndarray, agent_ids: np.ndarray) -> np.ndarray:
-    """(H, W, 3) RGB frame -> annotated BGR copy: segmentation boxes (green), foot points (red),
-    hand-placed trapezoid (yellow), exact trapezoid (cyan), horizon (magenta)."""
+def annotate(scene: Scene, rgb: np.ndarray, agent_ids: np.ndarray, foot_xy: np.ndarray | None = None) -> np.ndarray:
+    """(H, W, 3) RGB frame -> annotated BGR copy: segmentation boxes (green), their foot points (red),
+    the ground truth's foot points ``foot_xy`` (N, 2) m if given (blue crosses), hand-placed trapezoid
+    (yellow), exact trapezoid (cyan), horizon (magenta)."""
     img = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
     cam = scene.camera
     a, b, c = cam.horizon
@@ -32,13 +33,17 @@ def annotate(scene: Scene, rgb: np.ndarray, agent_ids: np.ndarray) -> np.ndarray
     for (x1, y1, x2, y2), (u, v) in zip(batch.xyxy, batch.foot):
         cv2.rectangle(img, tuple(_px([x1, y1])), tuple(_px([x2, y2])), (0, 200, 0), 1, cv2.LINE_8, _SHIFT)
         cv2.circle(img, tuple(_px([u, v])), 3 << _SHIFT, (0, 0, 255), -1, cv2.LINE_AA, _SHIFT)
+    if foot_xy is not None:
+        for u, v in cam.project_ground(foot_xy):
+            if np.isfinite(u + v):
+                cv2.drawMarker(img, (round(u), round(v)), (255, 80, 0), cv2.MARKER_CROSS, 7, 1)
     return img
 
 
 def preview(scene: Scene, seed: int, t: float, path: str | Path) -> None:
     """Render the scene at time t (seconds) with ``seed`` and write the annotated frame to ``path`` (PNG)."""
     with Stage(scene, seed, t_end=t + 1.0) as stage:
-        stage.set_time(t)
-        img = annotate(scene, stage.rgb(), stage.agent_ids())
+        state = stage.set_time(t)
+        img = annotate(scene, stage.rgb(), stage.agent_ids(), state.xy)
     if not cv2.imwrite(str(path), img):
         raise OSError(f"{path}: could not write the image")

@@ -1,0 +1,72 @@
+"""The RGB-only detectors: the FunctionDetector plug-in point and OpenCV's HOG people detector on real renders."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from simgen.detection import FunctionDetector, HogDetector, box_iou, id_boxes
+
+from scene_copies import SCENES, copy_scene
+
+
+def test_function_detector_associates_the_boxes_it_is_given():
+    ids = np.full((60, 80), -1, np.int32)
+    ids[10:40, 5:20], ids[20:50, 50:70] = 5, 9  # mask boxes (4.5, 9.5, 19.5, 39.5) and (49.5, 19.5, 69.5, 49.5)
+    given = np.array([[5.5, 11.5, 20.5, 41.5], [30.0, 0.0, 40.0, 10.0], [49.5, 19.5, 69.5, 49.5]])
+    detector = FunctionDetector("mine", lambda rgb: (given, np.array([0.9, 0.5, 0.7])))
+    batch = detector.detect(3, 0.15, np.zeros((60, 80, 3), np.uint8), ids)
+    assert (batch.detector, batch.frame, batch.t) == ("mine", 3, 0.15)
+    assert batch.agent_id.tolist() == [5, -1, 9]
+    np.testing.assert_array_equal(batch.xyxy, given)
+    np.testing.assert_array_equal(batch.foot, [[13.0, 41.5], [35.0, 10.0], [59.5, 49.5]])
+    empty = FunctionDetector("none", lambda rgb: (np.zeros((0, 4)), np.zeros(0))).detect(0, 0.0, np.zeros((60, 80, 3), np.uint8), ids)
+    assert len(empty) == 0
+
+
+@pytest.mark.parametrize("kwargs", [{"upscale": 0}, {"scale": 1.0}, {"win_stride": 0}])
+def test_hog_refuses_bad_parameters(kwargs):
+    with pytest.raises(ValueError, match="HogDetector: need"):
+        HogDetector(**kwargs)
+
+
+@pytest.fixture(scope="module")
+def person_frames():
+    """(rgb, agent_ids) of scene1's calibration person alone at 12 m and 15 m, 1280x720."""
+    from simgen.scene import load_scene
+    from simgen.stage import Stage
+
+    frames = []
+    with Stage(load_scene(SCENES / "scene1"), seed=0, t_end=1.0) as stage:
+        for d in (12.0, 15.0):
+            stage.set_calibration((0.0, d), agent_id=4)
+            frames.append((stage.rgb(), stage.agent_ids()))
+    return frames
+
+
+@pytest.mark.parametrize("upscale, which", [(1.0, 0), (2.0, 0), (2.0, 1)])  # 1x: about 80 px at 12 m; 2x: also 66 px at 15 m
+def test_hog_finds_a_rendered_person_and_its_foot_point(person_frames, upscale, which):
+    rgb, ids = person_frames[which]
+    batch = HogDetector(upscale=upscale).detect(0, 0.0, rgb, ids)
+    _, (seg,), _ = id_boxes(ids)
+    mine = batch.agent_id == 4
+    assert mine.sum() == 1 and np.all((batch.score > 0.5) & (batch.score < 1.0))
+    assert box_iou(batch.xyxy[mine], seg).item() > 0.5  # the PASCAL criterion
+    height = seg[3] - seg[1]
+    foot = batch.foot[mine][0]
+    assert abs(foot[0] - (seg[0] + seg[2]) / 2) < 0.05 * height and abs(foot[1] - seg[3]) < 0.15 * height  # window steps of 8 px / upscale
+
+
+def test_generate_runs_the_hog_detector_when_asked(tmp_path):
+    from simgen.cli import main
+
+    scene = copy_scene(tmp_path)
+    out = tmp_path / "out"
+    assert main(["generate", str(scene), "--out", str(out), "--seconds", "1", "--seed", "2", "--no-progress",
+                 "--detectors", "segmentation,hog"]) == 0
+    assert json.loads((out / "manifest.json").read_text())["detectors"] == ["segmentation", "hog"]
+    det = pq.read_table(out / "detections.parquet")
+    names = set(det.column("detector").to_pylist())
+    assert "segmentation" in names and names <= {"segmentation", "hog"}  # at 320x180 people are too small for HOG
