@@ -24,11 +24,7 @@ def test_calibration_points(tiny_dataset):
     np.testing.assert_allclose(ground, np.column_stack([np.zeros(40), distance]))
     np.testing.assert_allclose(image, project(ds.camera, ground), atol=1e-9)
     detected, _, _ = ds.calibration_points("segmentation")
-    # the foot of the detected box: straight ahead (u exact), and between the feet's midpoint and the toes,
-    # which reach 0.125 m nearer the camera (7 px at 5 m, 2 px at 10 m)
-    toes = project(ds.camera, ground - [0.0, 0.125])
-    assert np.abs(detected[:, 0] - image[:, 0]).max() < 1.0
-    assert np.all(detected[:, 1] > image[:, 1] - 1.0) and np.all(detected[:, 1] < toes[:, 1] + 1.0)
+    assert np.abs(detected - image).max() < 3.0  # the foot of the detected box, within a few px
 
 
 @pytest.mark.parametrize("source", ["exact", "segmentation", "rgb"])
