@@ -18,11 +18,11 @@ from functools import cached_property
 
 import numpy as np
 
-from simgen.humanoid import PARTS, Person, draw_person, pose, stride_length, to_world
+from simgen.humanoid import LIFT, PARTS, Person, draw_person, gait, pose, stride_length, to_world
 from simgen.rng import keyed_rng
 from simgen.scene import Scene
 
-ARM_SWING = 0.35  # arm swing amplitude at 1.4 m/s, radians, proportional to speed (arms hang while waiting)
+ARM_SWING = 0.35  # arm swing amplitude at 1.4 m/s, radians, proportional to the walking speed
 
 
 @dataclass(frozen=True)
@@ -63,25 +63,46 @@ class Walk:
         """(N,) arc length at each vertex, metres."""
         return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(self.points, axis=0).T))])
 
-    @property
-    def t_end(self) -> float:
-        return self.t_start + self.cum[-1] / self.speed + self.wait
-
     @cached_property
     def stride(self) -> float:
         return float(stride_length(self.person.height, self.speed))
 
-    def walked(self, t: float) -> tuple[float, bool]:
-        """(arc length walked at time t, clamped to the route, metres; whether the agent is waiting)."""
-        s = max(t - self.t_start, 0.0) * self.speed
-        waiting = self.stop_at <= s < self.stop_at + self.wait * self.speed
-        s = self.stop_at if waiting else s if s < self.stop_at else s - self.wait * self.speed
-        return min(s, self.cum[-1]), waiting
+    @property
+    def t_end(self) -> float:
+        stop = self.wait + self.stride / (2 * self.speed) if self.wait > 0 else 0.0  # the wait and its two half steps
+        return self.t_start + self.cum[-1] / self.speed + stop
+
+    def gait(self, t: float) -> tuple[float, float, float, np.ndarray]:
+        """At time t: arc length walked (m, clamped to the route), speed (m/s), the left sole's offset ahead of
+        the foot point (m) and the soles' lifts (2,) m (humanoid.pose).
+
+        A stop at arc length ``stop_at`` (gait phase 0 there: the left foot ahead, the right one behind, both
+        down) is a closing half step (the right foot swings beside the left one while the body moves S/4 at
+        half speed), ``wait`` seconds standing with the feet together (speed 0), and an opening half step
+        (the left foot swings S/2 ahead while the body moves S/4), after which the gait goes on at phase 0.
+        """
+        v, S, s0 = self.speed, self.stride, self.stop_at
+        h = np.array([self.person.height])
+        tau, half = max(t - self.t_start, 0.0), S / (2 * v)  # a half step lasts half a cycle
+        u = tau - s0 / v  # time since the stop began
+        if self.wait == 0 or u < 0 or u >= 2 * half + self.wait:
+            after = self.wait > 0 and u >= 0  # the gait resumes at phase 0 at s0 + S/2
+            s = s0 + S / 2 + (u - 2 * half - self.wait) * v if after else tau * v
+            x_left, lift = gait(h, np.array([S]), np.array([(s - s0 - (S / 2 if after else 0.0)) / S]))
+            return min(s, self.cum[-1]), v, float(x_left[0]), lift[0]
+        up = LIFT * h[0] / 1.75
+        if u < half:  # closing: the left foot stays, the right one joins it
+            f = u / half
+            return min(s0 + S / 4 * f, self.cum[-1]), v / 2, S / 4 * (1 - f), np.array([0.0, up * np.sin(np.pi * f)])
+        if u < half + self.wait:
+            return min(s0 + S / 4, self.cum[-1]), 0.0, 0.0, np.zeros(2)
+        f = (u - half - self.wait) / half  # opening: the right foot stays, the left one steps out
+        return min(s0 + S / 4 * (1 + f), self.cum[-1]), v / 2, S / 4 * f, np.array([up * np.sin(np.pi * f), 0.0])
 
     def at(self, t: float) -> tuple[float, float, float]:
         """(x, y, heading) at time t (clamped to the route), metres and radians."""
         cum = self.cum
-        s = self.walked(t)[0]
+        s = self.gait(t)[0]
         i = min(int(np.searchsorted(cum, s, side="right")) - 1, len(cum) - 2)
         d = self.points[i + 1] - self.points[i]
         p = self.points[i] + d * ((s - cum[i]) / (cum[i + 1] - cum[i]))
@@ -121,23 +142,23 @@ class Crowd:
         self._starts = [[w.t_start for w in walks] for walks in self.slots]
 
     def state(self, t: float) -> AgentState:
-        """The active agents at time t, in slot order, posed (humanoid.pose; the gait phase is 0 where
-        the walk stops, so a waiting agent stands on both feet, one ahead of the other, arms hanging)."""
+        """The active agents at time t, in slot order, posed (humanoid.pose, Walk.gait)."""
         rows = []
         for k, walks in enumerate(self.slots):
             j = bisect.bisect_right(self._starts[k], t) - 1
             if j >= 0 and t < walks[j].t_end:
                 w = walks[j]
-                s, waiting = w.walked(t)
-                rows.append((k, w, *w.at(t), 0.0 if waiting else w.speed, (s - w.stop_at) / w.stride))
+                _, speed, x_left, lift = w.gait(t)
+                rows.append((k, w, *w.at(t), speed, x_left, lift))
         if not rows:
             empty = np.zeros((0, len(PARTS)))
             return AgentState(np.zeros(0, np.int32), np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0), np.zeros(0),
                               np.zeros((0, len(PARTS), 2, 3)), empty, np.zeros((0, len(PARTS), 4)))
         slot, walks, *numbers = zip(*rows)
-        x, y, heading, speed, phase = map(np.array, numbers)
+        x, y, heading, speed, x_left, lift = map(np.array, numbers)
         height, width = (np.array([getattr(w.person, a) for w in walks]) for a in ("height", "width"))
-        segments, radii = pose(height, width, np.array([w.stride for w in walks]), phase, ARM_SWING * speed / 1.4)
+        cruise = np.array([w.speed for w in walks])
+        segments, radii = pose(height, width, np.array([w.stride for w in walks]), x_left, lift, ARM_SWING * cruise / 1.4)
         xy = np.column_stack([x, y])
         return AgentState(np.array([w.agent_id for w in walks], np.int32), np.array(slot, np.int64), xy, heading, speed,
                           to_world(segments, xy, heading), radii, np.stack([w.person.rgba for w in walks]))

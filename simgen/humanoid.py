@@ -5,15 +5,17 @@ when p0 == p1), posed in the body frame: x forward (the heading), y left, z up, 
 ground at the person's **foot point**: the ground projection of the pelvis, which is, at every
 instant, also the midpoint of the two feet's ground points (sole centres).
 
-The gait, for stride S (two steps) and phase phi = (s / S) mod 1 of the distance s walked:
-the left sole centre is on the ground at x_L = S (1/4 - phi) while phi < 1/2 (stance: the body
-advances by S phi, so the foot stays where it landed in the world), and at x_L = S (phi - 3/4),
-lifted by ``LIFT * k * sin(2 pi (phi - 1/2))``, while phi >= 1/2 (swing, at twice the walking speed);
-the right foot follows half a cycle later, x_R(phi) = x_L(phi + 1/2) = -x_L(phi). So x_L + x_R = 0
-and the feet are at y = +-hip_y: their midpoint is the foot point, whatever the phase. A person who
-waits (speed 0) keeps the pose of the phase it stopped at (agents.py stops walkers at phi = 0, both
-feet on the ground). The legs reach their ankles by two-link inverse kinematics; the pelvis sinks
-where the feet are far apart so that no leg is stretched beyond 98.5 % of its length.
+The gait, for stride S (two steps) and phase phi = (s / S) mod 1 of the distance s walked
+(``gait``): the left sole centre is on the ground at x_L = S (1/4 - phi) while phi < 1/2
+(stance: the body advances by S phi, so the foot stays where it landed in the world), and at
+x_L = S (phi - 3/4), lifted by ``LIFT * k * sin(2 pi (phi - 1/2))``, while phi >= 1/2 (swing, at
+twice the walking speed); the right foot follows half a cycle later, x_R(phi) = x_L(phi + 1/2) =
+-x_L(phi). So x_L + x_R = 0 and the feet are at y = +-hip_y: their midpoint is the foot point,
+whatever the phase. ``pose`` takes x_L and the lifts, so that a walker can also stop (agents.py):
+a closing half step brings the rear foot beside the front one, the person stands with its feet
+together, and an opening half step starts the gait again, x_R = -x_L all the while. The arms swing
+against the legs, in proportion to x_L. The legs reach their ankles by two-link inverse kinematics;
+the pelvis sinks where the feet are far apart so that no leg is stretched beyond 98.5 % of its length.
 Lengths are in units of k = height / 1.75 m; radii also scale with the body width factor.
 """
 from __future__ import annotations
@@ -85,24 +87,30 @@ def _leg(hip: np.ndarray, ankle: np.ndarray, thigh: np.ndarray, shin: np.ndarray
     return hip + thigh[:, None] * (cos_a[:, None] * u + np.sqrt(1 - cos_a**2)[:, None] * n)
 
 
-def pose(height: np.ndarray, width: np.ndarray, stride: np.ndarray, phase: np.ndarray, arm_swing: np.ndarray
-         ) -> tuple[np.ndarray, np.ndarray]:
+def gait(height: np.ndarray, stride: np.ndarray, phase: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Walking: the left sole's offset x_L (A,) m ahead of the foot point and the lifts (A, 2) m of the
+    left and right soles, for people ``height`` (A,) m with ``stride`` (A,) m at gait ``phase`` (A,) (module docstring)."""
+    stride, phase = np.asarray(stride, float), np.asarray(phase, float) % 1.0
+    swing = phase >= 0.5  # the left foot's swing; the right one swings while phase < 1/2
+    x_left = np.where(swing, stride * (phase - 0.75), stride * (0.25 - phase))
+    up = LIFT * np.asarray(height, float) / 1.75 * np.abs(np.sin(2 * np.pi * phase))  # the swinging foot's lift
+    return x_left, np.column_stack([np.where(swing, up, 0.0), np.where(swing, 0.0, up)])
+
+
+def pose(height: np.ndarray, width: np.ndarray, stride: np.ndarray, x_left: np.ndarray, lift: np.ndarray,
+         arm_swing: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Body-frame segments of A people (module docstring).
 
     Args:
-        height: (A,) m; width: (A,) factor; stride: (A,) m (stride_length; 0 stands with the feet together);
-        phase: (A,) gait phase in [0, 1); arm_swing: (A,) amplitude of the arms, radians.
+        height: (A,) m; width: (A,) factor; stride: (A,) m (stride_length; 0: standing, arms still);
+        x_left: (A,) m the left sole's offset ahead of the foot point (the right one's is -x_left);
+        lift: (A, 2) m of the left and right soles above the ground; arm_swing: (A,) arm amplitude, radians.
     Returns:
         segments (A, G, 2, 3) metres and radii (A, G) metres, G = len(PARTS).
     """
     k, kw = np.asarray(height, float) / 1.75, np.asarray(height, float) / 1.75 * np.asarray(width, float)
-    phase, stride, n = np.asarray(phase, float) % 1.0, np.asarray(stride, float), len(k)
-    feet = []
-    for side, ph in ((1.0, phase), (-1.0, (phase + 0.5) % 1.0)):  # left, right
-        swing = ph >= 0.5
-        x = np.where(swing, stride * (ph - 0.75), stride * (0.25 - ph))
-        z = FOOT_R * k + np.where(swing, LIFT * k * np.sin(2 * np.pi * (ph - 0.5)), 0.0)
-        feet.append(np.column_stack([x, side * HIP_Y * kw, z]))
+    stride, x_left, lift, n = np.asarray(stride, float), np.asarray(x_left, float), np.asarray(lift, float), len(k)
+    feet = [np.column_stack([side * x_left, side * HIP_Y * kw, FOOT_R * k + lift[:, j]]) for j, side in enumerate((1.0, -1.0))]
     ankles = [f + np.column_stack([-ANKLE_BACK * k, np.zeros(n), (ANKLE_Z - FOOT_R) * k]) for f in feet]
     thigh, shin = THIGH * k, SHIN * k
     reach = REACH * (thigh + shin)
@@ -123,8 +131,9 @@ def pose(height: np.ndarray, width: np.ndarray, stride: np.ndarray, phase: np.nd
     put(1, at(0, 0, hip_z + TORSO_Z[0] * k), at(0, 0, hip_z + TORSO_Z[1] * k), TORSO_R * kw)
     put(2, at(0, (SHOULDER_Y - 0.02) * kw, top), at(0, -(SHOULDER_Y - 0.02) * kw, top), 0.07 * kw)
     put(3, at(0, HIP_Y * kw, hip_z + 0.02 * k), at(0, -HIP_Y * kw, hip_z + 0.02 * k), 0.095 * kw)
+    ahead = np.divide(4 * x_left, stride, out=np.zeros(n), where=stride > 0)  # +-1 at the longest step
     for j, side in enumerate((1.0, -1.0)):  # arms swing against the legs: the left arm is back when the left foot is ahead
-        theta = -side * arm_swing * np.cos(2 * np.pi * phase)
+        theta = -side * arm_swing * np.clip(ahead, -1.0, 1.0)
         bend = 0.25 + 0.3 * np.clip(theta, 0.0, None)
         shoulder = at(0, side * (SHOULDER_Y + 0.02) * kw, top)
         elbow = shoulder + ARM_UP * k[:, None] * at(np.sin(theta), 0.02 * side, -np.cos(theta))

@@ -100,5 +100,6 @@ def pose_geoms(model: mujoco.MjModel, data: mujoco.MjData, mocap: np.ndarray, ge
 
 def standing(person: Person) -> tuple[np.ndarray, np.ndarray]:
     """Body-frame segments (G, 2, 3) and radii (G,) of ``person`` standing with the feet together."""
-    segments, radii = pose(np.array([person.height]), np.array([person.width]), np.zeros(1), np.zeros(1), np.zeros(1))
+    segments, radii = pose(np.array([person.height]), np.array([person.width]), np.zeros(1), np.zeros(1), np.zeros((1, 2)),
+                           np.zeros(1))
     return segments[0], radii[0]

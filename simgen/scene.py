@@ -270,6 +270,11 @@ def _check_run(s: Scene) -> None:
     unknown = [d for d in s.detectors if d not in DETECTORS]
     if unknown or not s.detectors or len(set(s.detectors)) != len(s.detectors):
         raise ConfigError(f"scene.toml: detection.detectors: expected distinct names from {DETECTORS}, got {list(s.detectors)}")
+    if "hog" in s.detectors:
+        from simgen.detection.hog import hog_missing  # noqa: PLC0415  (cv2 only when hog is asked for)
+
+        if hog_missing():
+            raise ConfigError(f"scene.toml: detection.detectors: hog: {hog_missing()}")
 
 
 def in_frame(camera: PinholeCamera, uv: np.ndarray) -> np.ndarray:

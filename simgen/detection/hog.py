@@ -47,10 +47,19 @@ class FunctionDetector:
         return DetectionBatch(self.name, frame, t, xyxy, score, associate(xyxy, ids, mask_xyxy, self.min_iou))
 
 
+def hog_missing() -> str | None:
+    """None if this OpenCV has the HOG people detector, else one line saying what to install."""
+    if hasattr(cv2, "HOGDescriptor"):
+        return None
+    return (f"OpenCV {cv2.__version__} at {cv2.__file__} has no HOGDescriptor (OpenCV 5 keeps it in the contrib build): "
+            "pip uninstall opencv-python-headless, then pip install --force-reinstall opencv-contrib-python-headless "
+            "(scripts/install.sh does both)")
+
+
 def _hog() -> "cv2.HOGDescriptor":
-    if not hasattr(cv2, "HOGDescriptor"):  # OpenCV 5 moved it to the contrib build
-        raise RuntimeError(f"the hog detector needs OpenCV's HOGDescriptor, which OpenCV {cv2.__version__} has only in "
-                           "opencv-contrib-python-headless (pip install opencv-contrib-python-headless)")
+    missing = hog_missing()
+    if missing:
+        raise RuntimeError(f"the hog detector: {missing}")
     hog = cv2.HOGDescriptor()
     hog.setSVMDetector(cv2.HOGDescriptor_getDefaultPeopleDetector())
     return hog

@@ -70,3 +70,17 @@ def test_generate_runs_the_hog_detector_when_asked(tmp_path):
     det = pq.read_table(out / "detections.parquet")
     names = set(det.column("detector").to_pylist())
     assert "segmentation" in names and names <= {"segmentation", "hog"}  # at 320x180 people are too small for HOG
+
+
+def test_generate_without_opencv_hog_is_one_clear_line(tmp_path, capsys, monkeypatch):
+    import cv2
+
+    from simgen.cli import main
+
+    monkeypatch.delattr(cv2, "HOGDescriptor", raising=False)  # as with opencv-python-headless 5 (no contrib)
+    out = tmp_path / "out"
+    assert main(["generate", str(SCENES / "scene1"), "--out", str(out), "--seconds", "1", "--seed", "0",
+                 "--detectors", "segmentation,hog"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "hog" in err and "opencv-contrib-python-headless" in err, err
+    assert not out.exists()

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from simgen.agents import AgentState, Crowd
-from simgen.humanoid import FEET, FOOT_R, HEIGHT_M, PARTS, WIDTH, draw_person, pose, stride_length, to_world
+from simgen.humanoid import FEET, FOOT_R, HEIGHT_M, PARTS, WIDTH, draw_person, gait, pose, stride_length, to_world
 from simgen.rng import keyed_rng
 from simgen.scene import load_scene
 
@@ -19,7 +19,7 @@ def _walk(height: float, speed: float, times: np.ndarray, heading: float = 0.7):
     xy = np.column_stack([np.cos(heading) * s, np.sin(heading) * s])
     n = len(times)
     stride = stride_length(np.full(n, height), np.full(n, speed))
-    segments, _ = pose(np.full(n, height), np.ones(n), stride, s / stride, np.full(n, 0.3))
+    segments, _ = pose(np.full(n, height), np.ones(n), stride, *gait(np.full(n, height), stride, s / stride), np.full(n, 0.3))
     return to_world(segments, xy, np.full(n, heading))
 
 
@@ -45,14 +45,14 @@ def test_feet_midpoint_is_the_foot_point_and_sizes_vary():
     n = 500
     height, width = rng.uniform(*HEIGHT_M, n), rng.uniform(*WIDTH, n)
     stride = rng.uniform(0.0, 1.7, n)
-    segments, radii = pose(height, width, stride, rng.random(n), rng.uniform(0, 0.5, n))
+    segments, radii = pose(height, width, stride, *gait(height, stride, rng.random(n)), rng.uniform(0, 0.5, n))
     mid = segments[:, list(FEET)].mean(axis=(1, 2))
     np.testing.assert_allclose(mid[:, :2], 0.0, atol=1e-12)
     top = (segments[..., 2] + radii[..., None]).max(axis=(1, 2))
     bottom = (segments[..., 2] - radii[..., None]).min(axis=(1, 2))
     assert np.all(top <= height + 1e-9) and np.all(top > 0.9 * height)  # full height when standing tall
     np.testing.assert_allclose(bottom, 0.0, atol=1e-12)  # the lowest foot touches the ground
-    standing, _ = pose(height, width, np.zeros(n), np.zeros(n), np.zeros(n))
+    standing, _ = pose(height, width, np.zeros(n), np.zeros(n), np.zeros((n, 2)), np.zeros(n))
     np.testing.assert_allclose((standing[..., 2] + radii[..., None]).max(axis=(1, 2)), height, atol=1e-9)
     thigh = np.linalg.norm(segments[:, 8, 1] - segments[:, 8, 0], axis=1)  # legs keep their length in every pose
     np.testing.assert_allclose(thigh, 0.43 * height / 1.75, rtol=1e-9)
@@ -92,7 +92,8 @@ def test_rendered_feet_agree_with_the_foot_point_at_10_m(stage):
     try:
         for height, heading, stride, phase in CASES:
             xy = np.array([[2.0, np.sqrt(100.0 - 4.0)]])  # 10 m from the camera's ground point
-            segments, radii = pose(np.array([height]), np.ones(1), np.array([stride]), np.array([phase]), np.array([0.3]))
+            h, st = np.array([height]), np.array([stride])
+            segments, radii = pose(h, np.ones(1), st, *gait(h, st, np.array([phase])), np.array([0.3]))
             person = draw_person(keyed_rng(0, "feet", height))
             state = AgentState(np.array([5], np.int32), np.array([slot]), xy, np.array([heading]), np.ones(1),
                                to_world(segments, xy, np.array([heading])), radii, person.rgba[None])
@@ -111,7 +112,9 @@ def test_rendered_feet_agree_with_the_foot_point_at_10_m(stage):
     assert max(errors) < 2.0, errors
 
 
-def test_walkers_wait_at_the_kerb_with_speed_zero():
+def test_walkers_stop_at_the_kerb_without_sliding():
+    """A waiting walker closes its feet, stands (speed 0) and steps out again: every foot on the ground stays
+    put, the feet's midpoint stays the foot point, and the route position never jumps."""
     scene = load_scene(SCENES / "scene1")
     crowd = Crowd(scene, seed=3, t_to=120.0)
     walks = [w for slot in crowd.slots for w in slot]
@@ -120,13 +123,28 @@ def test_walkers_wait_at_the_kerb_with_speed_zero():
     crossing = [w for w in waiting if len(w.points) > 2]
     assert crossing and all(np.isclose(w.stop_at, np.hypot(*(w.points[1] - w.points[0]))) for w in crossing)
     w = crossing[0]
-    t_stop = w.t_start + w.stop_at / w.speed
-    before, during, after = (w.at(t) for t in (t_stop - 1e-3, t_stop + w.wait / 2, t_stop + w.wait + 1.0))
-    np.testing.assert_allclose(during[:2], w.points[1], atol=1e-9)  # at the corner
-    assert np.hypot(after[0] - during[0], after[1] - during[1]) == pytest.approx(w.speed, rel=1e-6)
-    state = crowd.state(t_stop + w.wait / 2)
-    k = list(state.agent_id).index(w.agent_id)
-    assert state.speed[k] == 0.0
-    feet = state.segments[k, list(FEET)].mean(axis=1)
-    np.testing.assert_allclose(feet[:, 2], FOOT_R * w.person.height / 1.75)  # standing on both feet
-    assert before[2] != during[2]  # it turned to face the crossing
+    t_stop, dt = w.t_start + w.stop_at / w.speed, 0.02
+    times = np.arange(t_stop - 1.0, t_stop + w.wait + w.stride / w.speed + 1.0, dt)
+    xy, feet, speed, heading = [], [], [], []
+    for t in times:
+        state = crowd.state(t)
+        k = list(state.agent_id).index(w.agent_id)
+        xy.append(state.xy[k])
+        feet.append(state.segments[k, list(FEET)].mean(axis=1))  # (2, 3) sole centres
+        speed.append(state.speed[k])
+        heading.append(state.heading[k])
+    xy, feet, speed, heading = map(np.array, (xy, feet, speed, heading))
+    np.testing.assert_allclose(feet[:, :, :2].mean(axis=1), xy, atol=1e-9)  # the midpoint is the foot point
+    step = np.hypot(*np.diff(xy, axis=0).T)
+    assert np.all(step <= w.speed * dt * (1 + 1e-6))  # no jump
+    standing = speed == 0.0
+    assert standing.sum() * dt == pytest.approx(w.wait, abs=2 * dt)
+    assert np.all(step[standing[1:] & standing[:-1]] == 0.0)
+    across = np.diff(w.points[1:3], axis=0)[0] / np.hypot(*np.diff(w.points[1:3], axis=0)[0])
+    np.testing.assert_allclose((feet[standing, 0, :2] - feet[standing, 1, :2]) @ across, 0.0, atol=1e-9)  # side by side
+    down = np.isclose(feet[:, :, 2], FOOT_R * w.person.height / 1.75)
+    straight = np.diff(heading) == 0.0  # turning the corner swings the feet round the body
+    for f in range(2):  # a foot on the ground at two samples in a row has not moved
+        moved = np.hypot(*np.diff(feet[:, f, :2], axis=0).T)
+        assert np.all(moved[down[1:, f] & down[:-1, f] & straight] < 1e-9)
+    assert (down[1:, 0] & down[:-1, 0] & straight).sum() * dt > w.wait  # (the check saw the standing and the steps)
