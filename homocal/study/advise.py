@@ -6,8 +6,8 @@ ground points o + (l, d) for each distance d of --distances straight ahead and e
 y in o_y + --test-range) into the image exactly. The study's perturbation model (perturb.draw_variant: 2-16 of
 the 16 trapezoid coordinates moved by 0-3 px) then draws --samples clicked trapezoids around it, and the
 study's compiled kernels (scene.prepare_variant, scene.run_tables) correct each with every triple of
-candidates. Triples are ranked by the mean path improvement (paper Section 5.3) of the chosen method over the
-samples, ties by its 5th percentile.
+candidates. Triples are ranked by the chosen method's mean path improvement (the study's, paper Section 6) over
+the samples, ties by its 5th percentile.
 """
 from __future__ import annotations
 
@@ -101,6 +101,8 @@ def advise(scene: Scene, method: str, samples: int, seed: int = 0, progress: boo
     """Rank scene's triples by method's (kernels.METHODS) path improvement over perturbed variants 1..samples of
     scene's trapezoid (variant 0 is the unperturbed truth). A variant is skipped when it is degenerate
     (scene.prepare_variant's reason) or moves no coordinate (nothing to correct). ValueError if all are."""
+    if method not in kernels.METHODS:
+        raise ValueError(f"unknown method {method!r}: expected one of {', '.join(kernels.METHODS)}")
     column = kernels.OUT_COLUMNS.index(f"path_{method}")
     params = StudyParams(seed=seed, n_variants=samples, n_test=len(scene.test_image))
 
@@ -115,7 +117,7 @@ def advise(scene: Scene, method: str, samples: int, seed: int = 0, progress: boo
     paths, skipped = [], {}
     with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:  # the kernel releases the GIL
         for result in tqdm(pool.map(one, range(1, samples + 1)), total=samples, unit="trapezoid", desc=NAME,
-                           disable=not progress):
+                           disable=None if progress else True):  # None: off unless stderr is a terminal
             if isinstance(result, str):
                 skipped[result] = skipped.get(result, 0) + 1
             else:
