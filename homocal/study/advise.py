@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from homocal.correctors.commands import METHODS as CLI_METHODS, _xy, load_trapezoid_site_map
+from homocal.correctors.commands import METHODS as CLI_METHODS, _xy, load_trapezoid_site_map, read_points_csv
 from homocal.files import write_text_atomic
 from homocal.geometry import SiteMap, ViewTransformer
 from homocal.keyed_rng import seed_from_key
@@ -185,6 +185,9 @@ def add_parser(subparsers) -> None:
                    help="test points' distance ahead of the camera origin, metres (default 5:50)")
     p.add_argument("--test-lateral", type=float, default=8.0, metavar="M",
                    help="test points' largest lateral offset, metres (default 8)")
+    p.add_argument("--test-points", type=Path, metavar="GROUND.csv",
+                   help="test points from a CSV with columns x, y (ground metres, e.g. where your pedestrians walk) "
+                        "instead of the uniform sample")
     p.add_argument("--map-scale", type=float, metavar="PX_PER_M",
                    help="site-map scale the 0-3 px map perturbations are in (default: the trapezoid file's; "
                         f"{DEFAULT_MAP_SCALE:g} for a map in metres)")
@@ -257,7 +260,14 @@ def handle(args: argparse.Namespace) -> int:
     transformer, site_map = load_trapezoid_site_map(args.trapezoid)
     if site_map is None or args.map_scale is not None:
         site_map = SiteMap(args.map_scale or DEFAULT_MAP_SCALE, site_map.origin_px if site_map else (0.0, 0.0))
-    test_ground = uniform_test_points(StudyParams().n_test, args.seed, args.camera_origin, test_range, args.test_lateral)
+    if args.test_points is None:
+        test_ground = uniform_test_points(StudyParams().n_test, args.seed, args.camera_origin, test_range, args.test_lateral)
+        test_area = f"|x| <= {args.test_lateral:g} m, y {test_range[0]:g}..{test_range[1]:g} m"
+    else:
+        _, _, cols, _ = read_points_csv(args.test_points, ("x", "y"), finite=True)
+        test_ground, test_area = np.column_stack([cols["x"], cols["y"]]), f"from {args.test_points}"
+        if not len(test_ground):
+            raise ValueError(f"{args.test_points}: no test points")
     scene = advise_scene(transformer, site_map, positions, test_ground, args.camera_origin)
     start = time.perf_counter()
     advice = advise(scene, args.method.replace("-", "_"), args.samples, args.seed, progress=True)
@@ -265,8 +275,7 @@ def handle(args: argparse.Namespace) -> int:
     skipped = f"; skipped: {_skipped_text(advice.skipped)}" if advice.skipped else ""
     print(f"homocal advise: {args.method} from {n_triples:,} triples of {len(positions)} reference positions, each "
           f"corrected on {advice.n_used} of {args.samples} perturbed trapezoids{skipped} ({elapsed:.1f} s); path "
-          f"improvement on {len(test_ground)} test points, |x| <= {args.test_lateral:g} m, y {test_range[0]:g}.."
-          f"{test_range[1]:g} m; map perturbations in px of a {site_map.scale_px_per_m:g} px/m site map.")
+          f"improvement on {len(test_ground)} test points, {test_area}; map perturbations in px of a {site_map.scale_px_per_m:g} px/m site map.")
     print(summary(advice, lateral=laterals != [0.0], top=args.top))
     if args.output is not None:
         write_text_atomic(args.output, to_csv(advice))

@@ -100,6 +100,16 @@ def test_csv_ranks_every_triple_and_repeats_to_the_byte(work, capsys, monkeypatc
     assert again.returncode == 0 and (work / "a.csv").read_text() == text
 
 
+def test_test_points_from_a_file(work, capsys, monkeypatch):
+    ground = np.column_stack([np.linspace(-5, 5, 40), np.linspace(6, 45, 40)])
+    (work / "tp.csv").write_text("id,x,y\n" + "".join(f"{i},{x!r},{y!r}\n" for i, (x, y) in enumerate(ground.tolist())))
+    result = homocal_main("advise", "--trapezoid", "trap.json", "--distances", "10,20,30,40", "--samples", "4",
+                          "--test-points", "tp.csv", cwd=work, capsys=capsys, monkeypatch=monkeypatch)
+    assert result.returncode == 0, result.stderr
+    assert "path improvement on 40 test points, from tp.csv" in result.stdout
+    assert len(result.stdout.splitlines()) == 2 + 4 + 1  # header, table header, C(4, 3) triples, the spread
+
+
 def test_samples_are_the_study_variants():
     """advise's figures for a triple are the mean and 5th percentile, over variants 1..N, of what the study's shard
     function computes for the same scene."""
@@ -134,6 +144,10 @@ def test_samples_are_the_study_variants():
     ("behind the camera", ["--camera-origin", "0,-40"], {}, "behind the camera"),
     ("output folder missing", ["-o", "nowhere/a.csv"], {}, "the folder nowhere does not exist"),
     ("output not ours", ["-o", "notes.csv"], {"notes.csv": "mine\n"}, "not a homocal advise CSV"),
+    ("test points without y", ["--test-points", "tp.csv"], {"tp.csv": "x\n1\n"}, "tp.csv: missing column(s) y"),
+    ("no test points", ["--test-points", "tp.csv"], {"tp.csv": "x,y\n"}, "tp.csv: no test points"),
+    ("test point behind the camera", ["--test-points", "tp.csv"], {"tp.csv": "x,y\n0,10\n1,-3\n"},
+     "test point (1, -3) m lies behind the camera"),
     ("bad trapezoid", [], {"trap.json": '{"image": [[0, 0]], "map": []}'}, "trap.json"),
 ])
 def test_bad_input(work, name, extra, files, message, capsys, monkeypatch):
