@@ -3,7 +3,7 @@
 The user's clicked trapezoid is taken as the truth. Its mapping puts every candidate reference position (the
 ground points o + (l, d) for each distance d of --distances straight ahead and each lateral offset l of
 --lateral, o the camera origin) and every test point (a seeded uniform sample of x in o_x +/- --test-lateral,
-y in o_y + --test-range) into the image exactly. The study's perturbation model (perturb.draw_variant: 2-16 of
+y in o_y + --test-range, or the ground points of --test-points) into the image exactly. The study's perturbation model (perturb.draw_variant: 2-16 of
 the 16 trapezoid coordinates moved by 0-3 px) then draws --samples clicked trapezoids around it, and the
 study's compiled kernels (scene.prepare_variant, scene.run_tables) correct each with every triple of
 candidates. Triples are ranked by the chosen method's mean path improvement (the study's, paper Section 6) over
