@@ -12,10 +12,10 @@ import sys
 
 from homocal.correctors import commands as corrector_commands
 from homocal.files import OutputFolderError
-from homocal.study import cli as study_cli, report as study_report, sweep as study_sweep
+from homocal.study import advise as study_advise, cli as study_cli, report as study_report, sweep as study_sweep
 from homocal.ui import cli as ui_cli
 
-SUBCOMMANDS = (corrector_commands, study_cli, study_sweep, study_report, ui_cli)
+SUBCOMMANDS = (corrector_commands, study_cli, study_sweep, study_report, study_advise, ui_cli)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -33,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-SIGNED_VALUES = ("--horizon-shift", "--camera-origin")  # options whose value may start with '-' (-12:16:2, -1.5,0)
+SIGNED_VALUES = ("--horizon-shift", "--camera-origin", "--lateral")  # options whose value may start with '-' (-12:16:2, -1.5,0)
 
 
 def join_signed_values(argv: list[str]) -> list[str]:

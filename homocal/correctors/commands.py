@@ -158,6 +158,11 @@ def run_apply(args: argparse.Namespace) -> int:
 
 def load_trapezoid(path: Path) -> ViewTransformer:
     """A ViewTransformer from TRAP.json (see FIT_FORMATS); ValueError naming the file for bad content."""
+    return load_trapezoid_site_map(path)[0]
+
+
+def load_trapezoid_site_map(path: Path) -> tuple[ViewTransformer, SiteMap | None]:
+    """load_trapezoid and the file's site map (None for a map in metres)."""
     data = read_json(path)
     try:
         if "hand_placed" in data:  # a simgen dataset's trapezoids.json: map in site-map pixels
@@ -173,7 +178,7 @@ def load_trapezoid(path: Path) -> ViewTransformer:
         if site_map is not None:
             ground = site_map.to_metres(ground)
         check_orientation(image, ground, target_y_up=True)  # metres now (site-map pixels converted)
-        return ViewTransformer(image, ground)
+        return ViewTransformer(image, ground), site_map
     except KeyError as e:
         raise ValueError(f"{path}: missing key {e} (expected \"image\" and \"map\", see homocal fit --help)") from None
     except (TypeError, ValueError) as e:
