@@ -112,7 +112,8 @@ def sweep_figure(rows: list[dict], param: str) -> Figure:
     fig = Figure(figsize=(12, 7), layout="constrained")
     axes = fig.subplots(2, 4).ravel()
     for ax, key in zip(axes, keys):
-        for method, color in zip(METHODS, ("C0", "C1", "C2", "C3")):
+        for n, method in enumerate(METHODS):
+            color = f"C{n}"
             y = [r[key] for r in rows if r["method"] == method]
             ax.plot(x, y, "o-", color=color, ms=3, label=method)
             if key in PAPER.get(method, {}):
