@@ -16,32 +16,45 @@ from pathlib import Path
 from typing import Iterator, Sequence
 
 import numpy as np
+import pyarrow as pa
 import pyarrow.parquet as pq
 from tqdm import tqdm
 
 BUCKETS = 1 << 16
+BATCH_ROWS = 1 << 20  # rows per batch of scan: 4 MB per float32 column
 
 
-def scan(shards: dict[str, list[Path]], columns: Sequence[str], desc: str = "", progress: bool = False
-         ) -> Iterator[tuple[str, dict[str, np.ndarray]]]:
-    """(scene, {column: (n,) array as stored}) for every shard file of every scene, one file at a time.
+def scan(shards: dict[str, list[Path]], columns: Sequence[str], desc: str = "", progress: bool = False,
+         rows: int = BATCH_ROWS) -> Iterator[tuple[str, dict[str, np.ndarray]]]:
+    """(scene, {column: (n,) array as stored}) batches of about `rows` rows (whole shards, one scene's), over
+    every shard file of every scene.
 
     shards: {scene: files} as metrics.shard_files gives them. ValueError naming the folder if a shard lacks a
     column. progress: a tqdm bar on stderr (shown only if the scan takes more than a second)."""
-    files = [(scene, f) for scene, fs in shards.items() for f in fs]
-    for scene, f in tqdm(files, desc=desc, unit="shard", disable=not progress, delay=1.0, leave=False):
-        shard = pq.ParquetFile(f)
-        missing = [c for c in columns if c not in shard.schema_arrow.names]
-        if missing:
-            raise ValueError(f"{f.parent}: the shards have no column(s) {', '.join(missing)}")
-        table = shard.read(columns=list(columns))
-        yield scene, {c: table.column(c).to_numpy() for c in columns}
+    bar = tqdm(total=sum(map(len, shards.values())), desc=desc, unit="shard", disable=not progress, delay=1.0, leave=False)
+    for scene, files in shards.items():
+        tables = []
+        for i, f in enumerate(files):
+            shard = pq.ParquetFile(f)
+            missing = [c for c in columns if c not in shard.schema_arrow.names]
+            if missing:
+                raise ValueError(f"{f.parent}: the shards have no column(s) {', '.join(missing)}")
+            tables.append(shard.read(columns=list(columns)))
+            bar.update()
+            if sum(t.num_rows for t in tables) >= rows or i == len(files) - 1:
+                table = pa.concat_tables(tables)
+                tables = []
+                yield scene, {c: table.column(c).to_numpy() for c in columns}
+    bar.close()
 
 
 def sortable_keys(values: np.ndarray) -> np.ndarray:
     """uint32 keys (N,) of float32 values (N,), no NaN, that sort as the values do (-0.0 just before +0.0)."""
-    bits = np.ascontiguousarray(values, dtype=np.float32).view(np.uint32)
-    return np.where(bits >> 31, ~bits, bits | np.uint32(1 << 31))
+    bits = np.ascontiguousarray(values, dtype=np.float32).view(np.int32)
+    flip = bits >> 31  # -1 (all bits) for a negative value, else 0
+    flip |= np.int32(-(1 << 31))  # negative: all bits flipped; else the sign bit set
+    flip ^= bits
+    return flip.view(np.uint32)
 
 
 def key_value(key: int) -> float:
@@ -70,9 +83,12 @@ class Quantiles:
         if self.low is None:
             self.high += np.bincount(keys >> 16, minlength=BUCKETS)
             return
-        high = keys >> 16
-        for bucket, counts in self.low.items():
-            counts += np.bincount(keys[high == bucket] & 0xFFFF, minlength=BUCKETS)
+        buckets = np.fromiter(self.low, np.uint32)
+        wanted = keys[np.isin(keys >> 16, buckets)]
+        which = np.searchsorted(np.sort(buckets), wanted >> 16)
+        counts = np.bincount(which * BUCKETS + (wanted & 0xFFFF), minlength=len(buckets) * BUCKETS)
+        for bucket, part in zip(np.sort(buckets), counts.reshape(len(buckets), BUCKETS)):
+            self.low[int(bucket)] += part
 
     def second_pass(self) -> None:
         """After the first pass: count, in the second, the buckets that hold the wanted ranks."""

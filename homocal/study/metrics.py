@@ -118,9 +118,9 @@ class MethodSummary:
             s["chose"] += np.count_nonzero(chose_regression[ok]) if self.hybrid else 0
             return
         dp, dc = p.astype(np.float64) - self.means[0], c.astype(np.float64) - self.means[1]
-        s["pp"] += float(dp @ dp)
-        s["cc"] += float(dc @ dc)
-        s["pc"] += float(dp @ dc)
+        s["pp"] += float(np.einsum("i,i->", dp, dp))  # einsum: no BLAS threads
+        s["cc"] += float(np.einsum("i,i->", dc, dc))
+        s["pc"] += float(np.einsum("i,i->", dp, dc))
 
     def second_pass(self) -> None:
         n = max(self.sums["n"], 1)
