@@ -5,7 +5,8 @@
 Runs `homocal report RESULTS_DIR -o TMP --no-progress` in a fresh process under GNU time (/usr/bin/time -v)
 and prints its wall time, CPU time and peak resident memory, and the table's sample count. --code DIR runs the
 homocal of another checkout (its folder on PYTHONPATH), e.g. an older commit unpacked with `git archive`, to
-compare before and after; the last line says whether the two tables (table.csv) are the same bytes.
+compare before and after; the last line gives the largest relative difference between the checkouts' tables
+(table.csv, full precision) and the metrics where they differ at all.
 """
 from __future__ import annotations
 
@@ -54,9 +55,22 @@ def main() -> None:
                 r = run_report(args.results, out, code)
                 print(f"{code}: homocal report of {samples(out / 'table.csv'):,} samples: {r['wall_s']:.1f} s wall, "
                       f"{r['cpu_s']:.1f} s CPU, {r['peak_mb']:.0f} MB peak resident memory", flush=True)
-            tables[code] = (out / "table.csv").read_bytes()
-    if len(tables) > 1:
-        print("table.csv the same bytes in every checkout:", len(set(tables.values())) == 1)
+            tables[code] = list(csv.reader((out / "table.csv").open()))
+    first, *others = tables.values()
+    for other in others:
+        print("tables: largest relative difference %.2g; metrics that differ: %s" % table_difference(first, other))
+
+
+def table_difference(a: list[list[str]], b: list[list[str]]) -> tuple[float, str]:
+    """Largest relative difference between two table.csv's values (rows method, metric, scopes..., paper), and
+    the metrics where any differs."""
+    worst, metrics = 0.0, set()
+    for ra, rb in zip(a[1:], b[1:]):
+        for x, y in zip(ra[2:], rb[2:]):
+            if x != y:
+                metrics.add(ra[1])
+                worst = max(worst, abs(float(x) - float(y)) / max(abs(float(x)), 1e-300))
+    return worst, ", ".join(sorted(metrics)) or "none"
 
 
 if __name__ == "__main__":

@@ -126,11 +126,12 @@ def improvement_histograms(shards: dict[str, list[Path]], out: Path, lo: float =
             f"[{lo:g}, {hi:g}] % and each panel gives the share of samples outside it.")
 
 
-def path_heatmaps(shards: dict[str, list[Path]], out: Path, bins: int = 24, vmin_floor: float = -100.0,
-                  progress: bool = False) -> str:
-    """Mean path improvement (percent) per bin of the sum (m) and the spread (max - min, m) of the three
-    calibration distances, per method, all scenes pooled (paper Fig. 4); read in two passes one shard at a
-    time (aggregate.scan): the ranges, then the bins' counts and sums."""
+def heatmap_means(shards: dict[str, list[Path]], bins: int = 24, progress: bool = False
+                  ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ma.MaskedArray]]:
+    """x edges (bins + 1,) over the triples' distance sum (m), y edges (bins + 1,) over their spread (max - min,
+    m), and per method the mean path improvement (percent) per cell, (bins, bins) indexed [y, x], empty cells
+    masked; all scenes pooled, read in two passes one shard at a time (aggregate.scan): the ranges, then the
+    cells' counts and sums."""
     located = ["d_sum", "d_spread"]
     lows, highs = [np.inf, np.inf], [-np.inf, -np.inf]
     for _, batch in scan(shards, located, "heatmaps, pass 1 of 2", progress):
@@ -149,10 +150,16 @@ def path_heatmaps(shards: dict[str, list[Path]], out: Path, bins: int = 24, vmin
             ok = inside & np.isfinite(path)
             counts[method] += np.bincount(cell[ok], minlength=bins * bins)
             sums[method] += np.bincount(cell[ok], weights=path[ok], minlength=bins * bins)
-    means = {}
-    for method in METHODS:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            means[method] = np.ma.masked_invalid(sums[method] / counts[method]).reshape(bins, bins).T
+    with np.errstate(invalid="ignore", divide="ignore"):
+        means = {m: np.ma.masked_invalid(sums[m] / counts[m]).reshape(bins, bins).T for m in METHODS}
+    return x_edges, y_edges, means
+
+
+def path_heatmaps(shards: dict[str, list[Path]], out: Path, bins: int = 24, vmin_floor: float = -100.0,
+                  progress: bool = False) -> str:
+    """Mean path improvement (percent) per bin of the sum (m) and the spread (max - min, m) of the three
+    calibration distances, per method, all scenes pooled (paper Fig. 4; heatmap_means)."""
+    x_edges, y_edges, means = heatmap_means(shards, bins, progress)
     filled = [m for m in means.values() if m.count()]
     lowest = float(min((m.min() for m in filled), default=0.0))
     vmin = max(lowest, vmin_floor)

@@ -112,3 +112,21 @@ def test_histogram_equals_numpy_in_memory(shards):
     np.testing.assert_array_equal(hist.counts, np.histogram(values, edges)[0])
     assert (hist.below, hist.above) == (np.count_nonzero(values < -200), np.count_nonzero(values > 100))
     assert hist.median.values() == [np.median(values.astype(np.float64))]
+
+
+def test_heatmap_means_equal_numpy_in_memory(shards):
+    files, columns = shards
+    bins = 7
+    x_edges, y_edges, means = figures.heatmap_means(files, bins)
+    col = lambda name: np.concatenate([columns[s][name] for s in files])  # noqa: E731
+    d_sum, d_spread = col("d_sum"), col("d_spread")
+    np.testing.assert_array_equal(x_edges, np.linspace(float(d_sum.min()), float(d_sum.max()), bins + 1))
+    np.testing.assert_array_equal(y_edges, np.linspace(float(d_spread.min()), float(d_spread.max()), bins + 1))
+    for m in set(metrics.METHODS) - {"descent"}:  # descent's awkward +/-3e38 make cell sums depend on the order
+        path = col(f"path_{m}")
+        ok = np.isfinite(path)
+        total, _, _ = np.histogram2d(d_spread[ok], d_sum[ok], [y_edges, x_edges], weights=path[ok].astype(np.float64))
+        count, _, _ = np.histogram2d(d_spread[ok], d_sum[ok], [y_edges, x_edges])
+        np.testing.assert_array_equal(means[m].mask, count == 0)
+        np.testing.assert_allclose(means[m].filled(0), np.divide(total, count, out=np.zeros_like(total), where=count > 0),
+                                   rtol=1e-12)
