@@ -62,8 +62,8 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None, com
 
     compare: other results directories shown beside this one in the Reproduction table; sweep_dir: a sweep
     folder whose figure and closest value it shows; progress: a bar on stderr per pass over the shards that
-    takes more than a second (the table's two passes, the figures' four). ValueError if a results directory is not one (no
-    study.json) or holds no shard yet.
+    takes more than a second (the table's two passes, the figures' four). ValueError if a results directory
+    is not one (no study.json) or holds no shard yet.
     """
     results_dir = Path(results_dir)
     study = load_study(results_dir)
