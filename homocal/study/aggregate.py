@@ -21,7 +21,7 @@ import pyarrow.parquet as pq
 from tqdm import tqdm
 
 BUCKETS = 1 << 16
-BATCH_ROWS = 1 << 18  # rows per batch of scan: 1 MB per float32 column; larger batches save no time
+BATCH_ROWS = 1 << 18  # rows per batch of scan (1 MB per float32 column); 2^20 saved ~10 % CPU for ~170 MB more
 
 
 def scan(shards: dict[str, list[Path]], columns: Sequence[str], desc: str = "", progress: bool = False,
