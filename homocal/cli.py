@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from importlib.metadata import version
 
 from homocal.correctors import commands as corrector_commands
 from homocal.files import OutputFolderError
@@ -27,6 +28,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="homocal", description="Homography ground-plane mapping: correct it from reference points.")
+    parser.add_argument("--version", action="version", version=f"homocal {version('homocal')}")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for module in SUBCOMMANDS:
         module.add_parser(subparsers)

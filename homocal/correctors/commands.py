@@ -80,7 +80,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     fit.add_argument("--method", required=True, choices=METHODS, help="regression (the paper's, clamped), "
                      "regression-signed (also corrects overestimated range), regression-intercept (signed, "
                      "a d^2 + b d + c), horizon (fits the horizon shift of Section 3), descent, hybrid")
-    fit.add_argument("-o", "--output", required=True, type=Path, metavar="CORRECTION.json", help="the correction to write")
+    fit.add_argument("-o", "--out", required=True, type=Path, metavar="CORRECTION.json", help="the correction to write")
     fit.add_argument("--camera-origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
                      help="ground point under the camera, metres (default 0,0)")
     fit.add_argument("--threshold", type=float, default=75.0, help="hybrid: keep regression at or above this "
@@ -94,7 +94,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     apply.add_argument("correction", type=Path, metavar="CORRECTION.json", help="written by homocal fit")
     apply.add_argument("--points", required=True, type=Path, metavar="FEET.csv", help="image foot points u,v")
-    apply.add_argument("-o", "--output", required=True, type=Path, metavar="CORRECTED.csv", help="the CSV to write")
+    apply.add_argument("-o", "--out", required=True, type=Path, metavar="CORRECTED.csv",
+                       help="the CSV to write; - writes it to stdout (the summary line then goes to stderr)")
     apply.add_argument("--click-sigma-px", type=_sigma, default=1.5, metavar="PX",
                        help="sigma_m: clicking error of each trapezoid coordinate, pixels (default 1.5)")
     apply.add_argument("--point-sigma-px", type=_sigma, default=1.0, metavar="PX",
@@ -105,7 +106,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run_fit(args: argparse.Namespace) -> int:
     transformer = load_trapezoid(args.trapezoid)
     _, _, cols, _ = read_points_csv(args.points, ("u", "v", "x", "y"), finite=True)
-    _check_output_folder(args.output)
+    if str(args.out) == "-":
+        raise ValueError("-o -: the correction is a JSON file, not a table: give its file name")
+    _check_output_folder(args.out)
     corrector = METHODS[args.method](args)
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -116,8 +119,8 @@ def run_fit(args: argparse.Namespace) -> int:
         raise ValueError(f"{args.points}: {e}") from None
     for w in caught:
         print(f"homocal: warning: {args.points}: {w.message}", file=sys.stderr)
-    corrector.save(args.output)
-    print(f"homocal fit: {args.method} correction from {len(cols['u'])} reference points written to {args.output}: "
+    corrector.save(args.out)
+    print(f"homocal fit: {args.method} correction from {len(cols['u'])} reference points written to {args.out}: "
           f"{_quality(corrector)}.{_method_note(corrector)}")
     mapping = _mapping(corrector)
     trust = max_trustworthy_range(mapping, TRUST_TOLERANCE_M, camera_origin=args.camera_origin)
@@ -130,7 +133,9 @@ def run_fit(args: argparse.Namespace) -> int:
 def run_apply(args: argparse.Namespace) -> int:
     corrector = load_corrector(args.correction)
     fields, rows, cols, lines = read_points_csv(args.points, ("u", "v"), finite=False)
-    _check_output_folder(args.output)
+    to_stdout = str(args.out) == "-"
+    if not to_stdout:
+        _check_output_folder(args.out)
     q = np.column_stack([cols["u"], cols["v"]])
     bad_input = ~(np.abs(q) <= MAX_COORDINATE).all(axis=1)  # nan, inf, or an overflow
     q[bad_input] = np.nan
@@ -145,14 +150,18 @@ def run_apply(args: argparse.Namespace) -> int:
     for row, (x, y), sm, st in zip(rows, xy, sigma, status):
         row = {**row, "x": repr(float(x)), "y": repr(float(y)), "sigma_m": repr(float(sm)), "status": st}
         writer.writerow([row[f] for f in out_fields])
-    write_text_atomic(args.output, buffer.getvalue())
+    if to_stdout:
+        sys.stdout.write(buffer.getvalue())
+    else:
+        write_text_atomic(args.out, buffer.getvalue())
     beyond = int((status == "beyond_horizon").sum())
     bad_lines = [lines[i] for i in np.flatnonzero(bad_input)]
     bad = (f"; {len(bad_lines)} with u or v nan, inf or beyond 1e9 (status bad_input, line"
            f"{'s' if len(bad_lines) > 1 else ''} {_line_list(bad_lines)})" if bad_lines else "")
     print(f"homocal apply: {len(rows)} points mapped with the {_label(corrector)} correction of {args.correction} "
-          f"and written to {args.output}; {beyond} on or above the horizon (status beyond_horizon){bad}; x, y, "
-          f"sigma_m = nan for those. The correction was fitted with {_quality(corrector)}.")
+          f"and written to {'stdout' if to_stdout else args.out}; {beyond} on or above the horizon (status "
+          f"beyond_horizon){bad}; x, y, sigma_m = nan for those. The correction was fitted with {_quality(corrector)}.",
+          file=sys.stderr if to_stdout else sys.stdout)
     return 0
 
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from homocal.progress import add_progress_option, show_progress
 from homocal.study.engine import PRESETS, dry_run_counts, run_study
 from homocal.study.scene import METRICS, StudyParams
 
@@ -41,6 +42,7 @@ def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
     p.add_argument("--descent-delta-max", type=typed(float), metavar="PX", **quiet,
                    help="descent: largest move of a trapezoid coordinate, px (default 8; the phase-1 grid spans "
                         "+/- half of it in 5 steps)")
+    add_progress_option(p)
 
 
 def params_from_args(args: argparse.Namespace, **override) -> StudyParams:
@@ -108,7 +110,7 @@ def handle(args: argparse.Namespace) -> int:
         print(f"total: {sum(counts.values()):,} samples ({params.n_variants + 1} trapezoids per scene)")
         return 0
     study = run_study(args.datasets, args.out, params, preset=args.preset, resume=args.resume,
-                      workers=args.workers, scheduler=args.scheduler)
+                      workers=args.workers, scheduler=args.scheduler, progress=show_progress(args))
     rate = study["samples_done"] / max(study["elapsed_seconds"], 1e-9)
     print(f"{study['samples_done']:,} of {study['samples_total']:,} samples in {args.out} "
           f"({study['elapsed_seconds']:.1f} s, {rate:,.0f} samples/s); complete: {study['complete']}")

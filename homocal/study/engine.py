@@ -12,12 +12,12 @@ the shards, from the reasons the shards record (a killed run leaves them to the 
 """
 from __future__ import annotations
 
-import functools
 import json
 import os
 import platform
 import time
 from concurrent.futures import ALL_COMPLETED, FIRST_COMPLETED, ThreadPoolExecutor, wait
+from importlib.metadata import version
 from pathlib import Path
 
 import numba
@@ -67,15 +67,8 @@ def variants_table(scene: Scene, params: StudyParams, reasons: list[str]) -> pa.
     return pa.table(cols)
 
 
-@functools.lru_cache(maxsize=8)
-def _scene(path: str, params_json: str) -> Scene:
-    return Scene.from_dataset(path, StudyParams.from_dict(json.loads(params_json)))
-
-
-def run_group(path: str, params_json: str, variants: list[int]) -> list[tuple[int, pa.Table, str]]:
-    """The unit of work of both engine paths: compute_shard for each variant of one scene's dataset."""
-    scene = _scene(path, params_json)
-    params = StudyParams.from_dict(json.loads(params_json))
+def run_group(scene: Scene, params: StudyParams, variants: list[int]) -> list[tuple[int, pa.Table, str]]:
+    """The unit of work of both engine paths: compute_shard for each variant of one loaded scene."""
     return [(v, *compute_shard(scene, params, v)) for v in variants]
 
 
@@ -89,7 +82,7 @@ def study_parameters(preset: str | None, params: StudyParams, scenes: list[Scene
 
 
 def load_scenes(paths: list[str], params: StudyParams) -> list[Scene]:
-    scenes = [_scene(str(Path(p).resolve()), json.dumps(params.to_dict())) for p in paths]
+    scenes = [Scene.from_dataset(str(Path(p).resolve()), params) for p in paths]  # read afresh: a dataset may be regenerated
     names = [s.name for s in scenes]
     if len(set(names)) != len(names):
         raise ValueError(f"two datasets have the same scene name: {names}")
@@ -124,7 +117,7 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
         bar = tqdm(total=len(todo), unit="shard", desc="study", disable=not progress)
         with ThreadPoolExecutor(max_workers=1) as writer:  # writes overlap the next shard's computation
             writes = []
-            for scene, variant, table, reason in _execute(todo, paths, scenes, params, workers, scheduler):
+            for scene, variant, table, reason in _execute(todo, scenes, params, workers, scheduler):
                 writes.append(writer.submit(write_table, shard_path(out, scene.name, variant), table))
                 writes[-1].add_done_callback(lambda _: bar.update())
                 reasons[scene.name, variant] = reason
@@ -142,10 +135,9 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
     return study | {"elapsed_seconds": elapsed}
 
 
-def _execute(todo, paths, scenes, params, workers, scheduler):
-    """Yield (scene, variant, table, reason) for every (scene, variant) of todo, in-process or on Dask."""
-    params_json = json.dumps(params.to_dict())
-    path_of = {s.name: str(Path(p).resolve()) for s, p in zip(scenes, paths)}
+def _execute(todo, scenes, params, workers, scheduler):
+    """Yield (scene, variant, table, reason) for every (scene, variant) of todo, in-process or on Dask (the
+    loaded scenes are sent to the workers once each)."""
     groups = []
     for scene in scenes:
         vs = [v for s, v in todo if s is scene]
@@ -156,7 +148,7 @@ def _execute(todo, paths, scenes, params, workers, scheduler):
             shards = [(s, [v]) for s, vs in groups for v in vs]
             futures = {}
             for n, (scene, vs) in enumerate(shards):
-                futures[pool.submit(run_group, path_of[scene.name], params_json, vs)] = scene
+                futures[pool.submit(run_group, scene, params, vs)] = scene
                 if len(futures) >= window or n == len(shards) - 1:
                     done, _ = wait(futures, return_when=FIRST_COMPLETED if n < len(shards) - 1 else ALL_COMPLETED)
                     for future in done:
@@ -168,7 +160,8 @@ def _execute(todo, paths, scenes, params, workers, scheduler):
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True) if scheduler is None else None
     client = Client(cluster if cluster is not None else scheduler)
     try:
-        futures = {client.submit(run_group, path_of[s.name], params_json, vs, pure=False): s for s, vs in groups}
+        remote = {s.name: client.scatter(s, broadcast=True) for s in scenes}
+        futures = {client.submit(run_group, remote[s.name], params, vs, pure=False): s for s, vs in groups}
         for future in as_completed(futures):
             for v, table, reason in future.result():
                 yield futures[future], v, table, reason
@@ -196,7 +189,5 @@ def dry_run_counts(paths: list[str], params: StudyParams) -> dict[str, int]:
 
 
 def versions() -> dict:
-    import homocal
-
     return {"python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__,
-            "pyarrow": pa.__version__, "homocal": getattr(homocal, "__version__", "0.1.0")}
+            "pyarrow": pa.__version__, "homocal": version("homocal")}

@@ -20,7 +20,8 @@ from matplotlib.figure import Figure
 from homocal.correctors import fit_quadratic_error
 from homocal.dataset import Dataset, load_dataset
 from homocal.geometry import ViewTransformer
-from homocal.study.metrics import METHODS, read_columns
+from homocal.study.aggregate import Quantiles, scan
+from homocal.study.metrics import METHODS
 from homocal.study.perturb import base_quad, perturbed_quads
 
 DPI = 110
@@ -35,8 +36,10 @@ class FigureFile:
     caption: str
 
 
-def make_figures(results_dir: Path, study: dict, shards: dict[str, list[Path]], out_dir: Path) -> tuple[list[FigureFile], list[str]]:
-    """Write every figure the results allow into out_dir; return them and notes on the ones left out."""
+def make_figures(results_dir: Path, study: dict, shards: dict[str, list[Path]], out_dir: Path, progress: bool = False
+                 ) -> tuple[list[FigureFile], list[str]]:
+    """Write every figure the results allow into out_dir; return them and notes on the ones left out.
+    progress: a bar per pass over the shards on stderr for long reads."""
     out_dir.mkdir(parents=True, exist_ok=True)
     datasets, notes, figures = [], [], []
     source, n_test, seed = study.get("foot_source", "exact"), study.get("n_test"), study.get("seed", 0)
@@ -58,33 +61,58 @@ def make_figures(results_dir: Path, study: dict, shards: dict[str, list[Path]], 
         figures.append(FigureFile(path, "Distance distribution of the test points", caption))
     figures += [
         FigureFile(out_dir / "improvement_histograms.png", "Improvement distributions",
-                   improvement_histograms(shards, out_dir / "improvement_histograms.png")),
+                   improvement_histograms(shards, out_dir / "improvement_histograms.png", progress=progress)),
         FigureFile(out_dir / "path_heatmaps.png", "Mean path improvement against calibration distances",
-                   path_heatmaps(shards, out_dir / "path_heatmaps.png")),
+                   path_heatmaps(shards, out_dir / "path_heatmaps.png", progress=progress)),
     ]
     return figures, notes
 
 
-def pooled_columns(shards: dict[str, list[Path]], columns: list[str]) -> dict[str, np.ndarray]:
-    """The named columns over all scenes' shards: {name: (N,) array}."""
-    per_scene = [read_columns(files, columns) for files in shards.values()]
-    return {c: np.concatenate([cols[c] for cols in per_scene]) for c in columns}
+class ColumnHistogram:
+    """Counts per bin (edges (B + 1,), the last bin closed), below the first and above the last edge, and the
+    median of the finite values of a float32 column, over batches seen twice (add every batch, second_pass(),
+    add every batch again)."""
+
+    def __init__(self, edges: np.ndarray):
+        self.edges, self.counts, self.below, self.above = edges, np.zeros(len(edges) - 1, np.int64), 0, 0
+        self.median, self.first = Quantiles((50,)), True
+
+    def add(self, values: np.ndarray) -> None:
+        values = values[np.isfinite(values)]
+        self.median.add(values)
+        if self.first:
+            self.counts += np.histogram(values, self.edges)[0]
+            self.below += np.count_nonzero(values < self.edges[0])
+            self.above += np.count_nonzero(values > self.edges[-1])
+
+    def second_pass(self) -> None:
+        self.first = False
+        self.median.second_pass()
 
 
-def improvement_histograms(shards: dict[str, list[Path]], out: Path, lo: float = -200.0, hi: float = 100.0, width: float = 2.0) -> str:
-    """Histograms of calibration and path improvement (percent) per method, all scenes pooled, shown on [lo, hi]."""
+def improvement_histograms(shards: dict[str, list[Path]], out: Path, lo: float = -200.0, hi: float = 100.0, width: float = 2.0,
+                           progress: bool = False) -> str:
+    """Histograms of calibration and path improvement (percent) per method, all scenes pooled, shown on [lo, hi];
+    read in two passes one shard at a time (aggregate.scan)."""
     edges = np.arange(lo, hi + width / 2, width)
+    columns = [f"{kind}_{m}" for m in METHODS for kind in ("cal", "path")]
+    hists = {c: ColumnHistogram(edges) for c in columns}
+    for n in (1, 2):
+        for _, batch in scan(shards, columns, f"histograms, pass {n} of 2", progress):
+            for c in columns:
+                hists[c].add(batch[c])
+        if n == 1:
+            for h in hists.values():
+                h.second_pass()
     fig = Figure(figsize=(10, 2.6 * len(METHODS)), layout="constrained")
     axes = fig.subplots(len(METHODS), 2, sharex=True)
     for row, method in zip(axes, METHODS):
-        cols = pooled_columns(shards, [f"cal_{method}", f"path_{method}"])
-        for ax, kind, values in zip(row, ("calibration", "path"), cols.values()):
-            values = values[np.isfinite(values)]
-            n = max(values.size, 1)
-            ax.stairs(100 * np.histogram(values, edges)[0] / n, edges, fill=True, color=f"tab:{'blue' if kind == 'path' else 'green'}")
+        for ax, kind, h in zip(row, ("calibration", "path"), (hists[f"cal_{method}"], hists[f"path_{method}"])):
+            n = max(h.median.n, 1)
+            ax.stairs(100 * h.counts / n, edges, fill=True, color=f"tab:{'blue' if kind == 'path' else 'green'}")
             ax.axvline(0, color="k", lw=0.8)
-            below, above = 100 * np.count_nonzero(values < lo) / n, 100 * np.count_nonzero(values > hi) / n
-            median = np.median(values) if values.size else np.nan
+            below, above = 100 * h.below / n, 100 * h.above / n
+            median = h.median.values()[0]
             ax.text(0.02, 0.95, f"median {median:.1f} %\nbelow {lo:g} %: {below:.2f} % (not shown)"
                     + (f"\nabove {hi:g} %: {above:.2f} %" if above else ""),
                     transform=ax.transAxes, va="top", fontsize=8)
@@ -98,22 +126,40 @@ def improvement_histograms(shards: dict[str, list[Path]], out: Path, lo: float =
             f"[{lo:g}, {hi:g}] % and each panel gives the share of samples outside it.")
 
 
-def path_heatmaps(shards: dict[str, list[Path]], out: Path, bins: int = 24, vmin_floor: float = -100.0) -> str:
+def heatmap_means(shards: dict[str, list[Path]], bins: int = 24, progress: bool = False
+                  ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ma.MaskedArray]]:
+    """x edges (bins + 1,) over the triples' distance sum (m), y edges (bins + 1,) over their spread (max - min,
+    m), and per method the mean path improvement (percent) per cell, (bins, bins) indexed [y, x], empty cells
+    masked; all scenes pooled, read in two passes one shard at a time (aggregate.scan): the ranges, then the
+    cells' counts and sums."""
+    located = ["d_sum", "d_spread"]
+    lows, highs = [np.inf, np.inf], [-np.inf, -np.inf]
+    for _, batch in scan(shards, located, "heatmaps, pass 1 of 2", progress):
+        for i, c in enumerate(located):
+            values = batch[c][np.isfinite(batch[c])]
+            if values.size:
+                lows[i], highs[i] = min(lows[i], float(values.min())), max(highs[i], float(values.max()))
+    x_edges, y_edges = (np.linspace(*_range(lo, hi), bins + 1) for lo, hi in zip(lows, highs))
+    counts = {m: np.zeros(bins * bins, np.int64) for m in METHODS}
+    sums = {m: np.zeros(bins * bins) for m in METHODS}
+    for _, batch in scan(shards, [*located, *(f"path_{m}" for m in METHODS)], "heatmaps, pass 2 of 2", progress):
+        cell = _bin(batch["d_sum"], x_edges) * bins + _bin(batch["d_spread"], y_edges)
+        inside = np.isfinite(batch["d_sum"]) & np.isfinite(batch["d_spread"])
+        for method in METHODS:
+            path = batch[f"path_{method}"]
+            ok = inside & np.isfinite(path)
+            counts[method] += np.bincount(cell[ok], minlength=bins * bins)
+            sums[method] += np.bincount(cell[ok], weights=path[ok], minlength=bins * bins)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        means = {m: np.ma.masked_invalid(sums[m] / counts[m]).reshape(bins, bins).T for m in METHODS}
+    return x_edges, y_edges, means
+
+
+def path_heatmaps(shards: dict[str, list[Path]], out: Path, bins: int = 24, vmin_floor: float = -100.0,
+                  progress: bool = False) -> str:
     """Mean path improvement (percent) per bin of the sum (m) and the spread (max - min, m) of the three
-    calibration distances, per method, all scenes pooled (paper Fig. 4)."""
-    cols = pooled_columns(shards, ["d_sum", "d_spread", *(f"path_{m}" for m in METHODS)])
-    x_edges = np.linspace(*_range(cols["d_sum"]), bins + 1)
-    y_edges = np.linspace(*_range(cols["d_spread"]), bins + 1)
-    cell = _bin(cols["d_sum"], x_edges) * bins + _bin(cols["d_spread"], y_edges)
-    located = np.isfinite(cols["d_sum"]) & np.isfinite(cols["d_spread"])
-    means = {}
-    for method in METHODS:
-        path = cols[f"path_{method}"]
-        ok = located & np.isfinite(path)
-        counts = np.bincount(cell[ok], minlength=bins * bins)
-        sums = np.bincount(cell[ok], weights=path[ok], minlength=bins * bins)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            means[method] = np.ma.masked_invalid(sums / counts).reshape(bins, bins).T
+    calibration distances, per method, all scenes pooled (paper Fig. 4; heatmap_means)."""
+    x_edges, y_edges, means = heatmap_means(shards, bins, progress)
     filled = [m for m in means.values() if m.count()]
     lowest = float(min((m.min() for m in filled), default=0.0))
     vmin = max(lowest, vmin_floor)
@@ -235,9 +281,10 @@ def _dataset_path(results_dir: Path, path: str) -> Path:
     return p if p.is_absolute() or p.exists() else Path(results_dir) / p
 
 
-def _range(values: np.ndarray) -> tuple[float, float]:
-    ok = values[np.isfinite(values)]
-    lo, hi = (float(ok.min()), float(ok.max())) if ok.size else (0.0, 1.0)
+def _range(lo: float, hi: float) -> tuple[float, float]:
+    """The axis range of values whose finite extremes are lo, hi (inf, -inf if there are none)."""
+    if lo > hi:
+        return 0.0, 1.0
     return (lo, hi) if hi > lo else (lo - 0.5, hi + 0.5)
 
 

@@ -1,11 +1,11 @@
 """The paper's Table 1 (Section 6) and more, per scene and overall, from a study's results directory.
 
-Reads only the columns it needs from the shards (``shards/<scene>/variant_NNNNN.parquet``), one method
-at a time. Every statistic is exact over the full column: percentiles and medians are numpy's
-(linear interpolation) on all samples, never sketches; the overall column concatenates the scenes'
-float32 columns, about 0.3 GB of float64 per method for the paper's 19,038,019 samples. Standard
-deviations are population ones (ddof = 0). Samples whose path or calibration improvement is not
-finite are counted and left out of every statistic.
+Reads only the columns it needs from the shards (``shards/<scene>/variant_NNNNN.parquet``), one shard
+at a time in two passes (homocal.study.aggregate): memory does not grow with the number of samples.
+Every statistic is exact over the full column: percentiles and medians are numpy's (linear
+interpolation) on all samples, never sketches; means, standard deviations and correlations are sums
+in float64 (about their means in the second pass). Standard deviations are population ones (ddof = 0).
+Samples whose path or calibration improvement is not finite are counted and left out of every statistic.
 """
 from __future__ import annotations
 
@@ -18,11 +18,11 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
-import pyarrow.dataset as pds
 
 from homocal.correctors.serialization import read_json
-
+from homocal.study.aggregate import Quantiles, scan
 from homocal.study.kernels import METHODS  # the one list of the study's methods
+
 OVERALL = "overall"
 SHARD_NAME = re.compile(r"variant_\d+\.parquet")
 
@@ -86,51 +86,81 @@ def shard_files(results_dir: str | Path, study: dict) -> dict[str, list[Path]]:
     }
 
 
-def read_columns(files: Sequence[Path], columns: Sequence[str]) -> dict[str, np.ndarray]:
-    """The named columns of the shards, concatenated in file order: {name: (N,) array as stored}."""
-    if not files:
-        return {c: np.empty(0, dtype=np.float32) for c in columns}
-    dataset = pds.dataset([str(f) for f in files], format="parquet")
-    missing = [c for c in columns if c not in dataset.schema.names]
-    if missing:
-        raise ValueError(f"{files[0].parent}: the shards have no column(s) {', '.join(missing)}")
-    table = dataset.to_table(columns=list(columns))
-    return {c: table.column(c).to_numpy() for c in columns}
+def method_columns(method: str) -> list[str]:
+    """The shard columns of a method's statistics: path and calibration improvement (and the hybrid's choice)."""
+    return [f"path_{method}", f"cal_{method}"] + (["hybrid_regression"] if method == "hybrid" else [])
+
+
+class MethodSummary:
+    """The statistics of METRICS for one method over batches of samples seen twice: add every batch,
+    second_pass(), add every batch again, then stats(). Memory does not grow with the number of samples."""
+
+    def __init__(self, hybrid: bool = False):
+        self.hybrid = hybrid
+        self.sums = dict.fromkeys(("n", "nonfinite", "pos_path", "pos_cal", "path", "cal", "chose", "pp", "cc", "pc"), 0.0)
+        self.path_q, self.cal_q = Quantiles((1, 50)), Quantiles((25, 50, 75))
+        self.means: tuple[float, float] | None = None  # (path, cal), known after the first pass
+
+    def add(self, path: np.ndarray, cal: np.ndarray, chose_regression: np.ndarray | None = None) -> None:
+        """path, cal: (N,) improvements, percent, float32; chose_regression: (N,) bool (the hybrid's)."""
+        ok = np.isfinite(path) & np.isfinite(cal)
+        p, c = path[ok], cal[ok]
+        self.path_q.add(p)
+        self.cal_q.add(c)
+        s = self.sums
+        if self.means is None:
+            s["n"] += p.size
+            s["nonfinite"] += path.size - p.size
+            s["pos_path"] += np.count_nonzero(p > 0)
+            s["pos_cal"] += np.count_nonzero(c > 0)
+            s["path"] += float(p.sum(dtype=np.float64))
+            s["cal"] += float(c.sum(dtype=np.float64))
+            s["chose"] += np.count_nonzero(chose_regression[ok]) if self.hybrid else 0
+            return
+        dp, dc = p.astype(np.float64) - self.means[0], c.astype(np.float64) - self.means[1]
+        s["pp"] += float(np.einsum("i,i->", dp, dp))  # einsum: no BLAS threads
+        s["cc"] += float(np.einsum("i,i->", dc, dc))
+        s["pc"] += float(np.einsum("i,i->", dp, dc))
+
+    def second_pass(self) -> None:
+        n = max(self.sums["n"], 1)
+        self.means = (self.sums["path"] / n, self.sums["cal"] / n)
+        self.path_q.second_pass()
+        self.cal_q.second_pass()
+
+    def stats(self) -> dict[str, float]:
+        """{metric key: value} for the keys of METRICS (chose_regression only for the hybrid); after both passes."""
+        s, n = self.sums, int(self.sums["n"])
+        stats = {"n": n, "nonfinite": int(s["nonfinite"])}
+        if self.hybrid:
+            stats["chose_regression"] = 100 * s["chose"] / n if n else math.nan
+        if n == 0:
+            return stats | {k: math.nan for k in METRICS.keys() - stats.keys() - {"chose_regression"}}
+        p1, p50 = self.path_q.values()
+        c25, c50, c75 = self.cal_q.values()
+        denom = math.sqrt(s["pp"] * s["cc"])
+        return stats | {
+            "pos_path": 100 * s["pos_path"] / n,
+            "pos_cal": 100 * s["pos_cal"] / n,
+            "mean_path": self.means[0],
+            "median_path": p50,
+            "corr": s["pc"] / denom if denom > 0 else math.nan,  # Pearson's
+            "std_path": math.sqrt(s["pp"] / n),
+            "p1_path": p1,
+            "median_cal": c50,
+            "iqr_cal": c75 - c25,
+            "std_cal": math.sqrt(s["cc"] / n),
+        }
 
 
 def method_stats(path: np.ndarray, cal: np.ndarray, chose_regression: np.ndarray | None = None) -> dict[str, float]:
-    """Statistics of one method over N samples. path, cal: (N,) improvements, percent; chose_regression: (N,) bool.
-
-    Returns {metric key: value} for the keys of METRICS (chose_regression only if given).
-    """
-    ok = np.isfinite(path) & np.isfinite(cal)
-    p, c = path[ok].astype(np.float64), cal[ok].astype(np.float64)
-    stats = {"n": p.size, "nonfinite": path.size - p.size}
-    if chose_regression is not None:
-        stats["chose_regression"] = 100 * chose_regression[ok].mean() if p.size else math.nan
-    if p.size == 0:
-        return stats | {k: math.nan for k in METRICS.keys() - stats.keys() - {"chose_regression"}}
-    p1, p50 = np.percentile(p, [1, 50])
-    c25, c50, c75 = np.percentile(c, [25, 50, 75])
-    return stats | {
-        "pos_path": 100 * np.count_nonzero(p > 0) / p.size,
-        "pos_cal": 100 * np.count_nonzero(c > 0) / c.size,
-        "mean_path": p.mean(),
-        "median_path": p50,
-        "corr": pearson(p, c),
-        "std_path": p.std(),
-        "p1_path": p1,
-        "median_cal": c50,
-        "iqr_cal": c75 - c25,
-        "std_cal": c.std(),
-    }
-
-
-def pearson(x: np.ndarray, y: np.ndarray) -> float:
-    """Pearson correlation of two (N,) float64 arrays; NaN if either is constant."""
-    dx, dy = x - x.mean(), y - y.mean()
-    denom = math.sqrt(float(dx @ dx) * float(dy @ dy))
-    return float(dx @ dy) / denom if denom > 0 else math.nan
+    """Statistics of one method over N samples in memory. path, cal: (N,) improvements, percent, float32;
+    chose_regression: (N,) bool. Returns {metric key: value} for the keys of METRICS (chose_regression only if given)."""
+    summary = MethodSummary(hybrid=chose_regression is not None)
+    summary.add(path, cal, chose_regression)
+    summary.second_pass()
+    summary.add(path, cal, chose_regression)
+    return summary.stats()
 
 
 @dataclass(frozen=True)
@@ -156,18 +186,27 @@ class Table:
         return row.values[self.scopes.index(scope)]
 
 
-def build_table(shards: dict[str, list[Path]]) -> Table:
-    """Per-scene and overall statistics of every method from the shard files of shard_files()."""
-    scenes = tuple(shards)
+def build_table(shards: dict[str, list[Path]], progress: bool = False) -> Table:
+    """Per-scene and overall statistics of every method from the shard files of shard_files(), read in two
+    passes one shard at a time (aggregate.scan). progress: a bar per pass on stderr for long reads."""
+    scopes = (*shards, OVERALL)
+    summaries = {(scope, m): MethodSummary(hybrid=m == "hybrid") for scope in scopes for m in METHODS}
+    columns = list(dict.fromkeys(c for m in METHODS for c in method_columns(m)))
+    for n in (1, 2):
+        for scene, batch in scan(shards, columns, f"table, pass {n} of 2", progress):
+            for m in METHODS:
+                cols = [batch[c] for c in method_columns(m)]
+                summaries[scene, m].add(*cols)
+                summaries[OVERALL, m].add(*cols)
+        if n == 1:
+            for summary in summaries.values():
+                summary.second_pass()
     rows = []
     for method in METHODS:
-        columns = [f"path_{method}", f"cal_{method}"] + (["hybrid_regression"] if method == "hybrid" else [])
-        per_scene = [list(read_columns(shards[s], columns).values()) for s in scenes]
-        overall = [np.concatenate(parts) for parts in zip(*per_scene)]
-        stats = [method_stats(*cols) for cols in per_scene + [overall]]
+        stats = [summaries[scope, method].stats() for scope in scopes]
         paper = PAPER.get(method, {})
         rows += [Row(method, key, tuple(s[key] for s in stats), paper.get(key)) for key in METRICS if key in stats[0]]
-    return Table(scenes + (OVERALL,), tuple(rows))
+    return Table(scopes, tuple(rows))
 
 
 def table_cells(table: Table) -> list[tuple[str, list[str], list[list[str]]]]:

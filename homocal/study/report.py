@@ -15,9 +15,8 @@ from typing import Sequence
 
 import numpy as np
 
-from tqdm import tqdm
-
 from homocal.files import write_text_atomic
+from homocal.progress import add_progress_option, show_progress
 from homocal.study.figures import FigureFile, make_figures
 from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer
@@ -45,24 +44,26 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="another study to show beside this one in the Reproduction table (repeatable)")
     parser.add_argument("--sweep", type=Path, default=None, metavar="SWEEP_DIR",
                         help="a `homocal sweep` folder whose figure and closest value the Reproduction section shows")
+    add_progress_option(parser)
     parser.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Handler of ``homocal report``: print the table and the page's path; ValueError on bad input."""
-    page, text = write_report(args.results_dir, args.out, args.compare, args.sweep)
+    page, text = write_report(args.results_dir, args.out, args.compare, args.sweep, show_progress(args))
     print(text)
     print(page)
     return 0
 
 
 def write_report(results_dir: str | Path, out_dir: str | Path | None = None, compare: Sequence[Path] = (),
-                 sweep_dir: Path | None = None) -> tuple[Path, str]:
+                 sweep_dir: Path | None = None, progress: bool = False) -> tuple[Path, str]:
     """Write table.md, table.csv, figures/ and report.html; return the page's path and the table as text.
 
     compare: other results directories shown beside this one in the Reproduction table; sweep_dir: a sweep
-    folder whose figure and closest value it shows. ValueError if a results directory is not one (no
-    study.json) or holds no shard yet.
+    folder whose figure and closest value it shows; progress: a bar on stderr per pass over the shards that
+    takes more than a second (the table's two passes, the figures' four). ValueError if a results directory
+    is not one (no study.json) or holds no shard yet.
     """
     results_dir = Path(results_dir)
     study = load_study(results_dir)
@@ -72,21 +73,17 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None, com
     others = []
     for other in compare:
         other_study = load_study(other)
-        others.append((other, other_study, build_table(shard_files(other, other_study))))
+        others.append((other, other_study, build_table(shard_files(other, other_study), progress)))
     out_dir = Path(out_dir) if out_dir is not None else results_dir / "report"
     out_dir.mkdir(parents=True, exist_ok=True)
-    with tqdm(total=3, desc="homocal report", unit="step", disable=None) as bar:
-        table = build_table(shards)
-        write_text_atomic(out_dir / "table.md", to_markdown(table))
-        write_text_atomic(out_dir / "table.csv", to_csv(table))
-        bar.update()
-        figures, notes = make_figures(results_dir, study, shards, out_dir / "figures")
-        bar.update()
-        page = out_dir / "report.html"
-        reproduction = reproduction_html([(results_dir, study, table), *others], sweep_dir, out_dir)
-        law = law_html(results_dir, study)
-        write_text_atomic(page, render_html(study, table, figures, notes, out_dir, reproduction + law))
-        bar.update()
+    table = build_table(shards, progress)
+    write_text_atomic(out_dir / "table.md", to_markdown(table))
+    write_text_atomic(out_dir / "table.csv", to_csv(table))
+    figures, notes = make_figures(results_dir, study, shards, out_dir / "figures", progress)
+    page = out_dir / "report.html"
+    reproduction = reproduction_html([(results_dir, study, table), *others], sweep_dir, out_dir)
+    law = law_html(results_dir, study)
+    write_text_atomic(page, render_html(study, table, figures, notes, out_dir, reproduction + law))
     return page, to_text(table)
 
 

@@ -22,6 +22,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from homocal.files import output_folder, write_atomic, write_json_atomic, write_text_atomic
+from homocal.progress import show_progress
 from homocal.study.cli import add_study_options, params_from_args
 from homocal.study.engine import run_study
 from homocal.study.metrics import D_KEYS, METHODS, METRICS, OVERALL, PAPER, build_table, load_study, paper_distance, shard_files
@@ -170,7 +171,7 @@ def handle(args: argparse.Namespace) -> int:
     for name in SWEEPABLE:  # single values of the other sweepable options, as the study takes them
         if hasattr(args, name):
             setattr(args, name, _typed(name, str(getattr(args, name))))
-    rows = run_sweep(args.datasets, args.out, param, values, args, resume=args.resume)
+    rows = run_sweep(args.datasets, args.out, param, values, args, resume=args.resume, progress=show_progress(args))
     best = closest(rows)
     print(f"homocal sweep: {len(values)} values of {param} in {args.out} (sweep.csv, sweep.png); closest to the paper's "
           f"Table 1: {param} = {best['value']} (D = {best['D']:.1f} pp)")

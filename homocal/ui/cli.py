@@ -35,7 +35,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     help="site map pixel of the ground origin (default 0,0: the top-left pixel)")
     ui.add_argument("--camera-origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
                     help="ground point under the camera, metres (default 0,0; the page can change it)")
-    ui.add_argument("--out", type=Path, default=Path("."), metavar="DIR", help="folder Save writes to (default .)")
+    ui.add_argument("-o", "--out", type=Path, default=Path("."), metavar="DIR", help="folder Save writes to (default .)")
     ui.add_argument("--port", type=int, default=0, help="port on 127.0.0.1 (default 0: a free one)")
     ui.set_defaults(handler=run_ui)
 

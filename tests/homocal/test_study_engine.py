@@ -120,6 +120,18 @@ def test_dask_local_cluster_matches_in_process(datasets, reference, tmp_path):
     assert files(out) == files(reference)
 
 
+def test_a_dataset_regenerated_at_the_same_path_is_read_afresh(tmp_path):
+    """Two studies in one process of a dataset rewritten in between at the same path: the second one's shards are
+    those of a study of the new dataset at another path, not the first one's."""
+    def study(dataset: Path, out: str) -> dict[str, bytes]:
+        assert main(["study", str(dataset), "--out", str(tmp_path / out), "--variants", "1", "--n-test", "50", "--no-progress"]) == 0
+        return files(tmp_path / out)
+
+    before = study(write_dataset(tmp_path / "same", "scene_a", seed=1), "first")
+    after = study(write_dataset(tmp_path / "same", "scene_a", seed=2), "second")
+    assert after == study(write_dataset(tmp_path / "elsewhere", "scene_a", seed=2), "fresh") != before
+
+
 def test_degenerate_variant_is_counted_not_dropped(datasets, tmp_path, monkeypatch):
     # a scene whose hand-placed image trapezoid is nearly degenerate: 3 px moves make some variants invalid
     scene = Scene.from_dataset(datasets[0], StudyParams(n_test=200))
