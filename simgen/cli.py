@@ -55,7 +55,9 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--detectors", help="comma-separated, from: segmentation,rgb (default: the scene's)")
     g.add_argument("--quality", choices=QUALITIES, help="render preset (default: the scene's render.quality, else default)")
     g.add_argument("--workers", type=_number(int, 1), default=1, help="render chunks in this many processes (default 1)")
-    g.add_argument("--scheduler", metavar="ADDRESS", help="render chunks on the Dask cluster at ADDRESS (tcp://host:8786)")
+    g.add_argument("--scheduler", metavar="ADDRESS",
+                   help="render chunks on the Dask cluster at ADDRESS (tcp://host:8786); its workers need the same "
+                        "simgen, libraries and MUJOCO_GL as this process (a worker that differs stops the run)")
     g.add_argument("--resume", action="store_true", help="continue a killed run in --out")
     g.add_argument("--no-progress", action="store_true")
 

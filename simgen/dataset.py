@@ -14,6 +14,7 @@ Stage and rgb detector warmed up as on resume, so the parts are the bytes a seri
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import platform
@@ -32,6 +33,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 from tqdm import tqdm
 
+import homocal.geometry.camera
 import simgen
 from homocal.files import OutputFolder, output_folder, write_atomic, write_json_atomic
 from simgen.detection import (
@@ -62,6 +64,29 @@ CALIBRATION_SCHEMA = pa.schema([
 
 class DatasetError(RuntimeError):
     """The output folder cannot be (re)used; one-line message."""
+
+
+def _versions() -> dict:
+    return {"python": platform.python_version(), "numpy": np.__version__, "mujoco": mujoco.__version__,
+            "opencv": cv2.__version__, "simgen": simgen.__version__}
+
+
+# The simgen sources (and homocal's camera) as they were on disk when this module was imported: a worker
+# process imports them afresh, so if they changed in between (a checkout or merge under a running process,
+# or a Dask worker with another install) its chunks would silently differ from what this process renders.
+# That happened: a test session imported simgen, main merged new pedestrian code mid-session, and the
+# workers' chunks (new code) differed from the session's serial reference (old code) in every frame.
+_SOURCE_DIGEST = hashlib.sha256(b"".join(
+    p.relative_to(Path(simgen.__file__).parents[1]).as_posix().encode() + b"\0" + p.read_bytes()
+    for p in [*sorted(Path(simgen.__file__).parent.rglob("*.py")), Path(homocal.geometry.camera.__file__)]
+)).hexdigest()  # fmt: skip
+
+
+def build_id() -> dict:
+    """What a chunk's bytes depend on besides the scene and seed: library versions, the rendering backend
+    and the digest of the code this process imported. ``render_chunks`` in a worker checks it against the
+    run's, so a worker with other code fails with one line instead of writing different bytes."""
+    return {**_versions(), "backend": backend(), "source": _SOURCE_DIGEST}
 
 
 def write_parquet(path: Path, table: pa.Table) -> None:
@@ -109,8 +134,7 @@ def site_map(scene: Scene) -> np.ndarray:
 def manifest(scene: Scene, seed: int, frames_done: int, complete: bool) -> dict:
     return {
         "format": FORMAT, "scene": scene.name, "seed": seed, "config_hash": scene.config_hash(),
-        "versions": {"python": platform.python_version(), "numpy": np.__version__, "mujoco": mujoco.__version__,
-                     "opencv": cv2.__version__, "simgen": simgen.__version__},
+        "versions": _versions(),
         "frames_total": scene.frames_total, "frames_done": frames_done, "complete": complete,
         "fps": scene.fps, "gt_dt": GT_DT, "seconds": scene.seconds, "detectors": list(scene.detectors),
         "steps_total": scene.steps_total, "chunk_seconds": scene.chunk_seconds,
@@ -216,15 +240,22 @@ def _run_chunk(stage: Stage, detectors: list, c: int, parts: Path, tick=lambda f
 
 
 def render_chunks(scene: Scene, seed: int, out: str | Path, chunks: list[int], lp_threads: int | None = None,
-                  tick=lambda frames: None, on_chunk=lambda c: None) -> list[int]:
+                  tick=lambda frames: None, on_chunk=lambda c: None, expect: dict | None = None) -> list[int]:
     """Render the given chunks (ascending) of ``scene`` with ``seed`` into ``out/_parts``; returns ``chunks``.
 
     What a worker process runs (and the serial run, in its own process). ``lp_threads``: Mesa llvmpipe's
     rendering threads (``LP_NUM_THREADS``) for this process, set before its GL context is made, so that
     N workers on N cores do not oversubscribe them. The rgb detector is warmed up before each chunk that
     does not follow the previous one, as on resume: the bytes do not depend on how chunks are split.
-    ``tick(1)`` after each frame, ``on_chunk(c)`` after each chunk.
+    ``tick(1)`` after each frame, ``on_chunk(c)`` after each chunk. ``expect``: the run's ``build_id()``
+    (given to workers); DatasetError if this process's differs.
     """
+    if expect is not None and build_id() != expect:
+        mine = build_id()
+        diff = ", ".join(f"{k} {mine.get(k)!s:.12} (run: {expect.get(k)!s:.12})"
+                         for k in sorted(expect) if mine.get(k) != expect.get(k))
+        raise DatasetError(f"worker {platform.node()} pid {os.getpid()} has other code than the run ({diff}): "
+                           "it would render other bytes; use the same simgen, libraries and MUJOCO_GL everywhere")
     if lp_threads is not None:
         os.environ["LP_NUM_THREADS"] = str(lp_threads)
     parts, per = Path(out) / PARTS, _chunk_frames(scene)
@@ -323,7 +354,8 @@ def _render_in_processes(run: Run, todo: list[int], workers: int, bar: tqdm) -> 
     """Blocks of chunks in ``workers`` spawned processes, LP_NUM_THREADS = cores // workers (at least 1) each."""
     threads = max(1, (os.cpu_count() or 1) // workers)
     with ProcessPoolExecutor(workers, mp_context=get_context("spawn")) as pool:
-        futures = [pool.submit(render_chunks, run.scene, run.seed, run.out, block, threads, _ParentWatch())
+        futures = [pool.submit(render_chunks, run.scene, run.seed, run.out, block, threads, _ParentWatch(),
+                               expect=build_id())
                    for block in _blocks(todo, workers)]
         _follow(run, todo, futures, bar)
 
@@ -345,7 +377,7 @@ def _render_on_dask(run: Run, todo: list[int], client, bar: tqdm) -> None:
     workers = sorted(client.scheduler_info()["workers"].items())
     cores, hosts = client.run(os.cpu_count), Counter(info["host"] for _, info in workers)
     futures = [client.submit(render_chunks, run.scene, run.seed, str(run.out), block,
-                             max(1, cores[address] // hosts[info["host"]]), workers=[address],
+                             max(1, cores[address] // hosts[info["host"]]), expect=build_id(), workers=[address],
                              allow_other_workers=True, pure=False)
                for (address, info), block in zip(workers, _blocks(todo, len(workers)))]  # fmt: skip
     _follow(run, todo, futures, bar)

@@ -220,6 +220,18 @@ def test_two_workers_give_the_serial_bytes(run, tmp_path, capsys):
     assert "simgen generate: " in capsys.readouterr().out
 
 
+def test_a_worker_with_other_code_refuses_to_render(small_scene, tmp_path):
+    """A worker whose code or libraries differ from the run's (build_id) fails in one line before rendering."""
+    from simgen.dataset import DatasetError, build_id, render_chunks
+    from simgen.scene import load_scene
+
+    scene = load_scene(small_scene).with_run(seconds=1)
+    (tmp_path / "_parts").mkdir()
+    with pytest.raises(DatasetError, match=r"has other code than the run \(source [0-9a-f]{12} \(run: 000000000000\)\)") as e:
+        render_chunks(scene, 5, tmp_path, [0], expect={**build_id(), "source": "0" * 64})
+    assert len(str(e.value).splitlines()) == 1 and not any((tmp_path / "_parts").iterdir())
+
+
 def test_killed_parallel_run_resumes_serially_to_the_same_bytes(run, tmp_path):
     """Chunks finished out of order by workers are kept; resume renders only the missing ones."""
     scene, reference = run
