@@ -3,6 +3,7 @@
     python benchmarks/bench_simgen.py [--scene scenes/scene1] [--seconds 20] [--seed 0] [--quality default]
     python benchmarks/bench_simgen.py --presets [--frames 60]       # RGB render cost of each quality preset
     python benchmarks/bench_simgen.py --parallel 2 [--repeats 3]    # generate serial vs --workers 2
+    python benchmarks/bench_simgen.py --rgb-vs-segmentation DATASET ...  # what the rgb detector sees, per dataset
 
 In one process, one ``generate`` run (kinematics, renders, ground truth, both detectors, MP4
 encoding, Parquet writing) is timed chunk by chunk; before each chunk, the raw passes of the same
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import filecmp
+import json
 import os
 import resource
 import statistics
@@ -34,6 +36,9 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
 
 import simgen.dataset as dataset
 from simgen.model import CAMERA
@@ -124,6 +129,23 @@ def _children_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
+def rgb_vs_segmentation(datasets: list[Path], min_height: float = 20.0) -> None:
+    """Per dataset (e.g. one per quality preset): the rgb detector's boxes against the segmentation boxes
+    of the same frame and agent, on agents at least ``min_height`` px tall, after the first chunk's warm-up."""
+    for d in datasets:
+        a = {k: np.asarray(v) for k, v in pq.read_table(d / "detections.parquet").to_pydict().items()}
+        warm = a["frame"] >= json.loads((d / "manifest.json").read_text())["rgb_warmup_frames"]
+        seg = warm & (a["detector"] == "segmentation") & (a["y2"] - a["y1"] >= min_height)
+        index = {(f, g): i for i, f, g in zip(np.flatnonzero(seg), a["frame"][seg], a["agent_id"][seg])}
+        rgb = np.flatnonzero(warm & (a["detector"] == "rgb") & (a["agent_id"] >= 0))
+        r, s = np.array([(i, index[a["frame"][i], a["agent_id"][i]]) for i in rgb if (a["frame"][i], a["agent_id"][i]) in index]).T
+        width = lambda i: a["x2"][i] - a["x1"][i]  # noqa: E731
+        print(f"{d.name}: quality {json.loads((d / 'manifest.json').read_text())['quality']}: rgb found {len(r)} of "
+              f"{seg.sum()} agents >= {min_height:g} px tall ({len(r) / seg.sum():.1%}); foot point vs segmentation's: "
+              f"|du| median {np.median(np.abs(a['u'][r] - a['u'][s])):.2f} px, dv median {np.median(a['v'][r] - a['v'][s]):+.2f} px; "
+              f"box width / segmentation's: median {np.median(width(r) / width(s)):.2f}")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scene", type=Path, default=Path(__file__).resolve().parents[1] / "scenes" / "scene1")
@@ -134,7 +156,10 @@ def main() -> None:
     p.add_argument("--frames", type=int, default=60, help="frames per preset with --presets")
     p.add_argument("--parallel", type=int, metavar="N", help="time generate serial vs --workers N instead")
     p.add_argument("--repeats", type=int, default=3, help="runs of each with --parallel")
+    p.add_argument("--rgb-vs-segmentation", type=Path, nargs="+", metavar="DATASET", help="compare the detectors in datasets instead")
     a = p.parse_args()
+    if a.rgb_vs_segmentation:
+        return rgb_vs_segmentation(a.rgb_vs_segmentation)
     if a.parallel:
         return parallel(a.scene, a.seconds, a.seed, a.parallel, a.repeats)
     scene = load_scene(a.scene).with_run(seconds=a.seconds, quality=a.quality)
