@@ -4,6 +4,7 @@
     python benchmarks/bench_simgen.py --presets [--frames 60]       # RGB render cost of each quality preset
     python benchmarks/bench_simgen.py --parallel 2 [--repeats 3]    # generate serial vs --workers 2
     python benchmarks/bench_simgen.py --rgb-vs-segmentation DATASET ...  # what the rgb detector sees, per dataset
+    python benchmarks/bench_simgen.py --lp-threads 0 1 2 [--frames 20]   # CPU per frame by llvmpipe threads
 
 In one process, one ``generate`` run (kinematics, renders, ground truth, both detectors, MP4
 encoding, Parquet writing) is timed chunk by chunk; before each chunk, the raw passes of the same
@@ -146,6 +147,31 @@ def rgb_vs_segmentation(datasets: list[Path], min_height: float = 20.0) -> None:
               f"box width / segmentation's: median {np.median(width(r) / width(s)):.2f}")
 
 
+def lp_threads(scene_dir: Path, seed: int, counts: list[int], frames: int) -> None:
+    """CPU and wall ms per frame of the RGB + segmentation passes with LP_NUM_THREADS = each count, each in
+    a process of its own (the variable is read when the GL context is made), interleaved twice."""
+    for _ in range(2):
+        for n in counts:
+            subprocess.run([sys.executable, __file__, "--scene", str(scene_dir), "--seed", str(seed), "--frames", str(frames),
+                            "--one-lp", str(n)], check=True, env={**os.environ, "LP_NUM_THREADS": str(n)})  # fmt: skip
+
+
+def one_lp(scene, seed: int, frames: int) -> None:
+    with Stage(scene, seed) as stage:
+        stage.set_time(0.0)
+        stage.rgb()  # the first renders compile llvmpipe's shaders: not timed
+        stage.agent_ids()
+        r0, t0 = resource.getrusage(resource.RUSAGE_SELF), time.perf_counter()
+        for k in range(frames):
+            stage.set_time(5.0 + k / scene.fps)
+            stage.rgb()
+            stage.agent_ids()
+        r1, t1 = resource.getrusage(resource.RUSAGE_SELF), time.perf_counter()
+    cpu = (r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime) / frames * 1e3
+    print(f"LP_NUM_THREADS={os.environ['LP_NUM_THREADS']}: RGB + segmentation {cpu:.0f} ms CPU, {(t1 - t0) / frames * 1e3:.0f} ms wall "
+          f"per frame ({frames} frames, load average {os.getloadavg()[0]:.1f})", flush=True)
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scene", type=Path, default=Path(__file__).resolve().parents[1] / "scenes" / "scene1")
@@ -153,11 +179,17 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--quality", choices=list(QUALITY), help="render preset of the pipeline run (default: the scene's)")
     p.add_argument("--presets", action="store_true", help="time the RGB pass of each quality preset instead")
-    p.add_argument("--frames", type=int, default=60, help="frames per preset with --presets")
+    p.add_argument("--frames", type=int, default=60, help="frames per preset with --presets, per process with --lp-threads")
     p.add_argument("--parallel", type=int, metavar="N", help="time generate serial vs --workers N instead")
     p.add_argument("--repeats", type=int, default=3, help="runs of each with --parallel")
     p.add_argument("--rgb-vs-segmentation", type=Path, nargs="+", metavar="DATASET", help="compare the detectors in datasets instead")
+    p.add_argument("--lp-threads", type=int, nargs="+", metavar="N", help="CPU per frame with LP_NUM_THREADS = each N instead")
+    p.add_argument("--one-lp", type=int, help=argparse.SUPPRESS)
     a = p.parse_args()
+    if a.lp_threads:
+        return lp_threads(a.scene, a.seed, a.lp_threads, a.frames)
+    if a.one_lp is not None:
+        return one_lp(load_scene(a.scene), a.seed, a.frames)
     if a.rgb_vs_segmentation:
         return rgb_vs_segmentation(a.rgb_vs_segmentation)
     if a.parallel:
