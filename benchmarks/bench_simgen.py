@@ -3,6 +3,8 @@
     python benchmarks/bench_simgen.py [--scene scenes/scene1] [--seconds 20] [--seed 0] [--quality default]
     python benchmarks/bench_simgen.py --presets [--frames 60]       # RGB render cost of each quality preset
     python benchmarks/bench_simgen.py --parallel 2 [--repeats 3]    # generate serial vs --workers 2
+    python benchmarks/bench_simgen.py --rgb-vs-segmentation DATASET ...  # what the rgb detector sees, per dataset
+    python benchmarks/bench_simgen.py --lp-threads 0 1 2 [--frames 20]   # CPU per frame by llvmpipe threads
 
 In one process, one ``generate`` run (kinematics, renders, ground truth, both detectors, MP4
 encoding, Parquet writing) is timed chunk by chunk; before each chunk, the raw passes of the same
@@ -26,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import filecmp
+import json
 import os
 import resource
 import statistics
@@ -34,6 +37,9 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
 
 import simgen.dataset as dataset
 from simgen.model import CAMERA
@@ -124,6 +130,48 @@ def _children_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
+def rgb_vs_segmentation(datasets: list[Path], min_height: float = 20.0) -> None:
+    """Per dataset (e.g. one per quality preset): the rgb detector's boxes against the segmentation boxes
+    of the same frame and agent, on agents at least ``min_height`` px tall, after the first chunk's warm-up."""
+    for d in datasets:
+        a = {k: np.asarray(v) for k, v in pq.read_table(d / "detections.parquet").to_pydict().items()}
+        warm = a["frame"] >= json.loads((d / "manifest.json").read_text())["rgb_warmup_frames"]
+        seg = warm & (a["detector"] == "segmentation") & (a["y2"] - a["y1"] >= min_height)
+        index = {(f, g): i for i, f, g in zip(np.flatnonzero(seg), a["frame"][seg], a["agent_id"][seg])}
+        rgb = np.flatnonzero(warm & (a["detector"] == "rgb") & (a["agent_id"] >= 0))
+        r, s = np.array([(i, index[a["frame"][i], a["agent_id"][i]]) for i in rgb if (a["frame"][i], a["agent_id"][i]) in index]).T
+        width = lambda i: a["x2"][i] - a["x1"][i]  # noqa: E731
+        print(f"{d.name}: quality {json.loads((d / 'manifest.json').read_text())['quality']}: rgb found {len(r)} of "
+              f"{seg.sum()} agents >= {min_height:g} px tall ({len(r) / seg.sum():.1%}); foot point vs segmentation's: "
+              f"|du| median {np.median(np.abs(a['u'][r] - a['u'][s])):.2f} px, dv median {np.median(a['v'][r] - a['v'][s]):+.2f} px; "
+              f"box width / segmentation's: median {np.median(width(r) / width(s)):.2f}")
+
+
+def lp_threads(scene_dir: Path, seed: int, counts: list[int], frames: int) -> None:
+    """CPU and wall ms per frame of the RGB + segmentation passes with LP_NUM_THREADS = each count, each in
+    a process of its own (the variable is read when the GL context is made), interleaved twice."""
+    for _ in range(2):
+        for n in counts:
+            subprocess.run([sys.executable, __file__, "--scene", str(scene_dir), "--seed", str(seed), "--frames", str(frames),
+                            "--one-lp", str(n)], check=True, env={**os.environ, "LP_NUM_THREADS": str(n)})  # fmt: skip
+
+
+def one_lp(scene, seed: int, frames: int) -> None:
+    with Stage(scene, seed) as stage:
+        stage.set_time(0.0)
+        stage.rgb()  # the first renders compile llvmpipe's shaders: not timed
+        stage.agent_ids()
+        r0, t0 = resource.getrusage(resource.RUSAGE_SELF), time.perf_counter()
+        for k in range(frames):
+            stage.set_time(5.0 + k / scene.fps)
+            stage.rgb()
+            stage.agent_ids()
+        r1, t1 = resource.getrusage(resource.RUSAGE_SELF), time.perf_counter()
+    cpu = (r1.ru_utime + r1.ru_stime - r0.ru_utime - r0.ru_stime) / frames * 1e3
+    print(f"LP_NUM_THREADS={os.environ['LP_NUM_THREADS']}: RGB + segmentation {cpu:.0f} ms CPU, {(t1 - t0) / frames * 1e3:.0f} ms wall "
+          f"per frame ({frames} frames, load average {os.getloadavg()[0]:.1f})", flush=True)
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scene", type=Path, default=Path(__file__).resolve().parents[1] / "scenes" / "scene1")
@@ -131,10 +179,19 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--quality", choices=list(QUALITY), help="render preset of the pipeline run (default: the scene's)")
     p.add_argument("--presets", action="store_true", help="time the RGB pass of each quality preset instead")
-    p.add_argument("--frames", type=int, default=60, help="frames per preset with --presets")
+    p.add_argument("--frames", type=int, default=60, help="frames per preset with --presets, per process with --lp-threads")
     p.add_argument("--parallel", type=int, metavar="N", help="time generate serial vs --workers N instead")
     p.add_argument("--repeats", type=int, default=3, help="runs of each with --parallel")
+    p.add_argument("--rgb-vs-segmentation", type=Path, nargs="+", metavar="DATASET", help="compare the detectors in datasets instead")
+    p.add_argument("--lp-threads", type=int, nargs="+", metavar="N", help="CPU per frame with LP_NUM_THREADS = each N instead")
+    p.add_argument("--one-lp", type=int, help=argparse.SUPPRESS)
     a = p.parse_args()
+    if a.lp_threads:
+        return lp_threads(a.scene, a.seed, a.lp_threads, a.frames)
+    if a.one_lp is not None:
+        return one_lp(load_scene(a.scene), a.seed, a.frames)
+    if a.rgb_vs_segmentation:
+        return rgb_vs_segmentation(a.rgb_vs_segmentation)
     if a.parallel:
         return parallel(a.scene, a.seconds, a.seed, a.parallel, a.repeats)
     scene = load_scene(a.scene).with_run(seconds=a.seconds, quality=a.quality)

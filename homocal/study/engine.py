@@ -28,7 +28,7 @@ from tqdm import tqdm
 
 from homocal.files import output_folder, write_atomic, write_json_atomic
 from homocal.study.perturb import draw_base_error, draw_variant
-from homocal.study.scene import Scene, StudyParams, compute_shard, shard_reason, shift_spec
+from homocal.study.scene import Scene, StudyParams, check_shard, compute_shard, shift_spec, study_key
 from homocal.study.triples import n_samples
 
 # paper: the paper's protocol (1000 variants, 2000 test points) with the base error closest to its Table 1 found
@@ -111,7 +111,8 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
         study = {"format": FORMAT, **parameters, "samples_total": sum(len(s.triples) * (params.n_variants + 1) for s in scenes),
                  "complete": False, "versions": versions()}
         write_json_atomic(study_file, study)
-        reasons = {(s.name, v): shard_reason(shard_path(out, s.name, v))
+        keys = {s.name: study_key(params.to_dict(), s.name, s.config_hash) for s in scenes}
+        reasons = {(s.name, v): check_shard(shard_path(out, s.name, v), s.name, v, keys[s.name], len(s.triples))
                    for s in scenes for v in range(params.n_variants + 1) if shard_path(out, s.name, v).is_file()}
         todo = [(s, v) for s in scenes for v in range(params.n_variants + 1) if (s.name, v) not in reasons]
         bar = tqdm(total=len(todo), unit="shard", desc="study", disable=not progress)

@@ -86,6 +86,25 @@ def shard_files(results_dir: str | Path, study: dict) -> dict[str, list[Path]]:
     }
 
 
+def verified_shard_files(results_dir: str | Path, study: dict) -> tuple[dict[str, list[Path]], int]:
+    """shard_files, each checked to be the shard its name says of the study study.json describes (scene,
+    variant, study key, row count: scene.check_shard), and the number of shards missing. ValueError naming
+    the first file that is not."""
+    from homocal.study.scene import StudyParams, check_shard, study_key  # the shard format's one home
+
+    try:
+        params = StudyParams.from_dict(study).to_dict()
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{Path(results_dir) / 'study.json'}: not the parameters of this homocal's study ({e})") from None
+    shards = shard_files(results_dir, study)
+    for d in study["datasets"]:
+        key, rows = study_key(params, d["scene"], d.get("config_hash", "")), math.comb(int(d.get("n_calibration", 0)), 3)
+        for path in shards[d["scene"]]:
+            check_shard(path, d["scene"], int(path.stem.split("_")[1]), key, rows)
+    expected = len(study["datasets"]) * (int(study.get("n_variants", 0)) + 1)
+    return shards, expected - sum(len(files) for files in shards.values())
+
+
 def method_columns(method: str) -> list[str]:
     """The shard columns of a method's statistics: path and calibration improvement (and the hybrid's choice)."""
     return [f"path_{method}", f"cal_{method}"] + (["hybrid_regression"] if method == "hybrid" else [])

@@ -10,6 +10,7 @@ import base64
 import csv
 import html
 import json
+import sys
 from pathlib import Path
 from typing import Sequence
 
@@ -22,7 +23,7 @@ from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer
 from homocal.study.law import horizon_shift_law, perturbation_law
 from homocal.study.metrics import (D_KEYS, D_METHODS, METRICS, PAPER, Table, build_table, load_study, paper_distance,
-                                   shard_files, table_cells, to_csv, to_markdown, to_text)
+                                   shard_files, table_cells, to_csv, to_markdown, to_text, verified_shard_files)
 
 STYLE = """body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:2px 8px}
@@ -50,9 +51,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Handler of ``homocal report``: print the table and the page's path; ValueError on bad input."""
-    page, text = write_report(args.results_dir, args.out, args.compare, args.sweep, show_progress(args))
+    page, text, missing = write_report(args.results_dir, args.out, args.compare, args.sweep, show_progress(args))
     print(text)
     print(page)
+    if missing:
+        print(f"homocal report: the study is not complete: {missing} shard(s) missing; the page shows the others "
+              f"(finish it with homocal study ... --resume)", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -67,13 +72,13 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None, com
     """
     results_dir = Path(results_dir)
     study = load_study(results_dir)
-    shards = shard_files(results_dir, study)
+    shards, missing = verified_shard_files(results_dir, study)
     if not any(shards.values()):
         raise ValueError(f"{results_dir}: no finished shards under shards/<scene>/ yet")
     others = []
     for other in compare:
         other_study = load_study(other)
-        others.append((other, other_study, build_table(shard_files(other, other_study), progress)))
+        others.append((other, other_study, build_table(verified_shard_files(other, other_study)[0], progress)))
     out_dir = Path(out_dir) if out_dir is not None else results_dir / "report"
     out_dir.mkdir(parents=True, exist_ok=True)
     table = build_table(shards, progress)
@@ -83,8 +88,8 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None, com
     page = out_dir / "report.html"
     reproduction = reproduction_html([(results_dir, study, table), *others], sweep_dir, out_dir)
     law = law_html(results_dir, study)
-    write_text_atomic(page, render_html(study, table, figures, notes, out_dir, reproduction + law))
-    return page, to_text(table)
+    write_text_atomic(page, render_html(study, table, figures, notes, out_dir, reproduction + law, missing))
+    return page, to_text(table), missing
 
 
 def config_label(study: dict) -> str:
@@ -203,7 +208,7 @@ def law_html(results_dir: Path, study: dict) -> list[str]:
 
 
 def render_html(study: dict, table: Table, figures: list[FigureFile], notes: list[str], out_dir: Path,
-                first: Sequence[str] = ()) -> str:
+                first: Sequence[str] = (), missing: int = 0) -> str:
     """The report page: the incomplete-study warning, the sections given in first (Reproduction, the law),
     the study's parameters and counts, the table per method, the figures two by two."""
     e = html.escape
@@ -213,7 +218,7 @@ def render_html(study: dict, table: Table, figures: list[FigureFile], notes: lis
     parts = [
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>homocal study report</title><style>{STYLE}</style></head><body>",
         "<h1>homocal study report</h1>",
-        "" if study.get("complete") else f"<p class='warn'>The study is not complete: {e(_show(done))} of {e(_show(total))} samples are in study.json's count; the numbers below are of the shards finished so far.</p>",
+        "" if study.get("complete") and not missing else f"<p class='warn'>The study is not complete: {missing} shard(s) missing, {e(_show(done))} of {e(_show(total))} samples in study.json's count; the numbers below are of the shards finished so far.</p>",
         *first,
         "<h2>Study</h2>",
         _html_table(["parameter", "value"], [[k, _show(v)] for k, v in study.items() if k not in ("datasets", "degenerate", "versions")]),

@@ -3,6 +3,8 @@ shard (every calibration triple of one trapezoid variant) that both engine paths
 from __future__ import annotations
 
 import functools
+import hashlib
+import json
 from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
@@ -217,11 +219,12 @@ def run_tables(scene: Scene, tables: VariantTables, params: StudyParams, variant
 
 def compute_shard(scene: Scene, params: StudyParams, variant: int) -> tuple[pa.Table, str]:
     """One shard: the Parquet table of every triple of variant (empty if degenerate) and the degenerate
-    reason ("" if none), which the table also carries in its schema metadata (see shard_reason). The one
-    shard function of both engine paths (in-process and dask)."""
+    reason ("" if none). Its schema metadata says what it is: the reason (REASON_KEY), scene, variant,
+    study_key and rows (checked by check_shard). The one shard function of both engine paths."""
     tables = prepare_variant(scene, params, variant)
+    identity = {"scene": scene.name, "variant": str(variant), "study_key": study_key(params.to_dict(), scene.name, scene.config_hash)}
     if isinstance(tables, str):
-        return SHARD_SCHEMA.empty_table().replace_schema_metadata({REASON_KEY: tables}), tables
+        return SHARD_SCHEMA.empty_table().replace_schema_metadata({REASON_KEY: tables, **identity, "rows": "0"}), tables
     out, _, _ = run_tables(scene, tables, params, variant, scene.triples)
     d_sum, d_spread = scene.distance_features
     S = len(scene.triples)
@@ -230,12 +233,33 @@ def compute_shard(scene: Scene, params: StudyParams, variant: int) -> tuple[pa.T
                f32(d_sum), f32(d_spread), f32(np.full(S, tables.path_before))]
     columns += [pa.array(out[:, c] == 1.0) if name == "hybrid_regression" else f32(out[:, c])
                 for c, name in enumerate(kernels.OUT_COLUMNS)]
-    return pa.Table.from_arrays(columns, schema=SHARD_SCHEMA.with_metadata({REASON_KEY: ""})), ""
+    return pa.Table.from_arrays(columns, schema=SHARD_SCHEMA.with_metadata({REASON_KEY: "", **identity, "rows": str(S)})), ""
 
 
-def shard_reason(path) -> str:
-    """The degenerate reason ("" if none) a shard file records in its Parquet schema metadata."""
-    metadata = pq.read_schema(path).metadata or {}
-    if REASON_KEY.encode() not in metadata:
-        raise ValueError(f"{path}: not a shard of this homocal version (no {REASON_KEY!r} in its metadata)")
-    return metadata[REASON_KEY.encode()].decode()
+def study_key(params: dict, scene: str, config_hash: str) -> str:
+    """What a shard belongs to, as 16 hex digits: sha256 of the study's parameters (StudyParams.to_dict), the
+    scene's name and its dataset's config hash (all in study.json, so the report can recompute it)."""
+    blob = json.dumps({"params": params, "scene": scene, "dataset": config_hash}, sort_keys=True)
+    return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def check_shard(path, scene: str, variant: int, key: str, rows: int) -> str:
+    """The degenerate reason ("" if none) of the shard file at path after checking that it is the shard
+    expected there: readable Parquet, of this scene, variant and study (key: study_key), with rows rows (0 if
+    degenerate). ValueError naming the file and what is wrong otherwise (a cut or garbage file, a shard of
+    another study or variant copied there, an older homocal's shard)."""
+    try:
+        meta = pq.read_metadata(path)
+    except (OSError, pa.ArrowInvalid) as e:
+        raise ValueError(f"{path}: not a readable shard (cut or garbage: {e})") from None
+    found = {k.decode(): v.decode() for k, v in (meta.metadata or {}).items() if k != b"ARROW:schema"}
+    if REASON_KEY not in found or "study_key" not in found:
+        raise ValueError(f"{path}: not a shard of this homocal version (no {REASON_KEY!r} or 'study_key' in its metadata)")
+    expected = {"scene": scene, "variant": str(variant), "study_key": key}
+    wrong = [f"{k} {found.get(k)!r} (expected {v!r})" for k, v in expected.items() if found.get(k) != v]
+    if wrong:
+        raise ValueError(f"{path}: a shard of another study or variant: {', '.join(wrong)}")
+    reason = found[REASON_KEY]
+    if meta.num_rows != (0 if reason else rows) or found.get("rows") != str(meta.num_rows):
+        raise ValueError(f"{path}: {meta.num_rows} rows, expected {0 if reason else rows}")
+    return reason

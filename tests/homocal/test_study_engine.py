@@ -15,7 +15,7 @@ import pytest
 
 from homocal.cli import main
 from homocal.study.engine import run_study
-from homocal.study.scene import SHARD_SCHEMA, Scene, StudyParams, compute_shard, shard_reason
+from homocal.study.scene import SHARD_SCHEMA, Scene, StudyParams, check_shard, compute_shard, study_key
 from synthetic_dataset import write_dataset
 
 
@@ -143,10 +143,11 @@ def test_degenerate_variant_is_counted_not_dropped(datasets, tmp_path, monkeypat
     assert study["samples_done"] + study["samples_degenerate"] == study["samples_total"]
     variants = pq.read_table(tmp_path / "deg" / "variants" / "scene_a.parquet").to_pydict()
     assert [v for v, r in zip(variants["variant"], variants["reason"]) if r] == [d["variant"] for d in study["degenerate"]]
+    scene_key = study_key(StudyParams(n_variants=30, n_test=200).to_dict(), "scene_a", scene.config_hash)
     for d in study["degenerate"]:
         shard = tmp_path / "deg" / "shards" / d["scene"] / f"variant_{d['variant']:05d}.parquet"
         assert d["reason"] and pq.read_table(shard).num_rows == 0
-        assert shard_reason(shard) == variants["reason"][d["variant"]] == d["reason"]
+        assert check_shard(shard, d["scene"], d["variant"], scene_key, 0) == variants["reason"][d["variant"]] == d["reason"]
 
 
 _original = Scene.from_dataset.__func__
@@ -209,3 +210,37 @@ def test_a_second_writer_is_refused_with_who_holds_the_lock(datasets, tmp_path, 
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"pid {os.getpid()}" in err[0]
     assert main(["study", *datasets, "-o", str(out), "--variants", "1", "--n-test", "50"]) == 0  # free again
+
+
+@pytest.mark.parametrize("fault", ["garbage", "cut", "other_variant", "other_seed", "deleted"])
+def test_resume_and_report_check_every_shard(datasets, reference, tmp_path, capsys, fault):
+    """A garbage or cut shard, a valid shard of another variant copied over one, a shard of another study (seed 1):
+    resume and report refuse it, naming the file; a deleted shard: report says the study is not complete
+    (exit 1, on the page and on stderr) and resume rewrites it."""
+    out = tmp_path / "s"
+    shutil.copytree(reference, out)
+    target = out / "shards" / "scene_a" / "variant_00003.parquet"
+    if fault == "garbage":
+        target.write_bytes(b"not parquet at all")
+    elif fault == "cut":
+        target.write_bytes(target.read_bytes()[:200])
+    elif fault == "other_variant":
+        shutil.copy(out / "shards" / "scene_a" / "variant_00004.parquet", target)
+    elif fault == "other_seed":
+        other = tmp_path / "seed1"
+        assert main(["study", *datasets, "--out", str(other), "--variants", "3", "--n-test", "200", "--seed", "1"]) == 0
+        shutil.copy(other / "shards" / "scene_a" / "variant_00003.parquet", target)
+    else:
+        target.unlink()
+    capsys.readouterr()
+    report_code = main(["report", str(out), "--no-progress"])
+    err = capsys.readouterr().err
+    resume_code = main(["study", *datasets, "--out", str(out), "--variants", "40", "--n-test", "200", "--resume"])
+    resume_err = capsys.readouterr().err
+    if fault == "deleted":
+        assert report_code == 1 and "not complete: 1 shard(s) missing" in err
+        assert "1 shard(s) missing" in (out / "report" / "report.html").read_text()
+        assert resume_code == 0 and files(out) == files(reference)
+    else:
+        assert report_code == 2 and str(target) in err
+        assert resume_code == 2 and str(target) in resume_err

@@ -25,6 +25,7 @@ from homocal.cli import main
 from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer
 from homocal.study import figures, metrics, report
+from homocal.study.scene import StudyParams, study_key
 
 METHODS = metrics.METHODS
 SCENES = {"alpha": (5.0, 9.0, 14.0, 20.0, 27.0, 35.0), "beta": (6.0, 11.0, 17.0, 24.0, 32.0)}  # calibration distances, m
@@ -34,6 +35,19 @@ VARIANTS = {"alpha": 3, "beta": 2}
 def f32(x: float) -> float:
     """x rounded to float32 as the shards store it, in plain Python."""
     return struct.unpack("f", struct.pack("f", x))[0]
+
+
+PARAMS = StudyParams(seed=3, n_variants=2, n_test=300)
+
+
+def write_shard(root: Path, scene: str, variant: int, columns: dict[str, list], reason: str = "") -> None:
+    """A shard file with the metadata the engine writes (scene.compute_shard) for the study of PARAMS."""
+    types = {"variant": pa.int32(), "i": pa.int16(), "j": pa.int16(), "k": pa.int16(), "hybrid_regression": pa.bool_()}
+    table = pa.table({c: pa.array(v, type=types.get(c, pa.float32())) for c, v in columns.items()})
+    key = study_key(PARAMS.to_dict(), scene, "0" * 64)
+    table = table.replace_schema_metadata({"degenerate_reason": reason, "scene": scene, "variant": str(variant),
+                                           "study_key": key, "rows": str(table.num_rows)})
+    pq.write_table(table, root / "shards" / scene / f"variant_{variant:05d}.parquet")
 
 
 def write_results(root: Path, datasets: dict[str, str] | None = None, seed: int = 7) -> dict:
@@ -61,17 +75,18 @@ def write_results(root: Path, datasets: dict[str, str] | None = None, seed: int 
                     cal = 100 - rng.expovariate(1 / 15)
                     shard[f"cal_{m}"].append(f32(cal))
                     shard[f"path_{m}"].append(f32(0.8 * cal + rng.gauss(0, 30) - (200 if rng.random() < 0.03 else 0)))
-            types = {"variant": pa.int32(), "i": pa.int16(), "j": pa.int16(), "k": pa.int16(), "hybrid_regression": pa.bool_()}
-            table = pa.table({c: pa.array(v, type=types.get(c, pa.float32())) for c, v in shard.items()})
-            pq.write_table(table, root / "shards" / scene / f"variant_{variant:05d}.parquet")
+            write_shard(root, scene, variant, shard)
             for c in rows:
                 rows[c] += shard[c]
+        if scene == "beta":  # its last variant is degenerate: an empty shard that says why
+            write_shard(root, scene, 2, {c: [] for c in rows}, "collinear vertices")
         stored[scene] = rows
     (root / "shards" / "alpha" / "variant_00009.parquet.tmp").write_bytes(b"half-written")  # must be ignored
     n = sum(len(r["variant"]) for r in stored.values())
     study = {
-        "preset": "test", "seed": 3, "n_variants": 2, "foot_source": "exact", "n_test": 300, "threshold": 75.0,
-        "datasets": [{"scene": s, "path": (datasets or {}).get(s, f"/nonexistent/{s}"), "config_hash": "0" * 64} for s in SCENES],
+        "format": "homocal-study", "preset": "test", **PARAMS.to_dict(),
+        "datasets": [{"scene": s, "path": (datasets or {}).get(s, f"/nonexistent/{s}"), "config_hash": "0" * 64,
+                      "n_calibration": len(SCENES[s])} for s in SCENES],
         "samples_total": n, "samples_done": n, "degenerate": [{"scene": "beta", "variant": 2, "reason": "collinear vertices"}],
         "complete": True, "elapsed": 1.5, "versions": {"homocal": "0.1.0"},
     }
@@ -192,7 +207,7 @@ class TestReportCommand:
 
     def test_shards_without_a_column_are_bad_input(self, tmp_path, capsys):
         write_results(tmp_path)
-        pq.write_table(pa.table({"variant": pa.array([0], pa.int32())}), tmp_path / "shards" / "beta" / "variant_00000.parquet")
+        write_shard(tmp_path, "beta", 0, {"variant": [0] * math.comb(len(SCENES["beta"]), 3)})  # a shard, but columns missing
         assert main(["report", str(tmp_path)]) == 2
         assert "the shards have no column(s) path_regression, cal_regression" in capsys.readouterr().err
 

@@ -252,7 +252,7 @@ def test_killed_parallel_run_resumes_serially_to_the_same_bytes(run, tmp_path):
 def test_dask_local_cluster_gives_the_serial_bytes(run, tmp_path):
     distributed = pytest.importorskip("distributed")
     scene, reference = run
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
         with distributed.Client(cluster) as client:
             assert len(client.scheduler_info()["workers"]) == 2
         assert main(_generate_args(scene, tmp_path / "dask", "--scheduler", cluster.scheduler_address)) == 0
