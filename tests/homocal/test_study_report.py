@@ -271,7 +271,8 @@ class TestDatasetFigures:
     def test_report_draws_them(self, dataset_dir, tmp_path):
         write_results(tmp_path, datasets={s: str(dataset_dir) for s in SCENES})
         write_variants(tmp_path / "variants" / "alpha.parquet")
-        page, _ = report.write_report(tmp_path)
+        page, _, missing = report.write_report(tmp_path)
+        assert missing == 0
         html = page.read_text()
         assert "dataset not available" not in html
         for name in ["error_distance_alpha.png", "error_distance_beta.png", "test_distance.png"]:
