@@ -94,7 +94,7 @@ def advise_scene(transformer: ViewTransformer, site_map: SiteMap, positions: np.
     origin = np.asarray(origin, float)
     return Scene(NAME, site_map, transformer.source, site_map.to_pixels(transformer.target), origin, images[0],
                  positions, np.linalg.norm(positions - origin, axis=1), images[1], test_ground,
-                 triples(len(positions)), K)
+                 triples(len(positions)), K, math.nan)  # K and the true horizon serve only horizon shifts: none here
 
 
 def advise(scene: Scene, method: str, samples: int, seed: int = 0, progress: bool = False) -> Advice:
