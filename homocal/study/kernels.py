@@ -394,6 +394,16 @@ def regression_paths_range(test, af, bf, as_, bs):
     return sf / FIXED / n, ss / FIXED / n
 
 
+@nb.njit(inline="always", **PATH_JIT)
+def _residual(test, dH, t):
+    """(nx, ny, w) of test point t under H0 + dH (see descent_path): H(t) - g = (nx, ny) / w, float32."""
+    s0, s1, s2 = test[3, t], test[4, t], test[5, t]
+    dw = dH[6] * s0 + dH[7] * s1 + dH[8] * s2
+    nx = test[6, t] + (dH[0] * s0 + dH[1] * s1 + dH[2] * s2) - test[8, t] * dw
+    ny = test[7, t] + (dH[3] * s0 + dH[4] * s1 + dH[5] * s2) - test[9, t] * dw
+    return nx, ny, np.float32(1.0) + dw
+
+
 @nb.njit(**PATH_JIT)
 def descent_path(test, dH):
     """Mean test-point error (m) of H0 + dH, float32, residual form: with s = t/w0 (H0 s = (p0, 1)) and
@@ -403,13 +413,7 @@ def descent_path(test, dH):
     total = np.int64(0)
     beyond = np.int64(0)
     for t in range(n):
-        s0, s1, s2 = test[3, t], test[4, t], test[5, t]
-        dx = dH[0] * s0 + dH[1] * s1 + dH[2] * s2
-        dy = dH[3] * s0 + dH[4] * s1 + dH[5] * s2
-        dw = dH[6] * s0 + dH[7] * s1 + dH[8] * s2
-        nx = test[6, t] + dx - test[8, t] * dw
-        ny = test[7, t] + dy - test[9, t] * dw
-        w = np.float32(1.0) + dw
+        nx, ny, w = _residual(test, dH, t)
         ok = w > 0
         total += to_fixed(math.sqrt(nx * nx + ny * ny) / (w if ok else np.float32(1.0)))
         beyond += np.int64(not ok)
@@ -424,15 +428,11 @@ def descent_path_range(test, dH):
     total = np.int64(0)
     beyond = np.int64(0)
     for t in range(n):
-        s0, s1, s2 = test[3, t], test[4, t], test[5, t]
-        dx = dH[0] * s0 + dH[1] * s1 + dH[2] * s2
-        dy = dH[3] * s0 + dH[4] * s1 + dH[5] * s2
-        dw = dH[6] * s0 + dH[7] * s1 + dH[8] * s2
-        w = np.float32(1.0) + dw
+        nx, ny, w = _residual(test, dH, t)
         ok = w > 0
         wi = np.float32(1.0) / (w if ok else np.float32(1.0))
-        px = (test[6, t] + dx - test[8, t] * dw) * wi + test[10, t]
-        py = (test[7, t] + dy - test[9, t] * dw) * wi + test[11, t]
+        px = nx * wi + test[10, t]
+        py = ny * wi + test[11, t]
         total += to_fixed(abs(test[12, t] - math.sqrt(px * px + py * py)))
         beyond += np.int64(not ok)
     return total / FIXED / n if beyond == 0 else math.nan
