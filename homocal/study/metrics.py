@@ -22,6 +22,7 @@ import numpy as np
 from homocal.correctors.serialization import read_json
 from homocal.study.aggregate import Quantiles, scan
 from homocal.study.kernels import METHODS  # the one list of the study's methods
+from homocal.study.scene import StudyParams, check_shard, study_key  # the shard format's one home
 
 OVERALL = "overall"
 SHARD_NAME = re.compile(r"variant_\d+\.parquet")
@@ -90,8 +91,6 @@ def verified_shard_files(results_dir: str | Path, study: dict) -> tuple[dict[str
     """shard_files, each checked to be the shard its name says of the study study.json describes (scene,
     variant, study key, row count: scene.check_shard), and the number of shards missing. ValueError naming
     the first file that is not."""
-    from homocal.study.scene import StudyParams, check_shard, study_key  # the shard format's one home
-
     try:
         params = StudyParams.from_dict(study).to_dict()
     except (TypeError, ValueError) as e:
