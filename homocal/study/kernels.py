@@ -363,7 +363,7 @@ def radial_error(cal, i, a, b, in_range):
 @nb.njit(**PATH_JIT)
 def regression_paths(test, af, bf, as_, bs):
     """Mean test-point error (m) after both regressions: |r + u c|^2 = |r|^2 + c (2 r.u + c), c = a d^2 + b d,
-    in float32 and units of 2^-26 m. test rows 0-2: d, |r|^2, 2 r.u (N,) in those units."""
+    in float32 and units of 1/FIXED m. test rows 0-2: d, |r|^2, 2 r.u (N,) in those units."""
     n = test.shape[1]
     af, bf, as_, bs = np.float32(af / FIXED), np.float32(bf), np.float32(as_ / FIXED), np.float32(bs)
     sf = np.int64(0)
@@ -382,7 +382,7 @@ def regression_paths(test, af, bf, as_, bs):
 @nb.njit(**PATH_JIT)
 def regression_paths_range(test, af, bf, as_, bs):
     """As regression_paths, with the range error | ||g - o|| - |d + c| | (the corrected point p + u c lies at range
-    |d + c|); test rows 0 and 12: d and ||g - o||, in units of 2^-26 m."""
+    |d + c|); test rows 0 and 12: d and ||g - o||, in units of 1/FIXED m."""
     n = test.shape[1]
     af, bf, as_, bs = np.float32(af / FIXED), np.float32(bf), np.float32(as_ / FIXED), np.float32(bs)
     sf = np.int64(0)
@@ -408,7 +408,7 @@ def _residual(test, dH, t):
 def descent_path(test, dH):
     """Mean test-point error (m) of H0 + dH, float32, residual form: with s = t/w0 (H0 s = (p0, 1)) and
     r = p0 - g, H(t) - g = (r + dH01 s - g dH2 s) / (1 + dH2 s). test rows 3-9: s0, s1, s2, then rx, ry, gx, gy
-    in units of 2^-26 m; dH (9,) float32, rows 0-1 in those units. NaN if a point crosses the horizon."""
+    in units of 1/FIXED m; dH (9,) float32, rows 0-1 in those units. NaN if a point crosses the horizon."""
     n = test.shape[1]
     total = np.int64(0)
     beyond = np.int64(0)
@@ -423,7 +423,7 @@ def descent_path(test, dH):
 @nb.njit(**PATH_JIT)
 def descent_path_range(test, dH):
     """As descent_path, with the range error | ||g - o|| - ||H(t) - o|| |, H(t) - o = (H(t) - g) + (g - o);
-    test rows 10-12: g - o (2) and ||g - o||, in units of 2^-26 m."""
+    test rows 10-12: g - o (2) and ||g - o||, in units of 1/FIXED m."""
     n = test.shape[1]
     total = np.int64(0)
     beyond = np.int64(0)
@@ -468,7 +468,7 @@ def mapped_error(H, q, g, i, origin, in_range):
 @nb.njit(**JIT)
 def homography_paths(test, H, H0, dH, in_range):
     """Mean test-point error (m) of the mapping H (3, 3), through descent_path (or its range form) with dH (9,)
-    float32 scratch = H - H0 (rows 0-1 in units of 2^-26 m)."""
+    float32 scratch = H - H0 (rows 0-1 in units of 1/FIXED m)."""
     for m in range(9):
         dH[m] = np.float32((H[m // 3, m % 3] - H0[m // 3, m % 3]) * (FIXED if m < 6 else 1.0))
     return descent_path_range(test, dH) if in_range else descent_path(test, dH)

@@ -4,7 +4,7 @@ intercept (homocal.correctors.regression.fit_quadratic_intercept) and the horizo
 algorithm, iteration counts and tolerances as the readable correctors; tests/homocal/test_method_kernels.py
 checks that their results agree to 1e-9 (rounding-level ties aside, every decision is the same; where one is
 not, both still converge to the same minimum). Conventions as homocal.study.kernels: cal table rows d, rx, ry, ux, uy,
-e_faithful, e_signed; test-point lengths in units of 2^-26 m (jit.FIXED).
+e_faithful, e_signed; test-point lengths in units of 1/FIXED m (jit.FIXED).
 
 Use in a per-sample loop (i, j, k the triple, H0 the variant's homography, q (M, 2) image and g (M, 2) ground
 calibration points)::
