@@ -5,7 +5,7 @@ import argparse
 
 from homocal.progress import add_progress_option, show_progress
 from homocal.study.engine import PRESETS, dry_run_counts, run_study
-from homocal.study.scene import METRICS, StudyParams
+from homocal.study.inputs import METRICS, StudyParams
 
 
 def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
