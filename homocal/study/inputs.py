@@ -6,6 +6,8 @@ from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 
+from homocal.correctors.descent import DescentCorrector
+from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.dataset import EXACT, load_dataset
 from homocal.geometry import SiteMap, ViewTransformer
 from homocal.study.perturb import ShiftSpec, base_quad, draw_base_error
@@ -35,9 +37,9 @@ class StudyParams:
     horizon_shift: str | None = None
     click_noise: float = 0.0
     metric: str = "euclidean"
-    threshold: float = 75.0
-    descent: dict = field(default_factory=lambda: dict(
-        delta_max=8.0, grid_offsets=(-4.0, -2.0, 0.0, 2.0, 4.0), initial_step=1.0, min_step=0.0625, max_evals=400))
+    threshold: float = DEFAULT_THRESHOLD
+    descent: dict = field(default_factory=lambda: {  # DescentCorrector's defaults (its seed is keyed per variant)
+        k: v for k, v in DescentCorrector().get_params().items() if k != "seed"})
 
     def __post_init__(self) -> None:
         if self.horizon_shift is not None:

@@ -19,7 +19,7 @@ from typing import Sequence
 
 import numpy as np
 
-from homocal.correctors.serialization import read_json
+from homocal.files import read_json
 from homocal.study.aggregate import Quantiles, scan
 from homocal.study.kernels import METHODS  # the one list of the study's methods
 from homocal.study.inputs import StudyParams

@@ -21,6 +21,7 @@ from homocal.progress import add_progress_option, show_progress
 from homocal.study.figures import FigureFile, make_figures
 from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer
+from homocal.study.inputs import StudyParams
 from homocal.study.law import horizon_shift_law, perturbation_law
 from homocal.study.metrics import (D_KEYS, D_METHODS, METRICS, PAPER, Table, build_table, load_study, paper_distance,
                                    shard_files, table_cells, to_csv, to_markdown, to_text, verified_shard_files)
@@ -99,7 +100,8 @@ def config_label(study: dict) -> str:
              f"--click-noise {study.get('click_noise', 0.0):g}", f"--metric {study.get('metric', 'euclidean')}"]
     if study.get("test_lateral_max") is not None:
         parts.append(f"--test-lateral-max {study['test_lateral_max']:g}")
-    if study.get("descent", {}).get("delta_max", 8.0) != 8.0:
+    default_delta_max = StudyParams().descent["delta_max"]
+    if study.get("descent", {}).get("delta_max", default_delta_max) != default_delta_max:
         parts.append(f"--descent-delta-max {study['descent']['delta_max']:g}")
     return f"preset {study.get('preset')}, {study.get('n_variants')} variants: " + " ".join(parts)
 

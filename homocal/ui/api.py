@@ -16,9 +16,8 @@ import numpy as np
 
 from homocal.correctors import commands
 from homocal.correctors.base import Corrector, load_corrector
-from homocal.correctors.hybrid import HybridCorrector
-from homocal.correctors.serialization import read_json
-from homocal.files import write_json_atomic, write_text_atomic
+from homocal.correctors.hybrid import DEFAULT_THRESHOLD, HybridCorrector
+from homocal.files import read_json, write_json_atomic, write_text_atomic
 from homocal.geometry import SiteMap, ViewTransformer, signed_area, validate_quad
 from homocal.ui import overlay
 from homocal.ui.errorbars import error_bars
@@ -119,7 +118,7 @@ def fit_arguments(req: dict) -> argparse.Namespace:
     commands.add_parser(parser.add_subparsers())
     return parser.parse_args(["fit", "--trapezoid", TRAPEZOID_FILE, "--points", POINTS_FILE, "-o", CORRECTION_FILE,
                               "--method", method, "--seed", str(int(seed)),
-                              "--threshold", repr(_number(req, "threshold", 75.0))])
+                              "--threshold", repr(_number(req, "threshold", DEFAULT_THRESHOLD))])
 
 
 def _sigmas(req: dict) -> dict:
@@ -247,7 +246,7 @@ def load(session: Session, req: dict) -> dict:
         params = corrector.get_params()
         out["fit"] = {"method": "hybrid" if isinstance(corrector, HybridCorrector) else commands._label(corrector),
                       "camera_origin": corrector.camera_origin_.tolist(),
-                      "seed": params.get("seed", 0), "threshold": params.get("threshold", 75.0),
+                      "seed": params.get("seed", 0), "threshold": params.get("threshold", DEFAULT_THRESHOLD),
                       "error_before": corrector.error_before_, "error_after": corrector.error_after_}
         out["loaded"].append(CORRECTION_FILE)
     return out
