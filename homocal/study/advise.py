@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from homocal.correctors.commands import METHODS as CLI_METHODS, _xy, load_trapezoid_site_map, read_points_csv
+from homocal.correctors.cli import METHODS as CLI_METHODS, _xy, load_trapezoid_site_map, read_points_csv
 from homocal.files import write_text_atomic
 from homocal.geometry import SiteMap, ViewTransformer
 from homocal.keyed_rng import seed_from_key
@@ -195,7 +195,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the perturbations and test points (default 0)")
     p.add_argument("--top", type=int, default=5, help="triples to print (default 5)")
     p.add_argument("-o", "--output", type=Path, metavar="ADVICE.csv", help="write every triple, ranked")
-    p.set_defaults(handler=handle)
+    p.set_defaults(handler=handle_advise)
 
 
 def _numbers(text: str, flag: str) -> list[float]:
@@ -232,7 +232,7 @@ def _check_output(path: Path) -> None:
             raise ValueError(f"{path}: exists and is not a homocal advise CSV; not overwriting it")
 
 
-def handle(args: argparse.Namespace) -> int:
+def handle_advise(args: argparse.Namespace) -> int:
     distances = _numbers(args.distances, "--distances")
     if len(distances) < 3 or min(distances) <= 0:
         raise ValueError(f"--distances {args.distances!r}: need at least 3 distances > 0, got {distances}")

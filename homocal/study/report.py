@@ -47,10 +47,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--sweep", type=Path, default=None, metavar="SWEEP_DIR",
                         help="a `homocal sweep` folder whose figure and closest value the Reproduction section shows")
     add_progress_option(parser)
-    parser.set_defaults(handler=run)
+    parser.set_defaults(handler=handle_report)
 
 
-def run(args: argparse.Namespace) -> int:
+def handle_report(args: argparse.Namespace) -> int:
     """Handler of ``homocal report``: print the table and the page's path; ValueError on bad input."""
     page, text, missing = write_report(args.results_dir, args.out, args.compare, args.sweep, show_progress(args))
     print(text)

@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from homocal.correctors.commands import METHODS
+from homocal.correctors.cli import METHODS
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.dataset import load_dataset
 from homocal.geometry import SiteMap

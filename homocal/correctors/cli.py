@@ -86,7 +86,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     fit.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, help="hybrid: keep regression at or above "
                      "this calibration improvement, percent (default %(default)g)")
     fit.add_argument("--seed", type=int, default=0, help="descent, hybrid: seed of the coordinate order (default 0)")
-    fit.set_defaults(handler=run_fit)
+    fit.set_defaults(handler=handle_fit)
 
     apply = subparsers.add_parser(
         "apply", help="map image foot points to corrected ground positions", epilog=APPLY_FORMATS,
@@ -100,10 +100,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                        help="sigma_m: clicking error of each trapezoid coordinate, pixels (default 1.5)")
     apply.add_argument("--point-sigma-px", type=_sigma, default=1.0, metavar="PX",
                        help="sigma_m: error of each foot point coordinate, pixels (default 1.0)")
-    apply.set_defaults(handler=run_apply)
+    apply.set_defaults(handler=handle_apply)
 
 
-def run_fit(args: argparse.Namespace) -> int:
+def handle_fit(args: argparse.Namespace) -> int:
     transformer = load_trapezoid(args.trapezoid)
     _, _, cols, _ = read_points_csv(args.points, ("u", "v", "x", "y"), finite=True)
     if str(args.out) == "-":
@@ -130,7 +130,7 @@ def run_fit(args: argparse.Namespace) -> int:
     return 0
 
 
-def run_apply(args: argparse.Namespace) -> int:
+def handle_apply(args: argparse.Namespace) -> int:
     corrector = load_corrector(args.correction)
     fields, rows, cols, lines = read_points_csv(args.points, ("u", "v"), finite=False)
     to_stdout = str(args.out) == "-"
