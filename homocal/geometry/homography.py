@@ -167,9 +167,9 @@ class ViewTransformer:
         for size = (w, h) target pixels (roboflow/sports' transform_image, cv2.warpPerspective, bilinear).
 
         site_map: the map whose pixels the output is in when the target is in metres; None if the target is
-        already in (site-map) pixels. Output pixels whose ground point is behind the camera (its image on or
-        beyond the horizon, NaN in inverse_transform_points) are 0: warpPerspective alone paints a mirrored
-        copy of the image above the horizon there. Other pixels outside the camera's view are 0 too."""
+        already in (site-map) pixels. Output pixels whose ground point is behind the camera (it has no image
+        point: inverse_transform_points gives NaN) are 0, where warpPerspective alone paints a mirrored copy
+        of the image above the horizon; other pixels outside the camera's view are 0 too."""
         if not (len(size) == 2 and all(isinstance(n, (int, np.integer)) and n > 0 for n in size)):
             raise ValueError(f"size: expected (width, height), two positive integers, got {size!r}")
         image = np.asarray(image)
