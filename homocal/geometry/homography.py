@@ -178,7 +178,8 @@ class ViewTransformer:
         to_pixels = np.eye(3) if site_map is None else np.linalg.inv(site_map.to_metres_matrix)
         m = to_pixels @ self.m
         out = cv2.warpPerspective(image, m, size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
-        out[~_in_front(np.linalg.inv(m), np.arange(size[0])[None, :], np.arange(size[1])[:, None])] = 0
+        x, y = np.arange(size[0], dtype=np.float64)[None, :], np.arange(size[1], dtype=np.float64)[:, None]
+        out[~_in_front(np.linalg.inv(m), x, y)] = 0
         return out
 
     @property
