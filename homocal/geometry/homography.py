@@ -178,8 +178,11 @@ class ViewTransformer:
         to_pixels = np.eye(3) if site_map is None else np.linalg.inv(site_map.to_metres_matrix)
         m = to_pixels @ self.m
         out = cv2.warpPerspective(image, m, size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
-        x, y = np.arange(size[0], dtype=np.float64)[None, :], np.arange(size[1], dtype=np.float64)[:, None]
-        out[~_in_front(np.linalg.inv(m), x, y)] = 0
+        inv = np.linalg.inv(m)
+        x, y = np.arange(size[0], dtype=np.float64), np.arange(size[1], dtype=np.float64)
+        # w - margin is concave in (x, y) (linear minus |x| + |y|): if the 4 corners are in front, every pixel is
+        if not _in_front(inv, x[[0, -1, -1, 0]], y[[0, 0, -1, -1]]).all():
+            out[~_in_front(inv, x[None, :], y[:, None])] = 0
         return out
 
     @property

@@ -256,7 +256,8 @@ class TestTransformImage:
         ground = np.array([[0.0, 5.0], [-3.0, 10.0], [4.0, 15.0], [-6.0, 20.0]])
         frame = np.zeros((720, 1280), np.float32)
         for x, y in ground:
-            square = CAM.project_ground([[x - 0.5, y + 0.5], [x + 0.5, y + 0.5], [x + 0.5, y - 0.5], [x - 0.5, y - 0.5]])
+            square = CAM.project_ground([[x - 0.5, y + 0.5], [x + 0.5, y + 0.5], [x + 0.5, y - 0.5],
+                                         [x - 0.5, y - 0.5]])
             cv2.fillPoly(frame, [np.rint(square * 16).astype(np.int32)], 1.0, shift=4)
         top = self.vt.transform_image(frame, (800, 800), MAP)
         found = []
@@ -283,6 +284,12 @@ class TestTransformImage:
         vt_px = ViewTransformer(CAM.project_ground(GROUND), MAP.to_pixels(GROUND))
         a, b = vt_px.transform_image(WAVES, (800, 800)), self.vt.transform_image(WAVES, (800, 800), MAP)
         np.testing.assert_allclose(a, b, atol=0.5)
+
+    def test_a_map_all_in_front_is_opencv_warp_itself(self):
+        """Map rows 0..599 are y >= 0.1 m, all in front of the camera: nothing is blanked."""
+        m = np.linalg.inv(MAP.to_metres_matrix) @ self.vt.m
+        ours = self.vt.transform_image(WAVES, (800, 600), MAP)
+        np.testing.assert_array_equal(ours, cv2.warpPerspective(WAVES, m, (800, 600)))
 
     @pytest.mark.parametrize("image,size,message", [
         (np.zeros((720, 1280), np.uint8), (0, 800), "size"),
