@@ -23,7 +23,7 @@ import numpy as np
 from homocal.keyed_rng import seed_from_key, shuffled_order
 from homocal.study.engine import PRESETS, run_study
 from homocal.study.perturb import draw_variant, perturbed_quads
-from homocal.study.scene import Scene, StudyParams
+from homocal.study.inputs import StudyParams, StudyScene
 
 
 def cv2_map(H: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -49,7 +49,7 @@ def radial(p, o, a, b):
     return p + (p - o) / d[:, None] * (a * d**2 + b * d)[:, None]
 
 
-def baseline_sample(scene: Scene, params: StudyParams, variant: int, triple) -> None:
+def baseline_sample(scene: StudyScene, params: StudyParams, variant: int, triple) -> None:
     """Every method of one sample, per-sample cv2 calls in a Python loop (the straightforward way)."""
     dp = params.descent
     base = scene.base_image_quad(params, variant)
@@ -118,7 +118,7 @@ def main() -> None:
         print(f"study: {n:,} samples ({args.variants} variants, {args.n_test} test points, all methods) "
               f"in {wall:.1f} s wall (median of {len(walls)}): {n / wall:,.0f} samples/s; "
               f"{cpu:.1f} s CPU on {os.cpu_count()} cores (wall if the cores were ours alone: >= {cpu / os.cpu_count():.1f} s)")
-        scene = Scene.from_dataset(paths[0], params)
+        scene = StudyScene.from_dataset(paths[0], params)
         rng = np.random.default_rng(0)
         per_sample = []
         for _ in range(args.baseline_samples):

@@ -13,7 +13,14 @@ from homocal.correctors import (
 )
 from homocal.dataset import Dataset, load_dataset
 from homocal.error_model import ColumnModel, column_model, first_order_error, horizon_shift, quadratic_error
-from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer, homography_from_quads, validate_quad
+from homocal.geometry import (
+    PinholeCamera,
+    SiteMap,
+    ViewTransformer,
+    box_bottom_points,
+    homography_from_quads,
+    validate_quad,
+)
 from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius
 
 __all__ = [
@@ -27,6 +34,7 @@ __all__ = [
     "RegressionCorrector",
     "SiteMap",
     "ViewTransformer",
+    "box_bottom_points",
     "column_model",
     "first_order_error",
     "ground_uncertainty",

@@ -1,9 +1,10 @@
 """The ``homocal`` command line.
 
-Each subcommand module provides ``add_parser(subparsers)``: it adds its parser(s) and registers a handler
-with ``parser.set_defaults(handler=fn)``, ``fn(args) -> int`` (the exit code). A handler raises ValueError
-or OSError for bad input; ``main`` prints it as one ``homocal: error: ...`` line and exits 2. To add a
-subcommand, import its module and list it in SUBCOMMANDS.
+Each subcommand module (a ``cli.py``, or the study module the command is named after) provides
+``add_parser(subparsers)``: it adds its parser(s) and registers each command's handler,
+``parser.set_defaults(handler=handle_<command>)``, ``handle_<command>(args) -> int`` (the exit code).
+A handler raises ValueError or OSError for bad input; ``main`` prints it as one ``homocal: error: ...``
+line and exits 2. To add a subcommand, import its module and list it in SUBCOMMANDS.
 """
 from __future__ import annotations
 
@@ -11,12 +12,12 @@ import argparse
 import sys
 from importlib.metadata import version
 
-from homocal.correctors import commands as corrector_commands
+from homocal.correctors import cli as corrector_cli
 from homocal.files import OutputFolderError
 from homocal.study import advise as study_advise, cli as study_cli, report as study_report, sweep as study_sweep
 from homocal.ui import cli as ui_cli
 
-SUBCOMMANDS = (corrector_commands, study_cli, study_sweep, study_report, study_advise, ui_cli)
+SUBCOMMANDS = (corrector_cli, study_cli, study_sweep, study_report, study_advise, ui_cli)
 
 
 class _Parser(argparse.ArgumentParser):

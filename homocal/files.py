@@ -1,5 +1,5 @@
 """Files a tool owns: atomic writes (a file that exists is whole) and locked, marked output folders
-(DESIGN principle 6). Shared by homocal and simgen."""
+(DESIGN principle 6); reading a JSON object with one clear error. Shared by homocal and simgen."""
 from __future__ import annotations
 
 import fcntl
@@ -87,6 +87,20 @@ class OutputFolder:
         for name in names:
             for tmp in temporaries_of(self.path / name):
                 tmp.unlink()
+
+
+def read_json(path: str | Path) -> dict:
+    """Read a JSON object from path; ValueError (naming the file) if it is missing, unreadable or not an object."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"{path}: no such file")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise ValueError(f"{path}: not a JSON file ({e})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: expected a JSON object, got {type(data).__name__}")
+    return data
 
 
 def _marker_format(marker: Path) -> object:

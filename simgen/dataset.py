@@ -127,7 +127,7 @@ def site_map(scene: Scene) -> np.ndarray:
         rot = np.zeros(9)
         mujoco.mju_quat2Mat(rot, model.geom_quat[g])
         xy = (corners @ rot.reshape(3, 3).T + model.geom_pos[g])[:, :2]
-        cv2.fillPoly(image, [np.round(scene.to_map(xy) * 16).astype(np.int32)], (150, 150, 150), cv2.LINE_AA, 4)
+        cv2.fillPoly(image, [np.round(scene.site_map.to_pixels(xy) * 16).astype(np.int32)], (150, 150, 150), cv2.LINE_AA, 4)
     return image
 
 
@@ -149,7 +149,7 @@ def _write_static(scene: Scene, out: Path) -> None:
     image = site_map(scene)
     write_atomic(out / "site_map.png", lambda p: p.write_bytes(cv2.imencode(".png", image)[1].tobytes()))
     write_json_atomic(out / "site_map.json", {"file": "site_map.png", "scale_px_per_m": scene.map_scale,
-                                       "origin_px": list(scene.map_origin), "width": image.shape[1], "height": image.shape[0]})
+                                       "origin_px": list(scene.site_map.origin_px), "width": image.shape[1], "height": image.shape[0]})
 
 
 # ---- calibration ---------------------------------------------------------------------------

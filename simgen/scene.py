@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from homocal.geometry.camera import PinholeCamera
+from homocal.geometry import PinholeCamera, SiteMap
 
 GT_DT = 0.05  # ground-truth period, seconds (paper Section 5.1)
 GT_RATE = 20  # 1 / GT_DT, samples per second, for exact integer time arithmetic
@@ -87,16 +87,11 @@ class Scene:
         return round(self.seconds * GT_RATE)
 
     @property
-    def map_origin(self) -> tuple[float, float]:
-        """Site-map pixel (ox, oy) of the world origin; map pixel centres at integers."""
+    def site_map(self) -> SiteMap:
+        """The site map's scale and origin (homocal's SiteMap holds the convention): map pixel centres at
+        integers, the ground plane's far-left corner (x0, y1) at the top-left pixel's outer corner (-0.5, -0.5)."""
         x0, _, _, y1 = self.ground.extent
-        return (-self.map_scale * x0 - 0.5, self.map_scale * y1 - 0.5)
-
-    def to_map(self, xy: np.ndarray) -> np.ndarray:
-        """World metres (N, 2) -> site-map pixels (N, 2): px = ox + s x, py = oy - s y."""
-        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        ox, oy = self.map_origin
-        return np.column_stack([ox + self.map_scale * xy[:, 0], oy - self.map_scale * xy[:, 1]])
+        return SiteMap(self.map_scale, (-self.map_scale * x0 - 0.5, self.map_scale * y1 - 0.5))
 
     @property
     def trapezoid_exact_image(self) -> np.ndarray:
@@ -106,7 +101,7 @@ class Scene:
     @property
     def trapezoid_exact_map(self) -> np.ndarray:
         """(4, 2) exact site-map vertices of ``trapezoid_ground``, map px."""
-        return self.to_map(self.trapezoid_ground)
+        return self.site_map.to_pixels(self.trapezoid_ground)
 
     def config_hash(self) -> str:
         """sha256 over the resolved config, the run options and the bytes of the scene's files."""

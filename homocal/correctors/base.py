@@ -23,9 +23,8 @@ from homocal.correctors.serialization import (
     FORMAT_VERSION,
     float_or_none,
     number,
-    read_json,
 )
-from homocal.files import write_text_atomic
+from homocal.files import read_json, write_text_atomic
 from homocal.geometry import ViewTransformer, as_points, check_magnitude
 
 

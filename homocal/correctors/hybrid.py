@@ -8,6 +8,8 @@ from homocal.correctors.base import Corrector
 from homocal.correctors.descent import DescentCorrector
 from homocal.correctors.regression import RegressionCorrector
 
+DEFAULT_THRESHOLD = 75.0  # percent: the paper's (Section 7)
+
 
 class HybridCorrector(Corrector):
     """Fit both methods; keep regression if its calibration improvement is >= threshold (percent), else descent.
@@ -15,7 +17,7 @@ class HybridCorrector(Corrector):
     A NaN regression improvement (zero error before correction) fails the test, so descent is kept.
 
     Args:
-        threshold: percent, 75 in the paper.
+        threshold: percent (DEFAULT_THRESHOLD, the paper's 75).
         signed: passed to RegressionCorrector.
         **descent_params: passed to DescentCorrector (delta_max, grid_offsets, initial_step, min_step,
             max_evals, seed).
@@ -26,7 +28,7 @@ class HybridCorrector(Corrector):
     method = "hybrid"
     param_names = ("threshold", "signed", *DescentCorrector.param_names)
 
-    def __init__(self, threshold: float = 75.0, signed: bool = False, **descent_params) -> None:
+    def __init__(self, threshold: float = DEFAULT_THRESHOLD, signed: bool = False, **descent_params) -> None:
         self.threshold = float(threshold)
         self.signed = RegressionCorrector(signed=signed).signed
         for name, value in DescentCorrector(**descent_params).get_params().items():

@@ -14,26 +14,10 @@ is one ValueError naming the file and the field ("field fitted.a: must be >= 0 .
 """
 from __future__ import annotations
 
-import json
 import math
-from pathlib import Path
 
 FORMAT = "homocal.correction"
 FORMAT_VERSION = 1
-
-
-def read_json(path: str | Path) -> dict:
-    """Read a JSON object from path; ValueError (naming the file) if it is missing, unreadable or not an object."""
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such file")
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise ValueError(f"{path}: not a JSON file ({e})") from None
-    if not isinstance(data, dict):
-        raise ValueError(f"{path}: expected a JSON object, got {type(data).__name__}")
-    return data
 
 
 def number(value, field: str, minimum: float | None = None) -> float:

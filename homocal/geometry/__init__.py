@@ -1,4 +1,5 @@
-"""Geometry: the pinhole camera model, homographies from trapezoids, site-map units."""
+"""Geometry: the pinhole camera model, homographies from trapezoids, site-map units, box foot points."""
+from homocal.geometry.boxes import BOX_CONVENTIONS, box_bottom_points
 from homocal.geometry.camera import PinholeCamera
 from homocal.geometry.homography import (
     MAX_COORDINATE,
@@ -14,12 +15,14 @@ from homocal.geometry.homography import (
 from homocal.geometry.sitemap import SiteMap
 
 __all__ = [
+    "BOX_CONVENTIONS",
     "MAX_COORDINATE",
     "PinholeCamera",
     "SiteMap",
     "ViewTransformer",
     "apply_homography",
     "as_points",
+    "box_bottom_points",
     "check_magnitude",
     "check_orientation",
     "homography_from_quads",

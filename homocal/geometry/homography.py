@@ -7,8 +7,13 @@ when the horizon passes through the image origin, where OpenCV's getPerspectiveT
 from __future__ import annotations
 
 import itertools
+from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
+
+if TYPE_CHECKING:  # sitemap imports this module
+    from homocal.geometry.sitemap import SiteMap
 
 QUAD_ORDER = "TL, TR, BR, BL"
 MAX_COORDINATE = 1e9  # larger |coordinates| (a billion pixels or metres) are an overflow or a typo, not a click
@@ -105,15 +110,20 @@ def homography_from_quads(source: np.ndarray, target: np.ndarray) -> np.ndarray:
 
 
 def apply_homography(H: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Map (N, 2) points through H; points on or beyond its horizon (w <= 1e-12 (|x|+|y|+1) |H[2]|) give NaN."""
-    p = np.column_stack([points, np.ones(len(points))])
-    xyw = p @ H.T
-    w = xyw[:, 2]
-    scale = np.abs(p).sum(axis=1) * np.linalg.norm(H[2])
-    valid = w > 1e-12 * scale
+    """Map (N, 2) points through H; points on or beyond its horizon (see _in_front) give NaN."""
+    x, y = points[:, 0], points[:, 1]
+    valid = _in_front(H, x, y)
+    xyw = np.column_stack([x[valid], y[valid], np.ones(valid.sum())]) @ H.T
     out = np.full((len(points), 2), np.nan)
-    out[valid] = xyw[valid, :2] / w[valid, None]
+    out[valid] = xyw[:, :2] / xyw[:, 2:]
     return out
+
+
+def _in_front(H: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Bool array (x's and y's broadcast shape): True where H maps (x, y) to a finite point on the side it
+    keeps, w = H[2] . (x, y, 1) > 1e-12 (|x| + |y| + 1) |H[2]|; False on or beyond its horizon and for NaN."""
+    w = H[2, 0] * x + H[2, 1] * y + H[2, 2]
+    return w > 1e-12 * (np.abs(x) + np.abs(y) + 1.0) * np.linalg.norm(H[2])
 
 
 class ViewTransformer:
@@ -121,7 +131,9 @@ class ViewTransformer:
 
     Same method names as supervision's ViewTransformer, so its users can switch; unlike it, computed in
     float64 without fixing h33 = 1, never casting to int, and giving NaN (not a huge or zero value) for a
-    point on or above the horizon.
+    point on or above the horizon. Filter those before any ``.astype(int)``, which turns NaN into
+    -9223372036854775808 with only a warning: ``return_valid=True`` gives the mask, or use ``np.isfinite``.
+    Points are in homocal's pixel convention (centres at integers); boxes from other tools: box_bottom_points.
 
     Args:
         source: (4, 2) image trapezoid, pixels, order TL, TR, BR, BL.
@@ -138,13 +150,40 @@ class ViewTransformer:
         self.m = homography_from_quads(self.source, self.target)
         self.m_inv = homography_from_quads(self.target, self.source)
 
-    def transform_points(self, points: np.ndarray) -> np.ndarray:
-        """Map image points (N, 2) or (N, 1, 2), pixels, to target points (N, 2) float64; NaN on/above the horizon."""
-        return apply_homography(self.m, as_points(points))
+    def transform_points(self, points: np.ndarray, return_valid: bool = False) -> np.ndarray | tuple:
+        """Map image points (N, 2) or (N, 1, 2), pixels, to target points (N, 2) float64; NaN on/above the horizon.
 
-    def inverse_transform_points(self, points: np.ndarray) -> np.ndarray:
-        """Map target points (N, 2) or (N, 1, 2) to image pixels (N, 2) float64; NaN behind the camera."""
-        return apply_homography(self.m_inv, as_points(points))
+        With return_valid, also valid (N,) bool: False exactly where a result is NaN (on or above the horizon,
+        or a NaN input), as in np.unique's return_* flags."""
+        return _with_valid(apply_homography(self.m, as_points(points)), return_valid)
+
+    def inverse_transform_points(self, points: np.ndarray, return_valid: bool = False) -> np.ndarray | tuple:
+        """Map target points (N, 2) or (N, 1, 2) to image pixels (N, 2) float64; NaN behind the camera.
+        return_valid: as in transform_points."""
+        return _with_valid(apply_homography(self.m_inv, as_points(points)), return_valid)
+
+    def transform_image(self, image: np.ndarray, size: tuple[int, int], site_map: SiteMap | None = None) -> np.ndarray:
+        """Warp the camera image (H, W) or (H, W, C) onto the target plane: (h, w) or (h, w, C), image's dtype,
+        for size = (w, h) target pixels (roboflow/sports' transform_image, cv2.warpPerspective, bilinear).
+
+        site_map: the map whose pixels the output is in when the target is in metres; None if the target is
+        already in (site-map) pixels. Output pixels whose ground point is behind the camera (it has no image
+        point: inverse_transform_points gives NaN) are 0, where warpPerspective alone paints a mirrored copy
+        of the image above the horizon; other pixels outside the camera's view are 0 too."""
+        if not (len(size) == 2 and all(isinstance(n, (int, np.integer)) and n > 0 for n in size)):
+            raise ValueError(f"size: expected (width, height), two positive integers, got {size!r}")
+        image = np.asarray(image)
+        if image.ndim not in (2, 3):
+            raise ValueError(f"image: expected shape (H, W) or (H, W, C), got {image.shape}")
+        to_pixels = np.eye(3) if site_map is None else np.linalg.inv(site_map.to_metres_matrix)
+        m = to_pixels @ self.m
+        out = cv2.warpPerspective(image, m, size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+        inv = np.linalg.inv(m)
+        x, y = np.arange(size[0], dtype=np.float64), np.arange(size[1], dtype=np.float64)
+        # w - margin is concave in (x, y) (linear minus |x| + |y|): if the 4 corners are in front, every pixel is
+        if not _in_front(inv, x[[0, -1, -1, 0]], y[[0, 0, -1, -1]]).all():
+            out[~_in_front(inv, x[None, :], y[:, None])] = 0
+        return out
 
     @property
     def horizon(self) -> np.ndarray:
@@ -159,6 +198,11 @@ class ViewTransformer:
 
     def __repr__(self) -> str:
         return f"ViewTransformer(source={self.source.tolist()}, target={self.target.tolist()})"
+
+
+def _with_valid(out: np.ndarray, return_valid: bool):
+    """out (N, 2), or (out, valid (N,) bool: no NaN in the row) if return_valid."""
+    return (out, ~np.isnan(out).any(axis=1)) if return_valid else out
 
 
 def _basis_map(quad: np.ndarray) -> np.ndarray:

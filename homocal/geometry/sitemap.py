@@ -6,12 +6,12 @@ Convention (data_schema.md): map pixels px right, py down; world metres x right,
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from homocal.files import read_json
 from homocal.geometry.homography import as_points
 
 
@@ -56,11 +56,5 @@ class SiteMap:
 
     @classmethod
     def from_json(cls, path: str | Path) -> "SiteMap":
-        """Read a dataset's site_map.json; ValueError naming the file if it is not UTF-8 JSON."""
-        try:
-            data = json.loads(Path(path).read_text(encoding="utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as e:
-            raise ValueError(f"{path}: not a JSON file ({e})") from None
-        if not isinstance(data, dict):
-            raise ValueError(f"{path}: expected a JSON object, got {type(data).__name__}")
-        return cls.from_dict(data, str(path))
+        """Read a dataset's site_map.json; ValueError naming the file if it is missing or not a JSON object."""
+        return cls.from_dict(read_json(path), str(path))

@@ -24,12 +24,13 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from homocal.correctors.commands import METHODS as CLI_METHODS, _xy, load_trapezoid_site_map, read_points_csv
+from homocal.correctors.cli import METHODS as CLI_METHODS, _xy, load_trapezoid_site_map, read_points_csv
 from homocal.files import write_text_atomic
 from homocal.geometry import SiteMap, ViewTransformer
 from homocal.keyed_rng import seed_from_key
 from homocal.study import kernels
-from homocal.study.scene import Scene, StudyParams, prepare_variant, run_tables
+from homocal.study.inputs import StudyParams, StudyScene
+from homocal.study.shards import prepare_variant, run_tables
 from homocal.study.sweep import expand_values
 from homocal.study.triples import triples
 from homocal.uncertainty import straight_ahead_column
@@ -74,11 +75,11 @@ def uniform_test_points(n: int, seed: int, origin, test_range=(5.0, 50.0), later
 
 
 def advise_scene(transformer: ViewTransformer, site_map: SiteMap, positions: np.ndarray, test_ground: np.ndarray,
-                 origin) -> Scene:
-    """The study's Scene of a clicked trapezoid taken as the truth: candidate positions (M, 2) and test points
+                 origin) -> StudyScene:
+    """The StudyScene of a clicked trapezoid taken as the truth: candidate positions (M, 2) and test points
     (N, 2), metres, mapped into the image by transformer.inverse_transform_points; the map quad in site_map's
     pixels (the perturbation moves them). K: the intrinsics are unknown, only the principal column is set (the
-    straight-ahead column, for Scene.horizon_row); NaN elsewhere, as no horizon shift is applied. ValueError if a
+    straight-ahead column, for StudyScene.horizon_row); NaN elsewhere, as no horizon shift is applied. ValueError if a
     position or test point maps behind the camera."""
     images = []
     for what, ground in (("reference position", positions), ("test point", test_ground)):
@@ -92,12 +93,12 @@ def advise_scene(transformer: ViewTransformer, site_map: SiteMap, positions: np.
     K = np.full((3, 3), np.nan)
     K[0, 2] = straight_ahead_column(transformer)
     origin = np.asarray(origin, float)
-    return Scene(NAME, site_map, transformer.source, site_map.to_pixels(transformer.target), origin, images[0],
+    return StudyScene(NAME, site_map, transformer.source, site_map.to_pixels(transformer.target), origin, images[0],
                  positions, np.linalg.norm(positions - origin, axis=1), images[1], test_ground,
                  triples(len(positions)), K, math.nan)  # K and the true horizon serve only horizon shifts: none here
 
 
-def advise(scene: Scene, method: str, samples: int, seed: int = 0, progress: bool = False) -> Advice:
+def advise(scene: StudyScene, method: str, samples: int, seed: int = 0, progress: bool = False) -> Advice:
     """Rank scene's triples by method's (kernels.METHODS) path improvement over perturbed variants 1..samples of
     scene's trapezoid (variant 0 is the unperturbed truth). A variant is skipped when it is degenerate
     (scene.prepare_variant's reason) or moves no coordinate (nothing to correct). ValueError if all are."""
@@ -194,7 +195,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the perturbations and test points (default 0)")
     p.add_argument("--top", type=int, default=5, help="triples to print (default 5)")
     p.add_argument("-o", "--output", type=Path, metavar="ADVICE.csv", help="write every triple, ranked")
-    p.set_defaults(handler=handle)
+    p.set_defaults(handler=handle_advise)
 
 
 def _numbers(text: str, flag: str) -> list[float]:
@@ -231,7 +232,7 @@ def _check_output(path: Path) -> None:
             raise ValueError(f"{path}: exists and is not a homocal advise CSV; not overwriting it")
 
 
-def handle(args: argparse.Namespace) -> int:
+def handle_advise(args: argparse.Namespace) -> int:
     distances = _numbers(args.distances, "--distances")
     if len(distances) < 3 or min(distances) <= 0:
         raise ValueError(f"--distances {args.distances!r}: need at least 3 distances > 0, got {distances}")

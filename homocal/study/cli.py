@@ -5,7 +5,7 @@ import argparse
 
 from homocal.progress import add_progress_option, show_progress
 from homocal.study.engine import PRESETS, dry_run_counts, run_study
-from homocal.study.scene import METRICS, StudyParams
+from homocal.study.inputs import METRICS, StudyParams
 
 
 def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
@@ -84,7 +84,7 @@ def add_parser(subparsers) -> None:
     group.add_argument("--scheduler", help="address of a running Dask scheduler")
     p.add_argument("--resume", action="store_true", help="continue the study in --out, skipping finished shards")
     p.add_argument("--dry-run", action="store_true", help="print the sample counts and exit")
-    p.set_defaults(handler=handle)
+    p.set_defaults(handler=handle_study)
 
 
 def metres_or_none(text: str) -> float | None:
@@ -99,7 +99,7 @@ def metres_or_none(text: str) -> float | None:
     return value
 
 
-def handle(args: argparse.Namespace) -> int:
+def handle_study(args: argparse.Namespace) -> int:
     params = params_from_args(args)
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"--workers must be >= 1, got {args.workers}")

@@ -28,7 +28,8 @@ from tqdm import tqdm
 
 from homocal.files import output_folder, write_atomic, write_json_atomic
 from homocal.study.perturb import draw_base_error, draw_variant
-from homocal.study.scene import Scene, StudyParams, check_shard, compute_shard, shift_spec, study_key
+from homocal.study.inputs import StudyParams, StudyScene, shift_spec
+from homocal.study.shards import check_shard, compute_shard, study_key
 from homocal.study.triples import n_samples
 
 # paper: the paper's protocol (1000 variants, 2000 test points) with the base error closest to its Table 1 found
@@ -48,7 +49,7 @@ def write_table(path: Path, table: pa.Table) -> None:
     write_atomic(path, lambda tmp: pq.write_table(table, tmp, use_dictionary=False))
 
 
-def variants_table(scene: Scene, params: StudyParams, reasons: list[str]) -> pa.Table:
+def variants_table(scene: StudyScene, params: StudyParams, reasons: list[str]) -> pa.Table:
     """variants/<scene>.parquet: variant, horizon_shift_px (the base horizon's height above the true one, null
     without a horizon shift) and click_0..7 (the base error, px), img_0..7, map_0..7
     (px offsets), n_perturbed, degenerate, reason; reasons (n_variants + 1,) are the shards' ("" if not
@@ -67,12 +68,12 @@ def variants_table(scene: Scene, params: StudyParams, reasons: list[str]) -> pa.
     return pa.table(cols)
 
 
-def run_group(scene: Scene, params: StudyParams, variants: list[int]) -> list[tuple[int, pa.Table, str]]:
+def run_group(scene: StudyScene, params: StudyParams, variants: list[int]) -> list[tuple[int, pa.Table, str]]:
     """The unit of work of both engine paths: compute_shard for each variant of one loaded scene."""
     return [(v, *compute_shard(scene, params, v)) for v in variants]
 
 
-def study_parameters(preset: str | None, params: StudyParams, scenes: list[Scene], paths: list[str]) -> dict:
+def study_parameters(preset: str | None, params: StudyParams, scenes: list[StudyScene], paths: list[str]) -> dict:
     """The parameters part of study.json: what --resume compares (every StudyParams field, the datasets)."""
     return {
         "preset": preset, **params.to_dict(),
@@ -81,8 +82,8 @@ def study_parameters(preset: str | None, params: StudyParams, scenes: list[Scene
     }
 
 
-def load_scenes(paths: list[str], params: StudyParams) -> list[Scene]:
-    scenes = [Scene.from_dataset(str(Path(p).resolve()), params) for p in paths]  # read afresh: a dataset may be regenerated
+def load_scenes(paths: list[str], params: StudyParams) -> list[StudyScene]:
+    scenes = [StudyScene.from_dataset(str(Path(p).resolve()), params) for p in paths]  # read afresh: a dataset may be regenerated
     names = [s.name for s in scenes]
     if len(set(names)) != len(names):
         raise ValueError(f"two datasets have the same scene name: {names}")
@@ -172,7 +173,7 @@ def _execute(todo, scenes, params, workers, scheduler):
             cluster.close()
 
 
-def _counts(scenes: list[Scene], reasons: dict[tuple[str, int], str]) -> dict:
+def _counts(scenes: list[StudyScene], reasons: dict[tuple[str, int], str]) -> dict:
     """samples_done, samples_degenerate, shards_done and the degenerate variants list, from the shards'
     degenerate reasons {(scene, variant): reason}."""
     per = {s.name: len(s.triples) for s in scenes}

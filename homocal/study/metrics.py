@@ -19,10 +19,11 @@ from typing import Sequence
 
 import numpy as np
 
-from homocal.correctors.serialization import read_json
+from homocal.files import read_json
 from homocal.study.aggregate import Quantiles, scan
 from homocal.study.kernels import METHODS  # the one list of the study's methods
-from homocal.study.scene import StudyParams, check_shard, study_key  # the shard format's one home
+from homocal.study.inputs import StudyParams
+from homocal.study.shards import check_shard, study_key  # the shard format's one home
 
 OVERALL = "overall"
 SHARD_NAME = re.compile(r"variant_\d+\.parquet")

@@ -21,6 +21,7 @@ from homocal.progress import add_progress_option, show_progress
 from homocal.study.figures import FigureFile, make_figures
 from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer
+from homocal.study.inputs import StudyParams
 from homocal.study.law import horizon_shift_law, perturbation_law
 from homocal.study.metrics import (D_KEYS, D_METHODS, METRICS, PAPER, Table, build_table, load_study, paper_distance,
                                    shard_files, table_cells, to_csv, to_markdown, to_text, verified_shard_files)
@@ -46,10 +47,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--sweep", type=Path, default=None, metavar="SWEEP_DIR",
                         help="a `homocal sweep` folder whose figure and closest value the Reproduction section shows")
     add_progress_option(parser)
-    parser.set_defaults(handler=run)
+    parser.set_defaults(handler=handle_report)
 
 
-def run(args: argparse.Namespace) -> int:
+def handle_report(args: argparse.Namespace) -> int:
     """Handler of ``homocal report``: print the table and the page's path; ValueError on bad input."""
     page, text, missing = write_report(args.results_dir, args.out, args.compare, args.sweep, show_progress(args))
     print(text)
@@ -99,7 +100,8 @@ def config_label(study: dict) -> str:
              f"--click-noise {study.get('click_noise', 0.0):g}", f"--metric {study.get('metric', 'euclidean')}"]
     if study.get("test_lateral_max") is not None:
         parts.append(f"--test-lateral-max {study['test_lateral_max']:g}")
-    if study.get("descent", {}).get("delta_max", 8.0) != 8.0:
+    default_delta_max = StudyParams().descent["delta_max"]
+    if study.get("descent", {}).get("delta_max", default_delta_max) != default_delta_max:
         parts.append(f"--descent-delta-max {study['descent']['delta_max']:g}")
     return f"preset {study.get('preset')}, {study.get('n_variants')} variants: " + " ".join(parts)
 

@@ -158,10 +158,10 @@ def add_parser(subparsers) -> None:
     p.add_argument("-o", "--out", required=True, help="sweep directory")
     p.add_argument("--resume", action="store_true", help="continue the sweep in --out")
     add_study_options(p, sweep=True)
-    p.set_defaults(handler=handle)
+    p.set_defaults(handler=handle_sweep)
 
 
-def handle(args: argparse.Namespace) -> int:
+def handle_sweep(args: argparse.Namespace) -> int:
     given = [s for s in SWEEPABLE if hasattr(args, s) and len(expand_values(str(getattr(args, s)))) > 1]
     if len(given) != 1:
         raise ValueError(f"sweep exactly one parameter with two or more values (got {len(given)}: {', '.join(given) or 'none'})")

@@ -14,11 +14,10 @@ import warnings
 
 import numpy as np
 
-from homocal.correctors import commands
+from homocal.correctors import cli as corrector_cli
 from homocal.correctors.base import Corrector, load_corrector
-from homocal.correctors.hybrid import HybridCorrector
-from homocal.correctors.serialization import read_json
-from homocal.files import write_json_atomic, write_text_atomic
+from homocal.correctors.hybrid import DEFAULT_THRESHOLD, HybridCorrector
+from homocal.files import read_json, write_json_atomic, write_text_atomic
 from homocal.geometry import SiteMap, ViewTransformer, signed_area, validate_quad
 from homocal.ui import overlay
 from homocal.ui.errorbars import error_bars
@@ -100,7 +99,7 @@ def _fitted(session: Session, req: dict) -> tuple[Corrector, ViewTransformer, np
     transformer = _complete_transformer(session, req)
     points = _points(req.get("points"), "points", 4)
     args = fit_arguments(req)
-    corrector = commands.METHODS[args.method](args)
+    corrector = corrector_cli.METHODS[args.method](args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         corrector.fit(transformer, points[:, :2], points[:, 2:], _camera_origin(req))
@@ -110,16 +109,16 @@ def _fitted(session: Session, req: dict) -> tuple[Corrector, ViewTransformer, np
 def fit_arguments(req: dict) -> argparse.Namespace:
     """``homocal fit``'s parsed arguments for the request's method, seed and threshold (its defaults otherwise)."""
     method = req.get("method")
-    if method not in commands.METHODS:
-        raise ValueError(f"method: expected one of {', '.join(commands.METHODS)}, got {method!r}")
+    if method not in corrector_cli.METHODS:
+        raise ValueError(f"method: expected one of {', '.join(corrector_cli.METHODS)}, got {method!r}")
     seed = _number(req, "seed", 0.0, positive=True)
     if seed != int(seed):
         raise ValueError(f"seed: expected an integer, got {seed!r}")
     parser = argparse.ArgumentParser()
-    commands.add_parser(parser.add_subparsers())
+    corrector_cli.add_parser(parser.add_subparsers())
     return parser.parse_args(["fit", "--trapezoid", TRAPEZOID_FILE, "--points", POINTS_FILE, "-o", CORRECTION_FILE,
                               "--method", method, "--seed", str(int(seed)),
-                              "--threshold", repr(_number(req, "threshold", 75.0))])
+                              "--threshold", repr(_number(req, "threshold", DEFAULT_THRESHOLD))])
 
 
 def _sigmas(req: dict) -> dict:
@@ -159,12 +158,13 @@ def fit(session: Session, req: dict) -> dict:
     corrected = corrector.transform_points(points[:, :2])
     w, h = session.frame_size
     tolerance = _number(req, "tolerance_m", 0.5, positive=True)
-    trust = error_bars(session, commands._mapping(corrector), np.zeros((0, 2)), _camera_origin(req), tolerance,
+    trust = error_bars(session, corrector_cli._mapping(corrector), np.zeros((0, 2)), _camera_origin(req), tolerance,
                        **_sigmas(req))["trustworthy_range_m"]
     trust_note = (f" With its mapping the 1-sigma error stays under {tolerance:g} m out to "
                   + ("any range" if trust is None else f"{trust:.1f} m") + " straight ahead.")
     return {
-        "summary": f"{args.method}: {commands._quality(corrector)}.{commands._method_note(corrector)}{trust_note}",
+        "summary": f"{args.method}: {corrector_cli._quality(corrector)}."
+                   f"{corrector_cli._method_note(corrector)}{trust_note}",
         "warnings": caught,
         "error_before": corrector.error_before_,
         "error_after": corrector.error_after_,
@@ -239,15 +239,15 @@ def load(session: Session, req: dict) -> dict:
     out = {"trapezoid": {"image": image.tolist(), "map": map_px.tolist()},
            "points": [], "fit": None, "loaded": [TRAPEZOID_FILE]}
     if (folder / POINTS_FILE).is_file():
-        _, _, cols, _ = commands.read_points_csv(folder / POINTS_FILE, ("u", "v", "x", "y"), finite=True)
+        _, _, cols, _ = corrector_cli.read_points_csv(folder / POINTS_FILE, ("u", "v", "x", "y"), finite=True)
         out["points"] = np.column_stack([cols[c] for c in ("u", "v", "x", "y")]).tolist()
         out["loaded"].append(POINTS_FILE)
     if (folder / CORRECTION_FILE).is_file():
         corrector = load_corrector(folder / CORRECTION_FILE)
         params = corrector.get_params()
-        out["fit"] = {"method": "hybrid" if isinstance(corrector, HybridCorrector) else commands._label(corrector),
+        out["fit"] = {"method": "hybrid" if isinstance(corrector, HybridCorrector) else corrector_cli._label(corrector),
                       "camera_origin": corrector.camera_origin_.tolist(),
-                      "seed": params.get("seed", 0), "threshold": params.get("threshold", 75.0),
+                      "seed": params.get("seed", 0), "threshold": params.get("threshold", DEFAULT_THRESHOLD),
                       "error_before": corrector.error_before_, "error_after": corrector.error_after_}
         out["loaded"].append(CORRECTION_FILE)
     return out

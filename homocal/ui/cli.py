@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from homocal.correctors.commands import _xy
+from homocal.correctors.cli import _xy
 from homocal.geometry import SiteMap
 from homocal.ui import session as sessions
 from homocal.ui.server import UIServer
@@ -37,10 +37,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     help="ground point under the camera, metres (default 0,0; the page can change it)")
     ui.add_argument("-o", "--out", type=Path, default=Path("."), metavar="DIR", help="folder Save writes to (default .)")
     ui.add_argument("--port", type=int, default=0, help="port on 127.0.0.1 (default 0: a free one)")
-    ui.set_defaults(handler=run_ui)
+    ui.set_defaults(handler=handle_ui)
 
 
-def run_ui(args: argparse.Namespace) -> int:
+def handle_ui(args: argparse.Namespace) -> int:
     if args.dataset is not None:
         extra = [f for f, v in (("--frame", args.frame), ("--site-map", args.site_map), ("--scale", args.scale)) if v]
         if extra:

@@ -8,7 +8,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from homocal.correctors.commands import METHODS
+from homocal.correctors.cli import METHODS
+from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.dataset import load_dataset
 from homocal.geometry import SiteMap
 
@@ -41,6 +42,7 @@ class Session:
             "out_dir": str(self.out_dir),
             "dataset": self.dataset,
             "methods": list(METHODS),
+            "threshold": DEFAULT_THRESHOLD,
         }
 
 

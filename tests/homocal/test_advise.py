@@ -13,7 +13,8 @@ from test_cli import homocal_main  # homocal.cli.main in-process, as a Completed
 from homocal.cli import main
 from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer
 from homocal.study import advise as A
-from homocal.study.scene import Scene, StudyParams, compute_shard
+from homocal.study.inputs import StudyParams, StudyScene
+from homocal.study.shards import compute_shard
 
 CAM = PinholeCamera()
 SITE_MAP = SiteMap(10.0, (200.0, 600.0))
@@ -53,10 +54,10 @@ def test_scene_maps_the_positions_as_the_camera_does():
 
 @pytest.fixture(scope="module")
 def synthetic_study(tmp_path_factory):
-    """(dataset folder, Scene, shards of variants 0..30): a study of a synthetic scene, 12 calibration points."""
+    """(dataset folder, StudyScene, shards of variants 0..30): a study of a synthetic scene, 12 calibration points."""
     dataset = write_dataset(tmp_path_factory.mktemp("advise") / "ds", n_calibration=12, n_test=500, seed=0)
     params = StudyParams(n_variants=30, n_test=500)
-    scene = Scene.from_dataset(dataset, params)
+    scene = StudyScene.from_dataset(dataset, params)
     return dataset, scene, [compute_shard(scene, params, v)[0] for v in range(params.n_variants + 1)]
 
 

@@ -5,7 +5,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer, check_orientation, signed_area, validate_quad
+from homocal.geometry import (
+    PinholeCamera,
+    SiteMap,
+    ViewTransformer,
+    box_bottom_points,
+    check_orientation,
+    signed_area,
+    validate_quad,
+)
 
 CAM = PinholeCamera()  # the paper's camera: 1280x720, 95 deg hfov, 4 m high, 15 deg down
 GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])  # TL, TR, BR, BL (far edge on top)
@@ -193,3 +201,156 @@ class TestSiteMap:
     def test_bad_scale(self, scale):
         with pytest.raises(ValueError, match="scale_px_per_m"):
             SiteMap(scale, (0.0, 0.0))
+
+
+class TestValidMask:
+    def setup_method(self):
+        self.vt = ViewTransformer(CAM.project_ground(GROUND), GROUND)
+
+    def test_mask_is_false_exactly_where_the_result_is_nan(self):
+        pts = np.array([[640.0, 500.0], [640.0, CAM.horizon_row - 1.0], [np.nan, 600.0], [100.0, 700.0]])
+        ground, valid = self.vt.transform_points(pts, return_valid=True)
+        np.testing.assert_array_equal(valid, [True, False, False, True])
+        np.testing.assert_array_equal(ground, self.vt.transform_points(pts))
+        np.testing.assert_allclose(ground[valid], CAM.ray_to_ground(pts[valid]), atol=1e-9)
+
+    def test_inverse_mask_marks_points_behind_the_camera(self):
+        ground = np.array([[0.0, 10.0], [0.0, -20.0]])  # the second one is behind the camera's image plane
+        image, valid = self.vt.inverse_transform_points(ground, return_valid=True)
+        np.testing.assert_array_equal(valid, [True, False])
+        np.testing.assert_allclose(image[0], CAM.project_ground(ground[:1])[0], atol=1e-9)
+
+    def test_supervision_style_anchors(self):
+        """Detections.get_anchors_coordinates(BOTTOM_CENTER) is a plain (N, 2) float array ((x1 + x2) / 2, y2):
+        it maps as it is, float32 as float64, and filtering with the mask keeps .astype(int) meaningful."""
+        xyxy = np.array([[600.0, 300.0, 640.0, 420.0], [620.0, 100.0, 630.0, 150.0]], dtype=np.float32)
+        anchors = np.column_stack([(xyxy[:, 0] + xyxy[:, 2]) / 2, xyxy[:, 3]])
+        ground, valid = self.vt.transform_points(anchors, return_valid=True)
+        np.testing.assert_allclose(ground[valid], CAM.ray_to_ground(anchors[valid].astype(np.float64)), atol=1e-9)
+        assert valid.tolist() == [True, False] and (ground[valid].astype(int) > -1000).all()
+
+
+MAP = SiteMap(10.0, (400.0, 600.0))  # 10 px per metre; map size 800 x 800 px: x -40..40 m, y -20..60 m
+WAVES = (100 * np.sin(np.arange(1280) / 5)[None, :] + 100 * np.cos(np.arange(720) / 7)[:, None]).astype(np.float32)
+
+
+class TestTransformImage:
+    def setup_method(self):
+        self.vt = ViewTransformer(CAM.project_ground(GROUND), GROUND)  # target in metres
+
+    def test_lands_where_the_pinhole_camera_projects(self):
+        """A frame whose pixels hold their own (u, v): every output pixel holds the image point that the
+        camera projects its ground point to (bilinear interpolation of a linear image is exact, up to
+        OpenCV's 1/32 px sub-pixel steps)."""
+        v, u = np.mgrid[0:720, 0:1280].astype(np.float32)
+        top = self.vt.transform_image(np.dstack([u, v]), (800, 800), MAP)
+        py, px = np.mgrid[0:800, 0:800]
+        expected = CAM.project_ground(MAP.to_metres(np.column_stack([px.ravel(), py.ravel()]))).reshape(800, 800, 2)
+        inside = np.all((expected >= 1) & (expected <= [1278, 718]), axis=-1)
+        assert inside.sum() > 50_000
+        np.testing.assert_allclose(top[inside], expected[inside], atol=1 / 32 + 1e-3)
+
+    def test_known_ground_points_land_on_their_map_pixels(self):
+        """A frame showing 1 m ground squares where the camera sees them: on the map, each square's centroid is
+        at the map pixel of its centre."""
+        ground = np.array([[0.0, 5.0], [-3.0, 10.0], [4.0, 15.0], [-6.0, 20.0]])
+        frame = np.zeros((720, 1280), np.float32)
+        for x, y in ground:
+            square = CAM.project_ground([[x - 0.5, y + 0.5], [x + 0.5, y + 0.5], [x + 0.5, y - 0.5],
+                                         [x - 0.5, y - 0.5]])
+            cv2.fillPoly(frame, [np.rint(square * 16).astype(np.int32)], 1.0, shift=4)
+        top = self.vt.transform_image(frame, (800, 800), MAP)
+        found = []
+        for px, py in np.rint(MAP.to_pixels(ground)).astype(int):
+            w = top[py - 10:py + 11, px - 10:px + 11]
+            yy, xx = np.mgrid[py - 10:py + 11, px - 10:px + 11]
+            found.append([(w * xx).sum() / w.sum(), (w * yy).sum() / w.sum()])
+        np.testing.assert_allclose(MAP.to_metres(found), ground, atol=0.05)
+
+    def test_matches_opencv_warp_and_blanks_what_is_behind_the_camera(self):
+        """Against cv2.warpPerspective with OpenCV's own homography (float32); WAVES changes up to 20 a pixel,
+        so 0.5 px off would differ by 7."""
+        source = CAM.project_ground(GROUND).astype(np.float32)
+        m = cv2.getPerspectiveTransform(source, MAP.to_pixels(GROUND).astype(np.float32))
+        theirs = cv2.warpPerspective(WAVES, m, (800, 800))
+        ours = self.vt.transform_image(WAVES, (800, 800), MAP)
+        behind = np.zeros((800, 800), bool)
+        behind[int(MAP.origin_px[1] + 10 * 4 * np.tan(np.radians(15))) + 1:] = True  # y < -h tan(tilt) = -1.07 m
+        assert (ours[behind] == 0).all() and np.abs(theirs[behind]).max() > 100  # OpenCV paints the sky there
+        np.testing.assert_allclose(ours[~behind], theirs[~behind], atol=0.5)
+
+    def test_site_map_pixels_target(self):
+        """A transformer built on site-map pixels gives the same image without a site_map."""
+        vt_px = ViewTransformer(CAM.project_ground(GROUND), MAP.to_pixels(GROUND))
+        a, b = vt_px.transform_image(WAVES, (800, 800)), self.vt.transform_image(WAVES, (800, 800), MAP)
+        np.testing.assert_allclose(a, b, atol=0.5)
+
+    def test_a_map_all_in_front_is_opencv_warp_itself(self):
+        """Map rows 0..599 are y >= 0.1 m, all in front of the camera: nothing is blanked."""
+        m = np.linalg.inv(MAP.to_metres_matrix) @ self.vt.m
+        ours = self.vt.transform_image(WAVES, (800, 600), MAP)
+        np.testing.assert_array_equal(ours, cv2.warpPerspective(WAVES, m, (800, 600)))
+
+    @pytest.mark.parametrize("image,size,message", [
+        (np.zeros((720, 1280), np.uint8), (0, 800), "size"),
+        (np.zeros((720, 1280), np.uint8), (800,), "size"),
+        (np.zeros((720, 1280), np.uint8), (800.5, 600), "size"),
+        (np.zeros(720, np.uint8), (800, 600), "image"),
+    ])
+    def test_bad_input(self, image, size, message):
+        with pytest.raises(ValueError, match=message):
+            self.vt.transform_image(image, size, MAP)
+
+
+def rasterised_box(mask: np.ndarray) -> dict[str, list[float]]:
+    """The box of a mask in each convention, computed from its pixel rows and columns (as each tool does)."""
+    rows, cols = np.nonzero(mask)
+    x, y, w, h = cv2.boundingRect(mask)  # OpenCV: corners convention, (x + w, y + h) one past the last pixel
+    return {"corners": [x, y, x + w, y + h],
+            "indices": [cols.min(), rows.min(), cols.max(), rows.max()],  # supervision's mask_to_xyxy
+            "homocal": [cols.min() - 0.5, rows.min() - 0.5, cols.max() + 0.5, rows.max() + 0.5]}
+
+
+class TestBoxBottomPoints:
+    @pytest.mark.parametrize("seed", range(5))
+    def test_every_convention_gives_the_bottom_edge_centre(self, seed):
+        rng = np.random.default_rng(seed)
+        mask = np.zeros((120, 160), np.uint8)
+        cv2.fillPoly(mask, [rng.integers(5, 115, (5, 2)).astype(np.int32)], 1)
+        rows, cols = np.nonzero(mask)
+        expected = [(cols.min() + cols.max()) / 2, rows.max() + 0.5]  # homocal pixels: centres at integers
+        for convention, box in rasterised_box(mask).items():
+            np.testing.assert_array_equal(box_bottom_points([box], convention=convention), [expected])
+
+    def test_against_the_pinhole_camera(self):
+        """A pole on the ground near 40 m, rendered by pixel-centre sampling at 200 sub-pixel positions: the
+        converted corners box bottom is unbiased; the raw y2 (corners taken for homocal pixels) is 0.5 px low,
+        0.33 m nearer."""
+        v = CAM.project_ground([[0.0, 40.0]])[0, 1] + np.arange(-100, 100) / 100  # two pixels, evenly
+        d = CAM.ray_to_ground(np.column_stack([np.full(200, 639.5), v]))[:, 1]
+        bottom = CAM.project_ground(np.column_stack([np.zeros_like(d), d]))  # the pole's foot, exact
+        r1 = np.floor(bottom[:, 1])  # lowest pixel row whose centre the pole covers
+        c = np.round(bottom[:, 0])
+        corners = np.column_stack([c - 1, r1 - 30, c + 2, r1 + 1])  # a 3 px wide pole, corners convention
+        feet = box_bottom_points(corners, convention="corners")
+        assert np.abs(feet[:, 1] - bottom[:, 1]).max() <= 0.5 and abs(np.mean(feet[:, 1] - bottom[:, 1])) < 0.02
+        vt = ViewTransformer(CAM.project_ground(GROUND), GROUND)
+        assert abs(np.mean(vt.transform_points(feet)[:, 1] - d)) < 0.02
+        raw = np.column_stack([(corners[:, 0] + corners[:, 2]) / 2, corners[:, 3]])
+        assert np.mean(vt.transform_points(raw)[:, 1] - d) == pytest.approx(-0.33, abs=0.02)
+
+    @pytest.mark.parametrize("d,metres", [(10, 0.02), (20, 0.09), (40, 0.33), (50, 0.51)])
+    def test_documented_half_pixel_cost(self, d, metres):
+        """homocal/geometry/boxes.py's figures: a foot point 0.5 px low, straight ahead on the paper's camera."""
+        low = CAM.project_ground([[0.0, d]]) + [0.0, 0.5]
+        assert d - CAM.ray_to_ground(low)[0, 1] == pytest.approx(metres, abs=0.005)
+
+    @pytest.mark.parametrize("xyxy,convention,message", [
+        ([[0, 0, 10, 10]], "yolo", "convention 'yolo'"),
+        ([0, 0, 10, 10], "corners", r"shape \(N, 4\)"),
+        ([[0, 0, 10]], "corners", r"shape \(N, 4\)"),
+        ([["a", "b", "c", "d"]], "corners", r"shape \(N, 4\)"),
+    ])
+    def test_bad_input(self, xyxy, convention, message):
+        with pytest.raises(ValueError, match=message):
+            box_bottom_points(xyxy, convention=convention)

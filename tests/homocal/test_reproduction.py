@@ -17,7 +17,7 @@ from homocal.cli import main
 from homocal.study import metrics
 from homocal.study.law import exponent, horizon_shift_law, perturbation_law
 from homocal.study.perturb import ShiftSpec, draw_base_error, tilt_shift
-from homocal.study.scene import Scene, StudyParams
+from homocal.study.inputs import StudyParams, StudyScene
 from homocal.study.sweep import expand_values
 from synthetic_dataset import GROUND_RECT, write_dataset
 
@@ -152,7 +152,7 @@ def test_default_base_is_the_hand_placed_trapezoid_and_shift_places_its_horizon(
     """Without --horizon-shift the base is the hand-placed trapezoid to the bit; with it, the base mapping's
     horizon lies `shift` px above the camera's true horizon (camera.json horizon_row), whatever the hand-placed
     trapezoid's own horizon error."""
-    scene = Scene.from_dataset(datasets[0], StudyParams(n_test=100))
+    scene = StudyScene.from_dataset(datasets[0], StudyParams(n_test=100))
     assert (scene.base_image_quad(StudyParams(), 7) == scene.image_quad).all()
     assert abs(scene.horizon_row - scene.true_horizon_row) > 0.05  # the hand-placed one has an error of its own
     shifted = scene.base_image_quad(StudyParams(horizon_shift=str(shift)), 7)
@@ -162,9 +162,9 @@ def test_default_base_is_the_hand_placed_trapezoid_and_shift_places_its_horizon(
 
 
 def test_lateral_limit_keeps_points_near_the_calibration_line(datasets):
-    near = Scene.from_dataset(datasets[0], StudyParams(n_test=50, test_lateral_max=1.0))
+    near = StudyScene.from_dataset(datasets[0], StudyParams(n_test=50, test_lateral_max=1.0))
     assert np.abs(near.test_ground[:, 0]).max() <= 1.0 and len(near.test_ground) == 50
-    everything = Scene.from_dataset(datasets[0], StudyParams(n_test=100))
+    everything = StudyScene.from_dataset(datasets[0], StudyParams(n_test=100))
     assert np.abs(everything.test_ground[:, 0]).max() > 3.0
 
 

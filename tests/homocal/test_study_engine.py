@@ -15,7 +15,8 @@ import pytest
 
 from homocal.cli import main
 from homocal.study.engine import run_study
-from homocal.study.scene import SHARD_SCHEMA, Scene, StudyParams, check_shard, compute_shard, study_key
+from homocal.study.inputs import StudyParams, StudyScene
+from homocal.study.shards import SHARD_SCHEMA, check_shard, compute_shard, study_key
 from synthetic_dataset import write_dataset
 
 
@@ -134,10 +135,10 @@ def test_a_dataset_regenerated_at_the_same_path_is_read_afresh(tmp_path):
 
 def test_degenerate_variant_is_counted_not_dropped(datasets, tmp_path, monkeypatch):
     # a scene whose hand-placed image trapezoid is nearly degenerate: 3 px moves make some variants invalid
-    scene = Scene.from_dataset(datasets[0], StudyParams(n_test=200))
+    scene = StudyScene.from_dataset(datasets[0], StudyParams(n_test=200))
     quad = scene.image_quad.copy()
     quad[1] = quad[0] + 0.5 * (quad[2] - quad[0]) + [0.0, -1.0]  # TR almost on the TL-BR diagonal
-    monkeypatch.setattr(Scene, "from_dataset", classmethod(lambda cls, p, prm: _with_quad(p, prm, quad)))
+    monkeypatch.setattr(StudyScene, "from_dataset", classmethod(lambda cls, p, prm: _with_quad(p, prm, quad)))
     study = run_study(datasets[:1], tmp_path / "deg", StudyParams(n_variants=30, n_test=200), progress=False)
     assert study["complete"] and study["n_degenerate"] > 0
     assert study["samples_done"] + study["samples_degenerate"] == study["samples_total"]
@@ -150,11 +151,11 @@ def test_degenerate_variant_is_counted_not_dropped(datasets, tmp_path, monkeypat
         assert check_shard(shard, d["scene"], d["variant"], scene_key, 0) == variants["reason"][d["variant"]] == d["reason"]
 
 
-_original = Scene.from_dataset.__func__
+_original = StudyScene.from_dataset.__func__
 
 
 def _with_quad(path, params, quad):
-    scene = _original(Scene, path, params)
+    scene = _original(StudyScene, path, params)
     scene.image_quad = quad
     return scene
 
@@ -181,7 +182,7 @@ def test_existing_study_needs_resume(datasets, reference, capsys):
 
 
 def test_shard_function_is_deterministic(datasets):
-    scene = Scene.from_dataset(datasets[1], StudyParams(n_test=100))
+    scene = StudyScene.from_dataset(datasets[1], StudyParams(n_test=100))
     a, _ = compute_shard(scene, StudyParams(n_test=100), 3)
     b, _ = compute_shard(scene, StudyParams(n_test=100), 3)
     assert a.equals(b)

@@ -10,7 +10,8 @@ from homocal.geometry import ViewTransformer
 from homocal.keyed_rng import packed_order, seed_from_key, shuffled_order, splitmix64
 from homocal.study import kernels
 from homocal.study.perturb import draw_variant, perturbed_quads
-from homocal.study.scene import Scene, StudyParams, prepare_variant, run_tables
+from homocal.study.inputs import StudyParams, StudyScene
+from homocal.study.shards import prepare_variant, run_tables
 from homocal.study.triples import n_samples, triples
 from synthetic_dataset import write_dataset
 
@@ -23,7 +24,7 @@ MASK64 = 2**64 - 1
 @pytest.fixture(scope="module")
 def scene(tmp_path_factory):
     path = write_dataset(tmp_path_factory.mktemp("ds") / "scene", "kernel-scene", n_calibration=14, n_test=400)
-    return Scene.from_dataset(path, PARAMS)
+    return StudyScene.from_dataset(path, PARAMS)
 
 
 def fitted(scene, variant, triple, params=PARAMS):

@@ -25,7 +25,8 @@ from homocal.cli import main
 from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer
 from homocal.study import figures, metrics, report
-from homocal.study.scene import StudyParams, study_key
+from homocal.study.inputs import StudyParams
+from homocal.study.shards import study_key
 
 METHODS = metrics.METHODS
 SCENES = {"alpha": (5.0, 9.0, 14.0, 20.0, 27.0, 35.0), "beta": (6.0, 11.0, 17.0, 24.0, 32.0)}  # calibration distances, m

@@ -25,7 +25,9 @@ def test_shipped_scenes(name, count, stop):
     for hand, exact in ((scene.hand_placed_image, scene.trapezoid_exact_image), (scene.hand_placed_map, scene.trapezoid_exact_map)):
         off = np.hypot(*(hand - exact).T)
         assert hand.dtype.kind == "i" and np.all((off >= 1.0) & (off <= 2.0)), off
-    np.testing.assert_allclose(scene.trapezoid_exact_map, scene.to_map(scene.trapezoid_ground))
+    x0, x1, y0, y1 = scene.ground.extent  # the ground plane's corners are the map image's outer pixel corners
+    size = [(x1 - x0) * scene.map_scale, (y1 - y0) * scene.map_scale]
+    np.testing.assert_allclose(scene.site_map.to_pixels([[x0, y1], [x1, y0]]), [[-0.5, -0.5], np.subtract(size, 0.5)])
 
 
 BAD = [

@@ -17,10 +17,9 @@ import numpy as np
 from homocal.correctors.base import Corrector, load_corrector
 from homocal.correctors.descent import DescentCorrector
 from homocal.correctors.horizon import HorizonCorrector
-from homocal.correctors.hybrid import HybridCorrector
+from homocal.correctors.hybrid import DEFAULT_THRESHOLD, HybridCorrector
 from homocal.correctors.regression import RegressionCorrector
-from homocal.correctors.serialization import read_json
-from homocal.files import write_text_atomic
+from homocal.files import read_json, write_text_atomic
 from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, check_orientation, validate_quad
 from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius, straight_ahead_column
 
@@ -84,10 +83,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     fit.add_argument("-o", "--out", required=True, type=Path, metavar="CORRECTION.json", help="the correction to write")
     fit.add_argument("--camera-origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
                      help="ground point under the camera, metres (default 0,0)")
-    fit.add_argument("--threshold", type=float, default=75.0, help="hybrid: keep regression at or above this "
-                     "calibration improvement, percent (default 75)")
+    fit.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, help="hybrid: keep regression at or above "
+                     "this calibration improvement, percent (default %(default)g)")
     fit.add_argument("--seed", type=int, default=0, help="descent, hybrid: seed of the coordinate order (default 0)")
-    fit.set_defaults(handler=run_fit)
+    fit.set_defaults(handler=handle_fit)
 
     apply = subparsers.add_parser(
         "apply", help="map image foot points to corrected ground positions", epilog=APPLY_FORMATS,
@@ -101,10 +100,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                        help="sigma_m: clicking error of each trapezoid coordinate, pixels (default 1.5)")
     apply.add_argument("--point-sigma-px", type=_sigma, default=1.0, metavar="PX",
                        help="sigma_m: error of each foot point coordinate, pixels (default 1.0)")
-    apply.set_defaults(handler=run_apply)
+    apply.set_defaults(handler=handle_apply)
 
 
-def run_fit(args: argparse.Namespace) -> int:
+def handle_fit(args: argparse.Namespace) -> int:
     transformer = load_trapezoid(args.trapezoid)
     _, _, cols, _ = read_points_csv(args.points, ("u", "v", "x", "y"), finite=True)
     if str(args.out) == "-":
@@ -131,7 +130,7 @@ def run_fit(args: argparse.Namespace) -> int:
     return 0
 
 
-def run_apply(args: argparse.Namespace) -> int:
+def handle_apply(args: argparse.Namespace) -> int:
     corrector = load_corrector(args.correction)
     fields, rows, cols, lines = read_points_csv(args.points, ("u", "v"), finite=False)
     to_stdout = str(args.out) == "-"

@@ -1,0 +1,129 @@
+"""The study's inputs: its parameters (StudyParams) and one scene's calibration and test points (StudyScene)."""
+from __future__ import annotations
+
+import functools
+from dataclasses import asdict, dataclass, field, fields
+
+import numpy as np
+
+from homocal.correctors.descent import DescentCorrector
+from homocal.correctors.hybrid import DEFAULT_THRESHOLD
+from homocal.dataset import EXACT, load_dataset
+from homocal.geometry import SiteMap, ViewTransformer
+from homocal.study.perturb import ShiftSpec, base_quad, draw_base_error
+from homocal.study.triples import distance_features, triples
+
+METRICS = ("euclidean", "range")
+
+
+@dataclass(frozen=True)
+class StudyParams:
+    """Everything that determines a study's numbers (written to study.json by to_dict).
+
+    horizon_shift: None (the hand-placed trapezoid as it is) or the clicked trapezoid's systematic error, a
+    ShiftSpec string: its horizon is put that many px above the true one (positive: the mapping
+    underestimates range). click_noise: standard deviation (px) of Gaussian noise on its 8 image coordinates.
+    metric: "euclidean" (ground error ||p - g||) or "range" (| ||g - o|| - ||p - o|| |) for the calibration
+    and path errors the improvements are computed from (the correctors themselves are unchanged).
+    test_lateral_max: test points at most this many metres to the side of the calibration line x = o_x.
+    """
+
+    seed: int = 0
+    n_variants: int = 1000
+    foot_source: str = EXACT  # "exact", "segmentation" or another detector's name
+    n_test: int = 2000
+    max_test_distance: float | None = 50.0  # metres from the camera; the paper's operating range (Fig. 2); None: all
+    test_lateral_max: float | None = None
+    horizon_shift: str | None = None
+    click_noise: float = 0.0
+    metric: str = "euclidean"
+    threshold: float = DEFAULT_THRESHOLD
+    descent: dict = field(default_factory=lambda: {  # DescentCorrector's defaults (its seed is keyed per variant)
+        k: v for k, v in DescentCorrector().get_params().items() if k != "seed"})
+
+    def __post_init__(self) -> None:
+        if self.horizon_shift is not None:
+            object.__setattr__(self, "horizon_shift", str(ShiftSpec.parse(self.horizon_shift)))  # one spelling
+        grid = tuple(float(x) for x in self.descent["grid_offsets"])
+        object.__setattr__(self, "descent", {**self.descent, "grid_offsets": grid})
+        if self.metric not in METRICS:
+            raise ValueError(f"--metric {self.metric!r}: expected one of {', '.join(METRICS)}")
+        if not (isinstance(self.click_noise, (int, float)) and 0 <= self.click_noise <= 100):
+            raise ValueError(f"--click-noise {self.click_noise!r}: expected a number of pixels in [0, 100]")
+        if not isinstance(self.seed, int) or not 0 <= self.seed < 2**63:
+            raise ValueError(f"--seed {self.seed!r}: expected an integer in [0, 2**63)")
+        for name in ("max_test_distance", "test_lateral_max"):
+            value = getattr(self, name)
+            if value is not None and not (isinstance(value, (int, float)) and 0 < value < float("inf")):
+                raise ValueError(f"--{name.replace('_', '-')} {value!r}: expected a positive number of metres or none")
+
+    def to_dict(self) -> dict:
+        """Every field, JSON-ready (study.json; what --resume compares)."""
+        d = asdict(self)
+        d["descent"]["grid_offsets"] = list(d["descent"]["grid_offsets"])
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "StudyParams":
+        """The inverse of to_dict (unknown keys are ignored: study.json holds more)."""
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in d.items() if k in names})
+
+
+@dataclass
+class StudyScene:
+    """A scene's study inputs: hand-placed quads (4, 2), calibration q (M, 2) px, g (M, 2) m, distance (M,) m,
+    test points (N, 2) px and (N, 2) m, camera origin (2,) m, and the triples (S, 3)."""
+
+    name: str
+    site_map: SiteMap
+    image_quad: np.ndarray
+    map_quad: np.ndarray
+    origin: np.ndarray
+    cal_image: np.ndarray
+    cal_ground: np.ndarray
+    distance: np.ndarray
+    test_image: np.ndarray
+    test_ground: np.ndarray
+    triples: np.ndarray
+    K: np.ndarray
+    true_horizon_row: float
+    config_hash: str = ""
+
+    @functools.cached_property
+    def horizon_row(self) -> float:
+        """Horizon row (px) of the hand-placed trapezoid's mapping at the principal column."""
+        return float(ViewTransformer(self.image_quad, self.site_map.to_metres(self.map_quad)).horizon_row(self.K[0, 2]))
+
+    def base_image_quad(self, params: StudyParams, variant: int) -> np.ndarray:
+        """The variant's clicked base image trapezoid (4, 2) px (perturb.base_quad): the hand-placed one, its
+        horizon put the variant's horizon shift above the true one if params has a horizon shift, plus the
+        variant's click noise; the hand-placed one itself by default."""
+        eps, noise = draw_base_error(params.seed, self.name, variant, shift_spec(params), params.click_noise)
+        return base_quad(self.image_quad, self.K, self.horizon_row, self.true_horizon_row, eps, noise)
+
+    @functools.cached_property
+    def distance_features(self) -> tuple[np.ndarray, np.ndarray]:
+        """(d_sum, d_spread) (S,) float32 of every triple (triples.distance_features)."""
+        return distance_features(self.distance, self.triples)
+
+    @classmethod
+    def from_dataset(cls, path, params: StudyParams) -> "StudyScene":
+        """Load a dataset folder; calibration points from the exact or segmentation foot points (a detector's
+        test points use segmentation calibration points, the only detector calibration objects carry)."""
+        ds = load_dataset(path)
+        cal_image, cal_ground, distance = ds.calibration_points(EXACT if params.foot_source == EXACT else "segmentation")
+        if len(cal_image) < 3:
+            raise ValueError(f"{path}: need at least 3 calibration points, got {len(cal_image)}")
+        test_image, test_ground = ds.test_points(params.foot_source, n=params.n_test, seed=params.seed,
+                                                  max_distance=params.max_test_distance,
+                                                  max_lateral=params.test_lateral_max)
+        return cls(ds.name, ds.site_map, ds.trapezoid_image, ds.trapezoid_map, np.asarray(ds.camera_origin, float),
+                   cal_image, cal_ground, distance, test_image, test_ground, triples(len(cal_image)),
+                   np.asarray(ds.camera["K"], dtype=np.float64), float(ds.camera["horizon_row"]),
+                   str(ds.manifest.get("config_hash", "")))
+
+
+def shift_spec(params: StudyParams) -> ShiftSpec | None:
+    """The study's horizon-shift spec, None if it has none."""
+    return None if params.horizon_shift is None else ShiftSpec.parse(params.horizon_shift)
