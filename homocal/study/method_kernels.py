@@ -60,7 +60,7 @@ def radial_error_intercept(cal, i, a, b, c):
 @nb.njit(**PATH_JIT)
 def regression_path_intercept(test, a, b, c):
     """Mean test-point error (m) after the intercept regression, as kernels.regression_paths (float32, units of
-    2^-26 m, fixed-point sum): |r + u c|^2 = |r|^2 + c (2 r.u + c), c = a d^2 + b d + c0."""
+    1/FIXED m, fixed-point sum): |r + u c|^2 = |r|^2 + c (2 r.u + c), c = a d^2 + b d + c0."""
     n = test.shape[1]
     af, bf, cf = np.float32(a / FIXED), np.float32(b), np.float32(c * FIXED)
     total = np.int64(0)

@@ -76,7 +76,7 @@ def prepare_variant(scene: StudyScene, params: StudyParams, variant: int) -> Var
     ut = (pt - o) / dt[:, None]
     w0 = np.column_stack([scene.test_image, np.ones(len(pt))]) @ H0[2]
     s = np.column_stack([scene.test_image, np.ones(len(pt))]) / w0[:, None]
-    f = kernels.FIXED  # lengths in units of 2^-26 m (see kernels.regression_paths)
+    f = kernels.FIXED  # lengths in units of 1/FIXED m (homocal.study.jit)
     test = np.vstack([f * dt, f * f * (rt**2).sum(axis=1), f * 2 * (rt * ut).sum(axis=1), s.T, f * rt.T, f * gt.T,
                       f * (gt - o).T, f * dgt])
     test = test.astype(np.float32)
