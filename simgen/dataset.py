@@ -44,7 +44,7 @@ from simgen.detection import (
     match_to_gt,
     write_mot_gt,
 )
-from simgen.render import backend, mujoco
+from simgen.backend import backend, mujoco
 from simgen.scene import GT_DT, GT_RATE, Scene
 from simgen.stage import Stage
 from simgen.truth import GT_SCHEMA, gt_columns
