@@ -33,7 +33,7 @@ import pyarrow.parquet as pq
 
 from homocal.files import write_atomic, write_json_atomic
 from simgen.detection.association import TIE_TOLERANCE_S, associate, match_to_gt, nearest_sample
-from simgen.detection.core import DetectionBatch, detections_table
+from simgen.detection.batch import DetectionBatch, detections_table
 
 BUILTIN_DETECTORS = ("segmentation", "rgb", "hog")
 

@@ -6,7 +6,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from homocal.dataset import load_dataset
+from homocal.dataset import calibration_source, load_dataset
 
 
 def project(camera: dict, xy: np.ndarray) -> np.ndarray:
@@ -57,6 +57,18 @@ def test_hand_placed_trapezoid_is_near_exact(tiny_dataset):
     exact = np.asarray(ds.trapezoids["exact"]["image"])
     assert 0 < np.abs(ds.trapezoid_image - exact).max() <= 2.5
     np.testing.assert_allclose(ds.site_map.to_metres(ds.trapezoids["exact"]["map"]), ds.trapezoids["ground_m"], atol=1e-9)
+
+
+@pytest.mark.parametrize("source", ["rgb", "hog", "Exact", "", "anything"])
+def test_calibration_points_refuse_unknown_sources(tiny_dataset, source):
+    with pytest.raises(ValueError, match=f"calibration points come from 'exact' or 'segmentation', not {source!r}"):
+        load_dataset(tiny_dataset).calibration_points(source)
+
+
+@pytest.mark.parametrize("foot_source,expected", [("exact", "exact"), ("segmentation", "segmentation"),
+                                                  ("rgb", "segmentation"), ("hog", "segmentation")])
+def test_calibration_source_of_a_foot_source(foot_source, expected):
+    assert calibration_source(foot_source) == expected
 
 
 def test_unknown_detector(tiny_dataset):
