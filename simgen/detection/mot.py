@@ -34,6 +34,7 @@ import pyarrow.parquet as pq
 from homocal.files import write_atomic, write_json_atomic
 from simgen.detection.association import TIE_TOLERANCE_S, associate, match_to_gt, nearest_sample
 from simgen.detection.batch import DetectionBatch, detections_table
+from simgen.parquet import write_parquet
 
 BUILTIN_DETECTORS = ("segmentation", "rgb", "hog")
 
@@ -139,7 +140,7 @@ def import_mot(dataset_dir: str | os.PathLike, mot_txt_path: str | os.PathLike, 
 
 
 def append_detections(dataset_dir: str | os.PathLike, table: pa.Table) -> None:
-    """Add `table` to the dataset's detections.parquet atomically (temporary file, then rename).
+    """Add `table` to the dataset's detections.parquet atomically (temporary file, then rename), NaN as null.
 
     Rows of the existing file whose detector name occurs in `table` are replaced, so importing
     the same detector twice does not duplicate it. Columns must match the existing file's.
@@ -149,7 +150,7 @@ def append_detections(dataset_dir: str | os.PathLike, table: pa.Table) -> None:
         existing = pq.read_table(path)
         keep = pc.invert(pc.is_in(existing.column("detector"), value_set=pc.unique(table.column("detector"))))
         table = pa.concat_tables([existing.filter(keep), table.select(existing.column_names).cast(existing.schema)])
-    write_atomic(path, lambda tmp: pq.write_table(table, tmp))
+    write_parquet(path, table)
 
 
 def import_into_dataset(dataset_dir: str | os.PathLike, mot_txt_path: str | os.PathLike, name: str, min_iou: float = 0.5) -> int:
@@ -177,7 +178,7 @@ def import_into_dataset(dataset_dir: str | os.PathLike, mot_txt_path: str | os.P
 def write_mot_gt(gt: pa.Table, fps: float, path: str | os.PathLike) -> None:
     """Write the ground truth as a MOT16/17 gt.txt (mot/gt.txt), atomically.
 
-    gt: columns t (s), agent_id, x1, y1, x2, y2 (px, NaN when not visible), visible_fraction.
+    gt: columns t (s), agent_id, x1, y1, x2, y2 (px, null or NaN when not visible), visible_fraction.
     One line per video frame n = 1 .. floor(t_max * fps) + 1 and agent visible (finite box) in the
     ground-truth sample nearest to t = (n - 1) / fps, ordered by frame, then agent_id:
     ``n, agent_id, bb_left, bb_top, bb_width, bb_height, 1, 1, visible_fraction``
