@@ -27,8 +27,11 @@ for name in sys.argv[1:]:
 
 
 def run(env: dict, *args: str, wrap: list[str] | None = None) -> subprocess.CompletedProcess:
+    """A fresh process as a user starts it: without the PYOPENGL_PLATFORM that importing mujoco (egl) in
+    this test process set, which would make PyOpenGL load EGL whatever MUJOCO_GL says."""
+    base = {k: v for k, v in os.environ.items() if k != "PYOPENGL_PLATFORM"}
     return subprocess.run([*(wrap or []), sys.executable, *args], capture_output=True, text=True, timeout=300,
-                          env={**os.environ, "PYTHONPATH": str(ROOT), **env}, cwd=ROOT)
+                          env={**base, "PYTHONPATH": str(ROOT), **env}, cwd=ROOT)
 
 
 def test_no_module_reaches_mujoco_around_the_guard():
