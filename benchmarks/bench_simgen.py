@@ -43,7 +43,8 @@ import pyarrow.parquet as pq
 
 import simgen.dataset as dataset
 from simgen.model import CAMERA
-from simgen.render import QUALITY, FrameRenderer, apply_quality, backend, mujoco
+from simgen.backend import backend, mujoco
+from simgen.render import QUALITY, FrameRenderer, apply_quality
 from simgen.scene import load_scene
 from simgen.stage import Stage
 

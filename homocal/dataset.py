@@ -12,6 +12,8 @@ import pyarrow.parquet as pq
 from homocal.geometry import SiteMap, validate_quad
 
 EXACT = "exact"
+SEGMENTATION = "segmentation"
+CALIBRATION_SOURCES = (EXACT, SEGMENTATION)  # calibration objects are detected by the segmentation detector only
 REQUIRED_COLUMNS = {
     "gt.parquet": ["t", "agent_id", "x", "y", "u", "v", "in_frame"],
     "detections.parquet": ["detector", "frame", "agent_id", "u", "v", "gt_x", "gt_y"],
@@ -45,9 +47,13 @@ class Dataset:
     def calibration_points(self, source: str = EXACT) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Calibration objects in index order: image (M, 2) px, ground (M, 2) m, distance (M,) m.
 
-        source "exact" takes the exact projection of each contact point; any other value takes the
-        foot point the segmentation detector found (the only detector calibration objects carry).
+        source "exact" takes the exact projection of each contact point, "segmentation" the foot point the
+        segmentation detector found (the only detector calibration objects carry); anything else is a
+        ValueError (``calibration_source`` gives the source that goes with a study's foot source).
         """
+        if source not in CALIBRATION_SOURCES:
+            raise ValueError(f"{self.path}: calibration points come from {' or '.join(map(repr, CALIBRATION_SOURCES))}, "
+                             f"not {source!r} (calibration objects are detected by the segmentation detector only)")
         table = self.table("calibration.parquet")
         cols = ("u_exact", "v_exact") if source == EXACT else ("u", "v")
         image = _columns(table, cols)
@@ -99,6 +105,12 @@ class Dataset:
     def table(self, filename: str):
         """A Parquet table of the dataset (its columns were checked by load_dataset)."""
         return pq.read_table(self.path / filename)
+
+
+def calibration_source(foot_source: str) -> str:
+    """The calibration foot points that go with test points of ``foot_source``: exact with "exact", the
+    segmentation detector's with any detector's (calibration objects carry no other detector's)."""
+    return EXACT if foot_source == EXACT else SEGMENTATION
 
 
 def load_dataset(path: str | Path) -> Dataset:

@@ -27,7 +27,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 from homocal.files import write_text_atomic  # noqa: E402
-from simgen.rng import keyed_rng  # noqa: E402
+from simgen.rng import keyed_generator  # noqa: E402
 from simgen.scene import ConfigError, load_scene  # noqa: E402
 
 RES = 20  # texture px per metre
@@ -132,7 +132,7 @@ def write_trapezoid_block(scene_dir: Path, seed: int = SEED) -> None:
         sys.exit(f"make_scene_assets: error: {toml_path}: no '# BEGIN hand-placed' ... '# END hand-placed' block "
                  "in [trapezoid] to rewrite (copy it from scenes/scene1/scene.toml)")
     scene = load_scene(scene_dir, check_trapezoid=False)
-    rng = keyed_rng(seed, scene.name, "hand-placed trapezoid")
+    rng = keyed_generator(seed, scene.name, "hand-placed trapezoid")
     img, mp = hand_placed(scene.trapezoid_exact_image, rng), hand_placed(scene.trapezoid_exact_map, rng)
     fmt = lambda q: "[" + ", ".join(f"[{a}, {b}]" for a, b in q) + "]"  # noqa: E731
     block = (

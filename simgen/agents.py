@@ -5,8 +5,8 @@ walk after another: a route drawn by weight, shifted sideways, maybe reversed, w
 speed with at most one wait on the way (speed 0: at the route's first corner in the walking
 direction, the kerb before a crossing in the shipped scenes, or at a random point of a straight
 route), then a pause off the scene. Each walk is a new agent: ``agent_id = slot + count * j`` for
-the slot's j-th walk, never reused. Slot k's walks come from ``keyed_rng(seed, scene, "slot", k)``
-and each agent's look from ``keyed_rng(seed, scene, "person", agent_id)`` alone, so they do not
+the slot's j-th walk, never reused. Slot k's walks come from ``keyed_generator(seed, scene, "slot", k)``
+and each agent's look from ``keyed_generator(seed, scene, "person", agent_id)`` alone, so they do not
 depend on the duration, on the other slots, or on where a run was resumed.
 """
 from __future__ import annotations
@@ -19,7 +19,7 @@ from functools import cached_property
 import numpy as np
 
 from simgen.humanoid import LIFT, PARTS, Person, draw_person, gait, pose, stride_length, to_world
-from simgen.rng import keyed_rng
+from simgen.rng import keyed_generator
 from simgen.scene import Scene
 
 ARM_SWING = 0.35  # arm swing amplitude at 1.4 m/s, radians, proportional to the walking speed
@@ -119,7 +119,7 @@ def _draw_walk(scene: Scene, seed: int, rng: np.random.Generator, agent_id: int,
     length = float(np.hypot(*np.diff(points, axis=0).T).sum())
     stop_at = float(np.hypot(*(points[1] - points[0]))) if len(points) > 2 else where * length
     lo, hi = route.wait_s
-    person = draw_person(keyed_rng(seed, scene.name, "person", agent_id))
+    person = draw_person(keyed_generator(seed, scene.name, "person", agent_id))
     return Walk(agent_id, points, speed, t_start, person, stop_at, lo + wait * (hi - lo) if waits else 0.0)
 
 
@@ -130,7 +130,7 @@ class Crowd:
         self.count = scene.agent_count
         self.slots: list[list[Walk]] = []
         for k in range(self.count):
-            rng = keyed_rng(seed, scene.name, "slot", k)
+            rng = keyed_generator(seed, scene.name, "slot", k)
             walk = _draw_walk(scene, seed, rng, k, 0.0)
             # the first walk is under way at t = 0: its start is spread over one walk's duration
             walk = dataclasses.replace(walk, t_start=-rng.uniform(0.0, walk.t_end))

@@ -1,4 +1,9 @@
-"""The ``simgen`` command: generate a dataset, preview a scene, import an external detector's output.
+"""The ``simgen`` command: generate a dataset, preview a scene, import an external detector's output, export
+a dataset for MOTChallenge tools.
+
+Each subcommand has a handler ``fn(args) -> str`` (``parser.set_defaults(handler=fn)``) that returns its
+one-line summary; ``main`` prints it as ``simgen COMMAND: ...``. Every subcommand that writes takes
+``-o/--out``.
 
 Every command fails with one line on stderr (``simgen: error: ...``) naming the flag or file at fault, and
 exit code 2 (3 when no OpenGL backend works): bad numbers are refused where they are parsed, file-system
@@ -10,9 +15,13 @@ import argparse
 import math
 import sys
 import time
+from importlib.metadata import version
 from pathlib import Path
 
-from simgen.scene import QUALITIES
+from homocal.progress import add_progress_option, show_progress
+from simgen.scene import DETECTORS, QUALITIES
+
+FILE_COMMANDS = ("import-mot", "export-mot")  # their errors name the command (generate's and preview's name the file or field)
 
 
 def _fail(message: str, code: int = 2) -> int:
@@ -44,37 +53,58 @@ def _number(kind, low: float, high: float = math.inf, low_open: bool = False):
 
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="simgen", description="MuJoCo synthetic traffic datasets (data_schema.md).")
-    sub = p.add_subparsers(dest="command", required=True)
+    p.add_argument("--version", action="version", version=f"simgen {version('homocal')}",
+                   help="print simgen's version (the installed homocal distribution's) and exit")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     g = sub.add_parser("generate", help="render a scene into a dataset folder")
-    g.add_argument("scene_dir", type=Path)
-    g.add_argument("--out", type=Path, required=True, help="dataset folder to write")
+    g.add_argument("scene_dir", type=Path, help="scene folder (scene.toml, the MJCF and its ground texture)")
+    _add_out(g, "dataset folder to write (new or empty; with --resume, a killed run's)")
     g.add_argument("--seconds", type=_number(float, 0, low_open=True), help="simulated duration (default: the scene's run.seconds)")
     g.add_argument("--seed", type=_number(int, 0), default=0, help="random seed, an integer >= 0 (default 0)")
     g.add_argument("--fps", type=_number(int, 1), help="video frame rate (default: the scene's run.fps)")
-    g.add_argument("--detectors", help="comma-separated, from: segmentation,rgb (default: the scene's)")
+    g.add_argument("--detectors", help=f"comma-separated, from: {','.join(DETECTORS)} (default: the scene's)")
     g.add_argument("--quality", choices=QUALITIES, help="render preset (default: the scene's render.quality, else default)")
     g.add_argument("--workers", type=_number(int, 1), default=1, help="render chunks in this many processes (default 1)")
     g.add_argument("--scheduler", metavar="ADDRESS",
                    help="render chunks on the Dask cluster at ADDRESS (tcp://host:8786); its workers need the same "
                         "simgen, libraries and MUJOCO_GL as this process (a worker that differs stops the run)")
     g.add_argument("--resume", action="store_true", help="continue a killed run in --out")
-    g.add_argument("--no-progress", action="store_true")
+    add_progress_option(g)
+    g.set_defaults(handler=_generate)
 
     v = sub.add_parser("preview", help="render one annotated frame (boxes, foot points, trapezoid, horizon)")
-    v.add_argument("scene_dir", type=Path)
-    v.add_argument("-o", "--output", type=Path, required=True, help="PNG to write")
-    v.add_argument("--t", type=_number(float, 0), default=0.0, help="simulated time, seconds")
-    v.add_argument("--seed", type=_number(int, 0), default=0)
+    v.add_argument("scene_dir", type=Path, help="scene folder (scene.toml, the MJCF and its ground texture)")
+    _add_out(v, "PNG to write")
+    v.add_argument("--t", type=_number(float, 0), default=0.0, help="simulated time, seconds (default 0)")
+    v.add_argument("--seed", type=_number(int, 0), default=0, help="random seed of the walks, an integer >= 0 (default 0)")
     v.add_argument("--quality", choices=QUALITIES, help="render preset (default: the scene's)")
+    v.set_defaults(handler=_preview)
 
     m = sub.add_parser("import-mot", help="add an external detector's MOTChallenge file to a dataset")
-    m.add_argument("dataset_dir", type=Path)
-    m.add_argument("mot_txt", type=Path)
-    m.add_argument("--name", required=True, help="detector name for the detections.parquet rows (not segmentation or rgb)")
+    m.add_argument("dataset_dir", type=Path, help="a complete simgen dataset folder (its detections.parquet gains the rows)")
+    m.add_argument("mot_txt", type=Path, help="MOTChallenge det.txt or gt.txt layout (data_schema.md)")
+    m.add_argument("--name", required=True, help="detector name for the detections.parquet rows (not segmentation, rgb or hog)")
     m.add_argument("--min-iou", type=_number(float, 0, 1, low_open=True), default=0.5,
                    help="box IoU in (0, 1] needed to associate a box with an agent (default 0.5)")
+    m.set_defaults(handler=_import_mot)
+
+    e = sub.add_parser("export-mot", help="write a dataset as a MOTChallenge sequence folder (TrackEval, motmetrics)")
+    e.add_argument("dataset_dir", type=Path, help="a complete simgen dataset folder")
+    _add_out(e, "sequence folder to write: seqinfo.ini, gt/gt.txt, det/<detector>.txt (new, empty or an earlier export)")
+    e.set_defaults(handler=_export_mot)
     return p
+
+
+def _add_out(parser: argparse.ArgumentParser, help: str) -> None:
+    """-o/--out, the one output flag of every subcommand that writes (a folder or an image: never ``-``)."""
+    parser.add_argument("-o", "--out", type=_output_path, required=True, help=help)
+
+
+def _output_path(text: str) -> Path:
+    if text == "-":
+        raise argparse.ArgumentTypeError("simgen writes files, not a table to stdout: give a path")
+    return Path(text)
 
 
 def _os_message(e: OSError) -> str:
@@ -84,49 +114,63 @@ def _os_message(e: OSError) -> str:
     return (str(e).strip().splitlines() or [type(e).__name__])[0]
 
 
+def _generate(args: argparse.Namespace) -> str:
+    from simgen.dataset import generate
+    from simgen.scene import load_scene
+
+    detectors = args.detectors.split(",") if args.detectors else None
+    scene = load_scene(args.scene_dir).with_run(seconds=args.seconds, fps=args.fps, detectors=detectors, quality=args.quality)
+    t0 = time.perf_counter()
+    generate(scene, args.seed, args.out, resume=args.resume, progress=show_progress(args), workers=args.workers,
+             scheduler=args.scheduler)
+    return (f"{args.out}: {scene.name}, seed {args.seed}, {scene.frames_total} frames at {scene.fps} fps, "
+            f"detectors {','.join(scene.detectors)}, quality {scene.quality}, complete ({time.perf_counter() - t0:.1f} s)")
+
+
+def _preview(args: argparse.Namespace) -> str:
+    from simgen.preview import preview
+    from simgen.scene import load_scene
+
+    scene = load_scene(args.scene_dir).with_run(quality=args.quality)
+    agents = preview(scene, args.seed, args.t, args.out)
+    return f"{args.out}: {scene.name} at t = {args.t:g} s, seed {args.seed}, {agents} agents in view"
+
+
+def _import_mot(args: argparse.Namespace) -> str:
+    from simgen.detection import import_into_dataset
+
+    n = import_into_dataset(args.dataset_dir, args.mot_txt, args.name, args.min_iou)
+    return f"{n} detections of {args.name!r} added to {args.dataset_dir / 'detections.parquet'}"
+
+
+def _export_mot(args: argparse.Namespace) -> str:
+    from simgen.export import export_mot
+
+    lines = export_mot(args.dataset_dir, args.out)
+    return f"{args.out}: " + ", ".join(f"{name} {n} lines" for name, n in lines.items())
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run one subcommand; on success print its one-line summary (``simgen COMMAND: ...``) and return 0."""
     try:
         args = _parser().parse_args(argv)
     except SystemExit as e:  # --help, --version, or a refused argument (already printed)
         return e.code
     try:
-        from simgen.render import BackendError  # first: guards the mujoco import
-    except Exception as e:  # noqa: BLE001  (BackendError raised while importing simgen.render)
+        from simgen.backend import BackendError  # first: the guarded mujoco import
+    except Exception as e:  # noqa: BLE001  (BackendError raised while importing simgen.backend)
         return _fail(str(e), 3)
     from homocal.files import OutputFolderError
-    from simgen.dataset import DatasetError, generate
-    from simgen.scene import ConfigError, load_scene
+    from simgen.dataset import DatasetError
 
     try:
-        if args.command == "import-mot":
-            from simgen.detection import import_into_dataset
-
-            try:
-                n = import_into_dataset(args.dataset_dir, args.mot_txt, args.name, args.min_iou)
-            except (ValueError, OSError, KeyError) as e:
-                return _fail(f"import-mot: {_os_message(e) if isinstance(e, OSError) else e}")
-            print(f"simgen import-mot: {n} detections of {args.name!r} added to {args.dataset_dir / 'detections.parquet'}")
-            return 0
-        scene = load_scene(args.scene_dir).with_run(quality=args.quality)
-        if args.command == "preview":
-            from simgen.preview import preview
-
-            preview(scene, args.seed, args.t, args.output)
-            return 0
-        detectors = args.detectors.split(",") if args.detectors else None
-        scene = scene.with_run(seconds=args.seconds, fps=args.fps, detectors=detectors)
-        t0 = time.perf_counter()
-        generate(scene, args.seed, args.out, resume=args.resume, progress=not args.no_progress,
-                 workers=args.workers, scheduler=args.scheduler)
-        print(f"simgen generate: {args.out}: {scene.name}, seed {args.seed}, {scene.frames_total} frames at {scene.fps} fps, "
-              f"detectors {','.join(scene.detectors)}, quality {scene.quality}, complete ({time.perf_counter() - t0:.1f} s)")
+        print(f"simgen {args.command}: {args.handler(args)}")
         return 0
-    except (ConfigError, DatasetError, OutputFolderError) as e:
-        return _fail(str(e))
     except BackendError as e:
         return _fail(str(e), 3)
-    except OSError as e:
-        return _fail(_os_message(e))
+    except (ValueError, KeyError, OSError, DatasetError, OutputFolderError) as e:  # ConfigError is a ValueError
+        message = _os_message(e) if isinstance(e, OSError) else str(e)
+        return _fail(f"{args.command}: {message}" if args.command in FILE_COMMANDS else message)
 
 
 if __name__ == "__main__":

@@ -36,6 +36,7 @@ from tqdm import tqdm
 import homocal.geometry.camera
 import simgen
 from homocal.files import OutputFolder, output_folder, write_atomic, write_json_atomic
+from simgen.backend import backend, mujoco
 from simgen.detection import (
     BackgroundSubtractionDetector,
     HogDetector,
@@ -44,7 +45,7 @@ from simgen.detection import (
     match_to_gt,
     write_mot_gt,
 )
-from simgen.render import backend, mujoco
+from simgen.parquet import write_parquet
 from simgen.scene import GT_DT, GT_RATE, Scene
 from simgen.stage import Stage
 from simgen.truth import GT_SCHEMA, gt_columns
@@ -87,10 +88,6 @@ def build_id() -> dict:
     and the digest of the code this process imported. ``render_chunks`` in a worker checks it against the
     run's, so a worker with other code fails with one line instead of writing different bytes."""
     return {**_versions(), "backend": backend(), "source": _SOURCE_DIGEST}
-
-
-def write_parquet(path: Path, table: pa.Table) -> None:
-    write_atomic(path, lambda p: pq.write_table(table, p, compression="zstd"))
 
 
 # ---- the static files ----------------------------------------------------------------------

@@ -10,10 +10,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 
 from homocal.geometry.camera import PinholeCamera
+from simgen.backend import mujoco
 from simgen.humanoid import PARTS, Person, pose
 from simgen.scene import Scene
 

@@ -6,6 +6,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from homocal.files import write_atomic
 from simgen.detection import SegmentationDetector
 from simgen.scene import Scene
 from simgen.stage import Stage
@@ -40,10 +41,13 @@ def annotate(scene: Scene, rgb: np.ndarray, agent_ids: np.ndarray, foot_xy: np.n
     return img
 
 
-def preview(scene: Scene, seed: int, t: float, path: str | Path) -> None:
-    """Render the scene at time t (seconds) with ``seed`` and write the annotated frame to ``path`` (PNG)."""
+def preview(scene: Scene, seed: int, t: float, path: str | Path) -> int:
+    """Render the scene at time t (seconds) with ``seed``, write the annotated frame to ``path`` (PNG,
+    atomically; OSError naming ``path`` if it cannot be written) and return the number of agents in view."""
     with Stage(scene, seed, t_end=t + 1.0) as stage:
         state = stage.set_time(t)
-        img = annotate(scene, stage.rgb(), stage.agent_ids(), state.xy)
-    if not cv2.imwrite(str(path), img):
-        raise OSError(f"{path}: could not write the image")
+        agent_ids = stage.agent_ids()
+        img = annotate(scene, stage.rgb(), agent_ids, state.xy)
+    png = cv2.imencode(".png", img)[1].tobytes()
+    write_atomic(path, lambda tmp: tmp.write_bytes(png))
+    return len(np.unique(agent_ids[agent_ids >= 0]))

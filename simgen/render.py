@@ -1,51 +1,22 @@
 """Offscreen rendering with MuJoCo's classic renderer: RGB and segmentation passes of the run camera.
 
-The backend is ``MUJOCO_GL`` (egl by default, osmesa supported). When it cannot work, a
+The backend is ``MUJOCO_GL`` (simgen.backend: egl by default, osmesa supported). When it cannot work, a
 ``BackendError`` carries one line naming the Debian packages to install.
 """
 from __future__ import annotations
 
-import os
 import warnings
 
 import numpy as np
 
-import simgen  # noqa: F401  (sets the MUJOCO_GL default before mujoco is imported)
-
-PACKAGES = {"egl": "libegl1 libgl1-mesa-dri libopengl0", "osmesa": "libosmesa6"}
+from simgen.backend import BackendError, backend_message, mujoco
+from simgen.model import CAMERA
 
 QUALITY = {  # preset -> (offscreen multisamples, shadow map px; 0: no shadows): ``[render] quality``, ``--quality``
     "draft": (0, 0),  # no anti-aliasing: edges stair-stepped; RGB in 0.29x default's time on llvmpipe (README)
     "default": (4, 0),  # MuJoCo's 4 samples, shadows off (what every dataset before the presets used)
     "high": (8, 4096),  # 8 samples, every light of the scene casts shadows; RGB 2.2x default's time
 }
-
-
-class BackendError(RuntimeError):
-    """No usable OpenGL backend; the message is one line."""
-
-
-def backend() -> str:
-    return os.environ.get("MUJOCO_GL", "egl")
-
-
-def backend_message(err: BaseException) -> str:
-    """One line: which backend failed, why (first line of the error), what to install."""
-    b = backend()
-    reason = (str(err).strip().splitlines() or [type(err).__name__])[0][:160]
-    if b in PACKAGES:
-        fix = f"apt-get install {PACKAGES[b]}"
-    else:
-        fix = f"set MUJOCO_GL=egl (apt-get install {PACKAGES['egl']}) or MUJOCO_GL=osmesa (apt-get install {PACKAGES['osmesa']})"
-    return f"cannot render offscreen with MUJOCO_GL={b} ({type(err).__name__}: {reason}); fix: {fix}"
-
-
-try:
-    import mujoco
-except Exception as e:  # osmesa without libosmesa6 fails here with an AttributeError from ctypes
-    raise BackendError(backend_message(e)) from e
-
-from simgen.model import CAMERA  # noqa: E402
 
 
 def apply_quality(model: mujoco.MjModel, quality: str) -> None:

@@ -6,7 +6,7 @@ import hashlib
 import numpy as np
 
 
-def keyed_rng(seed: int, *key: object) -> np.random.Generator:
+def keyed_generator(seed: int, *key: object) -> np.random.Generator:
     """A Generator that depends only on ``seed`` and the key's text (e.g. scene name, "slot", 3)."""
     digest = hashlib.sha256("/".join(map(str, key)).encode()).digest()
     words = np.frombuffer(digest, dtype="<u4").tolist()

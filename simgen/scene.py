@@ -231,7 +231,7 @@ def _range(d: dict, key: str, low: float = 0.0) -> tuple[float, float]:
 
 def _read_ground(model_path: Path) -> Ground:
     """Find the plane named ``ground`` and its texture in the MJCF (compiling it on the way)."""
-    import mujoco  # noqa: PLC0415  (simgen/__init__ chose the GL backend)
+    from simgen.backend import mujoco  # noqa: PLC0415  (only here: reading a config needs no GL otherwise)
 
     try:
         spec = mujoco.MjSpec.from_file(str(model_path))

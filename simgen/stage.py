@@ -6,10 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from simgen.render import FrameRenderer, apply_quality, id_map, mujoco  # render first: it guards the mujoco import
 from simgen.agents import AgentState, Crowd
+from simgen.backend import mujoco
 from simgen.humanoid import to_world
 from simgen.model import CALIBRATION, PARKED, build_model, pose_geoms, standing
+from simgen.render import FrameRenderer, apply_quality, id_map
 from simgen.scene import Scene
 
 

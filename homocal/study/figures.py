@@ -18,7 +18,7 @@ from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
 from homocal.correctors import fit_quadratic_error
-from homocal.dataset import Dataset, load_dataset
+from homocal.dataset import Dataset, calibration_source, load_dataset
 from homocal.geometry import ViewTransformer
 from homocal.study.aggregate import Quantiles, scan
 from homocal.study.metrics import METHODS
@@ -193,7 +193,7 @@ def error_vs_distance(ds: Dataset, variants_file: Path, source: str, out: Path, 
     and test points) and the first n_variants perturbed, non-degenerate variants (calibration points), each
     with the least-squares fit e = a d^2 + b d over its calibration points (paper eqs. (17), (19); the
     counterpart of the paper's Fig. 3)."""
-    cal_img, cal_ground, _ = ds.calibration_points(source)
+    cal_img, cal_ground, _ = ds.calibration_points(calibration_source(source))
     test_img, test_ground = ds.test_points(source, n=n_test, seed=seed, max_distance=max_distance)
     fig = Figure(figsize=(8, 5.5), layout="constrained")
     ax = fig.subplots()
@@ -236,7 +236,7 @@ def test_distance_distribution(datasets: list[Dataset], source: str, out: Path, 
         d = _distance(ds, ds.test_points(source, n=n_test, seed=seed, max_distance=max_distance)[1])
         sizes.append(f"{ds.name}: {len(d)}")
         ax.hist(d, bins=np.arange(0, d.max() + width, width), histtype="step", color=color, lw=1.5, label=f"{ds.name} test points")
-        cal = ds.calibration_points(source)[2]
+        cal = ds.calibration_points(calibration_source(source))[2]
         ax.plot(cal, np.zeros_like(cal), "|", color=color, ms=14, mew=1.5, label=f"{ds.name} calibration distances")
     ax.set_xlabel("distance from the camera (m)")
     ax.set_ylabel(f"test points per {width:g} m bin")

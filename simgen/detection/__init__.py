@@ -7,10 +7,10 @@ Conventions (also in data_schema.md): image pixels with the centre of the top-le
 """
 from simgen.detection.association import associate, box_iou, greedy_assign, match_to_gt, nearest_sample
 from simgen.detection.background import BackgroundSubtractionDetector
-from simgen.detection.core import DETECTIONS_SCHEMA, DetectionBatch, Detector, detections_table, foot_points
+from simgen.detection.batch import DETECTIONS_SCHEMA, DetectionBatch, Detector, detections_table, foot_points
 from simgen.detection.hog import BoxFunction, FunctionDetector, HogDetector
 from simgen.detection.masks import SegmentationDetector, id_boxes, mask_boxes
-from simgen.detection.mot import append_detections, import_into_dataset, import_mot, read_mot, write_mot_gt
+from simgen.detection.mot import append_detections, import_into_dataset, import_mot, read_mot, write_mot_det, write_mot_gt
 
 __all__ = [
     "DETECTIONS_SCHEMA",
@@ -34,5 +34,6 @@ __all__ = [
     "match_to_gt",
     "nearest_sample",
     "read_mot",
+    "write_mot_det",
     "write_mot_gt",
 ]

@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from simgen.detection.association import associate
-from simgen.detection.core import DetectionBatch
+from simgen.detection.batch import DetectionBatch
 from simgen.detection.masks import id_boxes
 
 _CLOSE_KERNEL = np.ones((3, 3), np.uint8)

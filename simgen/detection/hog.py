@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 from simgen.detection.association import associate
-from simgen.detection.core import DetectionBatch
+from simgen.detection.batch import DetectionBatch
 from simgen.detection.masks import id_boxes
 
 BoxFunction = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from simgen.detection.core import DetectionBatch
+from simgen.detection.batch import DetectionBatch
 
 MAX_AGENT_ID = 2**24
 

@@ -1,4 +1,4 @@
-"""MOTChallenge text files: import an external detector's output, export the ground truth.
+"""MOTChallenge text files: import an external detector's output, export the ground truth and detections.
 
 Lines hold comma-separated values; the first seven are
 ``frame, id, bb_left, bb_top, bb_width, bb_height, conf``, followed by either ``x, y, z``
@@ -31,9 +31,10 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from homocal.files import write_atomic, write_json_atomic
+from homocal.files import write_json_atomic, write_text_atomic
 from simgen.detection.association import TIE_TOLERANCE_S, associate, match_to_gt, nearest_sample
-from simgen.detection.core import DetectionBatch, detections_table
+from simgen.detection.batch import DetectionBatch, detections_table
+from simgen.parquet import write_parquet
 
 BUILTIN_DETECTORS = ("segmentation", "rgb", "hog")
 
@@ -139,7 +140,7 @@ def import_mot(dataset_dir: str | os.PathLike, mot_txt_path: str | os.PathLike, 
 
 
 def append_detections(dataset_dir: str | os.PathLike, table: pa.Table) -> None:
-    """Add `table` to the dataset's detections.parquet atomically (temporary file, then rename).
+    """Add `table` to the dataset's detections.parquet atomically (temporary file, then rename), NaN as null.
 
     Rows of the existing file whose detector name occurs in `table` are replaced, so importing
     the same detector twice does not duplicate it. Columns must match the existing file's.
@@ -149,7 +150,7 @@ def append_detections(dataset_dir: str | os.PathLike, table: pa.Table) -> None:
         existing = pq.read_table(path)
         keep = pc.invert(pc.is_in(existing.column("detector"), value_set=pc.unique(table.column("detector"))))
         table = pa.concat_tables([existing.filter(keep), table.select(existing.column_names).cast(existing.schema)])
-    write_atomic(path, lambda tmp: pq.write_table(table, tmp))
+    write_parquet(path, table)
 
 
 def import_into_dataset(dataset_dir: str | os.PathLike, mot_txt_path: str | os.PathLike, name: str, min_iou: float = 0.5) -> int:
@@ -174,10 +175,10 @@ def import_into_dataset(dataset_dir: str | os.PathLike, mot_txt_path: str | os.P
     return table.num_rows
 
 
-def write_mot_gt(gt: pa.Table, fps: float, path: str | os.PathLike) -> None:
-    """Write the ground truth as a MOT16/17 gt.txt (mot/gt.txt), atomically.
+def write_mot_gt(gt: pa.Table, fps: float, path: str | os.PathLike) -> int:
+    """Write the ground truth as a MOT16/17 gt.txt (mot/gt.txt), atomically; returns the line count.
 
-    gt: columns t (s), agent_id, x1, y1, x2, y2 (px, NaN when not visible), visible_fraction.
+    gt: columns t (s), agent_id, x1, y1, x2, y2 (px, null or NaN when not visible), visible_fraction.
     One line per video frame n = 1 .. floor(t_max * fps) + 1 and agent visible (finite box) in the
     ground-truth sample nearest to t = (n - 1) / fps, ordered by frame, then agent_id:
     ``n, agent_id, bb_left, bb_top, bb_width, bb_height, 1, 1, visible_fraction``
@@ -189,15 +190,28 @@ def write_mot_gt(gt: pa.Table, fps: float, path: str | os.PathLike) -> None:
     if times.size:
         n_frames = int(math.floor((times[-1] + TIE_TOLERANCE_S) * fps)) + 1
         for n, s in enumerate(nearest_sample(times, np.arange(n_frames) / fps), start=1):
-            for i in rows[starts[s] : starts[s] + counts[s]]:
-                x1, y1, x2, y2 = box[i]
-                lines.append(
-                    f"{n},{agent[i]},{x1 + MOT_OFFSET:.10g},{y1 + MOT_OFFSET:.10g},{x2 - x1:.10g},{y2 - y1:.10g},"
-                    f"1,1,{visibility[i]:.6g}\n"
-                )
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, lambda tmp: Path(tmp).write_text("".join(lines), encoding="utf-8"))
+            lines.extend(f"{n},{agent[i]},{_mot_box(box[i])},1,1,{visibility[i]:.6g}\n" for i in rows[starts[s] : starts[s] + counts[s]])
+    write_text_atomic(path, "".join(lines))
+    return len(lines)
+
+
+def write_mot_det(detections: pa.Table, path: str | os.PathLike) -> int:
+    """Write one detector's rows of a detections table as a MOT17 det.txt, atomically; returns the line count.
+
+    detections: columns frame (0-based), x1, y1, x2, y2 (px), score; one line per row, ordered by frame
+    (stable): ``frame + 1, -1, bb_left, bb_top, bb_width, bb_height, score, -1, -1, -1`` (id -1: a detection,
+    not a track; x, y, z unused). ``read_mot`` reads it back.
+    """
+    frame, box, score = detections.column("frame").to_numpy(), _boxes(detections), detections.column("score").to_numpy()
+    lines = [f"{frame[i] + 1},-1,{_mot_box(box[i])},{score[i]:.10g},-1,-1,-1\n" for i in np.argsort(frame, kind="stable")]
+    write_text_atomic(path, "".join(lines))
+    return len(lines)
+
+
+def _mot_box(xyxy: np.ndarray) -> str:
+    """``bb_left,bb_top,bb_width,bb_height`` of a box (x1, y1, x2, y2) in our pixels (module docstring), %.10g."""
+    x1, y1, x2, y2 = xyxy
+    return f"{x1 + MOT_OFFSET:.10g},{y1 + MOT_OFFSET:.10g},{x2 - x1:.10g},{y2 - y1:.10g}"
 
 
 def _boxes(table: pa.Table) -> np.ndarray:

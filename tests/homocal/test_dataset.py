@@ -3,10 +3,14 @@ import json
 import shutil
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.parquet as pq
 import pytest
 
-from homocal.dataset import load_dataset
+from homocal.dataset import calibration_source, load_dataset
+
+TABLES = ("gt.parquet", "detections.parquet", "calibration.parquet")
 
 
 def project(camera: dict, xy: np.ndarray) -> np.ndarray:
@@ -57,6 +61,58 @@ def test_hand_placed_trapezoid_is_near_exact(tiny_dataset):
     exact = np.asarray(ds.trapezoids["exact"]["image"])
     assert 0 < np.abs(ds.trapezoid_image - exact).max() <= 2.5
     np.testing.assert_allclose(ds.site_map.to_metres(ds.trapezoids["exact"]["map"]), ds.trapezoids["ground_m"], atol=1e-9)
+
+
+@pytest.mark.parametrize("source", ["rgb", "hog", "Exact", "", "anything"])
+def test_calibration_points_refuse_unknown_sources(tiny_dataset, source):
+    with pytest.raises(ValueError, match=f"calibration points come from 'exact' or 'segmentation', not {source!r}"):
+        load_dataset(tiny_dataset).calibration_points(source)
+
+
+@pytest.mark.parametrize("foot_source,expected", [("exact", "exact"), ("segmentation", "segmentation"),
+                                                  ("rgb", "segmentation"), ("hog", "segmentation")])
+def test_calibration_source_of_a_foot_source(foot_source, expected):
+    assert calibration_source(foot_source) == expected
+
+
+def test_missing_values_are_nulls_where_the_schema_says(tiny_dataset):
+    """data_schema.md: no float column holds a NaN; the missing values are nulls, exactly where a column says."""
+    tables = {name: pq.read_table(tiny_dataset / name) for name in TABLES}
+    for name, table in tables.items():
+        for field in table.schema:
+            if pa.types.is_floating(field.type):
+                assert not pc.any(pc.is_nan(table.column(field.name))).as_py(), (name, field.name)
+    gt, det = tables["gt.parquet"], tables["detections.parquet"]
+    unseen = pc.equal(gt.column("visible_pixels"), 0)
+    for c in ("x1", "y1", "x2", "y2"):
+        assert pc.is_null(gt.column(c)).equals(unseen)
+    assert gt.column("x1").null_count > 0  # agents out of view are in the tiny dataset
+    assert not pc.any(pc.and_(pc.is_null(gt.column("u")), gt.column("in_frame"))).as_py()
+    unmatched = pc.equal(det.column("agent_id"), -1)
+    assert det.column("gt_t").null_count > 0
+    for c in ("gt_t", "gt_x", "gt_y"):
+        assert pc.is_null(det.column(c)).equals(unmatched)
+
+
+def test_datasets_with_nan_read_as_with_nulls(tiny_dataset, tmp_path):
+    """Datasets written before the null rule hold NaN instead: the loader gives the same points."""
+    old = tmp_path / "nan"
+    shutil.copytree(tiny_dataset, old)
+    for name in TABLES:
+        table = pq.read_table(old / name)
+        for i, field in enumerate(table.schema):
+            if pa.types.is_floating(field.type):
+                table = table.set_column(i, field, pc.fill_null(table.column(i), np.nan))
+        assert not any(table.column(i).null_count for i in range(table.num_columns))
+        pq.write_table(table, old / name)
+    new, before = load_dataset(tiny_dataset), load_dataset(old)
+    for source in ("exact", "segmentation"):
+        for a, b in zip(new.calibration_points(source), before.calibration_points(source)):
+            np.testing.assert_array_equal(a, b)
+    for source in ("exact", "segmentation", "rgb"):
+        for a, b in zip(new.test_points(source), before.test_points(source)):
+            assert len(a) > 0
+            np.testing.assert_array_equal(a, b)
 
 
 def test_unknown_detector(tiny_dataset):

@@ -9,7 +9,8 @@ import json
 import numpy as np
 
 import simgen  # noqa: F401  (MUJOCO_GL default)
-from simgen.render import FrameRenderer, backend, mujoco
+from simgen.backend import backend, mujoco
+from simgen.render import FrameRenderer
 from simgen.model import add_camera
 from homocal.geometry.camera import PinholeCamera
 

@@ -7,7 +7,7 @@ import pytest
 
 from simgen.agents import AgentState, Crowd
 from simgen.humanoid import FEET, FOOT_R, HEIGHT_M, PARTS, WIDTH, draw_person, gait, pose, stride_length, to_world
-from simgen.rng import keyed_rng
+from simgen.rng import keyed_generator
 from simgen.scene import load_scene
 
 from scene_copies import SCENES
@@ -59,12 +59,12 @@ def test_feet_midpoint_is_the_foot_point_and_sizes_vary():
 
 
 def test_people_vary_within_their_ranges():
-    people = [draw_person(keyed_rng(0, "s", "person", i)) for i in range(300)]
+    people = [draw_person(keyed_generator(0, "s", "person", i)) for i in range(300)]
     height = np.array([p.height for p in people])
     assert HEIGHT_M[0] <= height.min() < 1.58 and 1.85 < height.max() <= HEIGHT_M[1]
     shirts = {tuple(p.rgba[1]) for p in people}
     assert len(shirts) >= 10 and all(p.rgba.shape == (len(PARTS), 4) for p in people)
-    assert draw_person(keyed_rng(0, "s", "person", 3)).rgba.tolist() == people[3].rgba.tolist()  # seeded
+    assert draw_person(keyed_generator(0, "s", "person", 3)).rgba.tolist() == people[3].rgba.tolist()  # seeded
 
 
 @pytest.fixture(scope="module")
@@ -94,7 +94,7 @@ def test_rendered_feet_agree_with_the_foot_point_at_10_m(stage):
             xy = np.array([[2.0, np.sqrt(100.0 - 4.0)]])  # 10 m from the camera's ground point
             h, st = np.array([height]), np.array([stride])
             segments, radii = pose(h, np.ones(1), st, *gait(h, st, np.array([phase])), np.array([0.3]))
-            person = draw_person(keyed_rng(0, "feet", height))
+            person = draw_person(keyed_generator(0, "feet", height))
             state = AgentState(np.array([5], np.int32), np.array([slot]), xy, np.array([heading]), np.ones(1),
                                to_world(segments, xy, np.array([heading])), radii, person.rgba[None])
             stage.place(state)

@@ -1,4 +1,4 @@
-"""Detections of one frame, the detector interface, and the detections table.
+"""What a detector returns for one frame (``DetectionBatch``), the ``Detector`` interface, and the detections table built from batches.
 
 Image coordinates are continuous pixels: x right, y down, the centre of the top-left pixel at
 (0, 0). A box (x1, y1, x2, y2) that covers pixel columns c0..c1 and rows r0..r1 has

@@ -1,0 +1,77 @@
+"""``simgen export-mot``: a dataset as a MOTChallenge sequence folder, the layout TrackEval and motmetrics read.
+
+    DIR/
+      seqinfo.ini          [Sequence] name (DIR's name), frameRate, seqLength (frames_total), imWidth, imHeight
+      gt/gt.txt            the ground truth in the MOT16/17 gt layout (as the dataset's mot/gt.txt)
+      det/<detector>.txt   each detector's detections in the MOT17 det.txt layout (write_mot_det)
+      export.json          marks DIR as an export (format "simgen-mot-export") and names what it came from
+
+Pixel and frame conventions are the dataset's MOT ones (data_schema.md, mot/gt.txt). DIR is held with
+``homocal.files.output_folder``: a new or empty folder, or an earlier export, whose files are then rewritten
+(and the det files of detectors the dataset no longer has removed); any other folder is refused untouched.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
+
+from homocal.files import LOCK_NAME, OutputFolderError, output_folder, write_json_atomic, write_text_atomic
+from simgen.detection.mot import write_mot_det, write_mot_gt
+
+FORMAT = "simgen-mot-export"
+MARKER = "export.json"
+
+
+def export_mot(dataset_dir: str | Path, out: str | Path) -> dict[str, int]:
+    """Write the MOTChallenge sequence folder ``out`` of the complete dataset ``dataset_dir`` (module docstring).
+
+    Returns the line count of each file written under ``out`` (``gt/gt.txt``, ``det/<name>.txt``). Raises
+    ValueError (the dataset: missing, incomplete, a detector name that is no file name) or OutputFolderError
+    (``out`` is not ours, or another run writes it), each one line, before anything is written.
+    """
+    dataset_dir, out = Path(dataset_dir), Path(out)
+    manifest, camera = (_read_json(dataset_dir / name) for name in ("manifest.json", "camera.json"))
+    if not manifest.get("complete"):
+        raise ValueError(f"{dataset_dir}: the run is not complete; finish it with simgen generate --resume first")
+    bad = [name for name in manifest["detectors"] if Path(name).name != name or name.startswith(".")]
+    if bad:
+        raise ValueError(f"{dataset_dir}: detector name {bad[0]!r} cannot be a file name under det/")
+    gt, detections = (pq.read_table(dataset_dir / name) for name in ("gt.parquet", "detections.parquet"))
+    _check_ours(out)
+    with output_folder(out, FORMAT, resume=True, marker=MARKER) as folder:
+        files = ["seqinfo.ini", "gt/gt.txt", *(f"det/{name}.txt" for name in manifest["detectors"])]
+        previous = json.loads(folder.marker.read_text(encoding="utf-8")).get("files", []) if folder.marker.is_file() else []
+        folder.remove_temporaries([MARKER, *files, *previous])
+        write_json_atomic(folder.marker, {"format": FORMAT, "dataset": str(dataset_dir.resolve()), "scene": manifest["scene"],
+                                          "seed": manifest["seed"], "config_hash": manifest["config_hash"], "files": files})
+        write_text_atomic(out / "seqinfo.ini", "[Sequence]\n" + "".join(f"{k}={v}\n" for k, v in {
+            "name": out.resolve().name, "frameRate": manifest["fps"], "seqLength": manifest["frames_total"],
+            "imWidth": camera["width"], "imHeight": camera["height"]}.items()))  # fmt: skip
+        lines = {"gt/gt.txt": write_mot_gt(gt, manifest["fps"], out / "gt" / "gt.txt")}
+        for name in manifest["detectors"]:
+            rows = detections.filter(pc.equal(detections.column("detector"), name))
+            lines[f"det/{name}.txt"] = write_mot_det(rows, out / "det" / f"{name}.txt")
+        for stale in set(previous) - set(files):
+            (out / stale).unlink(missing_ok=True)
+    return lines
+
+
+def _read_json(path: Path) -> dict:
+    if not path.is_file():
+        raise ValueError(f"{path.parent}: not a complete simgen dataset (no {path.name})")
+    return json.loads(path.read_text(encoding="utf-8"))
+
+
+def _check_ours(out: Path) -> None:
+    """OutputFolderError unless ``out`` is missing, empty (a lock aside) or an earlier export."""
+    if not out.is_dir() or {p.name for p in out.iterdir()} <= {LOCK_NAME}:
+        return
+    try:
+        ours = json.loads((out / MARKER).read_text(encoding="utf-8")).get("format") == FORMAT
+    except (OSError, ValueError, AttributeError):
+        ours = False
+    if not ours:
+        raise OutputFolderError(f"{out}: exists and is not an export-mot folder (no {MARKER} with format {FORMAT!r}); nothing touched")

@@ -1,0 +1,64 @@
+"""The simgen command's conventions, as homocal's: --version, -o/--out on every subcommand that writes (never
+``-``), help text on every option, progress bars as --progress/--no-progress or the terminal say, one line and
+exit 2 when the output cannot be written."""
+import argparse
+from importlib.metadata import version
+
+import cv2
+import pytest
+
+from homocal.progress import show_progress
+from simgen.cli import _parser, main
+
+WRITERS = ("generate", "preview", "export-mot")
+
+
+def subparsers() -> dict[str, argparse.ArgumentParser]:
+    return next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction)).choices
+
+
+def test_version_is_the_installed_distribution_s(capsys):
+    assert main(["--version"]) == 0 and capsys.readouterr().out == f"simgen {version('homocal')}\n"
+
+
+@pytest.mark.parametrize("name", sorted(subparsers()))
+def test_every_option_has_help(name):
+    for action in subparsers()[name]._actions:
+        assert action.help not in (None, "", argparse.SUPPRESS), (name, action.option_strings or action.dest)
+
+
+def test_the_writers_are_the_subcommands_with_an_output():
+    assert sorted(n for n, p in subparsers().items() if any("--out" in a.option_strings for a in p._actions)) == sorted(WRITERS)
+
+
+@pytest.mark.parametrize("name", WRITERS)
+def test_every_writer_takes_o_and_out_and_refuses_stdout(name, tmp_path, capsys, monkeypatch):
+    options = {s: a for a in subparsers()[name]._actions for s in a.option_strings}
+    assert options["-o"] is options["--out"] and options["-o"].required
+    monkeypatch.chdir(tmp_path)
+    assert main([name, "in", "-o", "-"]) == 2
+    err = capsys.readouterr().err
+    assert err == f"simgen: error: {name}: argument -o/--out: simgen writes files, not a table to stdout: give a path\n"
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("flag,expected", [(["--progress"], True), (["--no-progress"], False), ([], False)])
+def test_progress_option(flag, expected):
+    """Default: stderr is a terminal (under pytest's capture it is not)."""
+    assert show_progress(_parser().parse_args(["generate", "s", "-o", "x", *flag])) is expected
+
+
+def test_preview_writes_its_png_and_says_so(small_scene, tmp_path, capsys):
+    png = tmp_path / "frame.png"
+    assert main(["preview", str(small_scene), "-o", str(png), "--t", "2"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"simgen preview: {png}: {small_scene.name} at t = 2 s, seed 0, ") and out.endswith(" agents in view\n")
+    assert cv2.imread(str(png)).shape == (180, 320, 3)
+
+
+def test_preview_on_an_unwritable_path_is_one_line(small_scene, tmp_path, capsys):
+    (tmp_path / "file").write_text("mine")
+    assert main(["preview", str(small_scene), "-o", str(tmp_path / "file" / "frame.png")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"simgen: error: {tmp_path / 'file'}: ") and err.count("\n") == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file", small_scene.name] and (tmp_path / "file").read_text() == "mine"
