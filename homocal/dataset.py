@@ -1,7 +1,6 @@
 """Reading a simgen dataset folder through data_schema.md only (homocal never imports simgen or mujoco)."""
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -9,6 +8,7 @@ import numpy as np
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
+from homocal.files import read_json
 from homocal.geometry import SiteMap, validate_quad
 
 EXACT = "exact"
@@ -118,11 +118,11 @@ def load_dataset(path: str | Path) -> Dataset:
     path = Path(path)
     if not path.is_dir():
         raise ValueError(f"{path}: not a dataset folder")
-    manifest = _json(path, "manifest.json")
+    manifest = read_json(path / "manifest.json")
     if not manifest.get("complete", False):
         raise ValueError(f"{path}: the run is not complete (manifest.json complete = false); finish it with simgen generate --resume")
-    camera = _json(path, "camera.json")
-    trapezoids = _json(path, "trapezoids.json")
+    camera = read_json(path / "camera.json")
+    trapezoids = read_json(path / "trapezoids.json")
     try:
         hand = trapezoids["hand_placed"]
         image = validate_quad(np.asarray(hand["image"], dtype=np.float64), f"{path}/trapezoids.json hand_placed.image")
@@ -150,16 +150,6 @@ def load_dataset(path: str | Path) -> Dataset:
         if missing:
             raise ValueError(f"{path / filename}: missing column(s) {', '.join(missing)}")
     return dataset
-
-
-def _json(path: Path, filename: str) -> dict:
-    file = path / filename
-    if not file.is_file():
-        raise ValueError(f"{path}: missing {filename}")
-    try:
-        return json.loads(file.read_text())
-    except json.JSONDecodeError as e:
-        raise ValueError(f"{file}: not valid JSON ({e})") from None
 
 
 def _columns(table, names: tuple[str, str]) -> np.ndarray:

@@ -33,7 +33,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 from tqdm import tqdm
 
-import homocal.geometry.camera
+import homocal.geometry
 import simgen
 from homocal.files import OutputFolder, output_folder, write_atomic, write_json_atomic
 from simgen.backend import backend, mujoco
@@ -72,14 +72,15 @@ def _versions() -> dict:
             "opencv": cv2.__version__, "simgen": simgen.__version__}
 
 
-# The simgen sources (and homocal's camera) as they were on disk when this module was imported: a worker
-# process imports them afresh, so if they changed in between (a checkout or merge under a running process,
-# or a Dask worker with another install) its chunks would silently differ from what this process renders.
+# The simgen sources (and homocal.geometry, which simgen uses) as they were on disk when this module was
+# imported: a worker process imports them afresh, so if they changed in between (a checkout or merge under a
+# running process, or a Dask worker with another install) its chunks would silently differ from what this
+# process renders.
 # That happened: a test session imported simgen, main merged new pedestrian code mid-session, and the
 # workers' chunks (new code) differed from the session's serial reference (old code) in every frame.
 _SOURCE_DIGEST = hashlib.sha256(b"".join(
     p.relative_to(Path(simgen.__file__).parents[1]).as_posix().encode() + b"\0" + p.read_bytes()
-    for p in [*sorted(Path(simgen.__file__).parent.rglob("*.py")), Path(homocal.geometry.camera.__file__)]
+    for p in [*sorted(Path(simgen.__file__).parent.rglob("*.py")), *sorted(Path(homocal.geometry.__file__).parent.glob("*.py"))]
 )).hexdigest()  # fmt: skip
 
 

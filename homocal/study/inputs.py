@@ -8,7 +8,7 @@ import numpy as np
 
 from homocal.correctors.descent import DescentCorrector
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
-from homocal.dataset import EXACT, load_dataset
+from homocal.dataset import EXACT, calibration_source, load_dataset
 from homocal.geometry import SiteMap, ViewTransformer
 from homocal.study.perturb import ShiftSpec, base_quad, draw_base_error
 from homocal.study.triples import distance_features, triples
@@ -112,7 +112,7 @@ class StudyScene:
         """Load a dataset folder; calibration points from the exact or segmentation foot points (a detector's
         test points use segmentation calibration points, the only detector calibration objects carry)."""
         ds = load_dataset(path)
-        cal_image, cal_ground, distance = ds.calibration_points(EXACT if params.foot_source == EXACT else "segmentation")
+        cal_image, cal_ground, distance = ds.calibration_points(calibration_source(params.foot_source))
         if len(cal_image) < 3:
             raise ValueError(f"{path}: need at least 3 calibration points, got {len(cal_image)}")
         test_image, test_ground = ds.test_points(params.foot_source, n=params.n_test, seed=params.seed,

@@ -13,6 +13,8 @@ from typing import Protocol
 import numpy as np
 import pyarrow as pa
 
+from homocal.geometry.boxes import box_bottom_points
+
 DETECTIONS_SCHEMA = pa.schema(
     [
         ("detector", pa.string()),
@@ -31,9 +33,9 @@ DETECTIONS_SCHEMA = pa.schema(
 
 
 def foot_points(xyxy: np.ndarray) -> np.ndarray:
-    """(N, 4) boxes (x1, y1, x2, y2) -> (N, 2) foot points (u, v) = ((x1 + x2) / 2, y2), pixels."""
-    xyxy = np.asarray(xyxy, dtype=np.float64).reshape(-1, 4)
-    return np.column_stack([(xyxy[:, 0] + xyxy[:, 2]) / 2.0, xyxy[:, 3]])
+    """(N, 4) boxes (x1, y1, x2, y2) -> (N, 2) foot points (u, v) = ((x1 + x2) / 2, y2), pixels: simgen's boxes
+    are in homocal's pixel convention (homocal.box_bottom_points)."""
+    return box_bottom_points(np.asarray(xyxy, dtype=np.float64).reshape(-1, 4), convention="homocal")
 
 
 @dataclass(frozen=True)
