@@ -2,6 +2,7 @@
 (DESIGN principle 6). Shared by homocal and simgen."""
 from __future__ import annotations
 
+import csv
 import fcntl
 import json
 import os
@@ -66,7 +67,8 @@ def write_json_atomic(path: str | Path, obj: object) -> None:
 
 # ---- output folders ------------------------------------------------------------------------
 class OutputFolderError(RuntimeError):
-    """The output folder cannot be used (not ours, not empty, or locked by another run); one-line message."""
+    """The output folder or file cannot be used (not ours, not empty, or locked by another run); one-line
+    message."""
 
 
 @dataclass(frozen=True)
@@ -89,11 +91,41 @@ class OutputFolder:
                 tmp.unlink()
 
 
-def _marker_format(marker: Path) -> object:
+def json_format(path: Path) -> object:
+    """The "format" of the JSON object in ``path`` (a marker, a correction), or None if there is none."""
     try:
-        return json.loads(marker.read_text(encoding="utf-8")).get("format")
+        return json.loads(path.read_text(encoding="utf-8")).get("format")
     except (OSError, ValueError, AttributeError):
         return None
+
+
+def csv_header(path: Path) -> list[str] | None:
+    """The fields of the first line of the CSV file ``path``, or None if it cannot be read as UTF-8 text."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            return next(csv.reader([f.readline()]), [])
+    except (OSError, ValueError):
+        return None
+
+
+def check_output_file(path: str | Path, is_ours: Callable[[Path], bool], what: str) -> Path:
+    """The single output file ``path`` a command was told to write (``-o FILE``), checked before any work.
+
+    Refused (``OutputFolderError``, one line naming it): a folder; a file whose folder does not exist; a file
+    that exists (or a symlink, judged by what it points to) unless ``is_ours(path)`` recognises it by its
+    content as a ``what`` written by this command (a format tag, a header line): re-running a command replaces
+    its own output, never a user's file. The write itself goes through ``write_atomic``, which replaces a
+    symlink, never the file it points to.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise OutputFolderError(f"{path}: is a folder; give the name of the file to write")
+    if not path.parent.is_dir():
+        raise OutputFolderError(f"{path}: the folder {path.parent} does not exist")
+    if (path.exists() or path.is_symlink()) and not is_ours(path):
+        raise OutputFolderError(f"{path}: exists and is not a {what}; a file this command did not write is never "
+                                "replaced (move it, or choose another name)")
+    return path
 
 
 def _holder(lock: Path) -> str | None:
@@ -147,8 +179,8 @@ def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "mani
         resumed = bool(entries)
         if resumed and not resume:
             raise OutputFolderError(f"{path}: exists and is not empty (use --resume to continue it, or another output folder)")
-        if resumed and _marker_format(path / marker) != tool:
-            raise OutputFolderError(f"{path}: not a {tool} output folder (no {marker} with format {tool!r}); --resume refused, nothing touched")
+        if resumed and json_format(path / marker) != tool:
+            raise OutputFolderError(f"{path}: not a {tool} output folder (no {marker} with format {tool!r}); refused, nothing touched")
         created = not path.exists()
         path.mkdir(parents=True, exist_ok=True)
         fd = fd if fd is not None else _lock(lock, create=True)

@@ -93,8 +93,8 @@ def main(argv: list[str] | None = None) -> int:
         from simgen.render import BackendError  # first: guards the mujoco import
     except Exception as e:  # noqa: BLE001  (BackendError raised while importing simgen.render)
         return _fail(str(e), 3)
-    from homocal.files import OutputFolderError
-    from simgen.dataset import DatasetError, generate
+    from homocal.files import OutputFolderError, output_folder
+    from simgen.dataset import FORMAT, DatasetError, generate
     from simgen.scene import ConfigError, load_scene
 
     try:
@@ -102,8 +102,9 @@ def main(argv: list[str] | None = None) -> int:
             from simgen.detection import import_into_dataset
 
             try:
-                n = import_into_dataset(args.dataset_dir, args.mot_txt, args.name, args.min_iou)
-            except (ValueError, OSError, KeyError) as e:
+                with output_folder(args.dataset_dir, FORMAT, resume=True):  # the dataset's lock: one writer at a time
+                    n = import_into_dataset(args.dataset_dir, args.mot_txt, args.name, args.min_iou)
+            except (ValueError, OSError, KeyError, OutputFolderError) as e:
                 return _fail(f"import-mot: {_os_message(e) if isinstance(e, OSError) else e}")
             print(f"simgen import-mot: {n} detections of {args.name!r} added to {args.dataset_dir / 'detections.parquet'}")
             return 0

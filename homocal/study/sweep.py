@@ -21,10 +21,11 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from homocal.files import output_folder, write_atomic, write_json_atomic, write_text_atomic
+from homocal.files import output_folder, write_json_atomic, write_text_atomic
 from homocal.progress import show_progress
 from homocal.study.cli import add_study_options, params_from_args
 from homocal.study.engine import run_study
+from homocal.study.figures import save
 from homocal.study.metrics import D_KEYS, METHODS, METRICS, OVERALL, PAPER, build_table, load_study, paper_distance, shard_files
 
 FORMAT = "homocal-sweep"  # sweep.json's "format": marks a sweep folder (homocal.files.output_folder)
@@ -84,7 +85,7 @@ def run_sweep(paths: list[str], out: str | Path, param: str, values: list[str], 
             rows += [{"param": param, "value": value, "method": m, "D": D,
                       **{k: table.value(m, k) for k in CSV_KEYS}} for m in METHODS]
         write_text_atomic(out / "sweep.csv", to_csv(rows))
-        write_atomic(out / "sweep.png", lambda tmp: sweep_figure(rows, param).savefig(tmp, dpi=110))
+        save(sweep_figure(rows, param), out / "sweep.png")
     return rows
 
 
