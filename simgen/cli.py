@@ -7,12 +7,12 @@ errors (a full disk, a read-only folder) are reported with the file they hit.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from pathlib import Path
 
-from simgen.scene import QUALITIES
+from homocal.arguments import SEED, number as _number
+from simgen.scene import MAX_FPS, MAX_SECONDS, QUALITIES
 
 
 def _fail(message: str, code: int = 2) -> int:
@@ -27,21 +27,6 @@ class _Parser(argparse.ArgumentParser):
         sys.exit(_fail(f"{self.prog.removeprefix('simgen ')}: {message}"))
 
 
-def _number(kind, low: float, high: float = math.inf, low_open: bool = False):
-    """argparse type: a finite ``kind`` in [low, high] (``(low, high]`` if low_open)."""
-    def parse(text: str):
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {'an integer' if kind is int else 'a number'}, got {text!r}") from None
-        if not (math.isfinite(value) and (value > low if low_open else value >= low) and value <= high):
-            what = "an integer" if kind is int else "a finite number"
-            bounds = f"in {'(' if low_open else '['}{low:g}, {high:g}]" if math.isfinite(high) else f"{'>' if low_open else '>='} {low:g}"
-            raise argparse.ArgumentTypeError(f"must be {what} {bounds}, got {text}")
-        return value
-    return parse
-
-
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="simgen", description="MuJoCo synthetic traffic datasets (data_schema.md).")
     sub = p.add_subparsers(dest="command", required=True)
@@ -49,9 +34,9 @@ def _parser() -> argparse.ArgumentParser:
     g = sub.add_parser("generate", help="render a scene into a dataset folder")
     g.add_argument("scene_dir", type=Path)
     g.add_argument("--out", type=Path, required=True, help="dataset folder to write")
-    g.add_argument("--seconds", type=_number(float, 0, low_open=True), help="simulated duration (default: the scene's run.seconds)")
-    g.add_argument("--seed", type=_number(int, 0), default=0, help="random seed, an integer >= 0 (default 0)")
-    g.add_argument("--fps", type=_number(int, 1), help="video frame rate (default: the scene's run.fps)")
+    g.add_argument("--seconds", type=_number(float, 0, MAX_SECONDS, low_open=True), help="simulated duration (default: the scene's run.seconds)")
+    g.add_argument("--seed", type=SEED, default=0, help="random seed, an integer >= 0 (default 0)")
+    g.add_argument("--fps", type=_number(int, 1, MAX_FPS), help="video frame rate (default: the scene's run.fps)")
     g.add_argument("--detectors", help="comma-separated, from: segmentation,rgb (default: the scene's)")
     g.add_argument("--quality", choices=QUALITIES, help="render preset (default: the scene's render.quality, else default)")
     g.add_argument("--workers", type=_number(int, 1), default=1, help="render chunks in this many processes (default 1)")
@@ -64,8 +49,8 @@ def _parser() -> argparse.ArgumentParser:
     v = sub.add_parser("preview", help="render one annotated frame (boxes, foot points, trapezoid, horizon)")
     v.add_argument("scene_dir", type=Path)
     v.add_argument("-o", "--output", type=Path, required=True, help="PNG to write")
-    v.add_argument("--t", type=_number(float, 0), default=0.0, help="simulated time, seconds")
-    v.add_argument("--seed", type=_number(int, 0), default=0)
+    v.add_argument("--t", type=_number(float, 0, MAX_SECONDS), default=0.0, help="simulated time, seconds")
+    v.add_argument("--seed", type=SEED, default=0)
     v.add_argument("--quality", choices=QUALITIES, help="render preset (default: the scene's)")
 
     m = sub.add_parser("import-mot", help="add an external detector's MOTChallenge file to a dataset")

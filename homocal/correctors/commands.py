@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from homocal.arguments import SEED, number
 from homocal.correctors.base import Corrector, load_corrector
 from homocal.correctors.descent import DescentCorrector
 from homocal.correctors.horizon import HorizonCorrector
@@ -85,9 +86,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     fit.add_argument("-o", "--out", required=True, type=Path, metavar="CORRECTION.json", help="the correction to write")
     fit.add_argument("--camera-origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
                      help="ground point under the camera, metres (default 0,0)")
-    fit.add_argument("--threshold", type=float, default=75.0, help="hybrid: keep regression at or above this "
+    fit.add_argument("--threshold", type=number(float, 0, 100), default=75.0, help="hybrid: keep regression at or above this "
                      "calibration improvement, percent (default 75)")
-    fit.add_argument("--seed", type=int, default=0, help="descent, hybrid: seed of the coordinate order (default 0)")
+    fit.add_argument("--seed", type=SEED, default=0, help="descent, hybrid: seed of the coordinate order (default 0)")
     fit.set_defaults(handler=run_fit)
 
     apply = subparsers.add_parser(
