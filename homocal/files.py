@@ -36,8 +36,8 @@ def temporaries_of(path: str | Path) -> list[Path]:
 
 def write_atomic(path: str | Path, write: Callable[[Path], object]) -> None:
     """Call write(tmp) on ``temporary_path(path)``, then rename it to ``path``; on any failure the temporary
-    file is removed and nothing is left behind. An OSError that names no file (pyarrow's, ffmpeg's) is
-    raised again naming ``path``, so a full disk reads "path: No space left on device"."""
+    file is removed and nothing is left behind. An OSError that names no file (pyarrow's, ffmpeg's) or the
+    temporary one is raised again naming ``path``, so a full disk reads "path: No space left on device"."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = temporary_path(path)
@@ -46,13 +46,20 @@ def write_atomic(path: str | Path, write: Callable[[Path], object]) -> None:
         os.replace(tmp, path)
     except OSError as e:
         tmp.unlink(missing_ok=True)
-        if e.filename is not None:
+        if e.filename is not None and Path(e.filename) != tmp:
             raise
         reason = os.strerror(e.errno) if e.errno else (str(e).strip().splitlines() or [type(e).__name__])[0]
         raise OSError(e.errno, reason, str(path)) from e
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def os_message(e: OSError) -> str:
+    """One line: the file and the system's reason (``out/gt.parquet: No space left on device``)."""
+    if e.filename is not None and e.strerror:
+        return f"{e.filename}: {e.strerror}"
+    return (str(e).strip().splitlines() or [type(e).__name__])[0]
 
 
 def write_text_atomic(path: str | Path, text: str) -> None:
@@ -189,9 +196,12 @@ def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "mani
             os.close(fd)
         raise
     try:
-        os.ftruncate(fd, 0)
         since = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-        os.write(fd, json.dumps({"pid": os.getpid(), "host": socket.gethostname(), "since": since}).encode())
+        try:
+            os.ftruncate(fd, 0)
+            os.write(fd, json.dumps({"pid": os.getpid(), "host": socket.gethostname(), "since": since}).encode())
+        except OSError as e:
+            raise OSError(e.errno, e.strerror, str(lock)) from None
         yield OutputFolder(path, path / marker, resumed)
     except BaseException:
         if created and {p.name for p in path.iterdir()} == {LOCK_NAME}:

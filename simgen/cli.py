@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 from homocal.arguments import SEED, number as _number
+from homocal.files import OutputFolderError, os_message, output_folder
 from simgen.scene import MAX_FPS, MAX_SECONDS, QUALITIES
 
 
@@ -62,13 +63,6 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _os_message(e: OSError) -> str:
-    """One line: the file and the system's reason (``out/gt.parquet: No space left on device``)."""
-    if e.filename is not None and e.strerror:
-        return f"{e.filename}: {e.strerror}"
-    return (str(e).strip().splitlines() or [type(e).__name__])[0]
-
-
 def main(argv: list[str] | None = None) -> int:
     try:
         args = _parser().parse_args(argv)
@@ -78,7 +72,6 @@ def main(argv: list[str] | None = None) -> int:
         from simgen.render import BackendError  # first: guards the mujoco import
     except Exception as e:  # noqa: BLE001  (BackendError raised while importing simgen.render)
         return _fail(str(e), 3)
-    from homocal.files import OutputFolderError, output_folder
     from simgen.dataset import FORMAT, DatasetError, generate
     from simgen.scene import ConfigError, load_scene
 
@@ -90,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
                 with output_folder(args.dataset_dir, FORMAT, resume=True):  # the dataset's lock: one writer at a time
                     n = import_into_dataset(args.dataset_dir, args.mot_txt, args.name, args.min_iou)
             except (ValueError, OSError, KeyError, OutputFolderError) as e:
-                return _fail(f"import-mot: {_os_message(e) if isinstance(e, OSError) else e}")
+                return _fail(f"import-mot: {os_message(e) if isinstance(e, OSError) else e}")
             print(f"simgen import-mot: {n} detections of {args.name!r} added to {args.dataset_dir / 'detections.parquet'}")
             return 0
         scene = load_scene(args.scene_dir).with_run(quality=args.quality)
@@ -112,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     except BackendError as e:
         return _fail(str(e), 3)
     except OSError as e:
-        return _fail(_os_message(e))
+        return _fail(os_message(e))
 
 
 if __name__ == "__main__":

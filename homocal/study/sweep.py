@@ -168,6 +168,10 @@ def handle(args: argparse.Namespace) -> int:
         raise ValueError(f"sweep exactly one parameter with two or more values (got {len(given)}: {', '.join(given) or 'none'})")
     param = given[0]
     values = expand_values(str(getattr(args, param)))
+    typed = [_typed(param, v) for v in values]
+    twice = list(dict.fromkeys(v for v, t in zip(values, typed) if typed.count(t) > 1))
+    if twice:
+        raise ValueError(f"--{param.replace('_', '-')} {getattr(args, param)!r}: {', '.join(twice)} given more than once")
     delattr(args, param)
     for name in SWEEPABLE:  # single values of the other sweepable options, as the study takes them
         if hasattr(args, name):
