@@ -115,7 +115,7 @@ def csv_header(path: Path) -> list[str] | None:
         return None
 
 
-def check_output_file(path: str | Path, is_ours: Callable[[Path], bool], what: str) -> Path:
+def check_output_file(path: str | Path, is_ours: Callable[[Path], bool], what: str) -> None:
     """The single output file ``path`` a command was told to write (``-o FILE``), checked before any work.
 
     Refused (``OutputFolderError``, one line naming it): a folder; a file whose folder does not exist; a file
@@ -132,7 +132,6 @@ def check_output_file(path: str | Path, is_ours: Callable[[Path], bool], what: s
     if (path.exists() or path.is_symlink()) and not is_ours(path):
         raise OutputFolderError(f"{path}: exists and is not a {what}; a file this command did not write is never "
                                 "replaced (move it, or choose another name)")
-    return path
 
 
 def _holder(lock: Path) -> str | None:
