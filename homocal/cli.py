@@ -13,7 +13,7 @@ import sys
 from importlib.metadata import version
 
 from homocal.correctors import cli as corrector_cli
-from homocal.files import OutputFolderError
+from homocal.files import OutputFolderError, os_message
 from homocal.study import advise as study_advise, cli as study_cli, report as study_report, sweep as study_sweep
 from homocal.ui import cli as ui_cli
 
@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.handler(args)
     except (ValueError, OSError, OutputFolderError) as e:
-        message = " ".join(str(e).split("\n"))
+        message = " ".join((os_message(e) if isinstance(e, OSError) else str(e)).split("\n"))
         print(f"homocal: error: {message}", file=sys.stderr)
         return 2
 

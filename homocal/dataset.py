@@ -5,6 +5,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
@@ -59,9 +60,10 @@ class Dataset:
         image = _columns(table, cols)
         ground = _columns(table, ("x", "y"))
         distance = table.column("distance_m").to_numpy().astype(np.float64)
-        bad = ~np.isfinite(image).all(axis=1)
+        bad = ~np.isfinite(np.column_stack([image, ground, distance])).all(axis=1)
         if bad.any():
-            raise ValueError(f"{self.path}: calibration objects {np.flatnonzero(bad).tolist()} have no {source} foot point")
+            raise ValueError(f"{self.path}: calibration objects {np.flatnonzero(bad).tolist()} have no {source} foot point "
+                             "or no finite ground position and distance")
         return image, ground, distance
 
     def test_points(
@@ -104,7 +106,7 @@ class Dataset:
 
     def table(self, filename: str):
         """A Parquet table of the dataset (its columns were checked by load_dataset)."""
-        return pq.read_table(self.path / filename)
+        return _parquet(pq.read_table, self.path / filename)
 
 
 def calibration_source(foot_source: str) -> str:
@@ -146,10 +148,18 @@ def load_dataset(path: str | Path) -> Dataset:
     for filename, columns in REQUIRED_COLUMNS.items():
         if not (path / filename).is_file():
             raise ValueError(f"{path}: missing {filename}")
-        missing = [c for c in columns if c not in pq.read_schema(path / filename).names]
+        missing = [c for c in columns if c not in _parquet(pq.read_schema, path / filename).names]
         if missing:
             raise ValueError(f"{path / filename}: missing column(s) {', '.join(missing)}")
     return dataset
+
+
+def _parquet(read, file: Path):
+    """read(file) (pq.read_table, pq.read_schema); ValueError naming the file if it is not a Parquet file."""
+    try:
+        return read(file)
+    except (pa.ArrowException, OSError) as e:
+        raise ValueError(f"{file}: not a readable Parquet file ({(str(e).splitlines() or [type(e).__name__])[0]})") from None
 
 
 def _columns(table, names: tuple[str, str]) -> np.ndarray:

@@ -2,6 +2,7 @@
 (DESIGN principle 6); reading a JSON object with one clear error. Shared by homocal and simgen."""
 from __future__ import annotations
 
+import csv
 import fcntl
 import json
 import os
@@ -35,8 +36,8 @@ def temporaries_of(path: str | Path) -> list[Path]:
 
 def write_atomic(path: str | Path, write: Callable[[Path], object]) -> None:
     """Call write(tmp) on ``temporary_path(path)``, then rename it to ``path``; on any failure the temporary
-    file is removed and nothing is left behind. An OSError that names no file (pyarrow's, ffmpeg's) is
-    raised again naming ``path``, so a full disk reads "path: No space left on device"."""
+    file is removed and nothing is left behind. An OSError that names no file (pyarrow's, ffmpeg's) or the
+    temporary one is raised again naming ``path``, so a full disk reads "path: No space left on device"."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = temporary_path(path)
@@ -45,13 +46,20 @@ def write_atomic(path: str | Path, write: Callable[[Path], object]) -> None:
         os.replace(tmp, path)
     except OSError as e:
         tmp.unlink(missing_ok=True)
-        if e.filename is not None:
+        if e.filename is not None and Path(e.filename) != tmp:
             raise
         reason = os.strerror(e.errno) if e.errno else (str(e).strip().splitlines() or [type(e).__name__])[0]
         raise OSError(e.errno, reason, str(path)) from e
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def os_message(e: OSError) -> str:
+    """One line: the file and the system's reason (``out/gt.parquet: No space left on device``)."""
+    if e.filename is not None and e.strerror:
+        return f"{e.filename}: {e.strerror}"
+    return (str(e).strip().splitlines() or [type(e).__name__])[0]
 
 
 def write_text_atomic(path: str | Path, text: str) -> None:
@@ -66,7 +74,8 @@ def write_json_atomic(path: str | Path, obj: object) -> None:
 
 # ---- output folders ------------------------------------------------------------------------
 class OutputFolderError(RuntimeError):
-    """The output folder cannot be used (not ours, not empty, or locked by another run); one-line message."""
+    """The output folder or file cannot be used (not ours, not empty, or locked by another run); one-line
+    message."""
 
 
 @dataclass(frozen=True)
@@ -103,11 +112,40 @@ def read_json(path: str | Path) -> dict:
     return data
 
 
-def _marker_format(marker: Path) -> object:
+def json_format(path: Path) -> object:
+    """The "format" of the JSON object in ``path`` (a marker, a correction), or None if there is none."""
     try:
-        return json.loads(marker.read_text(encoding="utf-8")).get("format")
+        return json.loads(path.read_text(encoding="utf-8")).get("format")
     except (OSError, ValueError, AttributeError):
         return None
+
+
+def csv_header(path: Path) -> list[str] | None:
+    """The fields of the first line of the CSV file ``path``, or None if it cannot be read as UTF-8 text."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            return next(csv.reader([f.readline()]), [])
+    except (OSError, ValueError):
+        return None
+
+
+def check_output_file(path: str | Path, is_ours: Callable[[Path], bool], what: str) -> None:
+    """The single output file ``path`` a command was told to write (``-o FILE``), checked before any work.
+
+    Refused (``OutputFolderError``, one line naming it): a folder; a file whose folder does not exist; a file
+    that exists (or a symlink, judged by what it points to) unless ``is_ours(path)`` recognises it by its
+    content as a ``what`` written by this command (a format tag, a header line): re-running a command replaces
+    its own output, never a user's file. The write itself goes through ``write_atomic``, which replaces a
+    symlink, never the file it points to.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise OutputFolderError(f"{path}: is a folder; give the name of the file to write")
+    if not path.parent.is_dir():
+        raise OutputFolderError(f"{path}: the folder {path.parent} does not exist")
+    if (path.exists() or path.is_symlink()) and not is_ours(path):
+        raise OutputFolderError(f"{path}: exists and is not a {what}; a file this command did not write is never "
+                                "replaced (move it, or choose another name)")
 
 
 def _holder(lock: Path) -> str | None:
@@ -161,8 +199,8 @@ def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "mani
         resumed = bool(entries)
         if resumed and not resume:
             raise OutputFolderError(f"{path}: exists and is not empty (use --resume to continue it, or another output folder)")
-        if resumed and _marker_format(path / marker) != tool:
-            raise OutputFolderError(f"{path}: not a {tool} output folder (no {marker} with format {tool!r}); --resume refused, nothing touched")
+        if resumed and json_format(path / marker) != tool:
+            raise OutputFolderError(f"{path}: not a {tool} output folder (no {marker} with format {tool!r}); refused, nothing touched")
         created = not path.exists()
         path.mkdir(parents=True, exist_ok=True)
         fd = fd if fd is not None else _lock(lock, create=True)
@@ -171,9 +209,12 @@ def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "mani
             os.close(fd)
         raise
     try:
-        os.ftruncate(fd, 0)
         since = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-        os.write(fd, json.dumps({"pid": os.getpid(), "host": socket.gethostname(), "since": since}).encode())
+        try:
+            os.ftruncate(fd, 0)
+            os.write(fd, json.dumps({"pid": os.getpid(), "host": socket.gethostname(), "since": since}).encode())
+        except OSError as e:
+            raise OSError(e.errno, e.strerror, str(lock)) from None
         yield OutputFolder(path, path / marker, resumed)
     except BaseException:
         if created and {p.name for p in path.iterdir()} == {LOCK_NAME}:

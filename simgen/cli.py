@@ -12,14 +12,15 @@ errors (a full disk, a read-only folder) are reported with the file they hit.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from importlib.metadata import version
 from pathlib import Path
 
+from homocal.arguments import SEED, number as _number
+from homocal.files import OutputFolderError, os_message, output_folder
 from homocal.progress import add_progress_option, show_progress
-from simgen.scene import DETECTORS, QUALITIES
+from simgen.scene import DETECTORS, MAX_FPS, MAX_SECONDS, QUALITIES
 
 FILE_COMMANDS = ("import-mot", "export-mot")  # their errors name the command (generate's and preview's name the file or field)
 
@@ -36,21 +37,6 @@ class _Parser(argparse.ArgumentParser):
         sys.exit(_fail(f"{self.prog.removeprefix('simgen ')}: {message}"))
 
 
-def _number(kind, low: float, high: float = math.inf, low_open: bool = False):
-    """argparse type: a finite ``kind`` in [low, high] (``(low, high]`` if low_open)."""
-    def parse(text: str):
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected {'an integer' if kind is int else 'a number'}, got {text!r}") from None
-        if not (math.isfinite(value) and (value > low if low_open else value >= low) and value <= high):
-            what = "an integer" if kind is int else "a finite number"
-            bounds = f"in {'(' if low_open else '['}{low:g}, {high:g}]" if math.isfinite(high) else f"{'>' if low_open else '>='} {low:g}"
-            raise argparse.ArgumentTypeError(f"must be {what} {bounds}, got {text}")
-        return value
-    return parse
-
-
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="simgen", description="MuJoCo synthetic traffic datasets (data_schema.md).")
     p.add_argument("--version", action="version", version=f"simgen {version('homocal')}",
@@ -60,9 +46,9 @@ def _parser() -> argparse.ArgumentParser:
     g = sub.add_parser("generate", help="render a scene into a dataset folder")
     g.add_argument("scene_dir", type=Path, help="scene folder (scene.toml, the MJCF and its ground texture)")
     _add_out(g, "dataset folder to write (new or empty; with --resume, a killed run's)")
-    g.add_argument("--seconds", type=_number(float, 0, low_open=True), help="simulated duration (default: the scene's run.seconds)")
-    g.add_argument("--seed", type=_number(int, 0), default=0, help="random seed, an integer >= 0 (default 0)")
-    g.add_argument("--fps", type=_number(int, 1), help="video frame rate (default: the scene's run.fps)")
+    g.add_argument("--seconds", type=_number(float, 0, MAX_SECONDS, low_open=True), help="simulated duration (default: the scene's run.seconds)")
+    g.add_argument("--seed", type=SEED, default=0, help="random seed, an integer >= 0 (default 0)")
+    g.add_argument("--fps", type=_number(int, 1, MAX_FPS), help="video frame rate (default: the scene's run.fps)")
     g.add_argument("--detectors", help=f"comma-separated, from: {','.join(DETECTORS)} (default: the scene's)")
     g.add_argument("--quality", choices=QUALITIES, help="render preset (default: the scene's render.quality, else default)")
     g.add_argument("--workers", type=_number(int, 1), default=1, help="render chunks in this many processes (default 1)")
@@ -76,8 +62,8 @@ def _parser() -> argparse.ArgumentParser:
     v = sub.add_parser("preview", help="render one annotated frame (boxes, foot points, trapezoid, horizon)")
     v.add_argument("scene_dir", type=Path, help="scene folder (scene.toml, the MJCF and its ground texture)")
     _add_out(v, "PNG to write")
-    v.add_argument("--t", type=_number(float, 0), default=0.0, help="simulated time, seconds (default 0)")
-    v.add_argument("--seed", type=_number(int, 0), default=0, help="random seed of the walks, an integer >= 0 (default 0)")
+    v.add_argument("--t", type=_number(float, 0, MAX_SECONDS), default=0.0, help="simulated time, seconds (default 0)")
+    v.add_argument("--seed", type=SEED, default=0, help="random seed of the walks, an integer >= 0 (default 0)")
     v.add_argument("--quality", choices=QUALITIES, help="render preset (default: the scene's)")
     v.set_defaults(handler=_preview)
 
@@ -107,13 +93,6 @@ def _output_path(text: str) -> Path:
     return Path(text)
 
 
-def _os_message(e: OSError) -> str:
-    """One line: the file and the system's reason (``out/gt.parquet: No space left on device``)."""
-    if e.filename is not None and e.strerror:
-        return f"{e.filename}: {e.strerror}"
-    return (str(e).strip().splitlines() or [type(e).__name__])[0]
-
-
 def _generate(args: argparse.Namespace) -> str:
     from simgen.dataset import generate
     from simgen.scene import load_scene
@@ -137,9 +116,11 @@ def _preview(args: argparse.Namespace) -> str:
 
 
 def _import_mot(args: argparse.Namespace) -> str:
+    from simgen.dataset import FORMAT
     from simgen.detection import import_into_dataset
 
-    n = import_into_dataset(args.dataset_dir, args.mot_txt, args.name, args.min_iou)
+    with output_folder(args.dataset_dir, FORMAT, resume=True):  # the dataset's lock: one writer at a time
+        n = import_into_dataset(args.dataset_dir, args.mot_txt, args.name, args.min_iou)
     return f"{n} detections of {args.name!r} added to {args.dataset_dir / 'detections.parquet'}"
 
 
@@ -160,7 +141,6 @@ def main(argv: list[str] | None = None) -> int:
         from simgen.backend import BackendError  # first: the guarded mujoco import
     except Exception as e:  # noqa: BLE001  (BackendError raised while importing simgen.backend)
         return _fail(str(e), 3)
-    from homocal.files import OutputFolderError
     from simgen.dataset import DatasetError
 
     try:
@@ -169,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     except BackendError as e:
         return _fail(str(e), 3)
     except (ValueError, KeyError, OSError, DatasetError, OutputFolderError) as e:  # ConfigError is a ValueError
-        message = _os_message(e) if isinstance(e, OSError) else str(e)
+        message = os_message(e) if isinstance(e, OSError) else str(e)
         return _fail(f"{args.command}: {message}" if args.command in FILE_COMMANDS else message)
 
 

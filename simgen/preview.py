@@ -5,13 +5,16 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from PIL import Image
+from PIL.PngImagePlugin import PngInfo
 
-from homocal.files import write_atomic
+from homocal.files import check_output_file, write_atomic
 from simgen.detection import SegmentationDetector
 from simgen.scene import Scene
 from simgen.stage import Stage
 
 _SHIFT = 4  # cv2 fixed-point bits, so sub-pixel coordinates are drawn where they are
+SOFTWARE = "simgen preview"  # the PNG's Software text: marks a file preview wrote (and may replace)
 
 
 def _px(points: np.ndarray) -> np.ndarray:
@@ -41,13 +44,25 @@ def annotate(scene: Scene, rgb: np.ndarray, agent_ids: np.ndarray, foot_xy: np.n
     return img
 
 
+def is_preview(path: Path) -> bool:
+    """Whether ``path`` is a PNG written by preview (its Software text)."""
+    try:
+        with Image.open(path) as image:
+            return image.format == "PNG" and image.text.get("Software") == SOFTWARE
+    except (OSError, ValueError):
+        return False
+
+
 def preview(scene: Scene, seed: int, t: float, path: str | Path) -> int:
-    """Render the scene at time t (seconds) with ``seed``, write the annotated frame to ``path`` (PNG,
-    atomically; OSError naming ``path`` if it cannot be written) and return the number of agents in view."""
+    """Render the scene at time t (seconds) with ``seed``, write the annotated frame to ``path`` as a PNG
+    (atomically; an existing ``path`` is replaced only if preview wrote it, homocal.files.check_output_file)
+    and return the number of agents in view."""
+    check_output_file(path, is_preview, "PNG written by simgen preview")
     with Stage(scene, seed, t_end=t + 1.0) as stage:
         state = stage.set_time(t)
         agent_ids = stage.agent_ids()
         img = annotate(scene, stage.rgb(), agent_ids, state.xy)
-    png = cv2.imencode(".png", img)[1].tobytes()
-    write_atomic(path, lambda tmp: tmp.write_bytes(png))
+    info = PngInfo()
+    info.add_text("Software", SOFTWARE)
+    write_atomic(path, lambda tmp: Image.fromarray(img[..., ::-1]).save(tmp, format="PNG", pnginfo=info))
     return len(np.unique(agent_ids[agent_ids >= 0]))

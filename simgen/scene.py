@@ -22,6 +22,8 @@ GT_DT = 0.05  # ground-truth period, seconds (paper Section 5.1)
 GT_RATE = 20  # 1 / GT_DT, samples per second, for exact integer time arithmetic
 DETECTORS = ("segmentation", "rgb", "hog")
 QUALITIES = ("draft", "default", "high")  # render presets (simgen.render.QUALITY)
+MAX_SECONDS = 86400.0  # longest run (and preview time): a day; the agents' walks are planned for the whole run
+MAX_FPS = 1000  # highest video frame rate
 HAND_PLACED_MAX_PX = 2.0  # a hand-placed vertex lies 1 to 2 px from the exact one (data_schema.md)
 
 
@@ -253,10 +255,10 @@ def _read_ground(model_path: Path) -> Ground:
 def _check_run(s: Scene) -> None:
     """Run options: durations on the 50 ms grid, integer frame counts, known detectors."""
     for key, v in (("run.seconds", s.seconds), ("run.chunk_seconds", s.chunk_seconds)):
-        if not (v > 0 and abs(v * GT_RATE - round(v * GT_RATE)) < 1e-9):
-            raise ConfigError(f"scene.toml: {key}: must be a positive multiple of {GT_DT} s, got {v}")
-    if not (isinstance(s.fps, int) and s.fps > 0):
-        raise ConfigError(f"scene.toml: run.fps: must be a positive integer, got {s.fps!r}")
+        if not (0 < v <= MAX_SECONDS and abs(v * GT_RATE - round(v * GT_RATE)) < 1e-9):
+            raise ConfigError(f"scene.toml: {key}: must be a positive multiple of {GT_DT} s, at most {MAX_SECONDS:g}, got {v}")
+    if not (isinstance(s.fps, int) and 0 < s.fps <= MAX_FPS):
+        raise ConfigError(f"scene.toml: run.fps: must be an integer in [1, {MAX_FPS}], got {s.fps!r}")
     for key, v in (("run.seconds", s.seconds), ("run.chunk_seconds", s.chunk_seconds)):
         if abs(v * s.fps - round(v * s.fps)) > 1e-9:
             raise ConfigError(f"scene.toml: {key}: {v} s is not a whole number of frames at {s.fps} fps")

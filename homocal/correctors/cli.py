@@ -14,12 +14,14 @@ from pathlib import Path
 
 import numpy as np
 
+from homocal.arguments import SEED, number
 from homocal.correctors.base import Corrector, load_corrector
 from homocal.correctors.descent import DescentCorrector
 from homocal.correctors.horizon import HorizonCorrector
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD, HybridCorrector
 from homocal.correctors.regression import RegressionCorrector
-from homocal.files import read_json, write_text_atomic
+from homocal.correctors.serialization import FORMAT
+from homocal.files import check_output_file, csv_header, json_format, read_json, write_text_atomic
 from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, check_orientation, validate_quad
 from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius, straight_ahead_column
 
@@ -32,6 +34,7 @@ METHODS = {
     "hybrid": lambda args: HybridCorrector(threshold=args.threshold, seed=args.seed),
 }
 TRUST_TOLERANCE_M = 0.5  # homocal fit reports how far the 1-sigma error stays under this
+APPLIED = ("x", "y", "sigma_m", "status")  # the columns homocal apply adds (last in its output)
 
 FIT_FORMATS = """\
 TRAP.json, the trapezoid (vertices in the order TL, TR, BR, BL as seen in the image):
@@ -83,9 +86,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     fit.add_argument("-o", "--out", required=True, type=Path, metavar="CORRECTION.json", help="the correction to write")
     fit.add_argument("--camera-origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
                      help="ground point under the camera, metres (default 0,0)")
-    fit.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, help="hybrid: keep regression at or above "
-                     "this calibration improvement, percent (default %(default)g)")
-    fit.add_argument("--seed", type=int, default=0, help="descent, hybrid: seed of the coordinate order (default 0)")
+    fit.add_argument("--threshold", type=number(float, 0, 100), default=DEFAULT_THRESHOLD, help="hybrid: keep regression at or "
+                     "above this calibration improvement, percent (default %(default)g)")
+    fit.add_argument("--seed", type=SEED, default=0, help="descent, hybrid: seed of the coordinate order (default 0)")
     fit.set_defaults(handler=handle_fit)
 
     apply = subparsers.add_parser(
@@ -108,7 +111,8 @@ def handle_fit(args: argparse.Namespace) -> int:
     _, _, cols, _ = read_points_csv(args.points, ("u", "v", "x", "y"), finite=True)
     if str(args.out) == "-":
         raise ValueError("-o -: the correction is a JSON file, not a table: give its file name")
-    _check_output_folder(args.out)
+    check_output_file(args.out, lambda p: json_format(p) == FORMAT, "homocal correction (JSON with format "
+                      f"{FORMAT!r})")
     corrector = METHODS[args.method](args)
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -135,15 +139,15 @@ def handle_apply(args: argparse.Namespace) -> int:
     fields, rows, cols, lines = read_points_csv(args.points, ("u", "v"), finite=False)
     to_stdout = str(args.out) == "-"
     if not to_stdout:
-        _check_output_folder(args.out)
+        check_output_file(args.out, lambda p: (csv_header(p) or [])[-4:] == list(APPLIED),
+                          f"CSV written by homocal apply (header ending {','.join(APPLIED)})")
     q = np.column_stack([cols["u"], cols["v"]])
     bad_input = ~(np.abs(q) <= MAX_COORDINATE).all(axis=1)  # nan, inf, or an overflow
     q[bad_input] = np.nan
     xy = corrector.transform_points(q)
     sigma = sigma_radius(ground_uncertainty(_mapping(corrector), q, args.click_sigma_px, args.point_sigma_px))
     status = np.where(bad_input, "bad_input", np.where(np.isnan(xy).any(axis=1), "beyond_horizon", "ok"))
-    added = ("x", "y", "sigma_m", "status")
-    out_fields = [f for f in fields if f not in added] + list(added)
+    out_fields = [f for f in fields if f not in APPLIED] + list(APPLIED)
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(out_fields)
@@ -272,11 +276,6 @@ def _xy(text: str) -> tuple[float, float]:
     if not (math.isfinite(x) and math.isfinite(y)):
         raise argparse.ArgumentTypeError(f"expected two finite numbers X,Y, got {text!r}")
     return x, y
-
-
-def _check_output_folder(path: Path) -> None:
-    if not path.parent.is_dir():
-        raise ValueError(f"{path}: the folder {path.parent} does not exist")
 
 
 def _label(corrector: Corrector) -> str:

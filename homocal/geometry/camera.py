@@ -39,8 +39,8 @@ class PinholeCamera:
             raise ValueError(f"camera: width and height must be positive, got {self.width}x{self.height}")
         if not 0.0 < self.hfov_deg < 180.0:
             raise ValueError(f"camera: hfov_deg must be in (0, 180), got {self.hfov_deg}")
-        if self.mount_height_m <= 0.0:
-            raise ValueError(f"camera: mount_height_m must be > 0, got {self.mount_height_m}")
+        if not 0.0 < self.mount_height_m <= 1e4:  # 10 km: above any mast, below where the maths overflows
+            raise ValueError(f"camera: mount_height_m must be in (0, 10000] m, got {self.mount_height_m}")
         if not 0.0 < self.tilt_deg + self.vfov_deg / 2.0:
             raise ValueError(
                 f"camera: tilt_deg={self.tilt_deg} with vertical fov {self.vfov_deg:.2f} deg sees no ground"

@@ -75,19 +75,28 @@ def signed_area(quad: np.ndarray) -> float:
 
 
 def check_orientation(image_quad: np.ndarray, ground_quad: np.ndarray, target_y_up: bool = True) -> None:
-    """Refuse a map trapezoid whose corners go round the other way from the image trapezoid's.
+    """Refuse a map trapezoid that is mirrored or turned against the image trapezoid.
 
     Both are given in the same order (TL, TR, BR, BL as seen in the image). The image's v axis points down; a
     ground frame in metres (homocal's world: y forward) has y up on a map, so a correct pair has signed areas of
     OPPOSITE sign (target_y_up=True); a site map in pixels (py down, like the image) has the SAME sign
     (target_y_up=False). A mirrored (left-right) or upside-down (near-far) map flips the sign: such a pair still
-    gives a homography, but one that maps the scene mirrored (17 m errors in the probe of issue 12).
-    A map rotated by 180 degrees keeps the orientation and is not detectable here.
+    gives a homography, but one that maps the scene mirrored (17 m errors in the probe of issue 12). A map
+    turned by 90 or 180 degrees keeps the sign; it is caught by the far edge: the edge that is higher in the
+    image (TL-TR, or whichever pair the order makes the upper one) lies farther from the camera, so it must be
+    the farther one on the map too (larger y in metres, smaller py in site-map pixels).
     """
-    a_img, a_map = signed_area(np.asarray(image_quad, float)), signed_area(np.asarray(ground_quad, float))
-    if (a_img * a_map < 0) != target_y_up:
+    image, ground = np.asarray(image_quad, float), np.asarray(ground_quad, float)
+    sign = -1 if target_y_up else 1  # of the products below in a correct pair (y flipped between the frames or not)
+    if not signed_area(image) * signed_area(ground) * sign > 0:
         raise ValueError(f"the map trapezoid's corners go round the other way from the image's (mirrored or upside "
                          f"down?): give both in the order {QUAD_ORDER} as seen in the image")
+    upper_image = image[:2, 1].sum() - image[2:, 1].sum()  # < 0: TL, TR higher in the image than BR, BL
+    upper_map = ground[:2, 1].sum() - ground[2:, 1].sum()
+    if not upper_image * upper_map * sign > 0:
+        raise ValueError(f"the map trapezoid is turned against the image's: the edge higher in the image lies farther "
+                         f"from the camera and must be the farther one on the map (map up = forward); give both "
+                         f"in the order {QUAD_ORDER} as seen in the image")
 
 
 def homography_from_quads(source: np.ndarray, target: np.ndarray) -> np.ndarray:

@@ -25,7 +25,7 @@ import numpy as np
 from tqdm import tqdm
 
 from homocal.correctors.cli import METHODS as CLI_METHODS, _xy, load_trapezoid_site_map, read_points_csv
-from homocal.files import write_text_atomic
+from homocal.files import check_output_file, csv_header, write_text_atomic
 from homocal.geometry import SiteMap, ViewTransformer
 from homocal.keyed_rng import seed_from_key
 from homocal.study import kernels
@@ -218,20 +218,6 @@ def _numbers(text: str, flag: str) -> list[float]:
     return values
 
 
-def _check_output(path: Path) -> None:
-    """An existing file is replaced only if it is an earlier advice CSV (its header line is ours)."""
-    if not path.parent.is_dir():
-        raise ValueError(f"{path}: the folder {path.parent} does not exist")
-    if path.exists():
-        try:
-            with path.open(encoding="utf-8") as f:
-                ours = f.readline().rstrip("\n") == ",".join(CSV_FIELDS)
-        except (OSError, UnicodeDecodeError):
-            ours = False
-        if not ours:
-            raise ValueError(f"{path}: exists and is not a homocal advise CSV; not overwriting it")
-
-
 def handle_advise(args: argparse.Namespace) -> int:
     distances = _numbers(args.distances, "--distances")
     if len(distances) < 3 or min(distances) <= 0:
@@ -257,7 +243,7 @@ def handle_advise(args: argparse.Namespace) -> int:
         raise ValueError(f"{n_triples:,} triples x {args.samples} samples is over {MAX_SAMPLES:,} samples: use fewer "
                          f"distances or lateral offsets, or fewer --samples")
     if args.output is not None:
-        _check_output(args.output)
+        check_output_file(args.output, lambda p: csv_header(p) == list(CSV_FIELDS), "homocal advise CSV")
     transformer, site_map = load_trapezoid_site_map(args.trapezoid)
     if site_map is None or args.map_scale is not None:
         site_map = SiteMap(args.map_scale or DEFAULT_MAP_SCALE, site_map.origin_px if site_map else (0.0, 0.0))

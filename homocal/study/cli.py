@@ -3,9 +3,14 @@ from __future__ import annotations
 
 import argparse
 
+from homocal.arguments import number
 from homocal.progress import add_progress_option, show_progress
 from homocal.study.engine import PRESETS, dry_run_counts, run_study
 from homocal.study.inputs import METRICS, StudyParams
+
+
+MAX_VARIANTS = 100_000  # 100x the paper's 1000 trapezoid variants per scene (one shard each)
+MAX_N_TEST = 1_000_000  # test points per scene
 
 
 def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
@@ -20,11 +25,13 @@ def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
     p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
                    help="paper: the paper's protocol (1000 variants, 2000 test points) with the base error closest to "
                         "its Table 1 (see README); quick: 50 variants, no base error (default)")
-    p.add_argument("--variants", dest="n_variants", type=int, metavar="N", help="perturbed variants per scene (overrides the preset)", **quiet)
+    p.add_argument("--variants", dest="n_variants", type=number(int, 0, MAX_VARIANTS), metavar="N",
+                   help="perturbed variants per scene (overrides the preset)", **quiet)
     p.add_argument("--seed", type=typed(int), help="run seed (variants, base errors, descent orders, test subsample; default 0)", **quiet)
     p.add_argument("--foot-source", help="exact (projected contact points, default), segmentation or rgb "
                                          "(a detector's matched detections)", **quiet)
-    p.add_argument("--n-test", type=int, help="test points per scene, a seeded subsample (default 2000)", **quiet)
+    p.add_argument("--n-test", type=number(int, 1, MAX_N_TEST), help="test points per scene, a seeded subsample of "
+                   "those the dataset has (all of them if it has fewer; default 2000)", **quiet)
     p.add_argument("--max-test-distance", type=typed(metres_or_none), metavar="M", **quiet,
                    help="test points at most M metres from the camera (default 50, the paper's operating range, Fig. 2); "
                         "'none' for all")
@@ -54,10 +61,6 @@ def params_from_args(args: argparse.Namespace, **override) -> StudyParams:
         values["horizon_shift"] = None
     if "descent_delta_max" in values:
         values["descent"] = descent_settings(values.pop("descent_delta_max"))
-    if values.get("n_variants", 0) < 0:
-        raise ValueError(f"--variants must be >= 0, got {values['n_variants']}")
-    if values.get("n_test", 1) < 1:
-        raise ValueError(f"--n-test must be >= 1, got {values['n_test']}")
     return StudyParams(**values)
 
 
@@ -80,7 +83,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("-o", "--out", required=True, help="results directory")
     add_study_options(p)
     group = p.add_mutually_exclusive_group()
-    group.add_argument("--workers", type=int, help="start a local Dask cluster of N worker processes")
+    group.add_argument("--workers", type=number(int, 1, 1024), help="start a local Dask cluster of N worker processes")
     group.add_argument("--scheduler", help="address of a running Dask scheduler")
     p.add_argument("--resume", action="store_true", help="continue the study in --out, skipping finished shards")
     p.add_argument("--dry-run", action="store_true", help="print the sample counts and exit")
@@ -101,8 +104,6 @@ def metres_or_none(text: str) -> float | None:
 
 def handle_study(args: argparse.Namespace) -> int:
     params = params_from_args(args)
-    if args.workers is not None and args.workers < 1:
-        raise ValueError(f"--workers must be >= 1, got {args.workers}")
     if args.dry_run:
         counts = dry_run_counts(args.datasets, params)
         for scene, n in counts.items():

@@ -19,6 +19,7 @@ from matplotlib.figure import Figure
 
 from homocal.correctors import fit_quadratic_error
 from homocal.dataset import Dataset, calibration_source, load_dataset
+from homocal.files import write_atomic
 from homocal.geometry import ViewTransformer
 from homocal.study.aggregate import Quantiles, scan
 from homocal.study.metrics import METHODS
@@ -34,6 +35,17 @@ class FigureFile:
     path: Path
     title: str
     caption: str
+
+
+def figure_names(study: dict) -> list[str]:
+    """The file names make_figures may write for a study (those of its scenes whose dataset is missing are not)."""
+    return [*(f"error_distance_{entry['scene']}.png" for entry in study["datasets"]), "test_distance.png",
+            "improvement_histograms.png", "path_heatmaps.png"]
+
+
+def save(fig: Figure, out: Path) -> None:
+    """Write the figure as a PNG, atomically."""
+    write_atomic(out, lambda tmp: fig.savefig(tmp, dpi=DPI))
 
 
 def make_figures(results_dir: Path, study: dict, shards: dict[str, list[Path]], out_dir: Path, progress: bool = False
@@ -120,7 +132,7 @@ def improvement_histograms(shards: dict[str, list[Path]], out: Path, lo: float =
             ax.set_ylabel(f"samples per {width:g} pp bin (%)")
     for ax in axes[-1]:
         ax.set_xlabel("improvement (%) = 100 (E_before - E_after) / E_before")
-    fig.savefig(out, dpi=DPI)
+    save(fig, out)
     return (f"The improvement distributions of the paper's Section 6 (its text gives their medians, spreads and 1st "
             f"percentiles). Share of samples per {width:g} percentage-point bin, all scenes pooled; the display is clipped to "
             f"[{lo:g}, {hi:g}] % and each panel gives the share of samples outside it.")
@@ -174,7 +186,7 @@ def path_heatmaps(shards: dict[str, list[Path]], out: Path, bins: int = 24, vmin
         ax.set_xlabel("sum of the three calibration distances (m)")
         ax.set_ylabel("spread of the three calibration distances (m)")
     fig.colorbar(mesh, ax=axes.tolist(), label="mean path improvement (%)", extend="min" if lowest < vmin else "neither")
-    fig.savefig(out, dpi=DPI)
+    save(fig, out)
     return (f"Counterpart of the paper's Fig. 4 (a: regression, b: descent). Mean path improvement per cell of {bins} x {bins} bins of the calibration triple's distance sum and "
             f"spread (max - min), all scenes and variants pooled; empty cells are blank"
             + (f"; cell means below {vmin:g} % share the lowest colour." if lowest < vmin else "."))
@@ -218,7 +230,7 @@ def error_vs_distance(ds: Dataset, variants_file: Path, source: str, out: Path, 
     ax.set_ylabel("ground error of the mapped point (m)")
     ax.set_title(f"{ds.name}: ground error against distance ({source} foot points)")
     ax.legend(fontsize=8)
-    fig.savefig(out, dpi=DPI)
+    save(fig, out)
     return (f"Counterpart of the paper's Fig. 3. Euclidean ground error of the calibration points (markers) and the test "
             f"points (grey) mapped through the base trapezoid of variant 0 and the first {len(quads) - 1} perturbed "
             f"variant(s), with the least-squares fit e = a d² + b d over all {len(d_cal)} calibration points of each."
@@ -242,7 +254,7 @@ def test_distance_distribution(datasets: list[Dataset], source: str, out: Path, 
     ax.set_ylabel(f"test points per {width:g} m bin")
     ax.set_title("Distance distribution of the test points")
     ax.legend(fontsize=8)
-    fig.savefig(out, dpi=DPI)
+    save(fig, out)
     return (f"Counterpart of the paper's Fig. 2. True distance from the camera of the test points ({', '.join(sizes)}); "
             f"ticks on the axis: calibration distances.")
 

@@ -1,7 +1,9 @@
 """``homocal report RESULTS_DIR``: the study's table and figures gathered on one self-contained HTML page.
 
-Writes into RESULTS_DIR/report (or --out): report.html (figures embedded as data URIs, linked to their
-files beside it), table.md, table.csv and figures/*.png; prints the table and the page's path.
+Writes into RESULTS_DIR/report (or --out): report.json (the folder's marker, homocal.files.output_folder),
+report.html (figures embedded as data URIs, linked to their files beside it), table.md, table.csv and
+figures/*.png; prints the table and the page's path. A folder that is not empty and has no report.json is
+refused untouched; a report folder of ours is written again (its own files replaced).
 """
 from __future__ import annotations
 
@@ -16,9 +18,9 @@ from typing import Sequence
 
 import numpy as np
 
-from homocal.files import write_text_atomic
+from homocal.files import output_folder, write_json_atomic, write_text_atomic
 from homocal.progress import add_progress_option, show_progress
-from homocal.study.figures import FigureFile, make_figures
+from homocal.study.figures import FigureFile, figure_names, make_figures
 from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer
 from homocal.study.inputs import StudyParams
@@ -30,6 +32,7 @@ STYLE = """body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:
 table{border-collapse:collapse;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:2px 8px}
 td.num{text-align:right;font-variant-numeric:tabular-nums}.grid{display:grid;grid-template-columns:1fr 1fr;gap:1.5em}
 figure{margin:0}figure img{width:100%}figcaption{font-size:0.9em;color:#444}.warn{color:#a00}"""
+FORMAT = "homocal-report"  # report.json's "format": marks a report folder
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -81,15 +84,18 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None, com
         other_study = load_study(other)
         others.append((other, other_study, build_table(verified_shard_files(other, other_study)[0], progress)))
     out_dir = Path(out_dir) if out_dir is not None else results_dir / "report"
-    out_dir.mkdir(parents=True, exist_ok=True)
-    table = build_table(shards, progress)
-    write_text_atomic(out_dir / "table.md", to_markdown(table))
-    write_text_atomic(out_dir / "table.csv", to_csv(table))
-    figures, notes = make_figures(results_dir, study, shards, out_dir / "figures", progress)
-    page = out_dir / "report.html"
-    reproduction = reproduction_html([(results_dir, study, table), *others], sweep_dir, out_dir)
-    law = law_html(results_dir, study)
-    write_text_atomic(page, render_html(study, table, figures, notes, out_dir, reproduction + law, missing))
+    with output_folder(out_dir, FORMAT, resume=True, marker="report.json") as folder:
+        folder.remove_temporaries(["report.json", "report.html", "table.md", "table.csv",
+                                   *(f"figures/{name}" for name in figure_names(study))])
+        write_json_atomic(folder.marker, {"format": FORMAT, "results_dir": str(results_dir.resolve())})
+        table = build_table(shards, progress)
+        write_text_atomic(out_dir / "table.md", to_markdown(table))
+        write_text_atomic(out_dir / "table.csv", to_csv(table))
+        figures, notes = make_figures(results_dir, study, shards, out_dir / "figures", progress)
+        page = out_dir / "report.html"
+        reproduction = reproduction_html([(results_dir, study, table), *others], sweep_dir, out_dir)
+        law = law_html(results_dir, study)
+        write_text_atomic(page, render_html(study, table, figures, notes, out_dir, reproduction + law, missing))
     return page, to_text(table), missing
 
 

@@ -21,10 +21,11 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from homocal.files import output_folder, write_atomic, write_json_atomic, write_text_atomic
+from homocal.files import output_folder, write_json_atomic, write_text_atomic
 from homocal.progress import show_progress
 from homocal.study.cli import add_study_options, params_from_args
 from homocal.study.engine import run_study
+from homocal.study.figures import save
 from homocal.study.metrics import D_KEYS, METHODS, METRICS, OVERALL, PAPER, build_table, load_study, paper_distance, shard_files
 
 FORMAT = "homocal-sweep"  # sweep.json's "format": marks a sweep folder (homocal.files.output_folder)
@@ -84,7 +85,7 @@ def run_sweep(paths: list[str], out: str | Path, param: str, values: list[str], 
             rows += [{"param": param, "value": value, "method": m, "D": D,
                       **{k: table.value(m, k) for k in CSV_KEYS}} for m in METHODS]
         write_text_atomic(out / "sweep.csv", to_csv(rows))
-        write_atomic(out / "sweep.png", lambda tmp: sweep_figure(rows, param).savefig(tmp, dpi=110))
+        save(sweep_figure(rows, param), out / "sweep.png")
     return rows
 
 
@@ -167,6 +168,10 @@ def handle_sweep(args: argparse.Namespace) -> int:
         raise ValueError(f"sweep exactly one parameter with two or more values (got {len(given)}: {', '.join(given) or 'none'})")
     param = given[0]
     values = expand_values(str(getattr(args, param)))
+    typed = [_typed(param, v) for v in values]
+    twice = list(dict.fromkeys(v for v, t in zip(values, typed) if typed.count(t) > 1))
+    if twice:
+        raise ValueError(f"--{param.replace('_', '-')} {getattr(args, param)!r}: {', '.join(twice)} given more than once")
     delattr(args, param)
     for name in SWEEPABLE:  # single values of the other sweepable options, as the study takes them
         if hasattr(args, name):

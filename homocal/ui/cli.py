@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from homocal.arguments import number
 from homocal.correctors.cli import _xy
 from homocal.geometry import SiteMap
 from homocal.ui import session as sessions
@@ -28,15 +29,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     ui.add_argument("dataset", nargs="?", type=Path, metavar="DATASET", help="a simgen dataset folder")
     ui.add_argument("--frame", type=Path, metavar="FRAME.png|VIDEO.mp4", help="the camera frame (an image or a video)")
-    ui.add_argument("--frame-index", type=int, default=0, metavar="N", help="video frame to show, from 0 (default 0)")
+    ui.add_argument("--frame-index", type=number(int, 0), default=0, metavar="N", help="video frame to show, from 0 (default 0)")
     ui.add_argument("--site-map", type=Path, metavar="MAP.png", help="the site map image (top-down, map up = forward)")
-    ui.add_argument("--scale", type=float, metavar="PX_PER_M", help="site map pixels per metre")
+    ui.add_argument("--scale", type=number(float, 0, low_open=True), metavar="PX_PER_M", help="site map pixels per metre")
     ui.add_argument("--origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
                     help="site map pixel of the ground origin (default 0,0: the top-left pixel)")
     ui.add_argument("--camera-origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
                     help="ground point under the camera, metres (default 0,0; the page can change it)")
     ui.add_argument("-o", "--out", type=Path, default=Path("."), metavar="DIR", help="folder Save writes to (default .)")
-    ui.add_argument("--port", type=int, default=0, help="port on 127.0.0.1 (default 0: a free one)")
+    ui.add_argument("--port", type=number(int, 0, 65535), default=0, help="port on 127.0.0.1 (default 0: a free one)")
     ui.set_defaults(handler=handle_ui)
 
 
@@ -53,8 +54,6 @@ def handle_ui(args: argparse.Namespace) -> int:
             raise ValueError(f"give a DATASET folder, or --frame, --site-map and --scale (missing {', '.join(missing)})")
         session = sessions.from_files(args.frame, args.site_map, SiteMap(args.scale, args.origin), args.camera_origin,
                                       args.out, args.frame_index)
-    if not 0 <= args.port < 65536:
-        raise ValueError(f"--port: expected 0 to 65535, got {args.port}")
     server = UIServer(session, args.port)
     try:
         print(f"homocal ui: {session.title} on {server.url} (saves to {session.out_dir}; Ctrl-C to stop)", flush=True)

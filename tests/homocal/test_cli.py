@@ -128,7 +128,7 @@ def _street_variants():
     """examples/street's trapezoid with the map's corners relabelled (the image's order kept)."""
     base = json.loads((STREET / "trapezoid.json").read_text())
     out = {}
-    for name, order in [("mirrored", [1, 0, 3, 2]), ("upside down", [3, 2, 1, 0])]:
+    for name, order in [("mirrored", [1, 0, 3, 2]), ("upside down", [3, 2, 1, 0]), ("rotated", [2, 3, 0, 1])]:
         out[name] = {**base, "map": [base["map"][i] for i in order]}
     metres = SiteMap(10.0, (400.0, 600.0)).to_metres(base["map"]).tolist()
     out["metres mirrored"] = {"image": base["image"], "map": [metres[i] for i in (1, 0, 3, 2)]}
@@ -203,9 +203,16 @@ def _bad_fit_inputs():
         ("overflow reference point", {"ref.csv": ref_header + rows + "640,500,1e308,5\n"}, [],
          "ground_points: point 3 = [1e+308, 5.0] is out of range"),
         *[(f"street {name}", {"trap.json": json.dumps(trap)}, [], "other way from the image's (mirrored or upside down?)")
-          for name, trap in _street_variants().items()],
+          for name, trap in _street_variants().items() if name != "rotated"],
         ("mirrored metres", {"trap.json": json.dumps({"image": IMAGE.tolist(), "map": GROUND[[1, 0, 3, 2]].tolist()})},
          [], "other way from the image's"),
+        ("rotated metres", {"trap.json": json.dumps({"image": IMAGE.tolist(), "map": GROUND[[2, 3, 0, 1]].tolist()})},
+         [], "turned against the image's"),
+        ("street rotated", {"trap.json": json.dumps(_street_variants()["rotated"])}, [], "turned against the image's"),
+        ("negative seed", {}, ["--seed", "-1"], "argument --seed: must be an integer in [0, 2**64 - 1], got -1"),
+        ("huge seed", {}, ["--seed", str(2**64)], "argument --seed: must be an integer in [0, 2**64 - 1]"),
+        ("NaN threshold", {}, ["--threshold", "nan"], "argument --threshold: must be a finite number in [0, 100], got nan"),
+        ("threshold 101", {}, ["--threshold", "101"], "argument --threshold: must be a finite number in [0, 100]"),
     ]
 
 

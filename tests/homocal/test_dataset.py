@@ -133,17 +133,28 @@ def break_copy(src, tmp_path, how):
         (dst / "manifest.json").write_text(json.dumps({**manifest, "complete": False}))
     elif how == "no trapezoid key":
         (dst / "trapezoids.json").write_text(json.dumps({"exact": {}}))
+    elif how == "camera.json UTF-16":
+        (dst / "camera.json").write_bytes((dst / "camera.json").read_text().encode("utf-16"))
+    elif how == "gt.parquet garbage":
+        (dst / "gt.parquet").write_bytes(b"PAR1 not a Parquet file")
+    elif how == "calibration ground NaN":
+        table = pq.read_table(dst / "calibration.parquet")
+        x = table.column("x").to_numpy().copy()
+        x[2] = float("nan")
+        pq.write_table(table.set_column(table.schema.get_field_index("x"), "x", [x]), dst / "calibration.parquet")
     return dst
 
 
 @pytest.mark.parametrize(
     "how,message",
     [("no calibration", "missing calibration.parquet"), ("no column", "missing column.*in_frame"),
-     ("incomplete", "not complete"), ("no trapezoid key", "missing key 'hand_placed'")],
+     ("incomplete", "not complete"), ("no trapezoid key", "missing key 'hand_placed'"),
+     ("camera.json UTF-16", r"camera.json: not a JSON file"), ("gt.parquet garbage", r"gt.parquet: not a readable Parquet file"),
+     ("calibration ground NaN", r"calibration objects \[2\] have no exact foot point or no finite ground position")],
 )  # fmt: skip
 def test_bad_datasets_are_named(tiny_dataset, tmp_path, how, message):
     with pytest.raises(ValueError, match=message):
-        load_dataset(break_copy(tiny_dataset, tmp_path, how))
+        load_dataset(break_copy(tiny_dataset, tmp_path, how)).calibration_points()
 
 
 def test_max_distance_keeps_the_operating_range(tiny_dataset):

@@ -1,6 +1,7 @@
 """homocal.files: output folders (marker, lock, cleanup of the tool's own temporaries) and atomic writes."""
 from __future__ import annotations
 
+import errno
 import json
 import os
 import signal
@@ -12,7 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from homocal.files import LOCK_NAME, OutputFolderError, output_folder, temporaries_of, write_text_atomic
+from homocal.files import (LOCK_NAME, OutputFolderError, os_message, output_folder, temporaries_of, write_atomic,
+                           write_text_atomic)
 
 TOOL = "demo-tool"
 OURS = json.dumps({"format": TOOL})
@@ -148,3 +150,29 @@ def test_failure_before_any_write_leaves_no_new_folder(tmp_path, existed):
             (out / "manifest.json").write_text(OURS)
             raise RuntimeError("late")
     assert sorted(p.name for p in out.iterdir()) == ["manifest.json"]  # what was written stays, to resume
+
+
+def _full_disk(tmp: Path) -> None:
+    with open("/dev/full", "wb") as f:  # a real ENOSPC from the kernel, raised by an OSError that names no file
+        f.write(b"x" * 65536)
+
+
+def _temporary_read_only(tmp: Path) -> None:
+    raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(tmp))
+
+
+def _other_file(tmp: Path) -> None:
+    raise OSError(errno.ENOENT, os.strerror(errno.ENOENT), "input.csv")
+
+
+@pytest.mark.parametrize("write, message", [
+    (_full_disk, "{out}: No space left on device"),          # no file named: the file meant is
+    (_temporary_read_only, "{out}: Read-only file system"),  # the temporary named: the file meant instead
+    (_other_file, "input.csv: No such file or directory"),   # another file named: kept
+])  # fmt: skip
+def test_write_atomic_errors_name_the_file_meant(tmp_path, write, message):
+    out = tmp_path / "a.csv"
+    with pytest.raises(OSError) as caught:
+        write_atomic(out, write)
+    assert os_message(caught.value) == message.format(out=out)
+    assert list(tmp_path.iterdir()) == []

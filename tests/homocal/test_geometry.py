@@ -156,24 +156,27 @@ class TestOrientation:
 
     SITE_MAP = SiteMap(10.0, (400.0, 600.0))
     IMAGE = CAM.project_ground(GROUND)
-    VARIANTS = {  # the map's corners relabelled: (order of GROUND's rows, orientation kept?)
-        "as clicked": ([0, 1, 2, 3], True),
-        "mirrored left-right": ([1, 0, 3, 2], False),
-        "upside down": ([3, 2, 1, 0], False),
-        "rotated 180 degrees": ([2, 3, 0, 1], True),  # keeps the orientation: not detectable by this check
+    VARIANTS = {  # the corners relabelled: (order of the image's rows, of GROUND's rows, None if accepted, else the message)
+        "as clicked": ([0, 1, 2, 3], [0, 1, 2, 3], None),
+        "both rotated alike": ([2, 3, 0, 1], [2, 3, 0, 1], None),  # the same four pairs: the same mapping
+        "mirrored left-right": ([0, 1, 2, 3], [1, 0, 3, 2], "other way from the image's"),
+        "upside down": ([0, 1, 2, 3], [3, 2, 1, 0], "other way from the image's"),
+        "rotated 180 degrees": ([0, 1, 2, 3], [2, 3, 0, 1], "turned against the image's"),  # the signed areas agree
+        "rotated 90 degrees": ([0, 1, 2, 3], [1, 2, 3, 0], "turned against the image's"),
+        "rotated 270 degrees": ([0, 1, 2, 3], [3, 0, 1, 2], "turned against the image's"),
     }
 
     @pytest.mark.parametrize("variant", VARIANTS)
     @pytest.mark.parametrize("units", ["metres", "site-map pixels"])
-    def test_signed_areas(self, variant, units):
-        order, kept = self.VARIANTS[variant]
+    def test_signed_areas_and_far_edge(self, variant, units):
+        image_order, order, message = self.VARIANTS[variant]
         ground = GROUND[order]
         target, y_up = (ground, True) if units == "metres" else (self.SITE_MAP.to_pixels(ground), False)
-        if kept:
-            check_orientation(self.IMAGE, target, target_y_up=y_up)
+        if message is None:
+            check_orientation(self.IMAGE[image_order], target, target_y_up=y_up)
         else:
-            with pytest.raises(ValueError, match="other way from the image's"):
-                check_orientation(self.IMAGE, target, target_y_up=y_up)
+            with pytest.raises(ValueError, match=message):
+                check_orientation(self.IMAGE[image_order], target, target_y_up=y_up)
 
     def test_signed_area_sign_convention(self):
         square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])

@@ -245,3 +245,28 @@ def test_resume_and_report_check_every_shard(datasets, reference, tmp_path, caps
     else:
         assert report_code == 2 and str(target) in err
         assert resume_code == 2 and str(target) in resume_err
+
+
+BAD_FLAGS = [
+    # (command and flags after the datasets and -o, the message)
+    (["study", "--variants", "-1"], "argument --variants: must be an integer in [0, 100000], got -1"),
+    (["study", "--variants", str(10**12)], "argument --variants: must be an integer in [0, 100000]"),
+    (["study", "--n-test", "0"], "argument --n-test: must be an integer in [1, 1000000], got 0"),
+    (["study", "--n-test", str(10**12)], "argument --n-test: must be an integer in [1, 1000000]"),
+    (["study", "--workers", "0"], "argument --workers: must be an integer in [1, 1024], got 0"),
+    (["sweep", "--horizon-shift", "1,1"], "--horizon-shift '1,1': 1 given more than once"),
+    (["sweep", "--seed", "0,1,0"], "--seed '0,1,0': 0 given more than once"),
+    (["sweep", "--horizon-shift", "0,2", "--n-test", "-5"], "argument --n-test"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("args, message", BAD_FLAGS, ids=[" ".join(a) for a, _ in BAD_FLAGS])
+def test_bad_numbers_are_one_line_naming_the_flag(datasets, tmp_path, capsys, args, message):
+    out = tmp_path / "out"
+    try:
+        code = main([args[0], *datasets, "-o", str(out), *args[1:]])
+    except SystemExit as e:  # refused by argparse
+        code = e.code
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith("homocal: error: ") and message in err and err.count("\n") == 1, err
+    assert not out.exists()

@@ -65,15 +65,23 @@ with output_folder(sys.argv[1], FORMAT, False):
 """
 
 
-@pytest.mark.parametrize("resume", [False, True])
-def test_second_writer_is_told_who_holds_the_folder(small_scene, tmp_path, capsys, resume):
-    """A run holding --out (here a process holding it as generate does) makes a second generate exit 2."""
+SECOND_WRITERS = {  # a command writing the dataset folder `out`
+    "generate": lambda scene, out, tmp: _generate(scene, out),
+    "generate --resume": lambda scene, out, tmp: _generate(scene, out, "--resume"),
+    "import-mot": lambda scene, out, tmp: ["import-mot", str(out), str(tmp / "det.txt"), "--name", "yolo"],
+}
+
+
+@pytest.mark.parametrize("command", SECOND_WRITERS)
+def test_second_writer_is_told_who_holds_the_folder(small_scene, tmp_path, capsys, command):
+    """A run holding a dataset folder (here a process holding it as generate does) makes a second writer exit 2."""
     out = tmp_path / "out"
+    (tmp_path / "det.txt").write_text("1,-1,100,60,10,20,0.9,-1,-1,-1\n")
     holder = subprocess.Popen([sys.executable, "-c", _HOLD, str(out)], stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline() == "held\n"
         before = _tree(out)
-        assert main(_generate(small_scene, out, *(["--resume"] if resume else []))) == 2
+        assert main(SECOND_WRITERS[command](small_scene, out, tmp_path)) == 2
         err = capsys.readouterr().err
         assert f"locked by pid {holder.pid} on {socket.gethostname()} since 20" in err and len(err.splitlines()) == 1, err
         assert _tree(out) == before
@@ -130,17 +138,20 @@ def test_unwritable_parent_is_one_line(small_scene, tmp_path, capsys):
 
 
 BAD_FLAGS = [
-    (["--seconds", "inf"], "argument --seconds: must be a finite number > 0, got inf"),
-    (["--seconds", "nan"], "argument --seconds: must be a finite number > 0"),
-    (["--seconds", "1e400"], "argument --seconds: must be a finite number > 0"),
-    (["--seconds", "0"], "argument --seconds: must be a finite number > 0"),
+    (["--seconds", "inf"], "argument --seconds: must be a finite number in (0, 86400], got inf"),
+    (["--seconds", "nan"], "argument --seconds: must be a finite number in (0, 86400]"),
+    (["--seconds", "1e400"], "argument --seconds: must be a finite number in (0, 86400]"),
+    (["--seconds", "1e12"], "argument --seconds: must be a finite number in (0, 86400], got 1e12"),
+    (["--seconds", "0"], "argument --seconds: must be a finite number in (0, 86400]"),
     (["--seconds", "-2"], "argument --seconds"),
     (["--seconds", "two"], "argument --seconds: expected a number, got 'two'"),
     (["--seconds", "0.123"], "run.seconds: must be a positive multiple of 0.05 s"),
-    (["--seed", "-1"], "argument --seed: must be an integer >= 0, got -1"),
+    (["--seed", "-1"], "argument --seed: must be an integer in [0, 2**64 - 1], got -1"),
+    (["--seed", str(2**64)], "argument --seed: must be an integer in [0, 2**64 - 1]"),
     (["--seed", "1.5"], "argument --seed: expected an integer"),
-    (["--fps", "0"], "argument --fps: must be an integer >= 1"),
+    (["--fps", "0"], "argument --fps: must be an integer in [1, 1000], got 0"),
     (["--fps", "-20"], "argument --fps"),
+    (["--fps", "100000"], "argument --fps: must be an integer in [1, 1000], got 100000"),
     (["--workers", "0"], "argument --workers: must be an integer >= 1"),
     (["--quality", "ultra"], "argument --quality: invalid choice"),
     (["--detectors", "yolo"], "detection.detectors"),
@@ -161,8 +172,29 @@ def test_bad_number_is_one_line_naming_the_flag(tmp_path, capsys, flags, message
 
 
 @pytest.mark.parametrize("flags, message", [(["--t", "-1"], "argument --t"), (["--t", "inf"], "argument --t"),
+                                            (["--t", "1e12"], "argument --t: must be a finite number in [0, 86400]"),
                                             (["--seed", "-1"], "argument --seed")])
 def test_preview_bad_number(tmp_path, capsys, flags, message):
     assert main(["preview", str(SCENES / "scene1"), "-o", str(tmp_path / "a.png"), *flags]) == 2
     err = capsys.readouterr().err
     assert message in err and len(err.splitlines()) == 1 and not (tmp_path / "a.png").exists()
+
+
+PREVIEW_REFUSED = [
+    # (id, make the -o name in tmp_path, message)
+    ("a user's PNG", lambda d: (d / "a.png").write_bytes(b"\x89PNG user") and "a.png", "exists and is not a PNG written by simgen preview"),
+    ("a symlink to a user's file", lambda d: (d / "u").write_bytes(b"user") and (d / "l.png").symlink_to(d / "u") or "l.png",
+     "exists and is not a PNG written by simgen preview"),
+    ("a folder", lambda d: (d / "f").mkdir() or "f", "is a folder"),
+    ("in a missing folder", lambda d: "missing/a.png", "does not exist"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("make, message", [c[1:] for c in PREVIEW_REFUSED], ids=[c[0] for c in PREVIEW_REFUSED])
+def test_preview_replaces_only_its_own_png(tmp_path, capsys, make, message):
+    out = tmp_path / make(tmp_path)
+    before = _tree(tmp_path)
+    assert main(["preview", str(SCENES / "scene1"), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"simgen: error: {out}: ") and message in err and len(err.splitlines()) == 1, err
+    assert _tree(tmp_path) == before

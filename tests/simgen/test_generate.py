@@ -180,6 +180,7 @@ MOT_BAD = [
     ("--min-iou -1", MOT_LINE.encode(), "yolo", ["--min-iou", "-1"], "argument --min-iou"),
     ("--min-iou 0", MOT_LINE.encode(), "yolo", ["--min-iou", "0"], "argument --min-iou"),
     ("incomplete", MOT_LINE.encode(), "yolo", [], "not complete"),
+    ("not a simgen dataset", MOT_LINE.encode(), "yolo", [], "not a simgen-dataset output folder"),
 ]  # fmt: skip
 
 
@@ -194,6 +195,9 @@ def test_import_mot_refuses_bad_input(run, tmp_path, capsys, how, content, name,
     if how == "incomplete":
         manifest = json.loads((out / "manifest.json").read_text())
         (out / "manifest.json").write_text(json.dumps({**manifest, "complete": False}, indent=2) + "\n")
+    if how == "not a simgen dataset":  # a manifest.json without our format tag (a user's, another tool's)
+        manifest = json.loads((out / "manifest.json").read_text())
+        (out / "manifest.json").write_text(json.dumps({k: v for k, v in manifest.items() if k != "format"}))
     before = _files(out)
     assert main(["import-mot", str(out), str(mot), "--name", name, *extra]) == 2
     err = capsys.readouterr().err

@@ -87,6 +87,9 @@ def test_preview_writes_an_annotated_frame(small_scene, tmp_path):
     from simgen.cli import main
 
     assert main(["preview", str(small_scene), "-o", str(tmp_path / "frame.png"), "--t", "0.0"]) == 0  # two people 25-36 px tall
+    first = (tmp_path / "frame.png").read_bytes()
+    assert main(["preview", str(small_scene), "-o", str(tmp_path / "frame.png"), "--t", "0.0"]) == 0  # its own PNG: replaced
+    assert (tmp_path / "frame.png").read_bytes() == first and sorted(tmp_path.glob("frame*")) == [tmp_path / "frame.png"]
     img = cv2.imread(str(tmp_path / "frame.png"))
     assert img.shape == (180, 320, 3)
     green = (img[:, :, 1] == 200) & (img[:, :, 0] == 0) & (img[:, :, 2] == 0)  # box outlines

@@ -250,7 +250,10 @@ def test_a_video_frame_is_read(tmp_path):
     (["--frame", "f.png", "--site-map", "m.png"], "(missing --scale)"),
     (["DS", "--frame", "f.png"], "give either DATASET or --frame/--site-map/--scale, not both (--frame)"),
     (["--frame", "none.png", "--site-map", "m.png", "--scale", "10"], "none.png: no such file"),
-    (["--frame", "f.png", "--site-map", "m.png", "--scale", "-2"], "scale_px_per_m must be a positive number"),
+    (["--frame", "f.png", "--site-map", "m.png", "--scale", "-2"], "argument --scale: must be a finite number > 0, got -2"),
+    (["--frame", "f.png", "--site-map", "m.png", "--scale", "nan"], "argument --scale: must be a finite number > 0, got nan"),
+    (["--frame", "f.png", "--site-map", "m.png", "--scale", "10", "--port", "70000"], "argument --port: must be an integer in [0, 65535]"),
+    (["--frame", "f.png", "--site-map", "m.png", "--scale", "10", "--frame-index", "-1"], "argument --frame-index: must be an integer >= 0"),
     (["--frame", "f.png", "--site-map", "m.png", "--scale", "10", "--out", "nowhere"],
      "nowhere: the output folder does not exist"),
     (["--frame", "f.png", "--site-map", "f.txt", "--scale", "10"], "f.txt: not a readable image"),
@@ -262,7 +265,11 @@ def test_bad_command_lines(tmp_path, monkeypatch, capsys, args, message):
     cv2.imwrite("m.png", np.zeros((8, 8, 3), np.uint8))
     Path("f.txt").write_text("not an image")
     Path("DS").mkdir()
-    assert main(["ui", *args]) == 2
+    try:
+        code = main(["ui", *args])
+    except SystemExit as e:  # refused by argparse
+        code = e.code
+    assert code == 2
     err = capsys.readouterr().err
     assert err.startswith("homocal: error: ") and message in err and err.count("\n") == 1
 

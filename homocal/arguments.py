@@ -1,0 +1,31 @@
+"""Command-line numbers checked where they are parsed (shared by the homocal and simgen commands): a bad value
+is refused by argparse as one line naming the flag ("argument --seed: must be an integer >= 0, got -1")."""
+from __future__ import annotations
+
+import argparse
+import math
+
+
+def number(kind: type, low: float, high: float = math.inf, low_open: bool = False):
+    """argparse type: a finite ``kind`` (int or float) in [low, high] (``(low, high]`` if low_open)."""
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {'an integer' if kind is int else 'a number'}, got {text!r}") from None
+        if not (math.isfinite(value) and (value > low if low_open else value >= low) and value <= high):
+            what = "an integer" if kind is int else "a finite number"
+            bounds = (f"in {'(' if low_open else '['}{_show(low)}, {_show(high)}]" if math.isfinite(high)
+                      else f"{'>' if low_open else '>='} {_show(low)}")
+            raise argparse.ArgumentTypeError(f"must be {what} {bounds}, got {text}")
+        return value
+    return parse
+
+
+def _show(bound: float) -> str:
+    if isinstance(bound, int) and bound > 2**32 and (bound + 1).bit_count() == 1:
+        return f"2**{bound.bit_length()} - 1"
+    return str(bound) if isinstance(bound, int) else f"{bound:g}"
+
+
+SEED = number(int, 0, 2**64 - 1)  # a run seed: numpy's SeedSequence and the keyed generators take 64 bits
