@@ -12,7 +12,7 @@ import sys
 import time
 from pathlib import Path
 
-from simgen.scene import QUALITIES
+from simgen.scene import DETECTORS, QUALITIES
 
 
 def _fail(message: str, code: int = 2) -> int:
@@ -52,7 +52,7 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--seconds", type=_number(float, 0, low_open=True), help="simulated duration (default: the scene's run.seconds)")
     g.add_argument("--seed", type=_number(int, 0), default=0, help="random seed, an integer >= 0 (default 0)")
     g.add_argument("--fps", type=_number(int, 1), help="video frame rate (default: the scene's run.fps)")
-    g.add_argument("--detectors", help="comma-separated, from: segmentation,rgb (default: the scene's)")
+    g.add_argument("--detectors", help=f"comma-separated, from: {','.join(DETECTORS)} (default: the scene's)")
     g.add_argument("--quality", choices=QUALITIES, help="render preset (default: the scene's render.quality, else default)")
     g.add_argument("--workers", type=_number(int, 1), default=1, help="render chunks in this many processes (default 1)")
     g.add_argument("--scheduler", metavar="ADDRESS",
