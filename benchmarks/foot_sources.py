@@ -1,0 +1,122 @@
+"""Table 1 per foot source: what a detector's foot points change in the study (README, "Detection noise").
+
+Run: python benchmarks/foot_sources.py STUDY [STUDY ...]
+     (each STUDY a results folder of `homocal study DATASET... -o STUDY --foot-source F`)
+
+Prints three markdown tables:
+1. Per dataset of the studies and per foot source (exact, each detector in detections.parquet, and the
+   calibration objects' segmentation foot points): the points, those within the studies' test distance, and
+   the foot point's error against the exact one: in the image (px, against gt.parquet's exact projection of
+   the same agent at gt_t) and on the ground (m, the foot point mapped by the exact trapezoid against the true
+   ground point), median and 90th percentile.
+2. Per study: its foot source, calibration and test points per scene (study.json), the test points' ground error
+   under the exact trapezoid's mapping (the floor no correction of the trapezoid removes, mean over the study's
+   test points, m) and the base trapezoid's path error (mean over its test points, m: the shards' path_before of
+   variant 0).
+3. Per study: Table 1's numbers of the paper's two methods (homocal.study.metrics.build_table) beside the
+   paper's, and D, the RMS distance to the paper's 14 numbers (metrics.paper_distance); then the other methods.
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
+
+from homocal.dataset import EXACT, load_dataset
+from homocal.geometry import ViewTransformer
+from homocal.study.metrics import D_METHODS, METHODS, METRICS, OVERALL, PAPER, build_table, load_study, paper_distance, shard_files
+
+KEYS = ("pos_path", "mean_path", "median_path", "p1_path", "std_path", "corr", "pos_cal", "median_cal")
+
+
+def exact_mapping(ds) -> ViewTransformer:
+    exact = ds.trapezoids["exact"]
+    return ViewTransformer(np.asarray(exact["image"], float), ds.site_map.to_metres(np.asarray(exact["map"], float)))
+
+
+def foot_errors(ds, max_distance: float | None) -> list[list[str]]:
+    """Rows (scene, source, points, within max_distance, px median / p90, m median / p90) of table 1."""
+    vt = exact_mapping(ds)
+    gt = ds.table("gt.parquet").to_pandas()[["t", "agent_id", "u", "v"]]
+    detections = ds.table("detections.parquet")
+    rows = []
+
+    def row(source, image, exact_image, ground):
+        near = np.ones(len(ground), bool) if max_distance is None else np.hypot(*(ground - ds.camera_origin).T) <= max_distance
+        px = np.hypot(*(image - exact_image).T)[near]
+        m = np.hypot(*(vt.transform_points(image) - ground).T)[near]
+        q = lambda x: f"{np.median(x):.2f} / {np.percentile(x, 90):.2f}" if len(x) else "-"  # noqa: E731
+        rows.append([ds.name, source, f"{len(image):,}", f"{near.sum():,}", q(px), q(m)])
+
+    for detector in dict.fromkeys(detections.column("detector").to_pylist()):
+        d = detections.filter(pc.and_(pc.equal(detections.column("detector"), detector),
+                                      pc.greater_equal(detections.column("agent_id"), 0))).to_pandas()
+        d = d[np.isfinite(d[["u", "v", "gt_x", "gt_y"]]).all(axis=1)]
+        d = d.assign(key=np.round(d["gt_t"] * 1e6).astype(np.int64))
+        joined = d.merge(gt.assign(key=np.round(gt["t"] * 1e6).astype(np.int64)), on=["agent_id", "key"],
+                         suffixes=("", "_exact"), validate="many_to_one")
+        row(detector, joined[["u", "v"]].to_numpy(float), joined[["u_exact", "v_exact"]].to_numpy(float),
+            joined[["gt_x", "gt_y"]].to_numpy(float))
+    cal = ds.table("calibration.parquet").to_pandas()
+    row("calibration objects, segmentation", cal[["u", "v"]].to_numpy(float), cal[["u_exact", "v_exact"]].to_numpy(float),
+        cal[["x", "y"]].to_numpy(float))
+    return rows
+
+
+def floors(study: dict) -> dict[str, float]:
+    """Per scene: mean ground error (m) of the study's test points mapped by the exact trapezoid."""
+    out = {}
+    for entry in study["datasets"]:
+        ds = load_dataset(entry["path"])
+        image, ground = ds.test_points(study.get("foot_source", EXACT), n=study.get("n_test"), seed=study.get("seed", 0),
+                                       max_distance=study.get("max_test_distance"), max_lateral=study.get("test_lateral_max"))
+        out[entry["scene"]] = float(np.mean(np.hypot(*(exact_mapping(ds).transform_points(image) - ground).T)))
+    return out
+
+
+def table(header: list[str], rows: list[list[str]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" if i < 2 else "---:" for i in range(len(header))) + "|"]
+    return "\n".join(lines + ["| " + " | ".join(r) + " |" for r in rows])
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("studies", nargs="+", type=Path, help="results folders of homocal study")
+    args = parser.parse_args(argv)
+    studies = [(path, load_study(path)) for path in args.studies]
+    datasets = dict.fromkeys(e["path"] for _, s in studies for e in s["datasets"])
+    max_distance = studies[0][1].get("max_test_distance")
+    rows = [r for path in datasets for r in foot_errors(load_dataset(path), max_distance)]
+    within = f"within {max_distance:g} m" if max_distance else "all"
+    print(table(["scene", "foot points", "matched points", within, "image error, px (median / p90)",
+                 "ground error, m (median / p90)"], rows))
+    print()
+    point_rows, tables = [], []
+    for path, study in studies:
+        shards = shard_files(path, study)
+        before = {scene: pq.read_table(files[0], columns=["path_before"]).column(0)[0].as_py() if files else float("nan")
+                  for scene, files in shards.items()}
+        floor = floors(study)
+        point_rows += [[str(path), study.get("foot_source", EXACT), e["scene"], f"{study['n_variants']}",
+                        f"{e['n_calibration']}", f"{e['n_test']:,}", f"{floor[e['scene']]:.3f}", f"{before[e['scene']]:.3f}"]
+                       for e in study["datasets"]]
+        tables.append((path, study, build_table(shards)))
+    print(table(["study", "foot source", "scene", "variants", "calibration points", "test points",
+                 "test points' error, exact mapping (m)", "base trapezoid's path error (m)"], point_rows))
+    print()
+    header = ["method", "metric", "paper", *(f"{s.get('foot_source', EXACT)} ({p.name})" for p, s, _ in tables)]
+    fmt = lambda k, v: "" if v is None else METRICS[k][1].format(v)  # noqa: E731
+    rows = [[m, METRICS[k][0], fmt(k, PAPER[m].get(k)), *(fmt(k, t.value(m, k, OVERALL)) for _, _, t in tables)]
+            for m in D_METHODS for k in KEYS]
+    print(table(header, rows + [["", "**D** (pp)", "0", *(f"{paper_distance(t):.1f}" for _, _, t in tables)]]))
+    print()
+    print(table(header, [[m, METRICS[k][0], "", *(fmt(k, t.value(m, k, OVERALL)) for _, _, t in tables)]
+                         for m in METHODS if m not in D_METHODS for k in KEYS]))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
