@@ -2,6 +2,12 @@
 
 Run: python benchmarks/foot_sources.py STUDY [STUDY ...]
      (each STUDY a results folder of `homocal study DATASET... -o STUDY --foot-source F`)
+     python benchmarks/foot_sources.py --calibration exact|segmentation DATASET OUT
+     (OUT: DATASET with every calibration object's foot point, exact and detected alike, taken from the exact
+     projection or from the segmentation detector, the other files linked: a study on it with --foot-source
+     exact then has segmentation calibration points and exact test points, one with a detector exact
+     calibration points and that detector's test points; this separates the calibration points' noise from
+     the test points')
 
 Prints three markdown tables:
 1. Per dataset of the studies and per foot source (exact, each detector in detections.parquet, and the
@@ -19,6 +25,7 @@ Prints three markdown tables:
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 import numpy as np
@@ -82,10 +89,32 @@ def table(header: list[str], rows: list[list[str]]) -> str:
     return "\n".join(lines + ["| " + " | ".join(r) + " |" for r in rows])
 
 
+def derive(dataset: Path, out: Path, calibration: str) -> None:
+    """OUT: dataset's files linked, calibration.parquet rewritten with (u, v) and (u_exact, v_exact) both from the
+    exact projections (calibration "exact") or both from the segmentation detector ("segmentation")."""
+    load_dataset(dataset)  # a complete dataset
+    out.mkdir(parents=True)
+    for f in sorted(dataset.iterdir()):
+        if f.name != "calibration.parquet":
+            os.symlink(f.resolve(), out / f.name)
+    cal = pq.read_table(dataset / "calibration.parquet")
+    u, v = ("u_exact", "v_exact") if calibration == EXACT else ("u", "v")
+    cols = {"u": cal.column(u), "v": cal.column(v), "u_exact": cal.column(u), "v_exact": cal.column(v)}
+    for name, col in cols.items():
+        cal = cal.set_column(cal.schema.get_field_index(name), name, col)
+    pq.write_table(cal, out / "calibration.parquet")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("studies", nargs="+", type=Path, help="results folders of homocal study")
+    parser.add_argument("studies", nargs="+", type=Path, help="results folders of homocal study (or DATASET OUT)")
+    parser.add_argument("--calibration", choices=(EXACT, "segmentation"), help="write a dataset with these calibration points")
     args = parser.parse_args(argv)
+    if args.calibration:
+        if len(args.studies) != 2:
+            parser.error("--calibration needs DATASET OUT")
+        derive(*args.studies, args.calibration)
+        return 0
     studies = [(path, load_study(path)) for path in args.studies]
     datasets = dict.fromkeys(e["path"] for _, s in studies for e in s["datasets"])
     max_distance = studies[0][1].get("max_test_distance")
