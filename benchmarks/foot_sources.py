@@ -7,7 +7,8 @@ Run: python benchmarks/foot_sources.py STUDY [STUDY ...]
      projection or from the segmentation detector, the other files linked: a study on it with --foot-source
      exact then has segmentation calibration points and exact test points, one with a detector exact
      calibration points and that detector's test points; this separates the calibration points' noise from
-     the test points')
+     the test points'; with --exact-detections, every matched detection moved to its agent's exact foot point:
+     the detector's choice of test points without its foot-point error)
 
 Prints three markdown tables:
 1. Per dataset of the studies and per foot source (exact, each detector in detections.parquet, and the
@@ -15,9 +16,9 @@ Prints three markdown tables:
    the foot point's error against the exact one: in the image (px, against gt.parquet's exact projection of
    the same agent at gt_t) and on the ground (m, the foot point mapped by the exact trapezoid against the true
    ground point), median and 90th percentile.
-2. Per study: its foot source, calibration and test points per scene (study.json), the test points' ground error
-   under the exact trapezoid's mapping (the floor no correction of the trapezoid removes, mean over the study's
-   test points, m) and the base trapezoid's path error (mean over its test points, m: the shards' path_before of
+2. Per study: its foot source, calibration and test points per scene (study.json), the test points' median
+   distance from the camera (m), their ground error under the exact trapezoid's mapping (what their own error
+   adds with a perfect trapezoid, mean over the study's test points, m) and the base trapezoid's path error (mean over its test points, m: the shards' path_before of
    variant 0).
 3. Per study: Table 1's numbers of the paper's two methods (homocal.study.metrics.build_table) beside the
    paper's, and D, the RMS distance to the paper's 14 numbers (metrics.paper_distance); then the other methods.
@@ -29,7 +30,7 @@ import os
 from pathlib import Path
 
 import numpy as np
-import pyarrow.compute as pc
+import pyarrow as pa
 import pyarrow.parquet as pq
 
 from homocal.dataset import EXACT, load_dataset
@@ -44,11 +45,19 @@ def exact_mapping(ds) -> ViewTransformer:
     return ViewTransformer(np.asarray(exact["image"], float), ds.site_map.to_metres(np.asarray(exact["map"], float)))
 
 
+def with_exact_feet(ds):
+    """detections.parquet as a DataFrame with u_exact, v_exact: gt.parquet's exact projection of the matched
+    agent's foot point at gt_t (NaN for unmatched detections)."""
+    gt = ds.table("gt.parquet").to_pandas()[["t", "agent_id", "u", "v"]]
+    d = ds.table("detections.parquet").to_pandas()
+    key = lambda t: np.round(t.fillna(-1.0) * 1e6).astype(np.int64)  # noqa: E731
+    gt = gt.assign(key=key(gt["t"])).drop(columns="t").rename(columns={"u": "u_exact", "v": "v_exact"})
+    return d.assign(key=key(d["gt_t"])).merge(gt, on=["agent_id", "key"], how="left", validate="many_to_one").drop(columns="key")
+
+
 def foot_errors(ds, max_distance: float | None) -> list[list[str]]:
     """Rows (scene, source, points, within max_distance, px median / p90, m median / p90) of table 1."""
     vt = exact_mapping(ds)
-    gt = ds.table("gt.parquet").to_pandas()[["t", "agent_id", "u", "v"]]
-    detections = ds.table("detections.parquet")
     rows = []
 
     def row(source, image, exact_image, ground):
@@ -58,29 +67,26 @@ def foot_errors(ds, max_distance: float | None) -> list[list[str]]:
         q = lambda x: f"{np.median(x):.2f} / {np.percentile(x, 90):.2f}" if len(x) else "-"  # noqa: E731
         rows.append([ds.name, source, f"{len(image):,}", f"{near.sum():,}", q(px), q(m)])
 
-    for detector in dict.fromkeys(detections.column("detector").to_pylist()):
-        d = detections.filter(pc.and_(pc.equal(detections.column("detector"), detector),
-                                      pc.greater_equal(detections.column("agent_id"), 0))).to_pandas()
-        d = d[np.isfinite(d[["u", "v", "gt_x", "gt_y"]]).all(axis=1)]
-        d = d.assign(key=np.round(d["gt_t"] * 1e6).astype(np.int64))
-        joined = d.merge(gt.assign(key=np.round(gt["t"] * 1e6).astype(np.int64)), on=["agent_id", "key"],
-                         suffixes=("", "_exact"), validate="many_to_one")
-        row(detector, joined[["u", "v"]].to_numpy(float), joined[["u_exact", "v_exact"]].to_numpy(float),
-            joined[["gt_x", "gt_y"]].to_numpy(float))
+    detections = with_exact_feet(ds)
+    for detector, d in detections.groupby("detector", sort=False):
+        d = d[(d["agent_id"] >= 0) & np.isfinite(d[["u", "v", "gt_x", "gt_y"]]).all(axis=1)]
+        row(detector, d[["u", "v"]].to_numpy(float), d[["u_exact", "v_exact"]].to_numpy(float), d[["gt_x", "gt_y"]].to_numpy(float))
     cal = ds.table("calibration.parquet").to_pandas()
     row("calibration objects, segmentation", cal[["u", "v"]].to_numpy(float), cal[["u_exact", "v_exact"]].to_numpy(float),
         cal[["x", "y"]].to_numpy(float))
     return rows
 
 
-def floors(study: dict) -> dict[str, float]:
-    """Per scene: mean ground error (m) of the study's test points mapped by the exact trapezoid."""
+def test_point_facts(study: dict) -> dict[str, tuple[float, float]]:
+    """Per scene: the mean ground error (m) of the study's test points mapped by the exact trapezoid, and their
+    median true distance from the camera (m)."""
     out = {}
     for entry in study["datasets"]:
         ds = load_dataset(entry["path"])
         image, ground = ds.test_points(study.get("foot_source", EXACT), n=study.get("n_test"), seed=study.get("seed", 0),
                                        max_distance=study.get("max_test_distance"), max_lateral=study.get("test_lateral_max"))
-        out[entry["scene"]] = float(np.mean(np.hypot(*(exact_mapping(ds).transform_points(image) - ground).T)))
+        out[entry["scene"]] = (float(np.mean(np.hypot(*(exact_mapping(ds).transform_points(image) - ground).T))),
+                               float(np.median(np.hypot(*(ground - ds.camera_origin).T))))
     return out
 
 
@@ -89,13 +95,16 @@ def table(header: list[str], rows: list[list[str]]) -> str:
     return "\n".join(lines + ["| " + " | ".join(r) + " |" for r in rows])
 
 
-def derive(dataset: Path, out: Path, calibration: str) -> None:
+def derive(dataset: Path, out: Path, calibration: str, exact_detections: bool = False) -> None:
     """OUT: dataset's files linked, calibration.parquet rewritten with (u, v) and (u_exact, v_exact) both from the
-    exact projections (calibration "exact") or both from the segmentation detector ("segmentation")."""
-    load_dataset(dataset)  # a complete dataset
+    exact projections (calibration "exact") or both from the segmentation detector ("segmentation"); with
+    exact_detections, detections.parquet rewritten with every matched detection's (u, v) set to the exact
+    projection of its agent's foot point (the detector's choice of test points without its foot-point error)."""
+    ds = load_dataset(dataset)  # a complete dataset
     out.mkdir(parents=True)
+    rewrite = {"calibration.parquet", *(["detections.parquet"] if exact_detections else [])}
     for f in sorted(dataset.iterdir()):
-        if f.name != "calibration.parquet":
+        if f.name not in rewrite:
             os.symlink(f.resolve(), out / f.name)
     cal = pq.read_table(dataset / "calibration.parquet")
     u, v = ("u_exact", "v_exact") if calibration == EXACT else ("u", "v")
@@ -103,17 +112,25 @@ def derive(dataset: Path, out: Path, calibration: str) -> None:
     for name, col in cols.items():
         cal = cal.set_column(cal.schema.get_field_index(name), name, col)
     pq.write_table(cal, out / "calibration.parquet")
+    if exact_detections:
+        d = with_exact_feet(ds)
+        matched = d["u_exact"].notna().to_numpy()
+        d.loc[matched, "u"], d.loc[matched, "v"] = d.loc[matched, "u_exact"], d.loc[matched, "v_exact"]
+        pq.write_table(pa.Table.from_pandas(d.drop(columns=["u_exact", "v_exact"]), preserve_index=False),
+                       out / "detections.parquet")
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("studies", nargs="+", type=Path, help="results folders of homocal study (or DATASET OUT)")
     parser.add_argument("--calibration", choices=(EXACT, "segmentation"), help="write a dataset with these calibration points")
+    parser.add_argument("--exact-detections", action="store_true",
+                        help="with --calibration: matched detections at their agent's exact foot point")
     args = parser.parse_args(argv)
     if args.calibration:
         if len(args.studies) != 2:
             parser.error("--calibration needs DATASET OUT")
-        derive(*args.studies, args.calibration)
+        derive(*args.studies, args.calibration, args.exact_detections)
         return 0
     studies = [(path, load_study(path)) for path in args.studies]
     datasets = dict.fromkeys(e["path"] for _, s in studies for e in s["datasets"])
@@ -128,13 +145,13 @@ def main(argv: list[str] | None = None) -> int:
         shards = shard_files(path, study)
         before = {scene: pq.read_table(files[0], columns=["path_before"]).column(0)[0].as_py() if files else float("nan")
                   for scene, files in shards.items()}
-        floor = floors(study)
+        facts = test_point_facts(study)
         point_rows += [[str(path), study.get("foot_source", EXACT), e["scene"], f"{study['n_variants']}",
-                        f"{e['n_calibration']}", f"{e['n_test']:,}", f"{floor[e['scene']]:.3f}", f"{before[e['scene']]:.3f}"]
-                       for e in study["datasets"]]
+                        f"{e['n_calibration']}", f"{e['n_test']:,}", f"{facts[e['scene']][1]:.1f}",
+                        f"{facts[e['scene']][0]:.3f}", f"{before[e['scene']]:.3f}"] for e in study["datasets"]]
         tables.append((path, study, build_table(shards)))
     print(table(["study", "foot source", "scene", "variants", "calibration points", "test points",
-                 "test points' error, exact mapping (m)", "base trapezoid's path error (m)"], point_rows))
+                 "test points' median distance (m)", "test points' error, exact mapping (m)", "base trapezoid's path error (m)"], point_rows))
     print()
     header = ["method", "metric", "paper", *(f"{s.get('foot_source', EXACT)} ({p.name})" for p, s, _ in tables)]
     fmt = lambda k, v: "" if v is None else METRICS[k][1].format(v)  # noqa: E731
