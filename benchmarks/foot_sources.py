@@ -15,7 +15,8 @@ Prints three markdown tables:
    calibration objects' segmentation foot points): the points, those within the studies' test distance, and
    the foot point's error against the exact one: in the image (px, against gt.parquet's exact projection of
    the same agent at gt_t) and on the ground (m, the foot point mapped by the exact trapezoid against the true
-   ground point), median and 90th percentile.
+   ground point), median and 90th percentile; and its bias: the median of how many rows it lies below the
+   exact one and of its signed range error (mapped distance from the camera minus the true one, m).
 2. Per study: its foot source, calibration and test points per scene (study.json), the test points' median
    distance from the camera (m), their ground error under the exact trapezoid's mapping (what their own error
    adds with a perfect trapezoid, mean over the study's test points, m) and the base trapezoid's path error (mean over its test points, m: the shards' path_before of
@@ -63,9 +64,13 @@ def foot_errors(ds, max_distance: float | None) -> list[list[str]]:
     def row(source, image, exact_image, ground):
         near = np.ones(len(ground), bool) if max_distance is None else np.hypot(*(ground - ds.camera_origin).T) <= max_distance
         px = np.hypot(*(image - exact_image).T)[near]
-        m = np.hypot(*(vt.transform_points(image) - ground).T)[near]
+        mapped = vt.transform_points(image)
+        m = np.hypot(*(mapped - ground).T)[near]
+        low = (image[:, 1] - exact_image[:, 1])[near]  # px, positive: below the exact foot point
+        nearer = (np.hypot(*(mapped - ds.camera_origin).T) - np.hypot(*(ground - ds.camera_origin).T))[near]
         q = lambda x: f"{np.median(x):.2f} / {np.percentile(x, 90):.2f}" if len(x) else "-"  # noqa: E731
-        rows.append([ds.name, source, f"{len(image):,}", f"{near.sum():,}", q(px), q(m)])
+        signed = lambda x: f"{np.median(x):+.2f}" if len(x) else "-"  # noqa: E731
+        rows.append([ds.name, source, f"{len(image):,}", f"{near.sum():,}", q(px), q(m), signed(low), signed(nearer)])
 
     detections = with_exact_feet(ds)
     for detector, d in detections.groupby("detector", sort=False):
@@ -138,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = [r for path in datasets for r in foot_errors(load_dataset(path), max_distance)]
     within = f"within {max_distance:g} m" if max_distance else "all"
     print(table(["scene", "foot points", "matched points", within, "image error, px (median / p90)",
-                 "ground error, m (median / p90)"], rows))
+                 "ground error, m (median / p90)", "rows below, px (median)", "range error, m (median)"], rows))
     print()
     point_rows, tables = [], []
     for path, study in studies:
