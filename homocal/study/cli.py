@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 
 from homocal.arguments import number
+from homocal.dataset import calibration_source
 from homocal.progress import add_progress_option, show_progress
 from homocal.study.engine import PRESETS, dry_run_counts, run_study
 from homocal.study.inputs import METRICS, StudyParams
@@ -28,8 +29,10 @@ def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
     p.add_argument("--variants", dest="n_variants", type=number(int, 0, MAX_VARIANTS), metavar="N",
                    help="perturbed variants per scene (overrides the preset)", **quiet)
     p.add_argument("--seed", type=typed(int), help="run seed (variants, base errors, descent orders, test subsample; default 0)", **quiet)
-    p.add_argument("--foot-source", help="exact (projected contact points, default), segmentation or rgb "
-                                         "(a detector's matched detections)", **quiet)
+    p.add_argument("--foot-source", help="exact (projected contact points, default) or a detector of the datasets: "
+                                         "segmentation, rgb, hog (if generated with it) or an imported one; its "
+                                         "test points are its matched detections, the calibration points are then "
+                                         "the segmentation detector's", **quiet)
     p.add_argument("--n-test", type=number(int, 1, MAX_N_TEST), help="test points per scene, a seeded subsample of "
                    "those the dataset has (all of them if it has fewer; default 2000)", **quiet)
     p.add_argument("--max-test-distance", type=typed(metres_or_none), metavar="M", **quiet,
@@ -102,16 +105,32 @@ def metres_or_none(text: str) -> float | None:
     return value
 
 
+def point_counts(entry: dict, params: StudyParams) -> str:
+    """What a dataset gives the study: its calibration and test points (entry: study.json's datasets item), and
+    whether it has fewer test points than --n-test (a detector that finds few people, a short dataset)."""
+    source = params.foot_source
+    text = (f"{entry['n_calibration']} calibration points ({calibration_source(source)}), "
+            f"{entry['n_test']:,} test points ({source})")
+    if entry["n_test"] < params.n_test:
+        limits = [f"within {params.max_test_distance:g} m" if params.max_test_distance else "",
+                  f"within {params.test_lateral_max:g} m of x = 0" if params.test_lateral_max else ""]
+        where = " and ".join(x for x in limits if x)
+        text += f": fewer than --n-test {params.n_test}, all the dataset has{' ' + where if where else ''}"
+    return text
+
+
 def handle_study(args: argparse.Namespace) -> int:
     params = params_from_args(args)
     if args.dry_run:
         counts = dry_run_counts(args.datasets, params)
-        for scene, n in counts.items():
-            print(f"{scene}: {n:,} samples")
-        print(f"total: {sum(counts.values()):,} samples ({params.n_variants + 1} trapezoids per scene)")
+        for entry in counts:
+            print(f"{entry['scene']}: {entry['samples']:,} samples; {point_counts(entry, params)}")
+        print(f"total: {sum(e['samples'] for e in counts):,} samples ({params.n_variants + 1} trapezoids per scene)")
         return 0
     study = run_study(args.datasets, args.out, params, preset=args.preset, resume=args.resume,
                       workers=args.workers, scheduler=args.scheduler, progress=show_progress(args))
+    for entry in study["datasets"]:
+        print(f"{entry['scene']}: {point_counts(entry, params)}")
     rate = study["samples_done"] / max(study["elapsed_seconds"], 1e-9)
     print(f"{study['samples_done']:,} of {study['samples_total']:,} samples in {args.out} "
           f"({study['elapsed_seconds']:.1f} s, {rate:,.0f} samples/s); complete: {study['complete']}")

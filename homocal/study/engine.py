@@ -185,9 +185,11 @@ def _counts(scenes: list[StudyScene], reasons: dict[tuple[str, int], str]) -> di
             "n_degenerate": len(degenerate)}
 
 
-def dry_run_counts(paths: list[str], params: StudyParams) -> dict[str, int]:
-    """Samples per scene: (n_variants + 1) x C(M, 3)."""
-    return {s.name: n_samples(len(s.cal_image), params.n_variants) for s in load_scenes(paths, params)}
+def dry_run_counts(paths: list[str], params: StudyParams) -> list[dict]:
+    """Per scene: its name (scene), samples ((n_variants + 1) x C(M, 3)), n_calibration (M) and n_test (the test
+    points the study would use), as in study.json's datasets list."""
+    return [{"scene": s.name, "samples": n_samples(len(s.cal_image), params.n_variants),
+             "n_calibration": len(s.cal_image), "n_test": len(s.test_image)} for s in load_scenes(paths, params)]
 
 
 def versions() -> dict:

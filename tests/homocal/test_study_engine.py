@@ -176,6 +176,21 @@ def test_dry_run_and_bad_input(datasets, tmp_path, capsys):
     assert "at least 3 calibration points" in capsys.readouterr().err and not (tmp_path / "z").exists()
 
 
+def test_dry_run_says_how_many_points_each_foot_source_gives(datasets, tmp_path, capsys):
+    """A detector's calibration points are the segmentation detector's; fewer test points than --n-test is said,
+    and a detector the dataset lacks is one line naming the ones it has."""
+    assert main(["study", *datasets, "--out", str(tmp_path / "x"), "--foot-source", "segmentation", "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert ("scene_a: 11,220 samples; 12 calibration points (segmentation), 300 test points (segmentation): "
+            "fewer than --n-test 2000, all the dataset has within 50 m") in out
+    assert main(["study", *datasets, "--out", str(tmp_path / "x"), "--n-test", "200", "--dry-run"]) == 0
+    assert "scene_b: 8,415 samples; 11 calibration points (exact), 200 test points (exact)\n" in capsys.readouterr().out
+    assert main(["study", *datasets, "--out", str(tmp_path / "x"), "--foot-source", "hog", "--dry-run"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no detections from detector 'hog' (have ['segmentation'])" in err
+    assert not (tmp_path / "x").exists()
+
+
 def test_existing_study_needs_resume(datasets, reference, capsys):
     assert main(["study", *datasets, "--out", str(reference), "--variants", "40", "--n-test", "200"]) == 2
     assert "--resume" in capsys.readouterr().err
