@@ -57,7 +57,7 @@ def _parser() -> argparse.ArgumentParser:
                         "simgen, libraries and MUJOCO_GL as this process (a worker that differs stops the run)")
     g.add_argument("--resume", action="store_true", help="continue a killed run in --out")
     add_progress_option(g)
-    g.set_defaults(handler=_generate)
+    g.set_defaults(handler=handle_generate)
 
     v = sub.add_parser("preview", help="render one annotated frame (boxes, foot points, trapezoid, horizon)")
     v.add_argument("scene_dir", type=Path, help="scene folder (scene.toml, the MJCF and its ground texture)")
@@ -65,7 +65,7 @@ def _parser() -> argparse.ArgumentParser:
     v.add_argument("--t", type=_number(float, 0, MAX_SECONDS), default=0.0, help="simulated time, seconds (default 0)")
     v.add_argument("--seed", type=SEED, default=0, help="random seed of the walks, an integer >= 0 (default 0)")
     v.add_argument("--quality", choices=QUALITIES, help="render preset (default: the scene's)")
-    v.set_defaults(handler=_preview)
+    v.set_defaults(handler=handle_preview)
 
     m = sub.add_parser("import-mot", help="add an external detector's MOTChallenge file to a dataset")
     m.add_argument("dataset_dir", type=Path, help="a complete simgen dataset folder (its detections.parquet gains the rows)")
@@ -73,12 +73,12 @@ def _parser() -> argparse.ArgumentParser:
     m.add_argument("--name", required=True, help="detector name for the detections.parquet rows (not segmentation, rgb or hog)")
     m.add_argument("--min-iou", type=_number(float, 0, 1, low_open=True), default=0.5,
                    help="box IoU in (0, 1] needed to associate a box with an agent (default 0.5)")
-    m.set_defaults(handler=_import_mot)
+    m.set_defaults(handler=handle_import_mot)
 
     e = sub.add_parser("export-mot", help="write a dataset as a MOTChallenge sequence folder (TrackEval, motmetrics)")
     e.add_argument("dataset_dir", type=Path, help="a complete simgen dataset folder")
     _add_out(e, "sequence folder to write: seqinfo.ini, gt/gt.txt, det/<detector>.txt (new, empty or an earlier export)")
-    e.set_defaults(handler=_export_mot)
+    e.set_defaults(handler=handle_export_mot)
     return p
 
 
@@ -93,7 +93,7 @@ def _output_path(text: str) -> Path:
     return Path(text)
 
 
-def _generate(args: argparse.Namespace) -> str:
+def handle_generate(args: argparse.Namespace) -> str:
     from simgen.dataset import generate
     from simgen.scene import load_scene
 
@@ -106,7 +106,7 @@ def _generate(args: argparse.Namespace) -> str:
             f"detectors {','.join(scene.detectors)}, quality {scene.quality}, complete ({time.perf_counter() - t0:.1f} s)")
 
 
-def _preview(args: argparse.Namespace) -> str:
+def handle_preview(args: argparse.Namespace) -> str:
     from simgen.preview import preview
     from simgen.scene import load_scene
 
@@ -115,7 +115,7 @@ def _preview(args: argparse.Namespace) -> str:
     return f"{args.out}: {scene.name} at t = {args.t:g} s, seed {args.seed}, {agents} agents in view"
 
 
-def _import_mot(args: argparse.Namespace) -> str:
+def handle_import_mot(args: argparse.Namespace) -> str:
     from simgen.dataset import FORMAT
     from simgen.detection import import_into_dataset
 
@@ -124,7 +124,7 @@ def _import_mot(args: argparse.Namespace) -> str:
     return f"{n} detections of {args.name!r} added to {args.dataset_dir / 'detections.parquet'}"
 
 
-def _export_mot(args: argparse.Namespace) -> str:
+def handle_export_mot(args: argparse.Namespace) -> str:
     from simgen.export import export_mot
 
     lines = export_mot(args.dataset_dir, args.out)
