@@ -11,7 +11,7 @@ import numpy as np
 from homocal.correctors.base import Corrector
 from homocal.correctors.serialization import integer, number
 from homocal.geometry import ViewTransformer, apply_homography, homography_from_quads, signed_area, validate_quad
-from homocal.uncertainty import STEP, _quad_jacobian
+from homocal.geometry.homography import _basis_map
 
 MAX_HALVINGS = 4  # safeguard: the step is tried at 1, 1/2, ..., 1/16 of its length, then the iterate is kept
 STEP_TOLERANCE = 1e-9  # stop once an accepted step is shorter than this, in prior sigmas (normalised units)
@@ -30,6 +30,40 @@ def predicted_points(source: np.ndarray, target: np.ndarray, q: np.ndarray, base
     except ValueError:
         return None
     return None if np.isnan(f).any() else f
+
+
+def basis_map_derivatives(quad: np.ndarray) -> np.ndarray:
+    """(8, 3, 3) derivatives of B = _basis_map(quad) = P diag(lambda), P = [v1 v2 v3] (homogeneous vertices as
+    columns), P lambda = v4, with respect to the quad's coordinates c = 2 j + k (vertex j, x/y k):
+    j < 3: dP = e_k e_j^T, dlambda = -P^-1 dP lambda = -P^-1[:, k] lambda_j, dB = dP diag(lambda) + P diag(dlambda);
+    j = 3: dP = 0, dlambda = P^-1 e_k, dB = P diag(dlambda)."""
+    P = np.vstack([quad[:3].T, np.ones(3)])
+    lam = np.linalg.solve(P, np.array([quad[3, 0], quad[3, 1], 1.0]))
+    P_inv = np.linalg.inv(P)
+    dB = np.zeros((8, 3, 3))
+    for j in range(4):
+        for k in range(2):
+            if j < 3:
+                dB[2 * j + k, k, j] = lam[j]
+                dB[2 * j + k] += P * (-P_inv[:, k] * lam[j])
+            else:
+                dB[2 * j + k] = P * P_inv[:, k]
+    return dB
+
+
+def mapped_jacobian(source: np.ndarray, target: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """(N, 2, 16) analytic derivative of f = H(source, target)(q) (N, 2) with respect to the 8 source (image)
+    then 8 target (map) coordinates. H = B_t B_s^-1 (homography_from_quads before its scaling, which f ignores):
+    dH = dB_t B_s^-1 for a target coordinate, -H dB_s B_s^-1 for a source one; with X = H (q, 1) and
+    dX = dH (q, 1): df = (dX_xy - f dX_w) / X_w."""
+    Bs_inv = np.linalg.inv(_basis_map(source))
+    H = _basis_map(target) @ Bs_inv
+    dH = np.concatenate([-H @ basis_map_derivatives(source) @ Bs_inv, basis_map_derivatives(target) @ Bs_inv])
+    qh = np.column_stack([q, np.ones(len(q))])
+    X = qh @ H.T
+    f = X[:, :2] / X[:, 2:]
+    dX = np.einsum("kij,nj->nik", dH, qh)  # (N, 3, 16)
+    return (dX[:, :2] - f[:, :, None] * dX[:, 2:3]) / X[:, 2, None, None]
 
 
 def objective(x: np.ndarray, f: np.ndarray, g: np.ndarray, point_sigma: float) -> float:
@@ -77,8 +111,8 @@ class LeastChangeCorrector(Corrector):
     search order. map_sigma_m = 0 moves the image trapezoid only, like descent.
 
     Fit. Gauss-Newton from x = 0 (``gauss_newton_step``): x <- J^T (J J^T + point_sigma_m^2 I)^-1 (g - f + J x),
-    J (2N, 16) = df/dx by central differences of the closed-form homography (``homocal.uncertainty``'s
-    _quad_jacobian: 1e-3 px on an image coordinate, 1e-6 of the map's extent on a map coordinate, times sigma).
+    J (2N, 16) = df/dx = (df/dz) diag(sigma), df/dz analytic through the projective basis (``mapped_jacobian``;
+    tested against central differences of the closed-form homography).
     Stopping rule: at most ``iterations`` steps; stop after an accepted step shorter than 1e-9 (normalised).
     Safeguard (``safeguarded_step``): a step is tried at full length, then halved up to MAX_HALVINGS = 4 times,
     until the iterate's quads are usable (``predicted_points``: both pass validate_quad and keep their
@@ -136,9 +170,7 @@ class LeastChangeCorrector(Corrector):
         self.iterations_ = 0
         for _ in range(self.iterations):
             source, target = quads(x)
-            J = self._jacobian(source, target, q, sigma)
-            if not np.isfinite(J).all():  # a difference crossed the horizon: keep x
-                break
+            J = mapped_jacobian(source, target, q).reshape(-1, 16) * sigma
             r = (g - apply_homography(homography_from_quads(source, target), q)).ravel()
             accepted = safeguarded_step(x, gauss_newton_step(x, J, r, self.point_sigma_m) - x, phi, evaluate)
             if accepted is None:
@@ -150,16 +182,6 @@ class LeastChangeCorrector(Corrector):
                 break
         self.objective_final_ = phi
         self.transformer_ = ViewTransformer(*quads(x))
-
-    def _jacobian(self, source: np.ndarray, target: np.ndarray, q: np.ndarray, sigma: np.ndarray) -> np.ndarray:
-        """(2N, 16) df/dx in normalised units: columns 0-7 image coordinates, 8-15 map (zero if map_sigma_m = 0);
-        row 2i + c is coordinate c of point i."""
-        J = np.zeros((2 * len(q), 16))
-        J[:, :8] = _quad_jacobian(source, target, q, 0, STEP).reshape(-1, 8)
-        if self.map_sigma_m > 0:
-            h = 1e-6 * max(float(np.ptp(target, axis=0).max()), 1e-300)
-            J[:, 8:] = _quad_jacobian(source, target, q, 1, h).reshape(-1, 8)
-        return J * sigma
 
     @property
     def m(self) -> np.ndarray:

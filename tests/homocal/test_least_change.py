@@ -9,7 +9,8 @@ from scipy.optimize import least_squares
 
 from homocal import Corrector, LeastChangeCorrector, PinholeCamera, ViewTransformer, load_corrector
 from homocal.correctors import least_change
-from homocal.correctors.least_change import gauss_newton_step, safeguarded_step
+from homocal.correctors.least_change import gauss_newton_step, mapped_jacobian, safeguarded_step
+from homocal.uncertainty import _quad_jacobian
 
 CAM = PinholeCamera()
 GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])
@@ -66,6 +67,16 @@ def test_three_points_fitted_exactly(map_sigma_m):
     np.testing.assert_allclose(c.transform_points(CAM.project_ground(LINE_G)), LINE_G, atol=1e-6)
     if map_sigma_m == 0:
         np.testing.assert_array_equal(c.transformer_.target, MAP_CLICKED)
+
+
+@pytest.mark.parametrize("source,target", [(CLICKED, MAP_CLICKED), (EXACT, GROUND * 10 + [400, 20])])
+def test_analytic_jacobian_matches_central_differences(source, target):
+    q = CAM.project_ground(np.vstack([SPREAD_G, TEST_G]))
+    J = mapped_jacobian(source, target, q)
+    h = 1e-6 * np.ptp(target, axis=0).max()  # homocal.uncertainty's map step
+    np.testing.assert_allclose(J[:, :, :8], _quad_jacobian(source, target, q, 0, 1e-3), rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(J[:, :, 8:], _quad_jacobian(source, target, q, 1, h), rtol=1e-6, atol=1e-7)
+    assert np.abs(J).max() > 0.1
 
 
 def test_gauss_newton_step_is_the_regularised_least_squares_solution():
