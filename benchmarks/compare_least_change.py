@@ -7,7 +7,7 @@ quads) and a triple of the scene's calibration points; the path improvement is o
 5th percentile, share positive, and the calibration improvement median (percent). Settings: hand-placed
 (horizon_shift None) and the paper preset ("6"). --sweep adds least-change with other priors.
 
-    python benchmarks/compare_least_change.py /work/data/scene1 /work/data/scene2 [--samples 300] [--seed 1]
+    python benchmarks/compare_least_change.py /work/data/scene1 /work/data/scene2 [--samples 300] [--seed 1] [--sweep]
 """
 import argparse
 
@@ -25,9 +25,14 @@ METHODS = {
     "descent": lambda key: DescentCorrector(seed=seed_from_key(*key)),
     "least-change": lambda key: LeastChangeCorrector(),
 }
-SWEEP = {  # (point_sigma_m, map_sigma_m), click_sigma_px 1
-    f"least-change ps {ps:g} ms {ms:g}": (lambda ps, ms: lambda key: LeastChangeCorrector(point_sigma_m=ps, map_sigma_m=ms))(ps, ms)
-    for ps, ms in ((0.03, 0.1), (0.3, 0.1), (0.1, 0.0), (0.1, 0.3))
+
+def least_change(point_sigma_m: float, map_sigma_m: float):
+    return lambda key: LeastChangeCorrector(point_sigma_m=point_sigma_m, map_sigma_m=map_sigma_m)
+
+
+SWEEP = {  # (point_sigma_m, map_sigma_m), click_sigma_px 1; the defaults are (0.05, 0.2)
+    f"least-change ps {ps:g} ms {ms:g}": least_change(ps, ms)
+    for ps, ms in ((0.1, 0.1), (0.03, 0.1), (0.3, 0.1), (0.1, 0.0), (0.1, 0.3), (0.03, 0.3), (0.05, 0.3))
 }
 
 
@@ -39,7 +44,8 @@ def samples(path: str, shift: str | None, n: int, seed: int):
     for _ in range(n):
         v = int(rng.integers(0, params.n_variants + 1))
         tri = sc.triples[rng.integers(len(sc.triples))]
-        image, mq = perturbed_quads(sc.base_image_quad(params, v), sc.map_quad, draw_variant(params.seed, sc.name, v)[0])
+        offsets = draw_variant(params.seed, sc.name, v)[0]
+        image, mq = perturbed_quads(sc.base_image_quad(params, v), sc.map_quad, offsets)
         sel = list(tri)
         yield sc, ViewTransformer(image, sc.site_map.to_metres(mq)), sc.cal_image[sel], sc.cal_ground[sel], (
             0, sc.name, v, *map(int, tri))
@@ -56,13 +62,14 @@ def run(path: str, shift: str | None, n: int, seed: int, methods: dict) -> None:
             path_imp[name].append(100 * (before - after) / before)
             cal_imp[name].append(c.calibration_improvement_)
     setting = "hand-placed" if shift is None else f"horizon shift {shift} px (paper preset)"
-    print(f"\n{sc.name}, {setting}, {n} samples, seed {seed}: path improvement (%) and calibration improvement median (%)\n")
+    print(f"\n{sc.name}, {setting}, {n} samples, seed {seed}: path improvement (%) and calibration improvement "
+          "median (%)\n")
     print("| method | median | mean | 1st pct | 5th pct | positive | calibration median |")
     print("|---|---:|---:|---:|---:|---:|---:|")
     for name in methods:
         x = np.array(path_imp[name])
-        print(f"| {name} | {np.median(x):.1f} | {x.mean():.1f} | {np.percentile(x, 1):.1f} | {np.percentile(x, 5):.1f} | "
-              f"{100 * np.mean(x > 0):.1f} | {np.median(cal_imp[name]):.1f} |", flush=True)
+        print(f"| {name} | {np.median(x):.1f} | {x.mean():.1f} | {np.percentile(x, 1):.1f} | "
+              f"{np.percentile(x, 5):.1f} | {100 * np.mean(x > 0):.1f} | {np.median(cal_imp[name]):.1f} |", flush=True)
 
 
 def main() -> None:
@@ -71,10 +78,12 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=300, help="samples per scene and setting (default 300)")
     parser.add_argument("--seed", type=int, default=1, help="seed of the sample draws (default 1)")
     parser.add_argument("--sweep", action="store_true", help="also least-change with other point and map sigmas")
+    parser.add_argument("--setting", choices=("both", "hand", "paper"), default="both",
+                        help="hand-placed trapezoids, the paper preset's horizon shift of 6 px, or both (default)")
     args = parser.parse_args()
     methods = {**METHODS, **(SWEEP if args.sweep else {})}
     for path in args.scenes:
-        for shift in (None, "6"):
+        for shift in {"both": (None, "6"), "hand": (None,), "paper": ("6",)}[args.setting]:
             run(path, shift, args.samples, args.seed, methods)
 
 
