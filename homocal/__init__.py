@@ -8,6 +8,7 @@ from homocal.correctors import (
     DescentCorrector,
     HorizonCorrector,
     HybridCorrector,
+    LeastChangeCorrector,
     RegressionCorrector,
     load_corrector,
 )
@@ -30,6 +31,7 @@ __all__ = [
     "DescentCorrector",
     "HorizonCorrector",
     "HybridCorrector",
+    "LeastChangeCorrector",
     "PinholeCamera",
     "RegressionCorrector",
     "SiteMap",

@@ -19,6 +19,7 @@ from homocal.correctors.base import Corrector, load_corrector
 from homocal.correctors.descent import DescentCorrector
 from homocal.correctors.horizon import HorizonCorrector
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD, HybridCorrector
+from homocal.correctors.least_change import LeastChangeCorrector
 from homocal.correctors.regression import RegressionCorrector
 from homocal.correctors.serialization import FORMAT
 from homocal.files import check_output_file, csv_header, json_format, read_json, write_text_atomic
@@ -32,6 +33,7 @@ METHODS = {
     "horizon": lambda args: HorizonCorrector(),
     "descent": lambda args: DescentCorrector(seed=args.seed),
     "hybrid": lambda args: HybridCorrector(threshold=args.threshold, seed=args.seed),
+    "least-change": lambda args: LeastChangeCorrector(),
 }
 TRUST_TOLERANCE_M = 0.5  # homocal fit reports how far the 1-sigma error stays under this
 APPLIED = ("x", "y", "sigma_m", "status")  # the columns homocal apply adds (last in its output)
@@ -63,8 +65,8 @@ other columns are carried through to the output. The output has the same rows an
   x, y      the corrected ground position in metres (replacing any x, y of the input);
   sigma_m   its 1-sigma radius in metres (sqrt of the largest eigenvalue of the first-order covariance,
             homocal.ground_uncertainty) for a clicking error of --click-sigma-px on each trapezoid corner
-            and --point-sigma-px on the foot point; of the trapezoid the correction maps with (descent's
-            and horizon's own, the clicked one for the regressions);
+            and --point-sigma-px on the foot point; of the trapezoid the correction maps with (descent's,
+            horizon's and least-change's own, the clicked one for the regressions);
   status    ok; beyond_horizon (on or above the horizon: x, y, sigma_m = nan); bad_input (u or v is
             nan, inf or beyond +/-1e9 in the input: x, y, sigma_m = nan).
 Rows are never dropped; the summary line names the lines of the non-finite rows."""
@@ -82,7 +84,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     fit.add_argument("--method", default="regression-intercept", choices=METHODS, help="regression-intercept "
                      "(signed, a d^2 + b d + c; the default: the best median and failure tail in the study, README), "
                      "regression (the paper's, clamped), regression-signed (also corrects overestimated range), "
-                     "horizon (fits the horizon shift of Section 3), descent, hybrid")
+                     "horizon (fits the horizon shift of Section 3), descent, hybrid, least-change (the smallest "
+                     "move of the clicked image and map corners that explains the reference points)")
     fit.add_argument("-o", "--out", required=True, type=Path, metavar="CORRECTION.json", help="the correction to write")
     fit.add_argument("--camera-origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
                      help="ground point under the camera, metres (default 0,0)")
@@ -246,8 +249,8 @@ def _read_points(reader, path: Path, required: tuple[str, ...], finite: bool):
 
 
 def _mapping(corrector: Corrector) -> ViewTransformer:
-    """The trapezoid mapping a correction maps with: descent's and horizon's own, the hybrid's chosen one's,
-    the clicked one for the regressions (their radial correction is not in the error bars)."""
+    """The trapezoid mapping a correction maps with: descent's, horizon's and least-change's own, the hybrid's
+    chosen one's, the clicked one for the regressions (their radial correction is not in the error bars)."""
     if isinstance(corrector, HybridCorrector):
         return _mapping(corrector.regression_ if corrector.chosen_ == "regression" else corrector.descent_)
     return getattr(corrector, "transformer_", corrector.base_transformer_)
@@ -303,6 +306,10 @@ def _method_note(corrector: Corrector) -> str:
         note = " (fallback of lower order: the reference distances are nearly equal)" if corrector.degenerate_ else ""
         constant = f" {'-' if corrector.c_ < 0 else '+'} {abs(corrector.c_):.6g}" if corrector.intercept else ""
         return f" Error law e(d) = {corrector.a_:.6g} d^2 + {corrector.b_:.6g} d{constant}{note}."
+    if isinstance(corrector, LeastChangeCorrector):
+        px, m = corrector.corner_moves()
+        return (f" Least change: the largest corner move is {px:.3f} px on the image and {m:.3f} m on the map "
+                f"({corrector.iterations_} Gauss-Newton steps).")
     if isinstance(corrector, HorizonCorrector):
         eps = corrector.horizon_shift_
         return (f" Horizon shift epsilon = {eps:.3f} px (the clicked trapezoid's horizon lies that far below the "

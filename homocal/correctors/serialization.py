@@ -3,7 +3,7 @@
 A correction file is one JSON object (see ``Corrector.to_dict``)::
 
     {"format": "homocal.correction", "format_version": 1,
-     "method": "regression" | "horizon" | "descent" | "hybrid",
+     "method": "regression" | "horizon" | "descent" | "hybrid" | "least-change",
      "params": {...constructor arguments...},
      "transformer": {"source": 4x2 image px (TL, TR, BR, BL), "target": 4x2 ground units},
      "camera_origin": [x, y], "error_before": e, "error_after": e, "calibration_improvement": pct | null,

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from homocal.cli import main
-from homocal.correctors import DescentCorrector, HorizonCorrector, RegressionCorrector, load_corrector
+from homocal.correctors import (DescentCorrector, HorizonCorrector, LeastChangeCorrector, RegressionCorrector,
+                                load_corrector)
 from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer
 from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius
 
@@ -63,6 +64,7 @@ def work(tmp_path: Path) -> Path:
     ("regression-intercept", lambda: RegressionCorrector(signed=True, intercept=True)),
     ("horizon", lambda: HorizonCorrector()),
     ("descent", lambda: DescentCorrector()),
+    ("least-change", lambda: LeastChangeCorrector()),
 ])
 def test_fit_and_apply_match_the_library(work, method, expected):
     fit = homocal("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "--method", method, "-o", "c.json",
