@@ -5,9 +5,10 @@ A sample is what the study draws (homocal.study): a trapezoid variant v (the han
 quads) and a triple of the scene's calibration points; the path improvement is over the study's test points
 (n_test 2000, out to 50 m). Printed per scene, setting and method: path improvement median, mean, 1st and
 5th percentile, share positive, and the calibration improvement median (percent). Settings: hand-placed
-(horizon_shift None) and the paper preset ("6"). --sweep adds least-change with other priors.
+(horizon_shift None) and the paper preset ("6"). --sweep adds least-change with other priors; --foot-source
+takes a detector's points as the study does (its calibration points are then the segmentation detector's).
 
-    python benchmarks/compare_least_change.py /work/data/scene1 /work/data/scene2 [--samples 300] [--seed 1] [--sweep]
+    python benchmarks/compare_least_change.py DATA/scene1 DATA/scene2 [--samples 300] [--seed 1] [--sweep] [--foot-source segmentation]
 """
 import argparse
 
@@ -36,9 +37,9 @@ SWEEP = {  # (point_sigma_m, map_sigma_m), click_sigma_px 1; the defaults are (0
 }
 
 
-def samples(path: str, shift: str | None, n: int, seed: int):
+def samples(path: str, shift: str | None, n: int, seed: int, foot_source: str):
     """n study samples of one scene and setting: (scene, vt, q (3, 2) px, g (3, 2) m, descent key)."""
-    params = StudyParams(n_test=2000, horizon_shift=shift)
+    params = StudyParams(n_test=2000, horizon_shift=shift, foot_source=foot_source)
     sc = StudyScene.from_dataset(path, params)
     rng = np.random.default_rng(seed)
     for _ in range(n):
@@ -51,10 +52,10 @@ def samples(path: str, shift: str | None, n: int, seed: int):
             0, sc.name, v, *map(int, tri))
 
 
-def run(path: str, shift: str | None, n: int, seed: int, methods: dict) -> None:
+def run(path: str, shift: str | None, n: int, seed: int, methods: dict, foot_source: str) -> None:
     path_imp = {name: [] for name in methods}
     cal_imp = {name: [] for name in methods}
-    for sc, vt, q, g, key in samples(path, shift, n, seed):
+    for sc, vt, q, g, key in samples(path, shift, n, seed, foot_source):
         before = np.linalg.norm(vt.transform_points(sc.test_image) - sc.test_ground, axis=1).mean()
         for name, make in methods.items():
             c = make(key).fit(vt, q, g, sc.origin)
@@ -62,8 +63,8 @@ def run(path: str, shift: str | None, n: int, seed: int, methods: dict) -> None:
             path_imp[name].append(100 * (before - after) / before)
             cal_imp[name].append(c.calibration_improvement_)
     setting = "hand-placed" if shift is None else f"horizon shift {shift} px (paper preset)"
-    print(f"\n{sc.name}, {setting}, {n} samples, seed {seed}: path improvement (%) and calibration improvement "
-          "median (%)\n")
+    print(f"\n{sc.name}, {setting}, {foot_source} foot points, {n} samples, seed {seed}: path improvement (%) "
+          "and calibration improvement median (%)\n")
     print("| method | median | mean | 1st pct | 5th pct | positive | calibration median |")
     print("|---|---:|---:|---:|---:|---:|---:|")
     for name in methods:
@@ -80,11 +81,12 @@ def main() -> None:
     parser.add_argument("--sweep", action="store_true", help="also least-change with other point and map sigmas")
     parser.add_argument("--setting", choices=("both", "hand", "paper"), default="both",
                         help="hand-placed trapezoids, the paper preset's horizon shift of 6 px, or both (default)")
+    parser.add_argument("--foot-source", default="exact", help="exact (default) or a detector of the datasets")
     args = parser.parse_args()
     methods = {**METHODS, **(SWEEP if args.sweep else {})}
     for path in args.scenes:
         for shift in {"both": (None, "6"), "hand": (None,), "paper": ("6",)}[args.setting]:
-            run(path, shift, args.samples, args.seed, methods)
+            run(path, shift, args.samples, args.seed, methods, args.foot_source)
 
 
 if __name__ == "__main__":
