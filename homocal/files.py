@@ -115,8 +115,8 @@ def read_json(path: str | Path) -> dict:
 def json_format(path: Path) -> object:
     """The "format" of the JSON object in ``path`` (a marker, a correction), or None if there is none."""
     try:
-        return json.loads(path.read_text(encoding="utf-8")).get("format")
-    except (OSError, ValueError, AttributeError):
+        return read_json(path).get("format")
+    except (OSError, ValueError):
         return None
 
 

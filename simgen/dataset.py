@@ -15,14 +15,13 @@ Stage and rgb detector warmed up as on resume, so the parts are the bytes a seri
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import platform
 import shutil
 import time
 from collections import Counter
 from contextlib import nullcontext
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import ProcessPoolExecutor
 from fractions import Fraction
 from multiprocessing import get_context
 from pathlib import Path
@@ -35,7 +34,7 @@ from tqdm import tqdm
 
 import homocal.geometry
 import simgen
-from homocal.files import OutputFolder, output_folder, write_atomic, write_json_atomic
+from homocal.files import output_folder, OutputFolder, read_json, write_atomic, write_json_atomic
 from simgen.backend import backend, mujoco
 from simgen.detection import (
     BackgroundSubtractionDetector,
@@ -385,7 +384,7 @@ def _check_resumable(scene: Scene, seed: int, folder: OutputFolder) -> dict | No
     """The manifest of the run being resumed (None for a new folder); DatasetError if it is another run's."""
     if not folder.resumed:
         return None
-    m = json.loads(folder.marker.read_text(encoding="utf-8"))
+    m = read_json(folder.marker)
     if m.get("config_hash") != scene.config_hash() or m.get("seed") != seed:
         raise DatasetError(f"{folder.path}: --resume: it was made with another scene config, run options or seed")
     if m.get("backend") != backend():

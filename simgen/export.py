@@ -12,13 +12,12 @@ Pixel and frame conventions are the dataset's MOT ones (data_schema.md, mot/gt.t
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from homocal.files import LOCK_NAME, OutputFolderError, output_folder, write_json_atomic, write_text_atomic
+from homocal.files import LOCK_NAME, OutputFolderError, json_format, output_folder, read_json, write_json_atomic, write_text_atomic
 from simgen.detection.mot import write_mot_det, write_mot_gt
 
 FORMAT = "simgen-mot-export"
@@ -43,7 +42,7 @@ def export_mot(dataset_dir: str | Path, out: str | Path) -> dict[str, int]:
     _check_ours(out)
     with output_folder(out, FORMAT, resume=True, marker=MARKER) as folder:
         files = ["seqinfo.ini", "gt/gt.txt", *(f"det/{name}.txt" for name in manifest["detectors"])]
-        previous = json.loads(folder.marker.read_text(encoding="utf-8")).get("files", []) if folder.marker.is_file() else []
+        previous = [f for f in (read_json(folder.marker).get("files", []) if folder.marker.is_file() else []) if _is_det_file(f)]
         folder.remove_temporaries([MARKER, *files, *previous])
         write_json_atomic(folder.marker, {"format": FORMAT, "dataset": str(dataset_dir.resolve()), "scene": manifest["scene"],
                                           "seed": manifest["seed"], "config_hash": manifest["config_hash"], "files": files})
@@ -62,16 +61,18 @@ def export_mot(dataset_dir: str | Path, out: str | Path) -> dict[str, int]:
 def _read_json(path: Path) -> dict:
     if not path.is_file():
         raise ValueError(f"{path.parent}: not a complete simgen dataset (no {path.name})")
-    return json.loads(path.read_text(encoding="utf-8"))
+    return read_json(path)
+
+
+def _is_det_file(name: object) -> bool:
+    """Whether an earlier export's marker names a det file this tool wrote (``det/<name>.txt``): the only stale
+    files an export removes, whatever a hand-edited export.json lists."""
+    return isinstance(name, str) and name.startswith("det/") and name.endswith(".txt") and Path(name).parent == Path("det")
 
 
 def _check_ours(out: Path) -> None:
     """OutputFolderError unless ``out`` is missing, empty (a lock aside) or an earlier export."""
     if not out.is_dir() or {p.name for p in out.iterdir()} <= {LOCK_NAME}:
         return
-    try:
-        ours = json.loads((out / MARKER).read_text(encoding="utf-8")).get("format") == FORMAT
-    except (OSError, ValueError, AttributeError):
-        ours = False
-    if not ours:
+    if json_format(out / MARKER) != FORMAT:
         raise OutputFolderError(f"{out}: exists and is not an export-mot folder (no {MARKER} with format {FORMAT!r}); nothing touched")

@@ -12,7 +12,6 @@ the shards, from the reasons the shards record (a killed run leaves them to the 
 """
 from __future__ import annotations
 
-import json
 import os
 import platform
 import time
@@ -26,7 +25,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 from tqdm import tqdm
 
-from homocal.files import output_folder, write_atomic, write_json_atomic
+from homocal.files import output_folder, read_json, write_atomic, write_json_atomic
 from homocal.study.perturb import draw_base_error, draw_variant
 from homocal.study.inputs import StudyParams, StudyScene, shift_spec
 from homocal.study.shards import check_shard, compute_shard, study_key
@@ -103,12 +102,12 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
     with output_folder(out, FORMAT, resume, marker="study.json") as folder:
         study_file, timing_file = out / "study.json", out / "timing.json"
         if folder.resumed:
-            previous = json.loads(study_file.read_text())
+            previous = read_json(study_file)
             if {k: previous.get(k) for k in parameters} != parameters:
                 raise ValueError(f"{out} holds a study with other parameters; --resume needs the same datasets and options")
         shards = [shard_path(out, s.name, v).relative_to(out) for s in scenes for v in range(params.n_variants + 1)]
         folder.remove_temporaries(["study.json", "timing.json", *(f"variants/{s.name}.parquet" for s in scenes), *map(str, shards)])
-        elapsed = json.loads(timing_file.read_text()).get("elapsed_seconds", 0.0) if timing_file.is_file() else 0.0
+        elapsed = read_json(timing_file).get("elapsed_seconds", 0.0) if timing_file.is_file() else 0.0
         study = {"format": FORMAT, **parameters, "samples_total": sum(len(s.triples) * (params.n_variants + 1) for s in scenes),
                  "complete": False, "versions": versions()}
         write_json_atomic(study_file, study)

@@ -26,7 +26,7 @@ from homocal.geometry import ViewTransformer
 from homocal.study.inputs import StudyParams
 from homocal.study.law import horizon_shift_law, perturbation_law
 from homocal.study.metrics import (D_KEYS, D_METHODS, METRICS, PAPER, Table, build_table, load_study, paper_distance,
-                                   shard_files, table_cells, to_csv, to_markdown, to_text, verified_shard_files)
+                                   table_cells, to_csv, to_markdown, to_text, verified_shard_files)
 
 STYLE = """body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:2px 8px}

@@ -14,19 +14,18 @@ from __future__ import annotations
 import argparse
 import csv
 import io
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
-from homocal.files import output_folder, write_json_atomic, write_text_atomic
+from homocal.files import output_folder, read_json, write_json_atomic, write_text_atomic
 from homocal.progress import show_progress
 from homocal.study.cli import add_study_options, params_from_args
 from homocal.study.engine import run_study
 from homocal.study.figures import save
-from homocal.study.metrics import D_KEYS, METHODS, METRICS, OVERALL, PAPER, build_table, load_study, paper_distance, shard_files
+from homocal.study.metrics import D_KEYS, METHODS, METRICS, PAPER, build_table, load_study, paper_distance, shard_files
 
 FORMAT = "homocal-sweep"  # sweep.json's "format": marks a sweep folder (homocal.files.output_folder)
 SWEEPABLE = ("horizon_shift", "click_noise", "test_lateral_max", "max_test_distance", "metric", "seed", "descent_delta_max")
@@ -70,7 +69,7 @@ def run_sweep(paths: list[str], out: str | Path, param: str, values: list[str], 
             "datasets": [str(Path(p).resolve()) for p in paths]}
     params = [params_from_args(args, **{param: _typed(param, v)}) for v in values]  # every value checked first
     with output_folder(out, FORMAT, resume, marker="sweep.json") as folder:
-        if folder.resumed and json.loads((out / "sweep.json").read_text()) != meta:
+        if folder.resumed and read_json(out / "sweep.json") != meta:
             raise ValueError(f"{out} holds a sweep of other parameters; --resume needs the same datasets and options")
         folder.remove_temporaries(["sweep.json", "sweep.csv", "sweep.png"])
         write_json_atomic(out / "sweep.json", meta)

@@ -21,7 +21,6 @@ scores such as -0.3 or 2.3), but detections.parquet's score is in [0, 1]: map ra
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 from pathlib import Path
@@ -31,7 +30,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from homocal.files import write_json_atomic, write_text_atomic
+from homocal.files import read_json, write_json_atomic, write_text_atomic
 from simgen.detection.association import TIE_TOLERANCE_S, associate, match_to_gt, nearest_sample
 from simgen.detection.batch import DetectionBatch, detections_table
 from simgen.parquet import write_parquet
@@ -115,10 +114,10 @@ def import_mot(dataset_dir: str | os.PathLike, mot_txt_path: str | os.PathLike, 
     if not 0.0 < min_iou <= 1.0:  # NaN too
         raise ValueError(f"--min-iou must be in (0, 1], got {min_iou}")
     dataset_dir = Path(dataset_dir)
-    manifest = json.loads((dataset_dir / "manifest.json").read_text(encoding="utf-8"))
+    manifest = read_json(dataset_dir / "manifest.json")
     fps = float(manifest["fps"])
     camera_path = dataset_dir / "camera.json"
-    camera = json.loads(camera_path.read_text(encoding="utf-8")) if camera_path.is_file() else None
+    camera = read_json(camera_path) if camera_path.is_file() else None
     gt = pq.read_table(dataset_dir / "gt.parquet")
     size = (int(camera["width"]), int(camera["height"])) if camera else None
     frames, xyxy, conf = read_mot(mot_txt_path, manifest.get("frames_total"), size)
@@ -163,7 +162,7 @@ def import_into_dataset(dataset_dir: str | os.PathLike, mot_txt_path: str | os.P
     manifest_path = dataset_dir / "manifest.json"
     if not manifest_path.is_file():
         raise ValueError(f"{dataset_dir}: not a dataset (no manifest.json)")
-    manifest = json.loads(manifest_path.read_text())
+    manifest = read_json(manifest_path)
     if not manifest.get("complete"):
         raise ValueError(f"{dataset_dir}: the run is not complete; finish it with simgen generate --resume first")
     if name in BUILTIN_DETECTORS or not name.strip():

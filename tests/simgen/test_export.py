@@ -94,6 +94,21 @@ def test_an_earlier_export_is_rewritten_and_loses_the_detectors_gone(tiny_datase
     assert sorted(p.name for p in seq.iterdir()) == ["det", "export.json", "gt", "seqinfo.ini"]
 
 
+@pytest.mark.parametrize("listed", ["notes.txt", "det/../notes.txt", "../outside.txt", "gt/mine.txt", "det/sub/x.txt", 7])
+def test_a_hand_edited_marker_never_gets_a_user_file_removed(tiny_dataset, tmp_path, capsys, listed):
+    """Only det/<name>.txt files an earlier export lists are removed as stale; anything else it lists stays."""
+    seq = tmp_path / "seq"
+    export(capsys, tiny_dataset, seq)
+    user_files = [seq / "notes.txt", tmp_path / "outside.txt", seq / "gt" / "mine.txt", seq / "det" / "sub" / "x.txt"]
+    for f in user_files:
+        f.parent.mkdir(parents=True, exist_ok=True)
+        f.write_text("mine")
+    marker = json.loads((seq / "export.json").read_text())
+    (seq / "export.json").write_text(json.dumps({**marker, "files": [*marker["files"], listed]}))
+    export(capsys, tiny_dataset, seq)
+    assert all(f.read_text() == "mine" for f in user_files)
+
+
 def _incomplete(dataset):
     manifest = json.loads((dataset / "manifest.json").read_text())
     (dataset / "manifest.json").write_text(json.dumps({**manifest, "complete": False}))
