@@ -33,8 +33,9 @@ METHODS = {
     "horizon": lambda args: HorizonCorrector(),
     "descent": lambda args: DescentCorrector(seed=args.seed),
     "hybrid": lambda args: HybridCorrector(threshold=args.threshold, seed=args.seed),
-    "least-change": lambda args: LeastChangeCorrector(),
+    "least-change": lambda args: LeastChangeCorrector(**{k: v for k, v in vars(args).items() if k in LEAST_CHANGE and v is not None}),
 }
+LEAST_CHANGE = {k: v for k, v in LeastChangeCorrector().get_params().items() if k != "iterations"}  # fit's prior flags
 TRUST_TOLERANCE_M = 0.5  # homocal fit reports how far the 1-sigma error stays under this
 APPLIED = ("x", "y", "sigma_m", "status")  # the columns homocal apply adds (last in its output)
 
@@ -92,6 +93,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     fit.add_argument("--threshold", type=number(float, 0, 100), default=DEFAULT_THRESHOLD, help="hybrid: keep regression at or "
                      "above this calibration improvement, percent (default %(default)g)")
     fit.add_argument("--seed", type=SEED, default=0, help="descent, hybrid: seed of the coordinate order (default 0)")
+    for name, what, low_open in (("click_sigma_px", "clicking error of each image corner coordinate, pixels", True),
+                                 ("map_sigma_m", "clicking error of each map corner coordinate, metres (0: the map trapezoid stays)", False),
+                                 ("point_sigma_m", "measurement error of each reference point coordinate, metres", True)):
+        fit.add_argument("--" + name.replace("_", "-"), type=number(float, 0, 1e6, low_open=low_open), default=None,
+                         metavar=name.rsplit("_", 1)[1].upper(),
+                         help=f"least-change only: prior sigma, {what} (default {LEAST_CHANGE[name]:g})")
     fit.set_defaults(handler=handle_fit)
 
     apply = subparsers.add_parser(
@@ -116,6 +123,9 @@ def handle_fit(args: argparse.Namespace) -> int:
         raise ValueError("-o -: the correction is a JSON file, not a table: give its file name")
     check_output_file(args.out, lambda p: json_format(p) == FORMAT, "homocal correction (JSON with format "
                       f"{FORMAT!r})")
+    given = [f"--{k.replace('_', '-')}" for k in LEAST_CHANGE if getattr(args, k) is not None]
+    if given and args.method != "least-change":
+        raise ValueError(f"{', '.join(given)}: the priors of --method least-change, not of {args.method}")
     corrector = METHODS[args.method](args)
     try:
         with warnings.catch_warnings(record=True) as caught:

@@ -170,26 +170,36 @@ def heatmap_means(shards: dict[str, list[Path]], bins: int = 24, progress: bool 
 def path_heatmaps(shards: dict[str, list[Path]], out: Path, bins: int = 24, vmin_floor: float = -100.0,
                   progress: bool = False) -> str:
     """Mean path improvement (percent) per bin of the sum (m) and the spread (max - min, m) of the three
-    calibration distances, per method, all scenes pooled (paper Fig. 4; heatmap_means)."""
-    x_edges, y_edges, means = heatmap_means(shards, bins, progress)
+    calibration distances, per method, all scenes pooled (paper Fig. 4; heatmap_means). Returns the caption."""
+    fig, vmin, clipped = heatmap_figure(*heatmap_means(shards, bins, progress), vmin_floor)
+    save(fig, out)
+    return (f"Counterpart of the paper's Fig. 4 (a: regression, b: descent). Mean path improvement per cell of {bins} x {bins} bins of the calibration triple's distance sum and "
+            f"spread (max - min), all scenes and variants pooled; empty cells are blank"
+            + (f"; cell means below {vmin:g} % share the lowest colour." if clipped else "."))
+
+
+def heatmap_figure(x_edges: np.ndarray, y_edges: np.ndarray, means: dict, vmin_floor: float = -100.0):
+    """(figure, vmin, clipped): one panel per method of means (heatmap_means), four a row, on one diverging colour
+    scale centred on 0 (red: worse than no correction, blue: better), cell means below vmin_floor clipped."""
     filled = [m for m in means.values() if m.count()]
     lowest = float(min((m.min() for m in filled), default=0.0))
     vmin = max(lowest, vmin_floor)
     vmax = max(float(max((m.max() for m in filled), default=100.0)), vmin)
-    span = max(abs(vmin), abs(vmax), 1e-9)  # diverging, centred on 0: red worse than no correction, blue better
+    span = max(abs(vmin), abs(vmax), 1e-9)
     norm = Normalize(-span, span)
-    fig = Figure(figsize=(11, 9), layout="constrained")
-    axes = fig.subplots(2, 2, sharex=True, sharey=True).ravel()
-    for ax, (method, mean) in zip(axes, means.items()):
+    rows = -(-len(means) // 4)
+    fig = Figure(figsize=(16, 4.2 * rows), layout="constrained")
+    axes = fig.subplots(rows, 4, sharex=True, sharey=True).ravel()
+    for ax in axes[len(means):]:
+        ax.remove()
+    axes = axes[:len(means)]
+    for ax, (method, mean) in zip(axes, means.items(), strict=True):
         mesh = ax.pcolormesh(x_edges, y_edges, mean, cmap="RdBu", norm=norm)
         ax.set_title(method)
         ax.set_xlabel("sum of the three calibration distances (m)")
         ax.set_ylabel("spread of the three calibration distances (m)")
     fig.colorbar(mesh, ax=axes.tolist(), label="mean path improvement (%)", extend="min" if lowest < vmin else "neither")
-    save(fig, out)
-    return (f"Counterpart of the paper's Fig. 4 (a: regression, b: descent). Mean path improvement per cell of {bins} x {bins} bins of the calibration triple's distance sum and "
-            f"spread (max - min), all scenes and variants pooled; empty cells are blank"
-            + (f"; cell means below {vmin:g} % share the lowest colour." if lowest < vmin else "."))
+    return fig, vmin, lowest < vmin
 
 
 def ground_error(image_quad: np.ndarray, map_quad: np.ndarray, ds: Dataset, image: np.ndarray, ground: np.ndarray) -> np.ndarray:

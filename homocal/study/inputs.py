@@ -8,6 +8,7 @@ import numpy as np
 
 from homocal.correctors.descent import DescentCorrector
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
+from homocal.correctors.least_change import LeastChangeCorrector
 from homocal.dataset import EXACT, calibration_source, load_dataset
 from homocal.geometry import SiteMap, ViewTransformer
 from homocal.study.perturb import ShiftSpec, base_quad, draw_base_error
@@ -40,6 +41,7 @@ class StudyParams:
     threshold: float = DEFAULT_THRESHOLD
     descent: dict = field(default_factory=lambda: {  # DescentCorrector's defaults (its seed is keyed per variant)
         k: v for k, v in DescentCorrector().get_params().items() if k != "seed"})
+    least_change: dict = field(default_factory=lambda: LeastChangeCorrector().get_params())  # its defaults
 
     def __post_init__(self) -> None:
         if self.horizon_shift is not None:

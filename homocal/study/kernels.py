@@ -33,45 +33,16 @@ import numpy as np
 
 from homocal.keyed_rng import packed_order, splitmix64
 from homocal.study import method_kernels as mk
+from homocal.study.frame import frame, min2
 from homocal.study.jit import FIXED, JIT, PATH_JIT, to_fixed
 
 
-METHODS = ("regression", "regression_signed", "regression_intercept", "horizon", "descent", "hybrid")
+METHODS = ("regression", "regression_signed", "regression_intercept", "horizon", "least_change", "descent", "hybrid")
 # run_variant's output columns, in order (the shard schema is derived from them): method m's calibration and
 # path improvements are columns 1 + 2 m and 2 + 2 m
 OUT_COLUMNS = ("cal_before", *(f"{kind}_{m}" for m in METHODS for kind in ("cal", "path")), "hybrid_regression")
-REG, SIG, INT, HOR, DES, HYB = (1 + 2 * METHODS.index(m) for m in METHODS)  # calibration columns
+REG, SIG, INT, HOR, LCH, DES, HYB = (1 + 2 * METHODS.index(m) for m in METHODS)  # calibration columns
 CHOSE = len(OUT_COLUMNS) - 1
-
-
-@nb.njit(inline="always", **JIT)
-def _max(a, b):
-    return a if a > b else b
-
-
-@nb.njit(inline="always", **JIT)
-def _min(a, b):
-    return a if a < b else b
-
-
-@nb.njit(inline="always", **JIT)
-def frame(x0, y0, x1, y1, x2, y2, x3, y3):
-    """Projective frame of an image quad: (n0, n1, n2 as 9 scalars, c0, c1, c2, D, valid)."""
-    a0, a1, a2 = y1 - y2, x2 - x1, x1 * y2 - x2 * y1  # n0 = p1 x p2
-    b0, b1, b2 = y2 - y0, x0 - x2, x2 * y0 - x0 * y2  # n1 = p2 x p0
-    e0, e1, e2 = y0 - y1, x1 - x0, x0 * y1 - x1 * y0  # n2 = p0 x p1
-    d0 = a0 * x3 + a1 * y3 + a2  # det[p1 p2 p3]
-    d1 = b0 * x3 + b1 * y3 + b2  # det[p2 p0 p3] = -det[p2 p3 p0]
-    d2 = e0 * x3 + e1 * y3 + e2  # det[p0 p1 p3] = det[p3 p0 p1]
-    det = a0 * x0 + a1 * y0 + a2  # det[p0 p1 p2]
-    sx = _max(_max(x0, x1), _max(x2, x3)) - _min(_min(x0, x1), _min(x2, x3))
-    sy = _max(_max(y0, y1), _max(y2, y3)) - _min(_min(y0, y1), _min(y2, y3))
-    scale = _max(sx, sy)
-    tol = 1e-9 * (scale * scale)
-    lo = _min(_min(det, d0), _min(-d1, d2))
-    hi = _max(_max(det, d0), _max(-d1, d2))
-    valid = (lo > tol) | (hi < -tol)  # one sign, each beyond the tolerance
-    return a0, a1, a2, b0, b1, b2, e0, e1, e2, d1 * d2, d0 * d2, d0 * d1, d0 * d1 * d2, valid
 
 
 @nb.njit(inline="always", **JIT)
@@ -173,10 +144,10 @@ def grid_best(table, i, j, k, sums):
     bits = sums.view(np.int64)
     least = bits[0]
     for g in range(n):
-        least = _min(least, bits[g])
+        least = min2(least, bits[g])
     first = n
     for g in range(n):
-        first = _min(first, g if bits[g] == least else n)
+        first = min2(first, g if bits[g] == least else n)
     return sums[first] / 3.0, first
 
 
@@ -493,17 +464,18 @@ def _mean3(a, b, c):
 
 
 @nb.njit(nogil=True, **JIT)
-def run_variant(v0, Bt, H0, F, q, g, cal, test, path_before, I, J, K, base, grid, delta_max, initial_step, min_step,
-                max_evals, threshold, in_range, origin, out, ab, vfinal):
+def run_variant(v0, t0, Bt, H0, F, q, g, cal, test, path_before, I, J, K, base, grid, delta_max, initial_step, min_step,
+                max_evals, lc_sigmas, lc_iterations, threshold, in_range, origin, out, ab, vfinal):
     """Every method on every triple (I, J, K) (S,) of one trapezoid variant.
 
-    v0 (8,) image quad, Bt (3, 3) target basis, H0 (3, 3) = homography(v0, Bt); F (M, 9), q (M, 2) image and
+    v0 (8,) image quad, t0 (8,) target (map) quad, Bt (3, 3) its basis, H0 (3, 3) = homography(v0, Bt); F (M, 9), q (M, 2) image and
     g (M, 2) ground calibration points; cal (7, M) of the mapped candidates p: d = |p - o|, r = p - g (2),
     u = (p - o)/d (2), faithful e = |p - g| (eq. (18)), signed e = |g - o| - |p - o|; test (13, N) float32 (see
     regression_paths, descent_path and their _range forms); path_before: mean test error (metres);
     in_range: errors are range errors | ||g - o|| - ||p - o|| | instead of ||p - g|| (the study's metric; the
     methods themselves do not change, the hybrid's threshold applies to the metric's improvement);
-    origin (2,) the camera's ground point o.
+    origin (2,) the camera's ground point o; lc_sigmas (3,) least change's click, map and point sigmas (px, m, m)
+    and lc_iterations its most Gauss-Newton steps.
     Writes out (S, len(OUT_COLUMNS)) float64 in OUT_COLUMNS order: cal_before (m), then (cal, path)
     improvement (%) of each of the METHODS, then 1.0 if hybrid chose regression; ab (S, 4): a, b faithful,
     a, b signed; vfinal (S, 9): descent's final trapezoid and its phase-2 evaluations.
@@ -516,6 +488,8 @@ def run_variant(v0, Bt, H0, F, q, g, cal, test, path_before, I, J, K, base, grid
     dH = np.empty(9, np.float32)
     Hd = np.empty((3, 3))
     sums = np.empty(G4)
+    z0, zl = np.concatenate((v0, t0)), np.empty(16)
+    q3, g3 = np.empty((3, 2)), np.empty((3, 2))
     for s in range(S):
         i, j, k = I[s], J[s], K[s]
         # ---- regression, faithful and signed (eqs. (18)-(24))
@@ -556,6 +530,15 @@ def run_variant(v0, Bt, H0, F, q, g, cal, test, path_before, I, J, K, base, grid
         cal_h = _mean3(mapped_error(Hd, q, g, i, origin, in_range), mapped_error(Hd, q, g, j, origin, in_range),
                        mapped_error(Hd, q, g, k, origin, in_range))
         out[s, HOR], out[s, HOR + 1] = _improvement(e_before, cal_h), _improvement(path_before, homography_paths(test, Hd, H0, dH, in_range))
+        # ---- least change: the smallest move of both clicked quads that explains the three points (MAP)
+        for t in range(3):
+            c = i if t == 0 else (j if t == 1 else k)
+            q3[t, 0], q3[t, 1], g3[t, 0], g3[t, 1] = q[c, 0], q[c, 1], g[c, 0], g[c, 1]
+        mk.least_change3(z0, q3, g3, lc_sigmas[0], lc_sigmas[1], lc_sigmas[2], lc_iterations, zl)
+        homography_into(zl[:8], target_basis(zl[8:].reshape(4, 2)), Hd)
+        cal_l = _mean3(mapped_error(Hd, q, g, i, origin, in_range), mapped_error(Hd, q, g, j, origin, in_range),
+                       mapped_error(Hd, q, g, k, origin, in_range))
+        out[s, LCH], out[s, LCH + 1] = _improvement(e_before, cal_l), _improvement(path_before, homography_paths(test, Hd, H0, dH, in_range))
         # ---- descent phase 1: the grid cell of least mean loss, first on ties
         best, gbest = grid_best(table, i, j, k, sums)
         vfinal[s, :8] = v0

@@ -25,7 +25,9 @@ import numba as nb
 import numpy as np
 
 from homocal.correctors.horizon import FLAT, GRID_INTERVALS, NEWTON_STEPS, newton_step
+from homocal.correctors.least_change import MAX_HALVINGS, STEP_TOLERANCE
 from homocal.correctors.regression import solve_normal3
+from homocal.study.frame import quad_frame
 from homocal.study.jit import FIXED, JIT, PATH_JIT, to_fixed
 
 _newton_step = nb.njit(inline="always", **JIT)(newton_step)  # the readable correctors' scalar steps, compiled
@@ -160,3 +162,168 @@ def horizon_homography_into(H, eps, out):
     for r in range(3):
         for m in range(3):
             out[r, m] /= norm
+
+
+# ---- least change (homocal.correctors.least_change): the MAP correction of both clicked trapezoids
+
+@nb.njit(**JIT)
+def _basis_into(z, o, out):
+    """The projective basis B = P diag(lam) of the quad z[o:o + 8] (x, y of TL, TR, BR, BL) into out (13,): the rows
+    n_k of N at 0-8 (P^-1 = N / det, P = [p0 p1 p2] homogeneous vertices as columns), lam = N p3 / det at 9-11
+    (P lam = p3), det at 12 (quad_frame). Returns validate_quad's test."""
+    a0, a1, a2, b0, b1, b2, e0, e1, e2, d0, d1, d2, det, valid = quad_frame(
+        z[o], z[o + 1], z[o + 2], z[o + 3], z[o + 4], z[o + 5], z[o + 6], z[o + 7])
+    out[0], out[1], out[2], out[3], out[4], out[5], out[6], out[7], out[8] = a0, a1, a2, b0, b1, b2, e0, e1, e2
+    out[9], out[10], out[11], out[12] = d0 / det, d1 / det, d2 / det, det
+    return valid
+
+
+@nb.njit(**JIT)
+def _usable(z, bs, bt, sign_s, sign_t):
+    """Fill the bases bs, bt (13,) of the image quad z[:8] and the map quad z[8:]; True if both pass validate_quad's
+    test and keep the orientation (sign of det) of the clicked quads, sign_s and sign_t (predicted_points' checks)."""
+    return _basis_into(z, 0, bs) and _basis_into(z, 8, bt) and bs[12] * sign_s > 0 and bt[12] * sign_t > 0
+
+
+@nb.njit(inline="always", **JIT)
+def _map_point(z, bs, bt, u, v, y, X):
+    """y = B_s^-1 (u, v, 1) (3,) and X = B_t y (3,), unnormalised homogeneous (w = 1 at the fourth vertex; the point
+    is in front of the horizon iff X[2] > 0, the kernels' rule, see kernels' docstring)."""
+    for k in range(3):
+        y[k] = (bs[3 * k] * u + bs[3 * k + 1] * v + bs[3 * k + 2]) / (bs[9 + k] * bs[12])
+    X[0] = X[1] = X[2] = 0.0
+    for k in range(3):
+        c = bt[9 + k] * y[k]
+        X[0] += c * z[8 + 2 * k]
+        X[1] += c * z[9 + 2 * k]
+        X[2] += c
+
+
+@nb.njit(**JIT)
+def _phi(x, z, bs, bt, q, g, point_sigma, y, X):
+    """Phi(x) = ||x||^2 + sum_i ||g_i - f_i||^2 / point_sigma^2 (least_change.objective) for quads z with bases bs,
+    bt; +inf if a point q_i (3, 2) maps on or beyond the horizon."""
+    total = 0.0
+    for i in range(3):
+        _map_point(z, bs, bt, q[i, 0], q[i, 1], y, X)
+        if not X[2] > 0.0:
+            return math.inf
+        rx, ry = g[i, 0] - X[0] / X[2], g[i, 1] - X[1] / X[2]
+        total += rx * rx + ry * ry
+    return x @ x + total / (point_sigma * point_sigma)
+
+
+@nb.njit(**JIT)
+def _jacobian_into(z, bs, bt, q, g, sigma, J, r, y, X):
+    """J (6, 16) = df/dx at quads z (least_change.mapped_jacobian times sigma), rows 2 i + (x, y) of point i, and the
+    residuals r (6,) = g - f. With y = B_s^-1 (q, 1) and W_k = P Pinv[:, k] o y (each quad's P, Pinv = N / det),
+    a quad's dB y for its vertex j, coordinate k is lam_j (y_j e_k - W_k) (j < 3) or W_k (j = 3); a map
+    coordinate moves X = B_t y by dB_t y, an image one by -H dB_s y (H = B_t B_s^-1); df = (dX_xy - f dX_w) / X_w."""
+    H = np.empty((3, 3))
+    for a in range(3):
+        for c in range(3):
+            s = 0.0
+            for k in range(3):
+                pk = z[8 + 2 * k + a] if a < 2 else 1.0
+                s += pk * bt[9 + k] * bs[3 * k + c] / (bs[9 + k] * bs[12])
+            H[a, c] = s
+    dB = np.empty((16, 3))
+    for i in range(3):
+        _map_point(z, bs, bt, q[i, 0], q[i, 1], y, X)
+        fx, fy = X[0] / X[2], X[1] / X[2]
+        r[2 * i], r[2 * i + 1] = g[i, 0] - fx, g[i, 1] - fy
+        for quad in range(2):
+            b, o = (bs, 0) if quad == 0 else (bt, 8)
+            for k in range(2):
+                W0 = W1 = W2 = 0.0
+                for m in range(3):
+                    c = b[3 * m + k] / b[12] * y[m]
+                    W0 += z[o + 2 * m] * c
+                    W1 += z[o + 2 * m + 1] * c
+                    W2 += c
+                for j in range(3):
+                    lj = b[9 + j]
+                    dB[o + 2 * j + k, 0] = lj * ((y[j] if k == 0 else 0.0) - W0)
+                    dB[o + 2 * j + k, 1] = lj * ((y[j] if k == 1 else 0.0) - W1)
+                    dB[o + 2 * j + k, 2] = -lj * W2
+                dB[o + 6 + k, 0], dB[o + 6 + k, 1], dB[o + 6 + k, 2] = W0, W1, W2
+        for c in range(16):
+            if c < 8:
+                d0 = -(H[0, 0] * dB[c, 0] + H[0, 1] * dB[c, 1] + H[0, 2] * dB[c, 2])
+                d1 = -(H[1, 0] * dB[c, 0] + H[1, 1] * dB[c, 1] + H[1, 2] * dB[c, 2])
+                d2 = -(H[2, 0] * dB[c, 0] + H[2, 1] * dB[c, 1] + H[2, 2] * dB[c, 2])
+            else:
+                d0, d1, d2 = dB[c, 0], dB[c, 1], dB[c, 2]
+            J[2 * i, c] = (d0 - fx * d2) / X[2] * sigma[c]
+            J[2 * i + 1, c] = (d1 - fy * d2) / X[2] * sigma[c]
+
+
+@nb.njit(**JIT)
+def _gauss_newton_into(x, J, r, point_sigma, out):
+    """out (16,) = J^T (J J^T + point_sigma^2 I)^-1 (r + J x) (least_change.gauss_newton_step), the 6 x 6 system
+    solved by Cholesky (symmetric positive definite)."""
+    A = J @ J.T
+    b = r + J @ x
+    for i in range(6):
+        A[i, i] += point_sigma * point_sigma
+    for i in range(6):  # A = L L^T in place (lower triangle)
+        for j in range(i + 1):
+            s = A[i, j]
+            for k in range(j):
+                s -= A[i, k] * A[j, k]
+            A[i, j] = math.sqrt(s) if i == j else s / A[j, j]
+    for i in range(6):  # L w = b
+        s = b[i]
+        for k in range(i):
+            s -= A[i, k] * b[k]
+        b[i] = s / A[i, i]
+    for i in range(5, -1, -1):  # L^T u = w
+        s = b[i]
+        for k in range(i + 1, 6):
+            s -= A[k, i] * b[k]
+        b[i] = s / A[i, i]
+    out[:] = J.T @ b
+
+
+@nb.njit(**JIT)
+def least_change3(z0, q, g, click_sigma, map_sigma, point_sigma, iterations, z):
+    """LeastChangeCorrector.fit on three points: from the clicked quads z0 (16,) (image quad px then map quad m, x, y
+    of TL, TR, BR, BL), image points q (3, 2) px and ground points g (3, 2) m, write the corrected quads into
+    z (16,); return (Gauss-Newton steps accepted, Phi at the end). The same iteration as the readable corrector:
+    at most ``iterations`` steps; each tried at full length, then halved up to MAX_HALVINGS times until both quads
+    are usable (_usable, every point in front) and Phi does not rise, else the fit stops; stop after an accepted
+    step shorter than STEP_TOLERANCE. z0's quads must be usable (the variant's)."""
+    sigma = np.empty(16)
+    sigma[:8], sigma[8:] = click_sigma, map_sigma
+    bs, bt, y, X = np.empty(13), np.empty(13), np.empty(3), np.empty(3)
+    J, r, step, x, xc = np.empty((6, 16)), np.empty(6), np.empty(16), np.zeros(16), np.empty(16)
+    _basis_into(z0, 0, bs)
+    _basis_into(z0, 8, bt)
+    sign_s, sign_t = bs[12], bt[12]
+    z[:] = z0
+    phi = _phi(x, z, bs, bt, q, g, point_sigma, y, X)
+    steps = 0
+    for _ in range(iterations):
+        _usable(z, bs, bt, sign_s, sign_t)  # the bases of the accepted iterate
+        _jacobian_into(z, bs, bt, q, g, sigma, J, r, y, X)
+        _gauss_newton_into(x, J, r, point_sigma, step)
+        step -= x
+        accepted, value = False, math.inf
+        for h in range(MAX_HALVINGS + 1):
+            xc[:] = x + step / 2.0**h
+            z[:] = z0 + sigma * xc
+            value = _phi(xc, z, bs, bt, q, g, point_sigma, y, X) if _usable(z, bs, bt, sign_s, sign_t) else math.inf
+            if value <= phi:
+                accepted = True
+                break
+        if not accepted:
+            z[:] = z0 + sigma * x
+            break
+        moved = math.sqrt(np.sum((xc - x) ** 2))
+        x[:] = xc
+        phi = value
+        steps += 1
+        if moved < STEP_TOLERANCE:
+            break
+    return steps, phi
+

@@ -29,6 +29,7 @@ class VariantTables:
     """Per-variant work hoisted out of the sample loop (inputs of kernels.run_variant)."""
 
     v0: np.ndarray
+    t0: np.ndarray
     Bt: np.ndarray
     H0: np.ndarray
     F: np.ndarray
@@ -38,8 +39,8 @@ class VariantTables:
 
 
 def variant_mapping(scene: StudyScene, params: StudyParams, variant: int):
-    """(v0 (8,), Bt (3, 3), H0 (3, 3), p (M, 2), pt (N, 2)): the variant's image quad (its base quad plus its
-    offsets), target basis, homography and mapped calibration and test points; or the reason (str) the
+    """(v0 (8,), t0 (8,), Bt (3, 3), H0 (3, 3), p (M, 2), pt (N, 2)): the variant's image quad (its base quad plus
+    its offsets), map quad (metres), its basis, homography and mapped calibration and test points; or the reason (str) the
     variant is degenerate: a quad validate_quad rejects, a homography that cannot be formed, or a
     calibration or test point beyond the horizon."""
     offsets, _ = draw_variant(params.seed, scene.name, variant)
@@ -57,7 +58,7 @@ def variant_mapping(scene: StudyScene, params: StudyParams, variant: int):
         bad = np.flatnonzero(np.isnan(mapped).any(axis=1))
         if bad.size:
             return f"{what} point {bad[0]} maps beyond the horizon"
-    return v0, Bt, H0, p, pt
+    return v0, target.ravel(), Bt, H0, p, pt
 
 
 def prepare_variant(scene: StudyScene, params: StudyParams, variant: int) -> VariantTables | str:
@@ -65,7 +66,7 @@ def prepare_variant(scene: StudyScene, params: StudyParams, variant: int) -> Var
     mapping = variant_mapping(scene, params, variant)
     if isinstance(mapping, str):
         return mapping
-    v0, Bt, H0, p, pt = mapping
+    v0, t0, Bt, H0, p, pt = mapping
     o, g, gt = scene.origin, scene.cal_ground, scene.test_ground
     d = np.linalg.norm(p - o, axis=1)
     r = p - g
@@ -82,21 +83,23 @@ def prepare_variant(scene: StudyScene, params: StudyParams, variant: int) -> Var
     test = test.astype(np.float32)
     F = kernels.ground_frames(Bt, g)
     before = np.abs(dgt - dt) if params.metric == "range" else np.linalg.norm(rt, axis=1)
-    return VariantTables(v0, Bt, H0, F, np.ascontiguousarray(cal), np.ascontiguousarray(test), float(before.mean()))
+    return VariantTables(v0, np.ascontiguousarray(t0), Bt, H0, F, np.ascontiguousarray(cal), np.ascontiguousarray(test), float(before.mean()))
 
 
 def run_tables(scene: StudyScene, tables: VariantTables, params: StudyParams, variant: int, idx: np.ndarray):
     """kernels.run_variant on triples idx (S, 3): (out (S, len(OUT_COLUMNS)), ab (S, 4), vfinal (S, 9)), see there."""
     S = len(idx)
     out, ab, vfinal = np.empty((S, len(kernels.OUT_COLUMNS))), np.empty((S, 4)), np.empty((S, 9))
-    dp = params.descent
+    dp, lc = params.descent, params.least_change
     I, J, K = (np.ascontiguousarray(idx[:, c].astype(np.int64)) for c in range(3))
     kernels.run_variant(
-        tables.v0, tables.Bt, tables.H0, tables.F, np.ascontiguousarray(scene.cal_image),
+        tables.v0, tables.t0, tables.Bt, tables.H0, tables.F, np.ascontiguousarray(scene.cal_image),
         np.ascontiguousarray(scene.cal_ground), tables.cal, tables.test,
         tables.path_before, I, J, K, np.uint64(seed_from_key(params.seed, scene.name, variant)),
         np.asarray(dp["grid_offsets"], dtype=np.float64), float(dp["delta_max"]), float(dp["initial_step"]),
-        float(dp["min_step"]), int(dp["max_evals"]), float(params.threshold), params.metric == "range", scene.origin,
+        float(dp["min_step"]), int(dp["max_evals"]),
+        np.array([lc["click_sigma_px"], lc["map_sigma_m"], lc["point_sigma_m"]], dtype=np.float64), int(lc["iterations"]),
+        float(params.threshold), params.metric == "range", scene.origin,
         out, ab, vfinal)
     return out, ab, vfinal
 

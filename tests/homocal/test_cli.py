@@ -275,3 +275,18 @@ def test_bad_apply_input(work, name, correction, feet, extra, message, capsys, m
     assert result.stderr.startswith("homocal: error:") and result.stderr.count("\n") == 1, result.stderr
     assert message in result.stderr
     assert sorted(p.name for p in work.iterdir()) == before
+
+
+def test_least_change_priors_from_the_command_line(work, capsys, monkeypatch):
+    """--click-sigma-px, --map-sigma-m, --point-sigma-m reach LeastChangeCorrector (saved with it); omitted ones
+    keep its defaults; with another method they are refused; out-of-range values are refused where parsed."""
+    run = lambda *a: homocal_main("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "-o", "c.json", *a,  # noqa: E731
+                                  cwd=work, capsys=capsys, monkeypatch=monkeypatch)
+    assert run("--method", "least-change", "--click-sigma-px", "2.5", "--map-sigma-m", "0").returncode == 0
+    params = json.loads((work / "c.json").read_text())["params"]
+    assert params == {**LeastChangeCorrector().get_params(), "click_sigma_px": 2.5, "map_sigma_m": 0.0}
+    refused = run("--method", "descent", "--point-sigma-m", "0.1")
+    assert refused.returncode == 2 and "--point-sigma-m: the priors of --method least-change, not of descent" in refused.stderr
+    for flag, value in (("--click-sigma-px", "0"), ("--point-sigma-m", "nan"), ("--map-sigma-m", "-1"), ("--click-sigma-px", "inf")):
+        bad = run("--method", "least-change", flag, value)
+        assert bad.returncode == 2 and flag in bad.stderr

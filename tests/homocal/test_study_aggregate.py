@@ -130,3 +130,11 @@ def test_heatmap_means_equal_numpy_in_memory(shards):
         np.testing.assert_array_equal(means[m].mask, count == 0)
         np.testing.assert_allclose(means[m].filled(0), np.divide(total, count, out=np.zeros_like(total), where=count > 0),
                                    rtol=1e-12)
+
+
+def test_heatmap_figure_has_a_panel_for_every_method(shards):
+    """One panel per method, titled with its name, in METHODS order (a fixed 2 x 2 grid once showed only the first
+    four of six methods, descent not among them)."""
+    files, _ = shards
+    fig, _, _ = figures.heatmap_figure(*figures.heatmap_means(files, 5))
+    assert [ax.get_title() for ax in fig.axes if ax.get_title()] == list(metrics.METHODS)
