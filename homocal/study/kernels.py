@@ -488,7 +488,7 @@ def run_variant(v0, t0, Bt, H0, F, q, g, cal, test, path_before, I, J, K, base, 
     dH = np.empty(9, np.float32)
     Hd = np.empty((3, 3))
     sums = np.empty(G4)
-    z0, zl = np.concatenate((v0, t0)), np.empty(16)
+    z0, zl, Bl = np.concatenate((v0, t0)), np.empty(16), np.empty((3, 3))
     q3, g3 = np.empty((3, 2)), np.empty((3, 2))
     for s in range(S):
         i, j, k = I[s], J[s], K[s]
@@ -534,8 +534,8 @@ def run_variant(v0, t0, Bt, H0, F, q, g, cal, test, path_before, I, J, K, base, 
         for t in range(3):
             c = i if t == 0 else (j if t == 1 else k)
             q3[t, 0], q3[t, 1], g3[t, 0], g3[t, 1] = q[c, 0], q[c, 1], g[c, 0], g[c, 1]
-        mk.least_change3(z0, q3, g3, lc_sigmas[0], lc_sigmas[1], lc_sigmas[2], lc_iterations, zl)
-        homography_into(zl[:8], target_basis(zl[8:].reshape(4, 2)), Hd)
+        mk.least_change3(z0, q3, g3, lc_sigmas[0], lc_sigmas[1], lc_sigmas[2], lc_iterations, zl, Bl)
+        homography_into(zl[:8], Bl, Hd)
         cal_l = _mean3(mapped_error(Hd, q, g, i, origin, in_range), mapped_error(Hd, q, g, j, origin, in_range),
                        mapped_error(Hd, q, g, k, origin, in_range))
         out[s, LCH], out[s, LCH + 1] = _improvement(e_before, cal_l), _improvement(path_before, homography_paths(test, Hd, H0, dH, in_range))

@@ -214,12 +214,12 @@ def _phi(x, z, bs, bt, q, g, point_sigma, y, X):
 
 
 @nb.njit(**JIT)
-def _jacobian_into(z, bs, bt, q, g, sigma, J, r, y, X):
+def _jacobian_into(z, bs, bt, q, g, sigma, J, r, y, X, H, dB):
     """J (6, 16) = df/dx at quads z (least_change.mapped_jacobian times sigma), rows 2 i + (x, y) of point i, and the
     residuals r (6,) = g - f. With y = B_s^-1 (q, 1) and W_k = P Pinv[:, k] o y (each quad's P, Pinv = N / det),
     a quad's dB y for its vertex j, coordinate k is lam_j (y_j e_k - W_k) (j < 3) or W_k (j = 3); a map
-    coordinate moves X = B_t y by dB_t y, an image one by -H dB_s y (H = B_t B_s^-1); df = (dX_xy - f dX_w) / X_w."""
-    H = np.empty((3, 3))
+    coordinate moves X = B_t y by dB_t y, an image one by -H dB_s y (H = B_t B_s^-1); df = (dX_xy - f dX_w) / X_w.
+    H (3, 3) and dB (16, 3): scratch."""
     for a in range(3):
         for c in range(3):
             s = 0.0
@@ -227,7 +227,6 @@ def _jacobian_into(z, bs, bt, q, g, sigma, J, r, y, X):
                 pk = z[8 + 2 * k + a] if a < 2 else 1.0
                 s += pk * bt[9 + k] * bs[3 * k + c] / (bs[9 + k] * bs[12])
             H[a, c] = s
-    dB = np.empty((16, 3))
     for i in range(3):
         _map_point(z, bs, bt, q[i, 0], q[i, 1], y, X)
         fx, fy = X[0] / X[2], X[1] / X[2]
@@ -286,10 +285,11 @@ def _gauss_newton_into(x, J, r, point_sigma, out):
 
 
 @nb.njit(**JIT)
-def least_change3(z0, q, g, click_sigma, map_sigma, point_sigma, iterations, z):
+def least_change3(z0, q, g, click_sigma, map_sigma, point_sigma, iterations, z, Bt):
     """LeastChangeCorrector.fit on three points: from the clicked quads z0 (16,) (image quad px then map quad m, x, y
     of TL, TR, BR, BL), image points q (3, 2) px and ground points g (3, 2) m, write the corrected quads into
-    z (16,); return (Gauss-Newton steps accepted, Phi at the end). The same iteration as the readable corrector:
+    z (16,) and the corrected map quad's basis into Bt (3, 3) (kernels.target_basis of it, for homography_into);
+    return (Gauss-Newton steps accepted, Phi at the end). The same iteration as the readable corrector:
     at most ``iterations`` steps; each tried at full length, then halved up to MAX_HALVINGS times until both quads
     are usable (_usable, every point in front) and Phi does not rise, else the fit stops; stop after an accepted
     step shorter than STEP_TOLERANCE. z0's quads must be usable (the variant's)."""
@@ -297,6 +297,7 @@ def least_change3(z0, q, g, click_sigma, map_sigma, point_sigma, iterations, z):
     sigma[:8], sigma[8:] = click_sigma, map_sigma
     bs, bt, y, X = np.empty(13), np.empty(13), np.empty(3), np.empty(3)
     J, r, step, x, xc = np.empty((6, 16)), np.empty(6), np.empty(16), np.zeros(16), np.empty(16)
+    H, dB = np.empty((3, 3)), np.empty((16, 3))
     _basis_into(z0, 0, bs)
     _basis_into(z0, 8, bt)
     sign_s, sign_t = bs[12], bt[12]
@@ -305,7 +306,7 @@ def least_change3(z0, q, g, click_sigma, map_sigma, point_sigma, iterations, z):
     steps = 0
     for _ in range(iterations):
         _usable(z, bs, bt, sign_s, sign_t)  # the bases of the accepted iterate
-        _jacobian_into(z, bs, bt, q, g, sigma, J, r, y, X)
+        _jacobian_into(z, bs, bt, q, g, sigma, J, r, y, X, H, dB)
         _gauss_newton_into(x, J, r, point_sigma, step)
         step -= x
         accepted, value = False, math.inf
@@ -325,5 +326,8 @@ def least_change3(z0, q, g, click_sigma, map_sigma, point_sigma, iterations, z):
         steps += 1
         if moved < STEP_TOLERANCE:
             break
+    _basis_into(z, 8, bt)
+    for k in range(3):
+        Bt[0, k], Bt[1, k], Bt[2, k] = z[8 + 2 * k] * bt[9 + k], z[9 + 2 * k] * bt[9 + k], bt[9 + k]
     return steps, phi
 

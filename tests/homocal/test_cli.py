@@ -287,6 +287,7 @@ def test_least_change_priors_from_the_command_line(work, capsys, monkeypatch):
     assert params == {**LeastChangeCorrector().get_params(), "click_sigma_px": 2.5, "map_sigma_m": 0.0}
     refused = run("--method", "descent", "--point-sigma-m", "0.1")
     assert refused.returncode == 2 and "--point-sigma-m: the priors of --method least-change, not of descent" in refused.stderr
-    for flag, value in (("--click-sigma-px", "0"), ("--point-sigma-m", "nan"), ("--map-sigma-m", "-1"), ("--click-sigma-px", "inf")):
+    for flag, value in (("--click-sigma-px", "0"), ("--point-sigma-m", "nan"), ("--map-sigma-m", "-1"), ("--click-sigma-px", "inf"),
+                        ("--point-sigma-m", "0"), ("--map-sigma-m", "1e7"), ("--click-sigma-px", "one"), ("--map-sigma-m", "")):
         bad = run("--method", "least-change", flag, value)
         assert bad.returncode == 2 and flag in bad.stderr

@@ -116,13 +116,14 @@ def test_least_change_agrees(kw):
     fit takes all its steps, with halvings: there the counts must agree exactly."""
     lc = LeastChangeCorrector(**kw)
     p = lc.get_params()
-    z = np.empty(16)
+    z, Bt = np.empty(16), np.empty((3, 3))
     for vt, sel in least_change_cases():
         q, g = CANDIDATES_Q[sel], CANDIDATES_G[sel]
         lc.fit(vt, q, g, ORIGIN)
         z0 = np.concatenate([vt.source.ravel(), vt.target.ravel()])
         steps, phi = mk.least_change3(z0, q, g, p["click_sigma_px"], p["map_sigma_m"], p["point_sigma_m"],
-                                      p["iterations"], z)
+                                      p["iterations"], z, Bt)
+        np.testing.assert_allclose(Bt, kernels.target_basis(z[8:].reshape(4, 2)), rtol=1e-12, atol=1e-12)
         assert abs(steps - lc.iterations_) <= (0 if p["iterations"] == 4 else 4)
         assert phi == pytest.approx(lc.objective_final_, rel=1e-9)
         np.testing.assert_allclose(z[:8], lc.transformer_.source.ravel(), rtol=0, atol=2e-6)
@@ -138,6 +139,6 @@ def test_least_change_jacobian_is_the_readable_one():
         q, g = CANDIDATES_Q[sel], CANDIDATES_G[sel]
         z = np.concatenate([vt.source.ravel(), vt.target.ravel()])
         assert mk._basis_into(z, 0, bs) and mk._basis_into(z, 8, bt)
-        mk._jacobian_into(z, bs, bt, q, g, sigma, J, r, y, X)
+        mk._jacobian_into(z, bs, bt, q, g, sigma, J, r, y, X, np.empty((3, 3)), np.empty((16, 3)))
         np.testing.assert_allclose(J, mapped_jacobian(vt.source, vt.target, q).reshape(6, 16) * sigma, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(r, (g - vt.transform_points(q)).ravel(), rtol=0, atol=1e-10)
