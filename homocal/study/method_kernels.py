@@ -1,9 +1,11 @@
-"""Compiled kernels of the two correctors beyond the paper, for the study's per-sample loop: regression with an
-intercept (homocal.correctors.regression.fit_quadratic_intercept) and the horizon correction
-(homocal.correctors.horizon.fit_horizon_shift). Plain scalar functions of one calibration triple, the same
-algorithm, iteration counts and tolerances as the readable correctors; tests/homocal/test_method_kernels.py
-checks that their results agree to 1e-9 (rounding-level ties aside, every decision is the same; where one is
-not, both still converge to the same minimum). Conventions as homocal.study.kernels: cal table rows d, rx, ry, ux, uy,
+"""Compiled kernels of the three correctors beyond the paper, for the study's per-sample loop: regression with an
+intercept (homocal.correctors.regression.fit_quadratic_intercept), the horizon correction
+(homocal.correctors.horizon.fit_horizon_shift) and least change (LeastChangeCorrector, least_change3). Plain
+functions of one calibration triple, the same algorithm, iteration counts and tolerances as the readable
+correctors; tests/homocal/test_method_kernels.py checks that their results agree to 1e-9 (rounding-level ties
+aside, every decision is the same; where one is not, both still converge to the same minimum). Least change's
+last Gauss-Newton steps change its objective below rounding, so its step counts may differ and its quads agree
+to 2e-6 px. Conventions as homocal.study.kernels: cal table rows d, rx, ry, ux, uy,
 e_faithful, e_signed; test-point lengths in units of 1/FIXED m (jit.FIXED).
 
 Use in a per-sample loop (i, j, k the triple, H0 the variant's homography, q (M, 2) image and g (M, 2) ground
