@@ -4,7 +4,8 @@ the figures hold on a shared machine better than wall time).
     python benchmarks/bench_path_loops.py DATA/scene1 [--variant 3] [--triples 2000]
 
 Prints the median of 7 repeats for each path kernel over the scene's test points (the paper preset's 2000),
-and run_tables' CPU per sample (every method) on the first --triples triples of one variant.
+least change's fit (method_kernels.least_change3) per triple, and run_tables' CPU per sample (every method) on
+the first --triples triples of one variant.
 """
 from __future__ import annotations
 
@@ -51,6 +52,17 @@ def main() -> None:
     for name, (f, *a) in loops.items():
         print(f"{name}: {cpu_per_call(f, *a) * 1e6:.2f} us CPU per call ({n} test points)")
     idx = scene.triples[: args.triples]
+    lc = params.least_change
+    z0, z, Bt = np.concatenate((tables.v0, tables.t0)), np.empty(16), np.empty((3, 3))
+    fits = [(scene.cal_image[t], scene.cal_ground[t]) for t in idx[:200]]
+
+    def least_change_fits():
+        for q3, g3 in fits:
+            mk.least_change3(z0, q3, g3, lc["click_sigma_px"], lc["map_sigma_m"], lc["point_sigma_m"],
+                             lc["iterations"], z, Bt)
+
+    per_fit = cpu_per_call(least_change_fits, calls=5) / len(fits)
+    print(f"least_change3: {per_fit * 1e6:.2f} us CPU per fit (the first {len(fits)} triples of variant {args.variant})")
     per_sample = cpu_per_call(run_tables, scene, tables, params, args.variant, idx, calls=1) / len(idx)
     print(f"run_tables, every method: {per_sample * 1e6:.1f} us CPU per sample ({len(idx)} triples of variant {args.variant})")
 

@@ -212,7 +212,10 @@ def _phi(x, z, bs, bt, q, g, point_sigma, y, X):
             return math.inf
         rx, ry = g[i, 0] - X[0] / X[2], g[i, 1] - X[1] / X[2]
         total += rx * rx + ry * ry
-    return x @ x + total / (point_sigma * point_sigma)
+    prior = 0.0
+    for c in range(16):
+        prior += x[c] * x[c]
+    return prior + total / (point_sigma * point_sigma)
 
 
 @nb.njit(**JIT)
@@ -260,12 +263,20 @@ def _jacobian_into(z, bs, bt, q, g, sigma, J, r, y, X, H, dB):
 
 
 @nb.njit(**JIT)
-def _gauss_newton_into(x, J, r, point_sigma, out):
+def _gauss_newton_into(x, J, r, point_sigma, A, b, out):
     """out (16,) = J^T (J J^T + point_sigma^2 I)^-1 (r + J x) (least_change.gauss_newton_step), the 6 x 6 system
-    solved by Cholesky (symmetric positive definite)."""
-    A = J @ J.T
-    b = r + J @ x
+    solved by Cholesky (symmetric positive definite) in the lower triangle of the scratch A (6, 6), b (6,) (plain
+    loops: numba's matmul on arrays this small costs more in calls and allocations than in arithmetic)."""
     for i in range(6):
+        s = r[i]
+        for c in range(16):
+            s += J[i, c] * x[c]
+        b[i] = s
+        for j in range(i + 1):
+            s = 0.0
+            for c in range(16):
+                s += J[i, c] * J[j, c]
+            A[i, j] = s
         A[i, i] += point_sigma * point_sigma
     for i in range(6):  # A = L L^T in place (lower triangle)
         for j in range(i + 1):
@@ -283,7 +294,11 @@ def _gauss_newton_into(x, J, r, point_sigma, out):
         for k in range(i + 1, 6):
             s -= A[k, i] * b[k]
         b[i] = s / A[i, i]
-    out[:] = J.T @ b
+    for c in range(16):
+        s = 0.0
+        for i in range(6):
+            s += J[i, c] * b[i]
+        out[c] = s
 
 
 @nb.njit(**JIT)
@@ -299,7 +314,7 @@ def least_change3(z0, q, g, click_sigma, map_sigma, point_sigma, iterations, z, 
     sigma[:8], sigma[8:] = click_sigma, map_sigma
     bs, bt, y, X = np.empty(13), np.empty(13), np.empty(3), np.empty(3)
     J, r, step, x, xc = np.empty((6, 16)), np.empty(6), np.empty(16), np.zeros(16), np.empty(16)
-    H, dB = np.empty((3, 3)), np.empty((16, 3))
+    H, dB, A, b = np.empty((3, 3)), np.empty((16, 3)), np.empty((6, 6)), np.empty(6)
     _basis_into(z0, 0, bs)
     _basis_into(z0, 8, bt)
     sign_s, sign_t = bs[12], bt[12]
@@ -309,21 +324,27 @@ def least_change3(z0, q, g, click_sigma, map_sigma, point_sigma, iterations, z, 
     for _ in range(iterations):
         _usable(z, bs, bt, sign_s, sign_t)  # the bases of the accepted iterate
         _jacobian_into(z, bs, bt, q, g, sigma, J, r, y, X, H, dB)
-        _gauss_newton_into(x, J, r, point_sigma, step)
+        _gauss_newton_into(x, J, r, point_sigma, A, b, step)
         step -= x
         accepted, value = False, math.inf
         for h in range(MAX_HALVINGS + 1):
-            xc[:] = x + step / 2.0**h
-            z[:] = z0 + sigma * xc
+            scale = 0.5**h  # a power of two: step * scale == step / 2**h exactly
+            for c in range(16):
+                xc[c] = x[c] + step[c] * scale
+                z[c] = z0[c] + sigma[c] * xc[c]
             value = _phi(xc, z, bs, bt, q, g, point_sigma, y, X) if _usable(z, bs, bt, sign_s, sign_t) else math.inf
             if value <= phi:
                 accepted = True
                 break
         if not accepted:
-            z[:] = z0 + sigma * x
+            for c in range(16):
+                z[c] = z0[c] + sigma[c] * x[c]
             break
-        moved = math.sqrt(np.sum((xc - x) ** 2))
-        x[:] = xc
+        moved = 0.0
+        for c in range(16):
+            moved += (xc[c] - x[c]) ** 2
+            x[c] = xc[c]
+        moved = math.sqrt(moved)
         phi = value
         steps += 1
         if moved < STEP_TOLERANCE:
