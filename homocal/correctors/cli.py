@@ -82,11 +82,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     fit.add_argument("--trapezoid", required=True, type=Path, metavar="TRAP.json", help="the trapezoid (see below)")
     fit.add_argument("--points", required=True, type=Path, metavar="REF.csv", help="reference points u,v,x,y")
-    fit.add_argument("--method", default="regression-intercept", choices=METHODS, help="regression-intercept "
-                     "(signed, a d^2 + b d + c; the default: the best median and failure tail in the study, README), "
-                     "regression (the paper's, clamped), regression-signed (also corrects overestimated range), "
-                     "horizon (fits the horizon shift of Section 3), descent, hybrid, least-change (the smallest "
-                     "move of the clicked image and map corners that explains the reference points)")
+    fit.add_argument("--method", default="least-change", choices=METHODS, help="least-change (the smallest "
+                     "move of the clicked image and map corners that explains the reference points; the default: the "
+                     "best median and failure tail in the paper-preset study, README), regression-intercept (signed, "
+                     "a d^2 + b d + c), regression (the paper's, clamped), regression-signed (also corrects "
+                     "overestimated range), horizon (fits the horizon shift of Section 3), descent, hybrid")
     fit.add_argument("-o", "--out", required=True, type=Path, metavar="CORRECTION.json", help="the correction to write")
     fit.add_argument("--camera-origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
                      help="ground point under the camera, metres (default 0,0)")

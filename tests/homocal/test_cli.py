@@ -91,11 +91,12 @@ def test_fit_and_apply_match_the_library(work, method, expected):
     assert sorted(p.name for p in work.iterdir()) == ["c.json", "feet.csv", "out.csv", "ref.csv", "trap.json"]
 
 
-def test_fit_defaults_to_regression_with_an_intercept(work):
-    """The study's best method on median and failure tail together (README) is fit's default."""
-    assert homocal("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "-o", "c.json", cwd=work).returncode == 0
+def test_fit_defaults_to_least_change(work):
+    """The study's best method on median and failure tail together (README, paper preset) is fit's default."""
+    fit = homocal("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "-o", "c.json", cwd=work)
+    assert fit.returncode == 0 and fit.stdout.startswith("homocal fit: least-change correction")
     saved = json.loads((work / "c.json").read_text())
-    assert saved["method"] == "regression" and saved["params"] == {"signed": True, "intercept": True}
+    assert saved == LeastChangeCorrector().fit(ViewTransformer(IMAGE, GROUND), REF_Q, REF_G, (0.0, 0.0)).to_dict()
 
 
 def test_apply_marks_bad_rows_and_names_their_lines(work):
