@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from homocal.correctors.cli import METHODS as CLI_METHODS, _xy, load_trapezoid_site_map, read_points_csv
+from homocal.correctors.cli import DEFAULT_METHOD, METHODS as CLI_METHODS, _xy, load_trapezoid_site_map, read_points_csv
 from homocal.files import check_output_file, csv_header, write_text_atomic
 from homocal.geometry import SiteMap, ViewTransformer
 from homocal.keyed_rng import seed_from_key
@@ -177,9 +177,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("--lateral", default="0", metavar="L,...",
                    help="lateral offsets (x, metres) tried at each distance, e.g. -3,0,3 (default 0: straight ahead "
                         "only); the candidates are every (offset, distance) pair, triples any three of them")
-    p.add_argument("--method", default="least-change",  # the methods with a study kernel
+    p.add_argument("--method", default=DEFAULT_METHOD,  # the methods with a study kernel
                    choices=[m for m in CLI_METHODS if m.replace("-", "_") in kernels.METHODS],
-                   help="the correction to advise for (default least-change, homocal fit's)")
+                   help="the correction to advise for (default %(default)s, homocal fit's)")
     p.add_argument("--samples", type=int, default=100, metavar="N", help="perturbed trapezoids (default 100)")
     p.add_argument("--camera-origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
                    help="ground point under the camera, metres (default 0,0)")

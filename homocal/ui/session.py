@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from homocal.correctors.cli import METHODS
+from homocal.correctors.cli import DEFAULT_METHOD, METHODS
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.dataset import load_dataset
 from homocal.geometry import SiteMap
@@ -42,6 +42,7 @@ class Session:
             "out_dir": str(self.out_dir),
             "dataset": self.dataset,
             "methods": list(METHODS),
+            "default_method": DEFAULT_METHOD,
             "threshold": DEFAULT_THRESHOLD,
         }
 

@@ -180,6 +180,7 @@ def test_pages_are_served(server):
     info = json.loads(urllib.request.urlopen(server.url + "api/session", timeout=10).read())
     assert info["frame"] == {"width": W, "height": H} and info["map"]["scale_px_per_m"] == 10.0
     assert "regression-signed" in info["methods"] and info["dataset"] is None
+    assert info["default_method"] == "least-change" and info["default_method"] in info["methods"]  # fit's default
     with pytest.raises(urllib.error.HTTPError, match="404"):
         urllib.request.urlopen(server.url + "nothing.html", timeout=10)
 

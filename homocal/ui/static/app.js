@@ -532,6 +532,7 @@ async function start() {
   $("out-dir").textContent = "folder: " + S.info.out_dir;
   $("camera-x").value = S.camera[0]; $("camera-y").value = S.camera[1];
   $("method").innerHTML = S.info.methods.map((m) => `<option>${m}</option>`).join("");
+  $("method").value = S.info.default_method;
   $("threshold").value = S.info.threshold;
   if (S.info.dataset) { $("use-hand-placed").hidden = false; $("use-calibration").hidden = false; }
   await Promise.all(["frame", "map"].map((name) => new Promise((resolve, reject) => {
