@@ -321,8 +321,7 @@ def least_change3(z0, q, g, click_sigma, map_sigma, point_sigma, iterations, z, 
     z[:] = z0
     phi = _phi(x, z, bs, bt, q, g, point_sigma, y, X)
     steps = 0
-    for _ in range(iterations):
-        _usable(z, bs, bt, sign_s, sign_t)  # the bases of the accepted iterate
+    for _ in range(iterations):  # bs, bt hold the bases of z, the accepted iterate (its _usable call filled them)
         _jacobian_into(z, bs, bt, q, g, sigma, J, r, y, X, H, dB)
         _gauss_newton_into(x, J, r, point_sigma, A, b, step)
         step -= x
