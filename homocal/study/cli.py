@@ -2,12 +2,13 @@
 from __future__ import annotations
 
 import argparse
+import math
 
 from homocal.arguments import number
 from homocal.dataset import calibration_source
 from homocal.progress import add_progress_option, show_progress
 from homocal.study.engine import PRESETS, dry_run_counts, run_study
-from homocal.study.inputs import METRICS, StudyParams
+from homocal.study.inputs import MAX_MAP_SCALE, METRICS, StudyParams
 
 
 MAX_VARIANTS = 100_000  # 100x the paper's 1000 trapezoid variants per scene (one shard each)
@@ -49,6 +50,9 @@ def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
                    help="per-variant Gaussian noise (standard deviation, px) on the 8 clicked image coordinates (default 0)")
     p.add_argument("--metric", **({} if sweep else dict(choices=METRICS)), **quiet,
                    help="calibration and path errors as Euclidean ground error (default) or range error |d_true - d_mapped|")
+    p.add_argument("--map-scale", type=typed(per_metre_or_none), metavar="PX_PER_M", **quiet,
+                   help="scale of the site map the 0-3 px map-side perturbations are clicked on, px per metre "
+                        "(the paper does not give its map's; default: the dataset's site map, 'none')")
     p.add_argument("--descent-delta-max", type=typed(float), metavar="PX", **quiet,
                    help="descent: largest move of a trapezoid coordinate, px (default 8; the phase-1 grid spans "
                         "+/- half of it in 5 steps)")
@@ -58,7 +62,7 @@ def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
 def params_from_args(args: argparse.Namespace, **override) -> StudyParams:
     """StudyParams of the preset, then the options given, then override; ValueError naming a bad option."""
     names = ("n_variants", "seed", "foot_source", "n_test", "max_test_distance", "test_lateral_max", "horizon_shift",
-             "click_noise", "metric", "descent_delta_max")
+             "click_noise", "metric", "map_scale", "descent_delta_max")
     values = {**PRESETS[args.preset], **{n: getattr(args, n) for n in names if hasattr(args, n)}, **override}
     if str(values.get("horizon_shift")).lower() == "none":  # the hand-placed trapezoid as it is (a preset's shift off)
         values["horizon_shift"] = None
@@ -93,16 +97,23 @@ def add_parser(subparsers) -> None:
     p.set_defaults(handler=handle_study)
 
 
-def metres_or_none(text: str) -> float | None:
-    if text.lower() == "none":
-        return None
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not 0 < value < float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a positive number of metres or 'none', got {text}")
-    return value
+def positive_or_none(what: str, upper: float = math.inf):
+    """An argparse type: 'none' (None) or a finite number in (0, upper], described by `what` in its error."""
+    def parse(text: str) -> float | None:
+        if text.lower() == "none":
+            return None
+        try:
+            value = float(text)
+        except ValueError:
+            value = float("nan")
+        if not (math.isfinite(value) and 0 < value <= upper):
+            raise argparse.ArgumentTypeError(f"must be {what} or 'none', got {text}")
+        return value
+    return parse
+
+
+metres_or_none = positive_or_none("a positive number of metres")
+per_metre_or_none = positive_or_none(f"px per metre in (0, {MAX_MAP_SCALE:g}]", MAX_MAP_SCALE)
 
 
 def point_counts(entry: dict, params: StudyParams) -> str:

@@ -26,7 +26,7 @@ import pyarrow.parquet as pq
 from tqdm import tqdm
 
 from homocal.files import output_folder, read_json, write_atomic, write_json_atomic
-from homocal.study.perturb import draw_base_error, draw_variant
+from homocal.study.perturb import draw_base_error
 from homocal.study.inputs import StudyParams, StudyScene, shift_spec
 from homocal.study.shards import check_shard, compute_shard, study_key
 from homocal.study.triples import n_samples
@@ -51,10 +51,10 @@ def write_table(path: Path, table: pa.Table) -> None:
 def variants_table(scene: StudyScene, params: StudyParams, reasons: list[str]) -> pa.Table:
     """variants/<scene>.parquet: variant, horizon_shift_px (the base horizon's height above the true one, null
     without a horizon shift) and click_0..7 (the base error, px), img_0..7, map_0..7
-    (px offsets), n_perturbed, degenerate, reason; reasons (n_variants + 1,) are the shards' ("" if not
+    (px offsets; map ones in px of the dataset's site map, see StudyScene.variant_offsets), n_perturbed, degenerate, reason; reasons (n_variants + 1,) are the shards' ("" if not
     degenerate)."""
     n = params.n_variants + 1
-    rows = [draw_variant(params.seed, scene.name, v) for v in range(n)]
+    rows = [scene.variant_offsets(params, v) for v in range(n)]
     base = [draw_base_error(params.seed, scene.name, v, shift_spec(params), params.click_noise) for v in range(n)]
     offsets, click = np.array([r[0] for r in rows]), np.array([b[1] for b in base])
     cols = {"variant": pa.array(np.arange(n, dtype=np.int32)),

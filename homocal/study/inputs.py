@@ -11,10 +11,11 @@ from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.least_change import LeastChangeCorrector
 from homocal.dataset import EXACT, calibration_source, load_dataset
 from homocal.geometry import SiteMap, ViewTransformer
-from homocal.study.perturb import ShiftSpec, base_quad, draw_base_error
+from homocal.study.perturb import ShiftSpec, base_quad, draw_base_error, draw_variant
 from homocal.study.triples import distance_features, triples
 
 METRICS = ("euclidean", "range")
+MAX_MAP_SCALE = 1000.0  # px per metre: a 1 mm map pixel
 
 
 @dataclass(frozen=True)
@@ -27,6 +28,8 @@ class StudyParams:
     metric: "euclidean" (ground error ||p - g||) or "range" (| ||g - o|| - ||p - o|| |) for the calibration
     and path errors the improvements are computed from (the correctors themselves are unchanged).
     test_lateral_max: test points at most this many metres to the side of the calibration line x = o_x.
+    map_scale: the scale (px per metre) of the site map the paper's 0-3 px map perturbations are clicked on
+    (the paper never gives its map's scale); None: the dataset's own site map (10 px/m in our scenes).
     """
 
     seed: int = 0
@@ -38,6 +41,7 @@ class StudyParams:
     horizon_shift: str | None = None
     click_noise: float = 0.0
     metric: str = "euclidean"
+    map_scale: float | None = None
     threshold: float = DEFAULT_THRESHOLD
     descent: dict = field(default_factory=lambda: {  # DescentCorrector's defaults (its seed is keyed per variant)
         k: v for k, v in DescentCorrector().get_params().items() if k != "seed"})
@@ -58,10 +62,15 @@ class StudyParams:
             value = getattr(self, name)
             if value is not None and not (isinstance(value, (int, float)) and 0 < value < float("inf")):
                 raise ValueError(f"--{name.replace('_', '-')} {value!r}: expected a positive number of metres or none")
+        if self.map_scale is not None and not (isinstance(self.map_scale, (int, float)) and 0 < self.map_scale <= MAX_MAP_SCALE):
+            raise ValueError(f"--map-scale {self.map_scale!r}: expected px per metre in (0, {MAX_MAP_SCALE:g}] or none")
 
     def to_dict(self) -> dict:
-        """Every field, JSON-ready (study.json; what --resume compares)."""
+        """Every field, JSON-ready (study.json; what --resume compares). map_scale is left out when None, so
+        studies written before it existed keep their study keys and resume."""
         d = asdict(self)
+        if d["map_scale"] is None:
+            del d["map_scale"]
         d["descent"]["grid_offsets"] = list(d["descent"]["grid_offsets"])
         return d
 
@@ -96,6 +105,14 @@ class StudyScene:
     def horizon_row(self) -> float:
         """Horizon row (px) of the hand-placed trapezoid's mapping at the principal column."""
         return float(ViewTransformer(self.image_quad, self.site_map.to_metres(self.map_quad)).horizon_row(self.K[0, 2]))
+
+    def variant_offsets(self, params: StudyParams, variant: int) -> tuple[np.ndarray, int]:
+        """(offsets (16,), n_perturbed) of the variant (perturb.draw_variant), its 8 map offsets converted to px of
+        this scene's site map: drawn in px of a site map of params.map_scale px/m (this one's by default)."""
+        offsets, n = draw_variant(params.seed, self.name, variant)
+        if params.map_scale is not None:
+            offsets[8:] *= self.site_map.scale_px_per_m / params.map_scale
+        return offsets, n
 
     def base_image_quad(self, params: StudyParams, variant: int) -> np.ndarray:
         """The variant's clicked base image trapezoid (4, 2) px (perturb.base_quad): the hand-placed one, its

@@ -104,8 +104,9 @@ def config_label(study: dict) -> str:
     shift = study.get("horizon_shift")
     parts = ["hand-placed trapezoid as it is" if shift is None else f"--horizon-shift {shift}",
              f"--click-noise {study.get('click_noise', 0.0):g}", f"--metric {study.get('metric', 'euclidean')}"]
-    if study.get("test_lateral_max") is not None:
-        parts.append(f"--test-lateral-max {study['test_lateral_max']:g}")
+    for name in ("test_lateral_max", "map_scale"):
+        if study.get(name) is not None:
+            parts.append(f"--{name.replace('_', '-')} {study[name]:g}")
     default_delta_max = StudyParams().descent["delta_max"]
     if study.get("descent", {}).get("delta_max", default_delta_max) != default_delta_max:
         parts.append(f"--descent-delta-max {study['descent']['delta_max']:g}")

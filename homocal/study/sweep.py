@@ -28,7 +28,8 @@ from homocal.study.figures import save
 from homocal.study.metrics import D_KEYS, METHODS, METRICS, PAPER, build_table, load_study, paper_distance, shard_files
 
 FORMAT = "homocal-sweep"  # sweep.json's "format": marks a sweep folder (homocal.files.output_folder)
-SWEEPABLE = ("horizon_shift", "click_noise", "test_lateral_max", "max_test_distance", "metric", "seed", "descent_delta_max")
+SWEEPABLE = ("horizon_shift", "click_noise", "test_lateral_max", "max_test_distance", "metric", "seed", "descent_delta_max",
+             "map_scale")
 CSV_KEYS = ("n", *D_KEYS, "median_cal", "iqr_cal", "std_cal")
 
 
@@ -122,7 +123,8 @@ def sweep_figure(rows: list[dict], param: str) -> Figure:
             if key == "D":
                 break
         ax.set_title("D to the paper's Table 1 (pp)" if key == "D" else METRICS[key][0], fontsize=9)
-        ax.set_xlabel(param.replace("_", " ") + (" (px)" if param in ("horizon_shift", "click_noise") else ""), fontsize=8)
+        unit = {"horizon_shift": " (px)", "click_noise": " (px)", "descent_delta_max": " (px)", "map_scale": " (px/m)"}.get(param, "")
+        ax.set_xlabel(param.replace("_", " ") + unit, fontsize=8)
         if labels is not None:
             ax.set_xticks(x, labels, rotation=30, fontsize=7)
         ax.grid(alpha=0.3)
@@ -139,7 +141,7 @@ def _typed(param: str, value: str):
         return value
     if param == "seed":
         return int(value)
-    if param in ("test_lateral_max", "max_test_distance") and value.lower() == "none":
+    if param in ("test_lateral_max", "max_test_distance", "map_scale") and value.lower() == "none":
         return None
     try:
         return float(value)

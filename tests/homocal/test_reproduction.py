@@ -16,9 +16,10 @@ from homocal import PinholeCamera, ViewTransformer, column_model, first_order_er
 from homocal.cli import main
 from homocal.study import metrics
 from homocal.study.law import exponent, horizon_shift_law, perturbation_law
-from homocal.study.perturb import ShiftSpec, draw_base_error, tilt_shift
+from homocal.study.perturb import ShiftSpec, draw_base_error, draw_variant, tilt_shift
+from homocal.study.shards import variant_mapping
 from homocal.study.inputs import StudyParams, StudyScene
-from homocal.study.sweep import expand_values
+from homocal.study.sweep import _typed, expand_values
 from synthetic_dataset import GROUND_RECT, write_dataset
 
 CAM = PinholeCamera()
@@ -125,7 +126,8 @@ def test_bad_shift_spec_is_one_clear_error(datasets, tmp_path, capsys, text):
 
 @pytest.mark.parametrize("args, flag", [(["--click-noise", "-1"], "--click-noise"), (["--click-noise", "nan"], "--click-noise"),
                                         (["--metric", "l1"], "--metric"), (["--test-lateral-max", "0"], "--test-lateral-max"),
-                                        (["--descent-delta-max", "0"], "--descent-delta-max"), (["--seed", "-1"], "--seed")])
+                                        (["--descent-delta-max", "0"], "--descent-delta-max"), (["--seed", "-1"], "--seed"),
+                                        *((["--map-scale", v], "--map-scale") for v in ("0", "-2", "nan", "inf", "1e400", "2000", "ten", ""))])
 def test_bad_study_options_are_one_clear_error(datasets, tmp_path, capsys, args, flag):
     assert exit_code(["study", *datasets, "-o", str(tmp_path / "s"), "--variants", "1", *args]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -166,6 +168,32 @@ def test_lateral_limit_keeps_points_near_the_calibration_line(datasets):
     assert np.abs(near.test_ground[:, 0]).max() <= 1.0 and len(near.test_ground) == 50
     everything = StudyScene.from_dataset(datasets[0], StudyParams(n_test=100))
     assert np.abs(everything.test_ground[:, 0]).max() > 3.0
+
+
+@pytest.mark.parametrize("map_scale", [1.0, 2.5, 40.0])
+def test_map_scale_sets_the_size_of_the_map_perturbations(datasets, map_scale):
+    """--map-scale S: the 0-3 px map offsets are px of an S px/m site map, so each map vertex of a variant moves
+    |offset| / S metres from the hand-placed one (the dataset's map is 10 px/m); the image quad is untouched,
+    and the default is the dataset's own scale."""
+    scene = StudyScene.from_dataset(datasets[0], StudyParams(n_test=50))
+    assert scene.site_map.scale_px_per_m == 10.0
+    drawn, _ = draw_variant(0, scene.name, 5)
+    hand = scene.site_map.to_metres(scene.map_quad).ravel()
+    scaled = variant_mapping(scene, StudyParams(map_scale=map_scale), 5)
+    default, explicit = variant_mapping(scene, StudyParams(), 5), variant_mapping(scene, StudyParams(map_scale=10.0), 5)
+    assert drawn[8:].any()
+    assert np.abs(scaled[1] - hand) == pytest.approx(np.abs(drawn[8:]) / map_scale, abs=1e-12)
+    assert (scaled[0] == default[0]).all() and np.allclose(default[1], explicit[1], rtol=0, atol=1e-12)
+
+
+def test_map_scale_is_recorded_and_left_out_at_its_default():
+    """map_scale is in study.json when set; at None it is left out, so an earlier study's keys still hold."""
+    assert "map_scale" not in StudyParams().to_dict()
+    params = StudyParams(map_scale=2.5)
+    assert params.to_dict()["map_scale"] == 2.5
+    assert StudyParams.from_dict(json.loads(json.dumps(params.to_dict()))) == params
+    assert StudyParams.from_dict(StudyParams().to_dict()) == StudyParams()
+    assert _typed("map_scale", "none") is None and _typed("map_scale", "2.5") == 2.5  # as homocal sweep reads values
 
 
 def test_params_round_trip_and_resume_compares_every_field(datasets, tmp_path, capsys):

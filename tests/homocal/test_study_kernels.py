@@ -31,7 +31,7 @@ def scene(tmp_path_factory):
 def fitted(scene, variant, triple, params=PARAMS):
     """The public correctors fitted on one sample, as the study defines it."""
     base = scene.base_image_quad(params, variant)
-    image, map_quad = perturbed_quads(base, scene.map_quad, draw_variant(params.seed, scene.name, variant)[0])
+    image, map_quad = perturbed_quads(base, scene.map_quad, scene.variant_offsets(params, variant)[0])
     vt = ViewTransformer(image, scene.site_map.to_metres(map_quad))
     sel = list(triple)
     args = (vt, scene.cal_image[sel], scene.cal_ground[sel], scene.origin)
