@@ -26,7 +26,7 @@ from homocal.files import check_output_file, csv_header, json_format, read_json,
 from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, check_orientation, validate_quad
 from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius, straight_ahead_column
 
-DEFAULT_METHOD = "least-change"  # fit's, advise's and the page's default: the study's best (README, paper preset)
+DEFAULT_METHOD = "least-change"  # fit's, advise's and the page's default: near the best in every study setting (README)
 METHODS = {
     "regression": lambda args: RegressionCorrector(),
     "regression-signed": lambda args: RegressionCorrector(signed=True),
@@ -84,8 +84,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     fit.add_argument("--trapezoid", required=True, type=Path, metavar="TRAP.json", help="the trapezoid (see below)")
     fit.add_argument("--points", required=True, type=Path, metavar="REF.csv", help="reference points u,v,x,y")
     fit.add_argument("--method", default=DEFAULT_METHOD, choices=METHODS, help="least-change (the smallest "
-                     "move of the clicked image and map corners that explains the reference points; the default: the "
-                     "best median and failure tail in the paper-preset study, README), regression-intercept (signed, "
+                     "move of the clicked image and map corners that explains the reference points; the default: "
+                     "beats both paper methods on median and failure tail in every study setting, README), regression-intercept (signed, "
                      "a d^2 + b d + c), regression (the paper's, clamped), regression-signed (also corrects "
                      "overestimated range), horizon (fits the horizon shift of Section 3), descent, hybrid")
     fit.add_argument("-o", "--out", required=True, type=Path, metavar="CORRECTION.json", help="the correction to write")

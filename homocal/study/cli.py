@@ -25,8 +25,10 @@ def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
         return str if sweep else kind
 
     p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
-                   help="paper: the paper's protocol (1000 variants, 2000 test points) with the base error closest to "
-                        "its Table 1 (see README); quick: 50 variants, no base error (default)")
+                   help="paper: the paper's protocol (1000 variants, 2000 test points) with the base error (horizon "
+                        f"{PRESETS['paper']['horizon_shift']} px above) and site-map scale "
+                        f"({PRESETS['paper']['map_scale']:g} px/m) closest to its Table 1 (see README); quick: 50 "
+                        "variants, no base error, the dataset's site map (default)")
     p.add_argument("--variants", dest="n_variants", type=number(int, 0, MAX_VARIANTS), metavar="N",
                    help="perturbed variants per scene (overrides the preset)", **quiet)
     p.add_argument("--seed", type=typed(int), help="run seed (variants, base errors, descent orders, test subsample; default 0)", **quiet)
@@ -84,7 +86,7 @@ def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
         "study", help="run the correction study (every trapezoid variant x every calibration triple)",
         description="Per scene: the clicked base trapezoid and N perturbed variants, every combination of three "
-                    "calibration points, regression (faithful and signed), descent and hybrid; per-sample results "
+                    "calibration points, the seven corrections (the paper's two, their hybrid and four more: README); per-sample results "
                     "as Parquet shards in --out. --preset paper runs the paper's 1000 variants.")
     p.add_argument("datasets", nargs="+", metavar="DATASET", help="simgen dataset folders (one per scene)")
     p.add_argument("-o", "--out", required=True, help="results directory")

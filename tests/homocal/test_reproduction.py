@@ -19,6 +19,7 @@ from homocal.study.law import exponent, horizon_shift_law, perturbation_law
 from homocal.study.perturb import ShiftSpec, draw_base_error, draw_variant, tilt_shift
 from homocal.study.shards import variant_mapping
 from homocal.study.inputs import StudyParams, StudyScene
+from homocal.study.report import config_label
 from homocal.study.sweep import _typed, expand_values
 from synthetic_dataset import GROUND_RECT, write_dataset
 
@@ -194,6 +195,9 @@ def test_map_scale_is_recorded_and_left_out_at_its_default():
     assert StudyParams.from_dict(json.loads(json.dumps(params.to_dict()))) == params
     assert StudyParams.from_dict(StudyParams().to_dict()) == StudyParams()
     assert _typed("map_scale", "none") is None and _typed("map_scale", "2.5") == 2.5  # as homocal sweep reads values
+    label = config_label({"preset": "paper", "n_variants": 1000, **StudyParams(horizon_shift="12", map_scale=2.5).to_dict()})
+    assert label == "preset paper, 1000 variants: --horizon-shift 12 --click-noise 0 --metric euclidean --map-scale 2.5"
+    assert "--map-scale" not in config_label({"preset": "quick", **StudyParams().to_dict()})
 
 
 def test_params_round_trip_and_resume_compares_every_field(datasets, tmp_path, capsys):
