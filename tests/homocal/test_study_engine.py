@@ -272,6 +272,11 @@ BAD_FLAGS = [
     (["sweep", "--horizon-shift", "1,1"], "--horizon-shift '1,1': 1 given more than once"),
     (["sweep", "--seed", "0,1,0"], "--seed '0,1,0': 0 given more than once"),
     (["sweep", "--horizon-shift", "0,2", "--n-test", "-5"], "argument --n-test"),
+    (["sweep", "--map-scale", "2,0"], "--map-scale 0.0: expected px per metre in (0, 1000] or none"),
+    (["sweep", "--map-scale", "2,-1"], "--map-scale -1.0: expected px per metre in (0, 1000] or none"),
+    (["sweep", "--map-scale", "2,ten"], "--map-scale 'ten': expected a number"),
+    (["sweep", "--map-scale", "2,nan"], "--map-scale nan: expected px per metre in (0, 1000] or none"),
+    (["sweep", "--map-scale", "2,inf"], "--map-scale inf: expected px per metre in (0, 1000] or none"),
 ]  # fmt: skip
 
 
