@@ -256,6 +256,9 @@ def cli_cases() -> list[Case]:
         Case("study max-test-distance nan", [*STUDY, "out", "--max-test-distance", "nan"], message="--max-test-distance"),
         Case("study click-noise nan", [*STUDY, "out", "--click-noise", "nan"], message="--click-noise"),
         Case("study horizon-shift inf", [*STUDY, "out", "--horizon-shift", "inf"], message="horizon"),
+        Case("study map-scale 0", [*STUDY, "out", "--map-scale", "0"], message="--map-scale"),
+        Case("study map-scale nan", [*STUDY, "out", "--map-scale", "nan"], message="--map-scale"),
+        Case("study map-scale huge", [*STUDY, "out", "--map-scale", "1e400"], message="--map-scale"),
         Case("study out: user's folder", [*STUDY, "out"], setup=USER, message="not empty"),
         Case("study out: user's folder, resume", [*STUDY, "out", "--resume"], setup=USER, message="not a homocal-study"),
         Case("study out: a file", [*STUDY, "out"], setup=put(out="x"), message="not a folder"),
@@ -267,6 +270,7 @@ def cli_cases() -> list[Case]:
         Case("sweep value twice", [*SWEEP, "out", "--horizon-shift", "1,1"], message="1"),
         Case("sweep value nan", [*SWEEP, "out", "--horizon-shift", "nan,1"], message="nan"),
         Case("sweep empty value", [*SWEEP, "out", "--horizon-shift", "1,,2"], message="empty"),
+        Case("sweep map-scale -1", [*SWEEP, "out", "--map-scale", "2,-1"], message="--map-scale"),
         Case("sweep out: user's folder, resume", [*SWEEP, "out", "--horizon-shift", "0,1", "--resume"], setup=USER, message="not a homocal-sweep"),
         Case("sweep out: a study folder", [*SWEEP, "out", "--horizon-shift", "0,1", "--resume"], setup=copy("results", "out"), message="not a homocal-sweep"),
         # ---- homocal report
