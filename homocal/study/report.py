@@ -27,6 +27,7 @@ from homocal.study.inputs import StudyParams
 from homocal.study.law import horizon_shift_law, perturbation_law
 from homocal.study.metrics import (D_KEYS, D_METHODS, METRICS, PAPER, Table, build_table, load_study, paper_distance,
                                    table_cells, to_csv, to_markdown, to_text, verified_shard_files)
+from homocal.study.perturb import MAX_PIXELS
 
 STYLE = """body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:2px 8px}
@@ -159,8 +160,8 @@ def reproduction_html(studies: list[tuple[Path, dict, Table]], sweep_dir: Path |
 
 def gap_facts(study: dict) -> list[str]:
     """Per dataset of a study: how far the hand-placed trapezoid's horizon lies from the exact one's (px, at the
-    principal column; positive: above, the mapping underestimates range) and the share of its test points
-    within 2 m of the calibration line."""
+    principal column; positive: above, the mapping underestimates range), the share of its test points
+    within 2 m of the calibration line, and the size in metres of the 0-3 px map perturbations."""
     facts = []
     for entry in study["datasets"]:
         try:
@@ -178,8 +179,16 @@ def gap_facts(study: dict) -> list[str]:
                 else f"the study moves it to lie {shift} px above the true horizon (--horizon-shift)")
         facts.append(f"{ds.name}: the hand-placed trapezoid's horizon lies {rows[0] - rows[1]:+.2f} px above the exact one's "
                      f"(negative: below; the mapping then overestimates range), and {base}; {100 * near:.1f} % of its "
-                     f"{len(ground)} test points are within 2 m of the calibration line (the calibration objects stand on it).")
+                     f"{len(ground)} test points are within 2 m of the calibration line (the calibration objects stand on it); "
+                     f"the map perturbations are px of {_map_scale_words(study, ds.site_map.scale_px_per_m)}.")
     return facts
+
+
+def _map_scale_words(study: dict, own: float) -> str:
+    """Which site map the study's 0-3 px map perturbations are in, and their largest size in metres."""
+    scale = study.get("map_scale")
+    which = f"its own {own:g} px/m site map" if scale is None else f"a {scale:g} px/m site map (--map-scale; its own is {own:g})"
+    return f"{which}, up to {MAX_PIXELS / (scale or own):.2f} m"
 
 
 def law_html(results_dir: Path, study: dict) -> list[str]:

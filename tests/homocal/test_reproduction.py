@@ -19,7 +19,7 @@ from homocal.study.law import exponent, horizon_shift_law, perturbation_law
 from homocal.study.perturb import ShiftSpec, draw_base_error, draw_variant, tilt_shift
 from homocal.study.shards import variant_mapping
 from homocal.study.inputs import StudyParams, StudyScene
-from homocal.study.report import config_label
+from homocal.study.report import config_label, gap_facts
 from homocal.study.sweep import _typed, expand_values
 from synthetic_dataset import GROUND_RECT, write_dataset
 
@@ -198,6 +198,15 @@ def test_map_scale_is_recorded_and_left_out_at_its_default():
     label = config_label({"preset": "paper", "n_variants": 1000, **StudyParams(horizon_shift="12", map_scale=2.5).to_dict()})
     assert label == "preset paper, 1000 variants: --horizon-shift 12 --click-noise 0 --metric euclidean --map-scale 2.5"
     assert "--map-scale" not in config_label({"preset": "quick", **StudyParams().to_dict()})
+
+
+@pytest.mark.parametrize("map_scale, words", [(None, "its own 10 px/m site map, up to 0.30 m"),
+                                              (2.5, "a 2.5 px/m site map (--map-scale; its own is 10), up to 1.20 m")])
+def test_report_says_how_large_the_map_perturbations_are(datasets, map_scale, words):
+    """The report's 'Measured' list: 3 px of the map the perturbations are in, in metres (3 / 10, 3 / 2.5)."""
+    study = {**StudyParams(n_test=50, map_scale=map_scale).to_dict(), "datasets": [{"path": datasets[0]}]}
+    (fact,) = gap_facts(study)
+    assert fact.endswith(f"the map perturbations are px of {words}.")
 
 
 def test_params_round_trip_and_resume_compares_every_field(datasets, tmp_path, capsys):
