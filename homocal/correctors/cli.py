@@ -85,7 +85,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     fit.add_argument("--points", required=True, type=Path, metavar="REF.csv", help="reference points u,v,x,y")
     fit.add_argument("--method", default=DEFAULT_METHOD, choices=METHODS, help="least-change (the smallest "
                      "move of the clicked image and map corners that explains the reference points; the default: "
-                     "beats both paper methods on median and failure tail in the study's four base-error settings, README), regression-intercept (signed, "
+                     "beats both paper methods on median and failure tail in the study's four base-error settings, "
+                     "README), regression-intercept (signed, "
                      "a d^2 + b d + c), regression (the paper's, clamped), regression-signed (also corrects "
                      "overestimated range), horizon (fits the horizon shift of Section 3), descent, hybrid")
     fit.add_argument("-o", "--out", required=True, type=Path, metavar="CORRECTION.json", help="the correction to write")

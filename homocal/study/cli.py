@@ -86,8 +86,9 @@ def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
         "study", help="run the correction study (every trapezoid variant x every calibration triple)",
         description="Per scene: the clicked base trapezoid and N perturbed variants, every combination of three "
-                    "calibration points, the seven corrections (the paper's two, their hybrid and four more: README); per-sample results "
-                    "as Parquet shards in --out. --preset paper runs the paper's 1000 variants.")
+                    "calibration points, the seven corrections (the paper's two, their hybrid and four more: "
+                    "README); per-sample results as Parquet shards in --out. --preset paper runs the paper's 1000 "
+                    "variants.")
     p.add_argument("datasets", nargs="+", metavar="DATASET", help="simgen dataset folders (one per scene)")
     p.add_argument("-o", "--out", required=True, help="results directory")
     add_study_options(p)

@@ -52,9 +52,9 @@ def write_table(path: Path, table: pa.Table) -> None:
 
 def variants_table(scene: StudyScene, params: StudyParams, reasons: list[str]) -> pa.Table:
     """variants/<scene>.parquet: variant, horizon_shift_px (the base horizon's height above the true one, null
-    without a horizon shift) and click_0..7 (the base error, px), img_0..7, map_0..7
-    (px offsets; map ones in px of the dataset's site map, see StudyScene.variant_offsets), n_perturbed, degenerate, reason; reasons (n_variants + 1,) are the shards' ("" if not
-    degenerate)."""
+    without a horizon shift) and click_0..7 (the base error, px), img_0..7, map_0..7 (px offsets; the map ones
+    in px of the dataset's site map, see StudyScene.variant_offsets), n_perturbed, degenerate, reason; reasons
+    (n_variants + 1,) are the shards' ("" if not degenerate)."""
     n = params.n_variants + 1
     rows = [scene.variant_offsets(params, v) for v in range(n)]
     base = [draw_base_error(params.seed, scene.name, v, shift_spec(params), params.click_noise) for v in range(n)]

@@ -62,7 +62,8 @@ class StudyParams:
             value = getattr(self, name)
             if value is not None and not (isinstance(value, (int, float)) and 0 < value < float("inf")):
                 raise ValueError(f"--{name.replace('_', '-')} {value!r}: expected a positive number of metres or none")
-        if self.map_scale is not None and not (isinstance(self.map_scale, (int, float)) and 0 < self.map_scale <= MAX_MAP_SCALE):
+        scale = self.map_scale
+        if scale is not None and not (isinstance(scale, (int, float)) and 0 < scale <= MAX_MAP_SCALE):
             raise ValueError(f"--map-scale {self.map_scale!r}: expected px per metre in (0, {MAX_MAP_SCALE:g}] or none")
 
     def to_dict(self) -> dict:

@@ -187,7 +187,8 @@ def gap_facts(study: dict) -> list[str]:
 def _map_scale_words(study: dict, own: float) -> str:
     """Which site map the study's 0-3 px map perturbations are in, and their largest size in metres."""
     scale = study.get("map_scale")
-    which = f"its own {own:g} px/m site map" if scale is None else f"a {scale:g} px/m site map (--map-scale; its own is {own:g})"
+    which = (f"its own {own:g} px/m site map" if scale is None
+             else f"a {scale:g} px/m site map (--map-scale; its own is {own:g})")
     return f"{which}, up to {MAX_PIXELS / (scale or own):.2f} m"
 
 

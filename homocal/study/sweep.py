@@ -123,7 +123,8 @@ def sweep_figure(rows: list[dict], param: str) -> Figure:
             if key == "D":
                 break
         ax.set_title("D to the paper's Table 1 (pp)" if key == "D" else METRICS[key][0], fontsize=9)
-        unit = {"horizon_shift": " (px)", "click_noise": " (px)", "descent_delta_max": " (px)", "map_scale": " (px/m)"}.get(param, "")
+        unit = {"horizon_shift": " (px)", "click_noise": " (px)", "descent_delta_max": " (px)",
+                "map_scale": " (px/m)"}.get(param, "")
         ax.set_xlabel(param.replace("_", " ") + unit, fontsize=8)
         if labels is not None:
             ax.set_xticks(x, labels, rotation=30, fontsize=7)
