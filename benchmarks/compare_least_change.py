@@ -18,7 +18,6 @@ import numpy as np
 from homocal import DescentCorrector, HorizonCorrector, LeastChangeCorrector, RegressionCorrector, ViewTransformer
 from homocal.keyed_rng import seed_from_key
 from homocal.study.inputs import StudyParams, StudyScene
-from homocal.study.perturb import draw_variant, perturbed_quads
 
 METHODS = {
     "regression (paper)": lambda key: RegressionCorrector(),
@@ -46,8 +45,7 @@ def samples(path: str, shift: str | None, n: int, seed: int, foot_source: str):
     for _ in range(n):
         v = int(rng.integers(0, params.n_variants + 1))
         tri = sc.triples[rng.integers(len(sc.triples))]
-        offsets = draw_variant(params.seed, sc.name, v)[0]
-        image, mq = perturbed_quads(sc.base_image_quad(params, v), sc.map_quad, offsets)
+        image, mq = sc.variant_quads(params, v)
         sel = list(tri)
         yield sc, ViewTransformer(image, sc.site_map.to_metres(mq)), sc.cal_image[sel], sc.cal_ground[sel], (
             0, sc.name, v, *map(int, tri))

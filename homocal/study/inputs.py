@@ -11,7 +11,7 @@ from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.least_change import LeastChangeCorrector
 from homocal.dataset import EXACT, calibration_source, load_dataset
 from homocal.geometry import SiteMap, ViewTransformer
-from homocal.study.perturb import ShiftSpec, base_quad, draw_base_error, draw_variant
+from homocal.study.perturb import ShiftSpec, base_quad, draw_base_error, draw_variant, perturbed_quads
 from homocal.study.triples import distance_features, triples
 
 METRICS = ("euclidean", "range")
@@ -114,6 +114,12 @@ class StudyScene:
         if params.map_scale is not None:
             offsets[8:] *= self.site_map.scale_px_per_m / params.map_scale
         return offsets, n
+
+    def variant_quads(self, params: StudyParams, variant: int) -> tuple[np.ndarray, np.ndarray]:
+        """The variant's (image (4, 2) px, map (4, 2) map px) quads: its base image quad and the hand-placed map
+        quad, moved by its offsets (variant_offsets)."""
+        offsets, _ = self.variant_offsets(params, variant)
+        return perturbed_quads(self.base_image_quad(params, variant), self.map_quad, offsets)
 
     def base_image_quad(self, params: StudyParams, variant: int) -> np.ndarray:
         """The variant's clicked base image trapezoid (4, 2) px (perturb.base_quad): the hand-placed one, its

@@ -14,7 +14,6 @@ from homocal.geometry import ViewTransformer, apply_homography
 from homocal.keyed_rng import seed_from_key
 from homocal.study import kernels
 from homocal.study.inputs import StudyParams, StudyScene
-from homocal.study.perturb import perturbed_quads
 
 SHARD_SCHEMA = pa.schema(
     [("variant", pa.int32()), ("i", pa.int16()), ("j", pa.int16()), ("k", pa.int16()),
@@ -43,8 +42,7 @@ def variant_mapping(scene: StudyScene, params: StudyParams, variant: int):
     its offsets), map quad (metres), its basis, homography and mapped calibration and test points; or the reason (str) the
     variant is degenerate: a quad validate_quad rejects, a homography that cannot be formed, or a
     calibration or test point beyond the horizon."""
-    offsets, _ = scene.variant_offsets(params, variant)
-    image, map_quad = perturbed_quads(scene.base_image_quad(params, variant), scene.map_quad, offsets)
+    image, map_quad = scene.variant_quads(params, variant)
     try:
         target = ViewTransformer(image, scene.site_map.to_metres(map_quad)).target
     except ValueError as e:

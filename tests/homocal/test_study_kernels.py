@@ -10,7 +10,7 @@ from homocal.correctors import (DescentCorrector, HorizonCorrector, HybridCorrec
 from homocal.geometry import ViewTransformer
 from homocal.keyed_rng import packed_order, seed_from_key, shuffled_order, splitmix64
 from homocal.study import kernels
-from homocal.study.perturb import draw_variant, perturbed_quads
+from homocal.study.perturb import draw_variant
 from homocal.study.inputs import StudyParams, StudyScene
 from homocal.study.shards import prepare_variant, run_tables
 from homocal.study.triples import n_samples, triples
@@ -30,8 +30,7 @@ def scene(tmp_path_factory):
 
 def fitted(scene, variant, triple, params=PARAMS):
     """The public correctors fitted on one sample, as the study defines it."""
-    base = scene.base_image_quad(params, variant)
-    image, map_quad = perturbed_quads(base, scene.map_quad, scene.variant_offsets(params, variant)[0])
+    image, map_quad = scene.variant_quads(params, variant)
     vt = ViewTransformer(image, scene.site_map.to_metres(map_quad))
     sel = list(triple)
     args = (vt, scene.cal_image[sel], scene.cal_ground[sel], scene.origin)
