@@ -61,10 +61,15 @@ D_METHODS = ("regression", "descent")
 D_KEYS = ("pos_path", "pos_cal", "mean_path", "median_path", "corr", "std_path", "p1_path")
 
 
+def paper_gap(value: float, method: str, key: str) -> float:
+    """ours - the paper's, for one of D's numbers: pp for percentages, x 100 for correlations."""
+    return (value - PAPER[method][key]) * (100.0 if key == "corr" else 1.0)
+
+
 def paper_distance(table: "Table", scope: str = OVERALL) -> float:
-    """D, percentage points: the RMS of (ours - paper) over the 14 numbers D_METHODS x D_KEYS (percentages in
-    pp, correlations x 100). NaN if any of ours is NaN."""
-    diffs = [(table.value(m, k, scope) - PAPER[m][k]) * (100.0 if k == "corr" else 1.0) for m in D_METHODS for k in D_KEYS]
+    """D, percentage points: the RMS of paper_gap over the 14 numbers D_METHODS x D_KEYS (percentages in pp,
+    correlations x 100). NaN if any of ours is NaN."""
+    diffs = [paper_gap(table.value(m, k, scope), m, k) for m in D_METHODS for k in D_KEYS]
     return math.sqrt(sum(d * d for d in diffs) / len(diffs))
 
 

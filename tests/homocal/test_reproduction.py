@@ -278,3 +278,30 @@ def test_sweep_resumed_after_a_kill_gives_identical_files(datasets, tmp_path):
     lines = (whole / "sweep.csv").read_text().splitlines()
     assert lines[0].startswith("param,value,method,D,n,pos_path")
     assert len(lines) == 1 + 3 * len(metrics.METHODS)
+
+
+def test_table1_reach_reads_a_sweep(datasets, tmp_path):
+    """benchmarks/table1_reach.py on a sweep: every run named by its options, ranked by sweep.csv's D, and each
+    number's nearest value and the bound (the RMS of the nearest gaps) as computed here from sweep.csv."""
+    out = tmp_path / "sweep"
+    assert main(["sweep", *datasets, "-o", str(out), "--variants", "3", "--n-test", "50",
+                 "--horizon-shift", "0,12", "--no-progress"]) == 0
+    script = Path(__file__).parents[2] / "benchmarks" / "table1_reach.py"
+    done = subprocess.run([sys.executable, str(script), str(out)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    rows = [r.split(",") for r in (out / "sweep.csv").read_text().splitlines()[1:]]
+    header = (out / "sweep.csv").read_text().splitlines()[0].split(",")
+    col = {name: i for i, name in enumerate(header)}
+    D = {r[1]: float(r[col["D"]]) for r in rows}
+    ranked = sorted(D, key=D.get)
+    listed = [line for line in done.stdout.splitlines() if line.startswith("| `--variants 3") and line.endswith("met |")]
+    assert [line.split("`")[1] for line in listed] == [f"--variants 3 --n-test 50 --horizon-shift {v}" for v in ranked]
+    assert [float(line.split("|")[2]) for line in listed] == [round(D[v], 1) for v in ranked]
+    gaps = []
+    for m in metrics.D_METHODS:
+        for k in metrics.D_KEYS:
+            scale = 100.0 if k == "corr" else 1.0
+            gaps.append(min(abs(float(r[col[k]]) - metrics.PAPER[m][k]) * scale for r in rows if r[2] == m))
+    bound = math.sqrt(sum(g * g for g in gaps) / 14)
+    assert f"each from its own configuration: D {bound:.1f} pp" in done.stdout
+    assert f"Least D found: {D[ranked[0]]:.1f} pp" in done.stdout
