@@ -60,6 +60,8 @@ def configurations(folder: Path) -> list[tuple[str, dict, float]]:
             found.append((options(StudyParams.from_dict(load_study(run))), numbers, numbers[("regression", "D")]))
         return found
     study = load_study(folder)
+    if not study.get("complete"):
+        raise SystemExit(f"{folder}: the study is not complete (finish it with homocal study --resume)")
     table = build_table(shard_files(folder, study))
     numbers = {(m, k): table.value(m, k) for m in D_METHODS for k in D_KEYS}
     return [(options(StudyParams.from_dict(study)), numbers, paper_distance(table))]

@@ -305,3 +305,10 @@ def test_table1_reach_reads_a_sweep(datasets, tmp_path):
     bound = math.sqrt(sum(g * g for g in gaps) / 14)
     assert f"each from its own configuration: D {bound:.1f} pp" in done.stdout
     assert f"Least D found: {D[ranked[0]]:.1f} pp" in done.stdout
+    run = out / "runs" / "horizon_shift=12"  # a study folder is read as one configuration, and only when complete
+    one = subprocess.run([sys.executable, str(script), str(run)], capture_output=True, text=True, timeout=300)
+    assert one.returncode == 0 and "1 configurations searched" in one.stdout and f"Least D found: {D['12']:.1f} pp" in one.stdout
+    study = json.loads((run / "study.json").read_text())
+    (run / "study.json").write_text(json.dumps({**study, "complete": False}))
+    refused = subprocess.run([sys.executable, str(script), str(run)], capture_output=True, text=True, timeout=300)
+    assert refused.returncode == 1 and refused.stderr.strip() == f"{run}: the study is not complete (finish it with homocal study --resume)"
