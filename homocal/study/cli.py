@@ -8,7 +8,7 @@ from homocal.arguments import number
 from homocal.dataset import calibration_source
 from homocal.progress import add_progress_option, show_progress
 from homocal.study.engine import PRESETS, dry_run_counts, run_study
-from homocal.study.inputs import MAX_MAP_SCALE, METRICS, StudyParams
+from homocal.study.inputs import MAX_MAP_SCALE, METRICS, StudyParams, descent_settings
 
 
 MAX_VARIANTS = 100_000  # 100x the paper's 1000 trapezoid variants per scene (one shard each)
@@ -25,10 +25,11 @@ def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
         return str if sweep else kind
 
     p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
-                   help="paper: the paper's protocol (1000 variants, 2000 test points) with the base error (horizon "
-                        f"{PRESETS['paper']['horizon_shift']} px above) and site-map scale "
-                        f"({PRESETS['paper']['map_scale']:g} px/m) closest to its Table 1 (see README); quick: 50 "
-                        "variants, no base error, the dataset's site map (default)")
+                   help="paper: the paper's protocol (1000 variants, 2000 test points) with the open choices closest "
+                        f"to its Table 1 (see README): base error (horizon {PRESETS['paper']['horizon_shift']} px "
+                        f"above), site-map scale ({PRESETS['paper']['map_scale']:g} px/m) and descent's largest move "
+                        f"({PRESETS['paper']['descent']['delta_max']:g} px); quick: 50 variants, no base error, the "
+                        "dataset's site map, descent's defaults (default)")
     p.add_argument("--variants", dest="n_variants", type=number(int, 0, MAX_VARIANTS), metavar="N",
                    help="perturbed variants per scene (overrides the preset)", **quiet)
     p.add_argument("--seed", type=typed(int), help="run seed (variants, base errors, descent orders, test subsample; default 0)", **quiet)
@@ -71,15 +72,6 @@ def params_from_args(args: argparse.Namespace, **override) -> StudyParams:
     if "descent_delta_max" in values:
         values["descent"] = descent_settings(values.pop("descent_delta_max"))
     return StudyParams(**values)
-
-
-def descent_settings(delta_max: float) -> dict:
-    """StudyParams.descent for a largest move delta_max (px): the phase-1 grid on TL and BR spans +/- delta_max / 2
-    in 5 steps (the defaults: delta_max 8, grid -4..4 in 2 px steps); phase 2 as by default."""
-    if not 0 < delta_max <= 100:
-        raise ValueError(f"--descent-delta-max must be in (0, 100] px, got {delta_max}")
-    half = delta_max / 2
-    return {**StudyParams().descent, "delta_max": float(delta_max), "grid_offsets": (-half, -half / 2, 0.0, half / 2, half)}
 
 
 def add_parser(subparsers) -> None:

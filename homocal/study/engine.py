@@ -27,14 +27,14 @@ from tqdm import tqdm
 
 from homocal.files import output_folder, read_json, write_atomic, write_json_atomic
 from homocal.study.perturb import draw_base_error
-from homocal.study.inputs import StudyParams, StudyScene, shift_spec
+from homocal.study.inputs import StudyParams, StudyScene, descent_settings, shift_spec
 from homocal.study.shards import check_shard, compute_shard, study_key
 from homocal.study.triples import n_samples
 
 # paper: the paper's protocol (1000 variants, 2000 test points) with the open choices closest to its Table 1 found
-# by `homocal sweep` (README, "Reproducing Table 1"): the clicked trapezoid's horizon 12 px above the true one and
-# the map perturbations in px of a 2.5 px/m site map
-PRESETS = {"paper": dict(n_variants=1000, n_test=2000, horizon_shift="12", map_scale=2.5),
+# by `homocal sweep` (README, "Reproducing Table 1"): the clicked trapezoid's horizon 14 px above the true one, the
+# map perturbations in px of a 2.5 px/m site map, and descent's largest move (the paper's delta_max) 14 px
+PRESETS = {"paper": dict(n_variants=1000, n_test=2000, horizon_shift="14", map_scale=2.5, descent=descent_settings(14.0)),
            "quick": dict(n_variants=50, n_test=2000)}
 GROUP = 8  # variants per Dask task
 FORMAT = "homocal-study"  # study.json's "format": marks a results directory as homocal study's (homocal.files.output_folder)

@@ -82,6 +82,15 @@ class StudyParams:
         return cls(**{k: v for k, v in d.items() if k in names})
 
 
+def descent_settings(delta_max: float) -> dict:
+    """StudyParams.descent for a largest move delta_max (px): the phase-1 grid on TL and BR spans +/- delta_max / 2
+    in 5 steps (the defaults: delta_max 8, grid -4..4 in 2 px steps); phase 2 as by default."""
+    if not 0 < delta_max <= 100:
+        raise ValueError(f"--descent-delta-max must be in (0, 100] px, got {delta_max}")
+    half = delta_max / 2
+    return {**StudyParams().descent, "delta_max": float(delta_max), "grid_offsets": (-half, -half / 2, 0.0, half / 2, half)}
+
+
 @dataclass
 class StudyScene:
     """A scene's study inputs: hand-placed quads (4, 2), calibration q (M, 2) px, g (M, 2) m, distance (M,) m,

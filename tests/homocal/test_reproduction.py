@@ -136,6 +136,26 @@ def test_bad_study_options_are_one_clear_error(datasets, tmp_path, capsys, args,
     assert not (tmp_path / "s").exists()
 
 
+def test_paper_preset_and_the_options_over_it(datasets, tmp_path, capsys):
+    """--preset paper writes the README's configuration to study.json (horizon 14 px, 2.5 px/m, descent's
+    largest move 14 px with its phase-1 grid +/- 7 px); an option given overrides the preset's, and
+    --horizon-shift none turns its base error off."""
+    def written(*args):
+        out = tmp_path / f"s{len(list(tmp_path.iterdir()))}"
+        assert main(["study", *datasets, "-o", str(out), "--preset", "paper", "--variants", "1", "--n-test", "20",
+                     "--no-progress", *args]) == 0
+        return json.loads((out / "study.json").read_text())
+    study = written()
+    assert (study["horizon_shift"], study["map_scale"], study["n_test"]) == ("14", 2.5, 20)
+    assert study["descent"]["delta_max"] == 14.0 and study["descent"]["grid_offsets"] == [-7.0, -3.5, 0.0, 3.5, 7.0]
+    assert {k: v for k, v in study["descent"].items() if k not in ("delta_max", "grid_offsets")} == \
+        {k: v for k, v in StudyParams().descent.items() if k not in ("delta_max", "grid_offsets")}
+    over = written("--descent-delta-max", "8", "--horizon-shift", "none", "--map-scale", "none")
+    assert over["descent"] == StudyParams().to_dict()["descent"] and over["horizon_shift"] is None
+    assert "map_scale" not in over
+    capsys.readouterr()
+
+
 def test_base_error_draws():
     """Seeded per (seed, scene, variant); the fixed spec gives the number; the distributions their moments."""
     assert draw_base_error(0, "s", 3, ShiftSpec.parse("5"), 0.0)[0] == 5.0
