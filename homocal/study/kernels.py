@@ -463,6 +463,13 @@ def _mean3(a, b, c):
     return (a + b + c) / 3.0
 
 
+@nb.njit(**JIT)
+def _calibration_error(H, q, g, i, j, k, origin, in_range):
+    """Mean mapped_error of calibration points i, j, k under H (3, 3), metres."""
+    return _mean3(mapped_error(H, q, g, i, origin, in_range), mapped_error(H, q, g, j, origin, in_range),
+                  mapped_error(H, q, g, k, origin, in_range))
+
+
 @nb.njit(nogil=True, **JIT)
 def run_variant(v0, t0, Bt, H0, F, q, g, cal, test, path_before, I, J, K, base, grid, delta_max, initial_step, min_step,
                 max_evals, lc_sigmas, lc_iterations, threshold, in_range, origin, out, ab, vfinal):
@@ -527,8 +534,7 @@ def run_variant(v0, t0, Bt, H0, F, q, g, cal, test, path_before, I, J, K, base, 
         eps, _ = mk.fit_horizon_shift3(H0, q[i, 0], q[i, 1], g[i, 0], g[i, 1], q[j, 0], q[j, 1], g[j, 0], g[j, 1],
                                        q[k, 0], q[k, 1], g[k, 0], g[k, 1])
         mk.horizon_homography_into(H0, eps, Hd)
-        cal_h = _mean3(mapped_error(Hd, q, g, i, origin, in_range), mapped_error(Hd, q, g, j, origin, in_range),
-                       mapped_error(Hd, q, g, k, origin, in_range))
+        cal_h = _calibration_error(Hd, q, g, i, j, k, origin, in_range)
         out[s, HOR], out[s, HOR + 1] = _improvement(e_before, cal_h), _improvement(path_before, homography_paths(test, Hd, H0, dH, in_range))
         # ---- least change: the smallest move of both clicked quads that explains the three points (MAP)
         for t in range(3):
@@ -536,8 +542,7 @@ def run_variant(v0, t0, Bt, H0, F, q, g, cal, test, path_before, I, J, K, base, 
             q3[t, 0], q3[t, 1], g3[t, 0], g3[t, 1] = q[c, 0], q[c, 1], g[c, 0], g[c, 1]
         mk.least_change3(z0, q3, g3, lc_sigmas[0], lc_sigmas[1], lc_sigmas[2], lc_iterations, zl, Bl)
         homography_into(zl[:8], Bl, Hd)
-        cal_l = _mean3(mapped_error(Hd, q, g, i, origin, in_range), mapped_error(Hd, q, g, j, origin, in_range),
-                       mapped_error(Hd, q, g, k, origin, in_range))
+        cal_l = _calibration_error(Hd, q, g, i, j, k, origin, in_range)
         out[s, LCH], out[s, LCH + 1] = _improvement(e_before, cal_l), _improvement(path_before, homography_paths(test, Hd, H0, dH, in_range))
         # ---- descent phase 1: the grid cell of least mean loss, first on ties
         best, gbest = grid_best(table, i, j, k, sums)
@@ -553,11 +558,7 @@ def run_variant(v0, t0, Bt, H0, F, q, g, cal, test, path_before, I, J, K, base, 
     for s in range(S):
         i, j, k = I[s], J[s], K[s]
         homography_into(vfinal[s, :8], Bt, Hd)
-        if in_range:
-            cal_d = _mean3(mapped_error(Hd, q, g, i, origin, True), mapped_error(Hd, q, g, j, origin, True),
-                           mapped_error(Hd, q, g, k, origin, True))
-        else:
-            cal_d = Lfinal[s]
+        cal_d = _calibration_error(Hd, q, g, i, j, k, origin, True) if in_range else Lfinal[s]
         out[s, DES], out[s, DES + 1] = _improvement(out[s, 0], cal_d), _improvement(path_before, homography_paths(test, Hd, H0, dH, in_range))
         # ---- hybrid: regression if its calibration improvement reaches the threshold (Section 7)
         hyb = out[s, REG] >= threshold
