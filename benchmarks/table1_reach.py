@@ -61,7 +61,7 @@ def configurations(folder: Path) -> list[tuple[str, dict, float]]:
         return found
     study = load_study(folder)
     if not study.get("complete"):
-        raise SystemExit(f"{folder}: the study is not complete (finish it with homocal study --resume)")
+        raise ValueError("the study is not complete: finish it with homocal study --resume")
     table = build_table(shard_files(folder, study))
     numbers = {(m, k): table.value(m, k) for m in D_METHODS for k in D_KEYS}
     return [(options(StudyParams.from_dict(study)), numbers, paper_distance(table))]
@@ -82,7 +82,11 @@ def main() -> None:
     args = parser.parse_args()
     configs, D = {}, {}
     for folder in args.folders:
-        for name, numbers, d in configurations(folder):
+        try:
+            found = configurations(folder)
+        except (ValueError, KeyError, OSError) as e:  # not a sweep or study folder, or one with a file missing
+            raise SystemExit(f"{folder}: not a complete sweep or study folder ({e})") from None
+        for name, numbers, d in found:
             if name not in configs:  # the same configuration in two folders: the first one's numbers
                 configs[name], D[name] = numbers, d
     ranked = sorted(configs, key=D.get)

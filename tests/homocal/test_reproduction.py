@@ -331,4 +331,13 @@ def test_table1_reach_reads_a_sweep(datasets, tmp_path):
     study = json.loads((run / "study.json").read_text())
     (run / "study.json").write_text(json.dumps({**study, "complete": False}))
     refused = subprocess.run([sys.executable, str(script), str(run)], capture_output=True, text=True, timeout=300)
-    assert refused.returncode == 1 and refused.stderr.strip() == f"{run}: the study is not complete (finish it with homocal study --resume)"
+    assert refused.returncode == 1 and refused.stderr.strip() == \
+        f"{run}: not a complete sweep or study folder (the study is not complete: finish it with homocal study --resume)"
+    (tmp_path / "notes").mkdir()
+    for bad, why in [(tmp_path / "notes", f"{tmp_path / 'notes' / 'study.json'}: no such file"),
+                     (tmp_path / "absent", f"{tmp_path / 'absent'}: not a results directory")]:
+        done = subprocess.run([sys.executable, str(script), str(bad)], capture_output=True, text=True, timeout=300)
+        assert done.returncode == 1 and done.stderr.strip().splitlines() == [f"{bad}: not a complete sweep or study folder ({why})"]
+    (out / "sweep.csv").unlink()  # a sweep folder with its table missing
+    done = subprocess.run([sys.executable, str(script), str(out)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 1 and len(done.stderr.strip().splitlines()) == 1 and "sweep.csv" in done.stderr
