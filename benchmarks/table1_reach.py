@@ -24,7 +24,8 @@ import json
 import math
 from pathlib import Path
 
-from homocal.study.inputs import StudyParams
+from homocal.arguments import number
+from homocal.study.inputs import StudyParams, changed_options
 from homocal.study.metrics import D_KEYS, D_METHODS, PAPER, build_table, load_study, paper_distance, paper_gap, shard_files
 
 TARGETS = {"pos_path": 3.0, "pos_cal": 2.0}  # the reproduction's rate targets (issue 9), pp from the paper, both methods
@@ -33,17 +34,7 @@ DEFAULTS = StudyParams(n_variants=50)  # homocal study's defaults (its quick pre
 
 def options(params: StudyParams) -> str:
     """The study options that differ from DEFAULTS, as a command line would give them."""
-    flags = []
-    for name, flag in (("n_variants", "--variants"), ("foot_source", "--foot-source"), ("n_test", "--n-test"),
-                       ("max_test_distance", "--max-test-distance"), ("test_lateral_max", "--test-lateral-max"),
-                       ("horizon_shift", "--horizon-shift"), ("click_noise", "--click-noise"),
-                       ("metric", "--metric"), ("map_scale", "--map-scale"), ("seed", "--seed")):
-        value = getattr(params, name)
-        if value != getattr(DEFAULTS, name):
-            flags.append(f"{flag} {'none' if value is None else f'{value:g}' if isinstance(value, float) else value}")
-    if params.descent["delta_max"] != DEFAULTS.descent["delta_max"]:
-        flags.append(f"--descent-delta-max {params.descent['delta_max']:g}")
-    return " ".join(flags) or "(defaults)"
+    return " ".join(changed_options(params, DEFAULTS)) or "(defaults)"
 
 
 def configurations(folder: Path) -> list[tuple[str, dict, float]]:
@@ -78,7 +69,7 @@ def meets_targets(numbers: dict) -> bool:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("folders", nargs="+", type=Path, metavar="FOLDER")
-    parser.add_argument("--top", type=int, default=10, help="configurations in the first table (default 10)")
+    parser.add_argument("--top", type=number(int, 1), default=10, help="configurations in the first table (default 10)")
     args = parser.parse_args()
     configs, D = {}, {}
     for folder in args.folders:

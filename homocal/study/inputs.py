@@ -82,6 +82,26 @@ class StudyParams:
         return cls(**{k: v for k, v in d.items() if k in names})
 
 
+OPTIONS = ("n_variants", "foot_source", "n_test", "max_test_distance", "test_lateral_max", "horizon_shift",
+           "click_noise", "metric", "map_scale", "seed", "descent")  # the StudyParams fields a study option sets
+
+
+def option_text(name: str, value) -> str:
+    """A StudyParams field's value as the study option that sets it: option_text("n_variants", 50) ->
+    "--variants 50", ("map_scale", None) -> "--map-scale none", ("descent", {...}) -> "--descent-delta-max 14"."""
+    if name == "descent":
+        name, value = "descent_delta_max", value["delta_max"]
+    flag = "--variants" if name == "n_variants" else "--" + name.replace("_", "-")
+    return f"{flag} {'none' if value is None else f'{value:g}' if isinstance(value, (int, float)) else value}"
+
+
+def changed_options(params: StudyParams, base: StudyParams) -> list[str]:
+    """The study options (OPTIONS, as option_text) whose values in params differ from base's."""
+    return [option_text(n, getattr(params, n)) for n in OPTIONS
+            if (getattr(params, n)["delta_max"] != getattr(base, n)["delta_max"] if n == "descent"
+                else getattr(params, n) != getattr(base, n))]
+
+
 def descent_settings(delta_max: float) -> dict:
     """StudyParams.descent for a largest move delta_max (px): the phase-1 grid on TL and BR spans +/- delta_max / 2
     in 5 steps (the defaults: delta_max 8, grid -4..4 in 2 px steps); phase 2 as by default."""

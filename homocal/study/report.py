@@ -23,7 +23,7 @@ from homocal.progress import add_progress_option, show_progress
 from homocal.study.figures import FigureFile, figure_names, make_figures
 from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer
-from homocal.study.inputs import StudyParams
+from homocal.study.inputs import StudyParams, option_text
 from homocal.study.law import horizon_shift_law, perturbation_law
 from homocal.study.metrics import (D_KEYS, D_METHODS, METRICS, PAPER, Table, build_table, load_study, paper_distance,
                                    table_cells, to_csv, to_markdown, to_text, verified_shard_files)
@@ -102,15 +102,13 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None, com
 
 def config_label(study: dict) -> str:
     """The base-error configuration of a study, in its options' words."""
-    shift = study.get("horizon_shift")
-    parts = ["hand-placed trapezoid as it is" if shift is None else f"--horizon-shift {shift}",
-             f"--click-noise {study.get('click_noise', 0.0):g}", f"--metric {study.get('metric', 'euclidean')}"]
-    for name in ("test_lateral_max", "map_scale"):
-        if study.get(name) is not None:
-            parts.append(f"--{name.replace('_', '-')} {study[name]:g}")
-    default_delta_max = StudyParams().descent["delta_max"]
-    if study.get("descent", {}).get("delta_max", default_delta_max) != default_delta_max:
-        parts.append(f"--descent-delta-max {study['descent']['delta_max']:g}")
+    params = StudyParams.from_dict(study)
+    parts = ["hand-placed trapezoid as it is" if params.horizon_shift is None else option_text("horizon_shift", params.horizon_shift),
+             option_text("click_noise", params.click_noise), option_text("metric", params.metric)]
+    parts += [option_text(name, getattr(params, name)) for name in ("test_lateral_max", "map_scale")
+              if getattr(params, name) is not None]
+    if params.descent["delta_max"] != StudyParams().descent["delta_max"]:
+        parts.append(option_text("descent", params.descent))
     return f"preset {study.get('preset')}, {study.get('n_variants')} variants: " + " ".join(parts)
 
 

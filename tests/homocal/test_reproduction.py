@@ -1,5 +1,6 @@
 """The reproduction issue: the base error of the clicked trapezoid (horizon shift, click noise), the range
 metric, the lateral limit of the test points, the quadratic law measured, D, and `homocal sweep`."""
+import argparse
 import json
 import math
 import os
@@ -18,7 +19,8 @@ from homocal.study import metrics
 from homocal.study.law import exponent, horizon_shift_law, perturbation_law
 from homocal.study.perturb import ShiftSpec, draw_base_error, draw_variant, tilt_shift
 from homocal.study.shards import variant_mapping
-from homocal.study.inputs import StudyParams, StudyScene
+from homocal.study.cli import add_study_options, params_from_args
+from homocal.study.inputs import StudyParams, StudyScene, changed_options, descent_settings
 from homocal.study.report import config_label, gap_facts
 from homocal.study.sweep import _typed, expand_values
 from synthetic_dataset import GROUND_RECT, write_dataset
@@ -154,6 +156,21 @@ def test_paper_preset_and_the_options_over_it(datasets, tmp_path, capsys):
     assert over["descent"] == StudyParams().to_dict()["descent"] and over["horizon_shift"] is None
     assert "map_scale" not in over
     capsys.readouterr()
+
+
+def test_changed_options_read_back_as_the_same_study():
+    """changed_options names, as options, exactly the fields that differ (the reach's descent by its largest move),
+    and those options given to homocal study's parser over the base give the params back."""
+    base = StudyParams(n_variants=50)
+    params = StudyParams(n_variants=1000, horizon_shift="14", map_scale=2.5, test_lateral_max=8.0, max_test_distance=None,
+                         descent=descent_settings(14.0))
+    flags = changed_options(params, base)
+    assert flags == ["--variants 1000", "--max-test-distance none", "--test-lateral-max 8", "--horizon-shift 14",
+                     "--map-scale 2.5", "--descent-delta-max 14"]
+    assert changed_options(base, base) == []
+    parser = argparse.ArgumentParser()
+    add_study_options(parser)
+    assert params_from_args(parser.parse_args(" ".join(flags).split())) == params
 
 
 def test_base_error_draws():
@@ -338,6 +355,9 @@ def test_table1_reach_reads_a_sweep(datasets, tmp_path):
                      (tmp_path / "absent", f"{tmp_path / 'absent'}: not a results directory")]:
         done = subprocess.run([sys.executable, str(script), str(bad)], capture_output=True, text=True, timeout=300)
         assert done.returncode == 1 and done.stderr.strip().splitlines() == [f"{bad}: not a complete sweep or study folder ({why})"]
+    for top in ("0", "-1", "ten", "nan", ""):
+        done = subprocess.run([sys.executable, str(script), str(out), "--top", top], capture_output=True, text=True, timeout=300)
+        assert done.returncode == 2 and done.stderr.strip().splitlines()[-1].startswith("table1_reach.py: error: argument --top")
     (out / "sweep.csv").unlink()  # a sweep folder with its table missing
     done = subprocess.run([sys.executable, str(script), str(out)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 1 and len(done.stderr.strip().splitlines()) == 1 and "sweep.csv" in done.stderr
