@@ -361,3 +361,63 @@ def test_table1_reach_reads_a_sweep(datasets, tmp_path):
     (out / "sweep.csv").unlink()  # a sweep folder with its table missing
     done = subprocess.run([sys.executable, str(script), str(out)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 1 and len(done.stderr.strip().splitlines()) == 1 and "sweep.csv" in done.stderr
+
+
+def _benchmark(name: str):
+    """A benchmarks/ script as a module (they are scripts, not a package)."""
+    import importlib.util
+    path = Path(__file__).parents[2] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module, path
+
+
+def test_least_mean_error_against_a_one_dimensional_search():
+    """The IRLS minimum of mean(sqrt((t + A theta)^2 + q^2)) equals a ternary search's on one term (convex)."""
+    ceiling, _ = _benchmark("radial_ceiling")
+    rng = np.random.default_rng(3)
+    d = rng.uniform(5, 50, 400)
+    for q in (rng.uniform(0, 0.5, 400), np.zeros(400)):  # euclidean (smooth) and range (an L1 fit)
+        t = 0.002 * d**1.8 + rng.normal(0, 0.3, 400)
+        f = lambda th: np.sqrt((t + d * th) ** 2 + q**2).mean()  # noqa: E731
+        lo, hi = -1.0, 1.0
+        for _ in range(200):
+            a, b = lo + (hi - lo) / 3, hi - (hi - lo) / 3
+            lo, hi = (lo, b) if f(a) < f(b) else (a, hi)
+        assert ceiling.least_mean_error(d[:, None], t, q) == pytest.approx(f((lo + hi) / 2), abs=1e-9)
+
+
+@pytest.mark.parametrize("metric", ["euclidean", "range"])
+def test_radial_ceiling_bounds_every_sample_of_a_study(datasets, tmp_path, metric):
+    """benchmarks/radial_ceiling.py: no sample's path improvement under a radial method exceeds its variant's
+    ceiling for that method's family (float32 shards: 1e-3 pp), the families nest, and the script's table and
+    its one-line refusal of a folder that is not a study."""
+    ceiling, script = _benchmark("radial_ceiling")
+    out = tmp_path / metric
+    assert main(["study", *datasets, "-o", str(out), "--variants", "4", "--n-test", "120", "--horizon-shift", "8",
+                 "--metric", metric, "--no-progress"]) == 0
+    study = metrics.load_study(out)
+    params = StudyParams.from_dict(study)
+    scenes = ceiling.load_scenes([d["path"] for d in study["datasets"]], params)
+    shards = metrics.shard_files(out, study)
+    import pyarrow.parquet as pq
+    for scene in scenes:
+        assert len(shards[scene.name]) == 5
+        for v, path in enumerate(shards[scene.name]):
+            c = ceiling.variant_ceilings(scene, params, v)
+            table = pq.read_table(path)
+            assert c["a d^2 + b d"] <= c["a d^2 + b d + c"] + 1e-9 <= c["any radial"] + 2e-9
+            if metric == "range":
+                assert c["any radial"] == pytest.approx(100.0)
+            for method, family in [("regression", "a d^2 + b d"), ("regression_signed", "a d^2 + b d"),
+                                   ("regression_intercept", "a d^2 + b d + c")]:
+                assert np.nanmax(table.column(f"path_{method}").to_numpy()) <= c[family] + 1e-3
+    done = subprocess.run([sys.executable, str(script), str(out)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    rows = [line for line in done.stdout.splitlines() if line.startswith(("| scene_", "| both"))]
+    assert [r.split("|")[1].strip() for r in rows] == ["scene_a", "scene_b", "both"]
+    assert [int(r.split("|")[2]) for r in rows] == [5, 5, 10]
+    done = subprocess.run([sys.executable, str(script), str(tmp_path / "absent")], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 1 and done.stderr.strip().splitlines() == \
+        [f"{tmp_path / 'absent'}: not a complete study folder ({tmp_path / 'absent'}: not a results directory)"]
