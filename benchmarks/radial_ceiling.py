@@ -1,7 +1,7 @@
 """How much of a study's path error a radial correction can remove at best (README, "Reproducing Table 1").
 
-Run: python benchmarks/radial_ceiling.py STUDY [--variants N]
-     (STUDY a complete `homocal study` results folder; its study.json names the datasets and parameters)
+Run: python benchmarks/radial_ceiling.py FOLDER [FOLDER ...] [--variants N]
+     (each FOLDER a complete `homocal study` results folder, or a `homocal sweep` folder: each of its runs)
 
 The paper's regression moves each mapped point p along its bearing from the camera origin o by
 c(d) = a d^2 + b d, d = ||p - o|| (eqs. (23)-(24)); the signed and intercept forms use the same family
@@ -18,8 +18,10 @@ error across the bearing (euclidean), or t_i = d_i - ||g_i - o||, q_i = 0 (range
 by iteratively reweighted least squares (a majorise-minimise scheme: the mean never rises) until it changes
 by less than 1e-12 m.
 
-Prints, per scene and over both: the study's median path improvement of the three radial methods, and the
-medians (over samples) of the two ceilings.
+Prints one row per configuration (named by the study options that differ from homocal study's defaults):
+regression's positive path rate, the study's median path improvement of the three radial methods, and the
+sample-weighted medians of the ceilings over both scenes; then the highest a d^2 + b d ceiling of all, and of
+the configurations whose regression positive path rate is within 3 pp of the paper's.
 """
 from __future__ import annotations
 
@@ -32,11 +34,14 @@ import pyarrow.parquet as pq
 from homocal.arguments import number
 from homocal.geometry.homography import apply_homography, homography_from_quads
 from homocal.study.engine import load_scenes
-from homocal.study.inputs import StudyParams
-from homocal.study.metrics import load_study, shard_files
+from homocal.study.inputs import StudyParams, changed_options
+from homocal.study.metrics import PAPER, load_study, method_stats, shard_files
 
 RADIAL = ("regression", "regression_signed", "regression_intercept")
 FAMILIES = {"a d^2 + b d": 2, "a d^2 + b d + c": 3}  # the correction families and their number of terms
+QUADRATIC = "a d^2 + b d"  # the paper's
+CEILINGS = (*FAMILIES, "any radial")
+DEFAULTS = StudyParams(n_variants=50)  # homocal study's defaults (its quick preset's 50 variants)
 
 
 def along_and_across(p: np.ndarray, g: np.ndarray, o: np.ndarray, metric: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -83,48 +88,65 @@ def weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
     return float(values[order][np.searchsorted(cum, 0.5 * cum[-1])])
 
 
+def study_folders(folder: Path) -> list[Path]:
+    """The study folders of a sweep folder (its runs), or the folder itself."""
+    return sorted(p for p in (folder / "runs").iterdir() if p.is_dir()) if (folder / "sweep.json").is_file() else [folder]
+
+
+def configuration_row(folder: Path, most: int | None) -> tuple[str, dict[str, float]]:
+    """(options, {name: value}) of one complete study: regression's positive path rate and the radial methods'
+    medians (metrics.method_stats over the samples read), and the weighted medians of the ceilings."""
+    study = load_study(folder)
+    if not study.get("complete"):
+        raise ValueError("the study is not complete: finish it with homocal study --resume")
+    params = StudyParams.from_dict(study)
+    scenes = load_scenes([d["path"] for d in study["datasets"]], params)
+    shards = shard_files(folder, study)
+    columns = {m: ([], []) for m in RADIAL}
+    ceilings, weights = {k: [] for k in CEILINGS}, []
+    for scene in scenes:
+        for path in shards[scene.name][:most]:
+            table = pq.read_table(path, columns=["variant", *(f"{k}_{m}" for m in RADIAL for k in ("path", "cal"))])
+            for m in RADIAL:
+                columns[m][0].append(table.column(f"path_{m}").to_numpy())
+                columns[m][1].append(table.column(f"cal_{m}").to_numpy())
+            if table.num_rows:
+                found = variant_ceilings(scene, params, int(table.column("variant")[0].as_py()))
+                for k in CEILINGS:
+                    ceilings[k].append(found[k])
+                weights.append(table.num_rows)
+    stats = {m: method_stats(np.concatenate(columns[m][0]), np.concatenate(columns[m][1])) for m in RADIAL}
+    row = {"variants": len(weights), "pos_path": stats["regression"]["pos_path"]}
+    row |= {m: stats[m]["median_path"] for m in RADIAL}
+    row |= {k: weighted_median(np.asarray(ceilings[k]), np.asarray(weights, float)) for k in CEILINGS}
+    return " ".join(changed_options(params, DEFAULTS)) or "(defaults)", row
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("study", type=Path, metavar="STUDY")
+    parser.add_argument("folders", nargs="+", type=Path, metavar="FOLDER")
     parser.add_argument("--variants", type=number(int, 1), help="only the first N shards per scene (default: all)")
     args = parser.parse_args()
-    try:
-        study = load_study(args.study)
-        if not study.get("complete"):
-            raise ValueError("the study is not complete: finish it with homocal study --resume")
-        params = StudyParams.from_dict(study)
-        scenes = load_scenes([d["path"] for d in study["datasets"]], params)
-        shards = shard_files(args.study, study)
-    except (ValueError, KeyError, OSError) as e:
-        raise SystemExit(f"{args.study}: not a complete study folder ({e})") from None
-    print(f"{args.study}: metric {params.metric}; medians over samples (variant, triple) of path improvement (%); "
-          f"a ceiling is the oracle's, per variant\n")
-    names = [*(f"ceiling, {f}" for f in FAMILIES), "ceiling, any radial"]
-    print(f"| scene | variants | {' | '.join(f'study: {m}' for m in RADIAL)} | {' | '.join(names)} |")
-    print("|---|---:|" + "---:|" * (len(RADIAL) + len(names)))
-    pooled: dict[str, list] = {k: [] for k in (*RADIAL, *names, "weight")}
-    for scene in scenes:
-        files = shards[scene.name][: args.variants]
-        paths = {m: [] for m in RADIAL}
-        for path in files:
-            table = pq.read_table(path, columns=[f"path_{m}" for m in RADIAL] + ["variant"])
-            variant = int(table.column("variant")[0].as_py())
-            for m in RADIAL:
-                paths[m].append(table.column(f"path_{m}").to_numpy())
-            ceil = variant_ceilings(scene, params, variant)
-            for name, key in zip(names, (*FAMILIES, "any radial")):
-                pooled[name].append(ceil[key])
-            pooled["weight"].append(table.num_rows)
-        for m in RADIAL:
-            pooled[m].append(np.concatenate(paths[m]))
-        weights = np.asarray(pooled["weight"][-len(files):], float)
-        cells = [f"{np.nanmedian(pooled[m][-1]):.1f}" for m in RADIAL]
-        cells += [f"{weighted_median(np.asarray(pooled[n][-len(files):]), weights):.1f}" for n in names]
-        print(f"| {scene.name} | {len(files)} | {' | '.join(cells)} |")
-    weights = np.asarray(pooled["weight"], float)
-    cells = [f"{np.nanmedian(np.concatenate(pooled[m])):.1f}" for m in RADIAL]
-    cells += [f"{weighted_median(np.asarray(pooled[n]), weights):.1f}" for n in names]
-    print(f"| both | {len(weights)} | {' | '.join(cells)} |")
+    print(f"| configuration | shards | regression: positive path (%) | {' | '.join(f'median, {m} (%)' for m in RADIAL)} | "
+          f"{' | '.join(f'ceiling, {k} (%)' for k in CEILINGS)} |")
+    print("|---|---:|" + "---:|" * (1 + len(RADIAL) + len(CEILINGS)))
+    rows = {}
+    for folder in args.folders:
+        try:
+            for study in study_folders(folder):
+                name, row = configuration_row(study, args.variants)
+                if name not in rows:  # the same configuration in two folders: the first one's
+                    rows[name] = row
+                    print(f"| `{name}` | {row['variants']} | {row['pos_path']:.1f} | "
+                          + " | ".join(f"{row[k]:.1f}" for k in (*RADIAL, *CEILINGS)) + " |", flush=True)
+        except (ValueError, KeyError, OSError) as e:  # not a study or sweep folder, or one with a file missing
+            raise SystemExit(f"{folder}: not a complete study or sweep folder ({e})") from None
+    on_rate = {n: r for n, r in rows.items() if abs(r["pos_path"] - PAPER["regression"]["pos_path"]) <= 3.0}
+    for label, chosen in (("all", rows), ("regression's positive path within 3 pp of the paper's", on_rate)):
+        if chosen:
+            best = max(chosen, key=lambda n: chosen[n][QUADRATIC])
+            print(f"\nHighest a d^2 + b d ceiling, {label} ({len(chosen)} configurations): {chosen[best][QUADRATIC]:.1f} % "
+                  f"(`{best}`); the paper's regression median: {PAPER['regression']['median_path']:.1f} %")
 
 
 if __name__ == "__main__":

@@ -139,8 +139,8 @@ def test_bad_study_options_are_one_clear_error(datasets, tmp_path, capsys, args,
 
 
 def test_paper_preset_and_the_options_over_it(datasets, tmp_path, capsys):
-    """--preset paper writes the README's configuration to study.json (horizon 14 px, 2.5 px/m, descent's
-    largest move 14 px with its phase-1 grid +/- 7 px); an option given overrides the preset's, and
+    """--preset paper writes the README's configuration to study.json (horizon 15 px, 2.5 px/m, descent's
+    largest move 16 px with its phase-1 grid +/- 8 px, range errors); an option given overrides the preset's, and
     --horizon-shift none turns its base error off."""
     def written(*args):
         out = tmp_path / f"s{len(list(tmp_path.iterdir()))}"
@@ -148,12 +148,13 @@ def test_paper_preset_and_the_options_over_it(datasets, tmp_path, capsys):
                      "--no-progress", *args]) == 0
         return json.loads((out / "study.json").read_text())
     study = written()
-    assert (study["horizon_shift"], study["map_scale"], study["n_test"]) == ("14", 2.5, 20)
-    assert study["descent"]["delta_max"] == 14.0 and study["descent"]["grid_offsets"] == [-7.0, -3.5, 0.0, 3.5, 7.0]
+    assert (study["horizon_shift"], study["map_scale"], study["n_test"], study["metric"]) == ("15", 2.5, 20, "range")
+    assert study["descent"]["delta_max"] == 16.0 and study["descent"]["grid_offsets"] == [-8.0, -4.0, 0.0, 4.0, 8.0]
     assert {k: v for k, v in study["descent"].items() if k not in ("delta_max", "grid_offsets")} == \
         {k: v for k, v in StudyParams().descent.items() if k not in ("delta_max", "grid_offsets")}
-    over = written("--descent-delta-max", "8", "--horizon-shift", "none", "--map-scale", "none")
+    over = written("--descent-delta-max", "8", "--horizon-shift", "none", "--map-scale", "none", "--metric", "euclidean")
     assert over["descent"] == StudyParams().to_dict()["descent"] and over["horizon_shift"] is None
+    assert over["metric"] == "euclidean"
     assert "map_scale" not in over
     capsys.readouterr()
 
@@ -388,36 +389,40 @@ def test_least_mean_error_against_a_one_dimensional_search():
         assert ceiling.least_mean_error(d[:, None], t, q) == pytest.approx(f((lo + hi) / 2), abs=1e-9)
 
 
-@pytest.mark.parametrize("metric", ["euclidean", "range"])
-def test_radial_ceiling_bounds_every_sample_of_a_study(datasets, tmp_path, metric):
-    """benchmarks/radial_ceiling.py: no sample's path improvement under a radial method exceeds its variant's
-    ceiling for that method's family (float32 shards: 1e-3 pp), the families nest, and the script's table and
-    its one-line refusal of a folder that is not a study."""
+def test_radial_ceiling_bounds_every_sample_of_a_study(datasets, tmp_path):
+    """benchmarks/radial_ceiling.py on a sweep of the metric: no sample's path improvement under a radial method
+    exceeds its variant's ceiling for that method's family (float32 shards: 1e-3 pp), the families nest, the
+    table has a row per run with Table 1's regression numbers, and a folder that is not a study is one line."""
     ceiling, script = _benchmark("radial_ceiling")
-    out = tmp_path / metric
-    assert main(["study", *datasets, "-o", str(out), "--variants", "4", "--n-test", "120", "--horizon-shift", "8",
-                 "--metric", metric, "--no-progress"]) == 0
-    study = metrics.load_study(out)
-    params = StudyParams.from_dict(study)
-    scenes = ceiling.load_scenes([d["path"] for d in study["datasets"]], params)
-    shards = metrics.shard_files(out, study)
+    out = tmp_path / "sweep"
+    assert main(["sweep", *datasets, "-o", str(out), "--variants", "4", "--n-test", "120", "--horizon-shift", "8",
+                 "--metric", "euclidean,range", "--no-progress"]) == 0
     import pyarrow.parquet as pq
-    for scene in scenes:
-        assert len(shards[scene.name]) == 5
-        for v, path in enumerate(shards[scene.name]):
-            c = ceiling.variant_ceilings(scene, params, v)
-            table = pq.read_table(path)
-            assert c["a d^2 + b d"] <= c["a d^2 + b d + c"] + 1e-9 <= c["any radial"] + 2e-9
-            if metric == "range":
-                assert c["any radial"] == pytest.approx(100.0)
-            for method, family in [("regression", "a d^2 + b d"), ("regression_signed", "a d^2 + b d"),
-                                   ("regression_intercept", "a d^2 + b d + c")]:
-                assert np.nanmax(table.column(f"path_{method}").to_numpy()) <= c[family] + 1e-3
+    expected = {}
+    for run in ceiling.study_folders(out):
+        study = metrics.load_study(run)
+        params = StudyParams.from_dict(study)
+        shards = metrics.shard_files(run, study)
+        for scene in ceiling.load_scenes([d["path"] for d in study["datasets"]], params):
+            assert len(shards[scene.name]) == 5
+            for v, path in enumerate(shards[scene.name]):
+                c = ceiling.variant_ceilings(scene, params, v)
+                table = pq.read_table(path)
+                assert c["a d^2 + b d"] <= c["a d^2 + b d + c"] + 1e-9 <= c["any radial"] + 2e-9
+                if params.metric == "range":
+                    assert c["any radial"] == pytest.approx(100.0)
+                for method, family in [("regression", "a d^2 + b d"), ("regression_signed", "a d^2 + b d"),
+                                       ("regression_intercept", "a d^2 + b d + c")]:
+                    assert np.nanmax(table.column(f"path_{method}").to_numpy()) <= c[family] + 1e-3
+        table = metrics.build_table(shards)
+        expected[params.metric] = [f"{table.value('regression', k):.1f}" for k in ("pos_path", "median_path")]
     done = subprocess.run([sys.executable, str(script), str(out)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
-    rows = [line for line in done.stdout.splitlines() if line.startswith(("| scene_", "| both"))]
-    assert [r.split("|")[1].strip() for r in rows] == ["scene_a", "scene_b", "both"]
-    assert [int(r.split("|")[2]) for r in rows] == [5, 5, 10]
+    rows = [line.split("|") for line in done.stdout.splitlines() if line.startswith("| `")]
+    assert [r[1].strip() for r in rows] == ["`--variants 4 --n-test 120 --horizon-shift 8`",  # euclidean: the default
+                                            "`--variants 4 --n-test 120 --horizon-shift 8 --metric range`"]
+    assert [[r[2].strip(), r[3].strip(), r[4].strip()] for r in rows] == [["10", *expected[m]] for m in ("euclidean", "range")]
+    assert "Highest a d^2 + b d ceiling, all (2 configurations)" in done.stdout
     done = subprocess.run([sys.executable, str(script), str(tmp_path / "absent")], capture_output=True, text=True, timeout=300)
     assert done.returncode == 1 and done.stderr.strip().splitlines() == \
-        [f"{tmp_path / 'absent'}: not a complete study folder ({tmp_path / 'absent'}: not a results directory)"]
+        [f"{tmp_path / 'absent'}: not a complete study or sweep folder ({tmp_path / 'absent'}: not a results directory)"]
