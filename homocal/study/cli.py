@@ -28,8 +28,9 @@ def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
                    help="paper: the paper's protocol (1000 variants, 2000 test points) with the open choices closest "
                         f"to its Table 1 (see README): base error (horizon {PRESETS['paper']['horizon_shift']} px "
                         f"above), site-map scale ({PRESETS['paper']['map_scale']:g} px/m) and descent's largest move "
-                        f"({PRESETS['paper']['descent']['delta_max']:g} px); quick: 50 variants, no base error, the "
-                        "dataset's site map, descent's defaults (default)")
+                        f"({PRESETS['paper']['descent']['delta_max']:g} px), errors as {PRESETS['paper']['metric']} errors; "
+                        "quick: 50 variants, no base error, the dataset's site map, descent's defaults, euclidean "
+                        "errors (default)")
     p.add_argument("--variants", dest="n_variants", type=number(int, 0, MAX_VARIANTS), metavar="N",
                    help="perturbed variants per scene (overrides the preset)", **quiet)
     p.add_argument("--seed", type=typed(int), help="run seed (variants, base errors, descent orders, test subsample; default 0)", **quiet)
