@@ -8,9 +8,11 @@ c(d) = a d^2 + b d, d = ||p - o|| (eqs. (23)-(24)); the signed and intercept for
 (a, b free in sign; + c). Per trapezoid variant this script finds the coefficients that minimise the mean
 test-point error of the study's metric over the test points themselves, an oracle that knows every test
 point's true position, so that no three calibration points can do better on that variant: for every sample
-(variant, triple) the methods' path improvement is at most the variant's ceiling, and the median over the
-study's samples at most the median of the ceilings weighted by the samples per variant. Also the ceiling
-of any radial correction at all (every point moved along its bearing to its true range).
+(variant, triple) the methods' path improvement is at most the variant's ceiling (with range errors: see
+homocal.study.ceiling), and the median over the
+study's samples at most the median of the ceilings weighted by the samples per variant (the lower middle
+value: numpy's median of an even count averages the two). Also the ceiling of any radial correction at all
+(every point moved along its bearing to its true range).
 
 The ceilings are homocal.study.ceiling's (the report states the paper preset's for its first variants).
 
@@ -94,6 +96,8 @@ def main() -> None:
                     rows[name] = row
                     print(f"| `{name}` | {row['variants']} | {row['pos_path']:.1f} | "
                           + " | ".join(f"{row[k]:.1f}" for k in (*RADIAL, *CEILINGS)) + " |", flush=True)
+        except np.linalg.LinAlgError:  # a ValueError, but not the folder's fault
+            raise
         except (ValueError, KeyError, OSError) as e:  # not a study or sweep folder, or one with a file missing
             raise SystemExit(f"{folder}: not a complete study or sweep folder ({e})") from None
     on_rate = {n: r for n, r in rows.items() if abs(r["pos_path"] - PAPER["regression"]["pos_path"]) <= 3.0}

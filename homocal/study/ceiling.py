@@ -8,7 +8,9 @@ that variant's ceiling: no three calibration points can do better, so every samp
 the family is at most it. The mean error after c(theta) = A theta (A_i = [d_i^2, d_i] or [d_i^2, d_i, 1]) is
 sum_i sqrt((t_i + A_i theta)^2 + q_i^2) / N, with t_i = u_i . (p_i - g_i), u_i = (p_i - o)/d_i and q_i the error
 across the bearing (euclidean), or t_i = d_i - ||g_i - o||, q_i = 0 (range): convex in theta, minimised by
-iteratively reweighted least squares (a majorise-minimise scheme: the mean never rises).
+iteratively reweighted least squares (a majorise-minimise scheme: the mean never rises). With range errors
+the study scores | ||g - o|| - |d + c| |, the same while d + c >= 0: there the bound holds for the samples whose
+correction moves no test point past the camera (all but rare catastrophic fits).
 """
 from __future__ import annotations
 
