@@ -10,8 +10,8 @@ test-point error of the study's metric over the test points themselves, an oracl
 point's true position, so that no three calibration points can do better on that variant: for every sample
 (variant, triple) the methods' path improvement is at most the variant's ceiling (with range errors: see
 homocal.study.ceiling), and the median over the
-study's samples at most the median of the ceilings weighted by the samples per variant (the lower middle
-value: numpy's median of an even count averages the two). Also the ceiling of any radial correction at all
+study's samples at most the median of the ceilings weighted by the samples per variant
+(homocal.study.ceiling.weighted_median). Also the ceiling of any radial correction at all
 (every point moved along its bearing to its true range).
 
 The ceilings are homocal.study.ceiling's (the report states the paper preset's for its first variants).
@@ -30,19 +30,12 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from homocal.arguments import number
-from homocal.study.ceiling import CEILINGS, QUADRATIC, variant_ceilings
+from homocal.study.ceiling import CEILINGS, QUADRATIC, variant_ceilings, weighted_median
 from homocal.study.engine import load_scenes
-from homocal.study.inputs import StudyParams, changed_options
+from homocal.study.inputs import StudyParams, options_label
 from homocal.study.metrics import PAPER, load_study, method_stats, shard_files
 
 RADIAL = ("regression", "regression_signed", "regression_intercept")
-DEFAULTS = StudyParams(n_variants=50)  # homocal study's defaults (its quick preset's 50 variants)
-
-
-def weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
-    order = np.argsort(values)
-    cum = np.cumsum(weights[order])
-    return float(values[order][np.searchsorted(cum, 0.5 * cum[-1])])
 
 
 def study_folders(folder: Path) -> list[Path]:
@@ -76,7 +69,7 @@ def configuration_row(folder: Path, most: int | None) -> tuple[str, dict[str, fl
     row = {"variants": len(weights), "pos_path": stats["regression"]["pos_path"]}
     row |= {m: stats[m]["median_path"] for m in RADIAL}
     row |= {k: weighted_median(np.asarray(ceilings[k]), np.asarray(weights, float)) for k in CEILINGS}
-    return " ".join(changed_options(params, DEFAULTS)) or "(defaults)", row
+    return options_label(params), row
 
 
 def main() -> None:

@@ -25,16 +25,10 @@ import math
 from pathlib import Path
 
 from homocal.arguments import number
-from homocal.study.inputs import StudyParams, changed_options
+from homocal.study.inputs import StudyParams, options_label
 from homocal.study.metrics import D_KEYS, D_METHODS, PAPER, build_table, load_study, paper_distance, paper_gap, shard_files
 
 TARGETS = {"pos_path": 3.0, "pos_cal": 2.0}  # the reproduction's rate targets (issue 9), pp from the paper, both methods
-DEFAULTS = StudyParams(n_variants=50)  # homocal study's defaults (its quick preset's 50 variants)
-
-
-def options(params: StudyParams) -> str:
-    """The study options that differ from DEFAULTS, as a command line would give them."""
-    return " ".join(changed_options(params, DEFAULTS)) or "(defaults)"
 
 
 def configurations(folder: Path) -> list[tuple[str, dict, float]]:
@@ -48,14 +42,14 @@ def configurations(folder: Path) -> list[tuple[str, dict, float]]:
         found = []
         for value, numbers in rows.items():
             run = folder / "runs" / f"{sweep['param']}={value}".replace("/", "_")
-            found.append((options(StudyParams.from_dict(load_study(run))), numbers, numbers[("regression", "D")]))
+            found.append((options_label(StudyParams.from_dict(load_study(run))), numbers, numbers[("regression", "D")]))
         return found
     study = load_study(folder)
     if not study.get("complete"):
         raise ValueError("the study is not complete: finish it with homocal study --resume")
     table = build_table(shard_files(folder, study))
     numbers = {(m, k): table.value(m, k) for m in D_METHODS for k in D_KEYS}
-    return [(options(StudyParams.from_dict(study)), numbers, paper_distance(table))]
+    return [(options_label(StudyParams.from_dict(study)), numbers, paper_distance(table))]
 
 
 def gap(numbers: dict, method: str, key: str) -> float:

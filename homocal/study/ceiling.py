@@ -39,15 +39,25 @@ def along_and_across(p: np.ndarray, g: np.ndarray, o: np.ndarray, metric: str) -
 def least_mean_error(A: np.ndarray, t: np.ndarray, q: np.ndarray, tol: float = 1e-12, most: int = 5000) -> float:
     """min over theta of mean(sqrt((t + A theta)^2 + q^2)) (m), A (N, K); IRLS from the least-squares start."""
     theta = np.linalg.lstsq(A, -t, rcond=None)[0]
-    mean = np.sqrt((t + A @ theta) ** 2 + q**2).mean()
+    error = np.sqrt((t + A @ theta) ** 2 + q**2)
+    mean = error.mean()
     for _ in range(most):
-        w = 1.0 / np.maximum(np.sqrt((t + A @ theta) ** 2 + q**2), 1e-12)
+        w = 1.0 / np.maximum(error, 1e-12)
         theta = np.linalg.solve((A * w[:, None]).T @ A, -(A * w[:, None]).T @ t)
-        new = np.sqrt((t + A @ theta) ** 2 + q**2).mean()
+        error = np.sqrt((t + A @ theta) ** 2 + q**2)
+        new = error.mean()
         if mean - new < tol:
             return min(mean, new)
         mean = new
     return mean
+
+
+def weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
+    """The lower weighted median of values (N,) with weights (N,) > 0: the median over samples of per-variant
+    values weighted by the samples per variant (numpy's median of an even count would average two)."""
+    order = np.argsort(values)
+    cum = np.cumsum(weights[order])
+    return float(values[order][np.searchsorted(cum, 0.5 * cum[-1])])
 
 
 def variant_ceilings(scene: StudyScene, params: StudyParams, variant: int) -> dict[str, float]:

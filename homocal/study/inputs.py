@@ -102,6 +102,12 @@ def changed_options(params: StudyParams, base: StudyParams) -> list[str]:
                 else getattr(params, n) != getattr(base, n))]
 
 
+def options_label(params: StudyParams) -> str:
+    """The study options of params that differ from homocal study's defaults (its quick preset, 50 variants), as a
+    command line gives them; "(defaults)" if none."""
+    return " ".join(changed_options(params, StudyParams(n_variants=50))) or "(defaults)"
+
+
 def descent_settings(delta_max: float) -> dict:
     """StudyParams.descent for a largest move delta_max (px): the phase-1 grid on TL and BR spans +/- delta_max / 2
     in 5 steps (the defaults: delta_max 8, grid -4..4 in 2 px steps); phase 2 as by default."""
