@@ -8,7 +8,8 @@ from homocal.arguments import number
 from homocal.dataset import calibration_source
 from homocal.progress import add_progress_option, show_progress
 from homocal.study.engine import PRESETS, dry_run_counts, run_study
-from homocal.study.inputs import MAX_MAP_SCALE, METRICS, StudyParams, descent_settings
+from homocal.study.inputs import MAX_IMAGE_WIDTH, MAX_MAP_SCALE, METRICS, StudyParams, descent_settings
+from homocal.study.perturb import PERTURBATIONS
 
 
 MAX_VARIANTS = 100_000  # 100x the paper's 1000 trapezoid variants per scene (one shard each)
@@ -57,6 +58,15 @@ def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
     p.add_argument("--map-scale", type=typed(per_metre_or_none), metavar="PX_PER_M", **quiet,
                    help="scale of the site map the 0-3 px map-side perturbations are clicked on, px per metre "
                         "(the paper does not give its map's; default: the dataset's site map, 'none')")
+    p.add_argument("--image-width", type=typed(pixels_or_none), metavar="PX", **quiet,
+                   help="width of the camera image (same field of view) the 0-3 px image-side perturbations are "
+                        "clicked on, px (the paper does not give its camera's resolution; default: the dataset's "
+                        "image, 'none'); --horizon-shift, --click-noise and descent's moves stay in the dataset's px")
+    p.add_argument("--perturbation", **({} if sweep else dict(choices=PERTURBATIONS)), **quiet,
+                   help="how the paper's 'perturbation of 0, 1, 2, or 3 pixels ... to a randomly selected subset of 2 "
+                        "to 16 coordinate values' is read: coordinate (each chosen coordinate its own 0-3 px and "
+                        "sign, default), variant (one 0-3 px per variant, each coordinate its own sign) or "
+                        "variant-positive (one 0-3 px per variant, added to every chosen coordinate)")
     p.add_argument("--descent-delta-max", type=typed(float), metavar="PX", **quiet,
                    help="descent: largest move of a trapezoid coordinate, px (default 8; the phase-1 grid spans "
                         "+/- half of it in 5 steps)")
@@ -66,7 +76,7 @@ def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
 def params_from_args(args: argparse.Namespace, **override) -> StudyParams:
     """StudyParams of the preset, then the options given, then override; ValueError naming a bad option."""
     names = ("n_variants", "seed", "foot_source", "n_test", "max_test_distance", "test_lateral_max", "horizon_shift",
-             "click_noise", "metric", "map_scale", "descent_delta_max")
+             "click_noise", "metric", "map_scale", "image_width", "perturbation", "descent_delta_max")
     values = {**PRESETS[args.preset], **{n: getattr(args, n) for n in names if hasattr(args, n)}, **override}
     if str(values.get("horizon_shift")).lower() == "none":  # the hand-placed trapezoid as it is (a preset's shift off)
         values["horizon_shift"] = None
@@ -110,6 +120,7 @@ def positive_or_none(what: str, upper: float = math.inf):
 
 metres_or_none = positive_or_none("a positive number of metres")
 per_metre_or_none = positive_or_none(f"px per metre in (0, {MAX_MAP_SCALE:g}]", MAX_MAP_SCALE)
+pixels_or_none = positive_or_none(f"px in (0, {MAX_IMAGE_WIDTH:g}]", MAX_IMAGE_WIDTH)
 
 
 def point_counts(entry: dict, params: StudyParams) -> str:

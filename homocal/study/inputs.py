@@ -11,11 +11,12 @@ from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.least_change import LeastChangeCorrector
 from homocal.dataset import EXACT, calibration_source, load_dataset
 from homocal.geometry import SiteMap, ViewTransformer
-from homocal.study.perturb import ShiftSpec, base_quad, draw_base_error, draw_variant, perturbed_quads
+from homocal.study.perturb import PERTURBATIONS, ShiftSpec, base_quad, draw_base_error, draw_variant, perturbed_quads
 from homocal.study.triples import distance_features, triples
 
 METRICS = ("euclidean", "range")
 MAX_MAP_SCALE = 1000.0  # px per metre: a 1 mm map pixel
+MAX_IMAGE_WIDTH = 100_000.0  # px: 78x our datasets' 1280
 
 
 @dataclass(frozen=True)
@@ -30,6 +31,13 @@ class StudyParams:
     test_lateral_max: test points at most this many metres to the side of the calibration line x = o_x.
     map_scale: the scale (px per metre) of the site map the paper's 0-3 px map perturbations are clicked on
     (the paper never gives its map's scale); None: the dataset's own site map (10 px/m in our scenes).
+    image_width: the width (px) of the camera image, of the same field of view, the paper's 0-3 px image
+    perturbations are clicked on (the paper never gives its camera's resolution); None: the dataset's own image
+    (1280 px in our scenes). Only those perturbations scale: horizon_shift, click_noise and descent's moves
+    stay in px of the dataset's image.
+    perturbation: how the paper's 0-3 px perturbation of 2-16 coordinates is read (perturb.draw_variant):
+    "coordinate" (each its own size and sign), "variant" (one size per variant, each its own sign) or
+    "variant-positive" (one size per variant, all +).
     """
 
     seed: int = 0
@@ -42,6 +50,8 @@ class StudyParams:
     click_noise: float = 0.0
     metric: str = "euclidean"
     map_scale: float | None = None
+    image_width: float | None = None
+    perturbation: str = "coordinate"
     threshold: float = DEFAULT_THRESHOLD
     descent: dict = field(default_factory=lambda: {  # DescentCorrector's defaults (its seed is keyed per variant)
         k: v for k, v in DescentCorrector().get_params().items() if k != "seed"})
@@ -52,6 +62,8 @@ class StudyParams:
             object.__setattr__(self, "horizon_shift", str(ShiftSpec.parse(self.horizon_shift)))  # one spelling
         grid = tuple(float(x) for x in self.descent["grid_offsets"])
         object.__setattr__(self, "descent", {**self.descent, "grid_offsets": grid})
+        if self.perturbation not in PERTURBATIONS:
+            raise ValueError(f"--perturbation {self.perturbation!r}: expected one of {', '.join(PERTURBATIONS)}")
         if self.metric not in METRICS:
             raise ValueError(f"--metric {self.metric!r}: expected one of {', '.join(METRICS)}")
         if not (isinstance(self.click_noise, (int, float)) and 0 <= self.click_noise <= 100):
@@ -65,13 +77,17 @@ class StudyParams:
         scale = self.map_scale
         if scale is not None and not (isinstance(scale, (int, float)) and 0 < scale <= MAX_MAP_SCALE):
             raise ValueError(f"--map-scale {self.map_scale!r}: expected px per metre in (0, {MAX_MAP_SCALE:g}] or none")
+        width = self.image_width
+        if width is not None and not (isinstance(width, (int, float)) and 0 < width <= MAX_IMAGE_WIDTH):
+            raise ValueError(f"--image-width {width!r}: expected px in (0, {MAX_IMAGE_WIDTH:g}] or none")
 
     def to_dict(self) -> dict:
-        """Every field, JSON-ready (study.json; what --resume compares). map_scale is left out when None, so
-        studies written before it existed keep their study keys and resume."""
+        """Every field, JSON-ready (study.json; what --resume compares). map_scale, image_width and perturbation
+        are left out at their defaults, so studies written before they existed keep their study keys and resume."""
         d = asdict(self)
-        if d["map_scale"] is None:
-            del d["map_scale"]
+        for name, default in (("map_scale", None), ("image_width", None), ("perturbation", "coordinate")):
+            if d[name] == default:
+                del d[name]
         d["descent"]["grid_offsets"] = list(d["descent"]["grid_offsets"])
         return d
 
@@ -83,7 +99,7 @@ class StudyParams:
 
 
 OPTIONS = ("n_variants", "foot_source", "n_test", "max_test_distance", "test_lateral_max", "horizon_shift",
-           "click_noise", "metric", "map_scale", "seed", "descent")  # the StudyParams fields a study option sets
+           "click_noise", "metric", "map_scale", "image_width", "perturbation", "seed", "descent")  # the StudyParams fields a study option sets
 
 
 def option_text(name: str, value) -> str:
@@ -120,7 +136,8 @@ def descent_settings(delta_max: float) -> dict:
 @dataclass
 class StudyScene:
     """A scene's study inputs: hand-placed quads (4, 2), calibration q (M, 2) px, g (M, 2) m, distance (M,) m,
-    test points (N, 2) px and (N, 2) m, camera origin (2,) m, and the triples (S, 3)."""
+    test points (N, 2) px and (N, 2) m, camera origin (2,) m, the triples (S, 3), the intrinsics K (3, 3), the
+    true horizon row (px) and the image width (px; NaN where there is no camera image, as in advise)."""
 
     name: str
     site_map: SiteMap
@@ -135,6 +152,7 @@ class StudyScene:
     triples: np.ndarray
     K: np.ndarray
     true_horizon_row: float
+    image_width: float = float("nan")
     config_hash: str = ""
 
     @functools.cached_property
@@ -143,9 +161,12 @@ class StudyScene:
         return float(ViewTransformer(self.image_quad, self.site_map.to_metres(self.map_quad)).horizon_row(self.K[0, 2]))
 
     def variant_offsets(self, params: StudyParams, variant: int) -> tuple[np.ndarray, int]:
-        """(offsets (16,), n_perturbed) of the variant (perturb.draw_variant), its 8 map offsets converted to px of
-        this scene's site map: drawn in px of a site map of params.map_scale px/m (this one's by default)."""
-        offsets, n = draw_variant(params.seed, self.name, variant)
+        """(offsets (16,), n_perturbed) of the variant (perturb.draw_variant, as params.perturbation reads it) in px of this scene's image and site
+        map: its 8 image offsets drawn in px of an image params.image_width px wide (this one's by default), its 8
+        map offsets in px of a site map of params.map_scale px/m (this one's by default)."""
+        offsets, n = draw_variant(params.seed, self.name, variant, params.perturbation)
+        if params.image_width is not None:
+            offsets[:8] *= self.image_width / params.image_width
         if params.map_scale is not None:
             offsets[8:] *= self.site_map.scale_px_per_m / params.map_scale
         return offsets, n
@@ -182,7 +203,7 @@ class StudyScene:
         return cls(ds.name, ds.site_map, ds.trapezoid_image, ds.trapezoid_map, np.asarray(ds.camera_origin, float),
                    cal_image, cal_ground, distance, test_image, test_ground, triples(len(cal_image)),
                    np.asarray(ds.camera["K"], dtype=np.float64), float(ds.camera["horizon_row"]),
-                   str(ds.manifest.get("config_hash", "")))
+                   float(ds.camera["width"]), str(ds.manifest.get("config_hash", "")))
 
 
 def shift_spec(params: StudyParams) -> ShiftSpec | None:

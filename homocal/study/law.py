@@ -52,15 +52,16 @@ def horizon_shift_law(exact: ViewTransformer, K: np.ndarray, origin: np.ndarray,
 
 
 def perturbation_law(exact: ViewTransformer, map_quad: np.ndarray, site_map, origin: np.ndarray, u: float,
-                     seed: int, scene: str, n_variants: int = 200) -> dict:
-    """Over the study's random corner perturbations (variants 1..n_variants, perturb.draw_variant) of the exact
-    trapezoid alone: the median exponent of |error| against Y, the share of variants whose signed error
-    changes sign between 10 and 44 m (no a Y^2 + b Y without a constant fits those well), and the median
-    relative RMS residual of first_order_error and of eq. (17) against the exact error."""
+                     seed: int, scene: str, n_variants: int = 200, reading: str = "coordinate") -> dict:
+    """Over the study's random corner perturbations (variants 1..n_variants, perturb.draw_variant as `reading`
+    reads the paper's perturbation) of the exact trapezoid alone: the median exponent of |error| against Y,
+    the share of variants whose signed error changes sign between 10 and 44 m (no a Y^2 + b Y without a
+    constant fits those well), and the median relative RMS residual of first_order_error and of eq. (17)
+    against the exact error."""
     model = column_model(exact.m, u)
     exps, sign_changes, res_first, res_17 = [], 0, [], []
     for v in range(1, n_variants + 1):
-        image, mp = perturbed_quads(exact.source, map_quad, draw_variant(seed, scene, v)[0])
+        image, mp = perturbed_quads(exact.source, map_quad, draw_variant(seed, scene, v, reading)[0])
         try:
             other = ViewTransformer(image, site_map.to_metres(mp))
         except ValueError:

@@ -5,7 +5,8 @@ A variant's image trapezoid is built in three steps, each seeded by (run seed, s
      the hand-placed trapezoid as it is, or moved so that its horizon lies a chosen number of pixels above
      the true one (``tilt_shift``: the vertices move as a change of the camera's tilt moves them), and
      Gaussian click noise on the 8 image coordinates (``draw_base_error``, ``base_quad``);
-  2. the paper's perturbation: 2 to 16 of the 16 coordinates moved by 0-3 px (``draw_variant``).
+  2. the paper's perturbation: 2 to 16 of the 16 coordinates moved by 0-3 px (``draw_variant``; how the
+     0-3 px are drawn is a reading of the paper's sentence, ``PERTURBATIONS``).
 """
 from __future__ import annotations
 
@@ -101,17 +102,28 @@ def base_quad(image: np.ndarray, K: np.ndarray, horizon_row: float, true_row: fl
     return moved + noise.reshape(4, 2)
 
 
-def draw_variant(seed: int, scene: str, variant: int) -> tuple[np.ndarray, int]:
+PERTURBATIONS = ("coordinate", "variant", "variant-positive")  # readings of the paper's perturbation (draw_variant)
+
+
+def draw_variant(seed: int, scene: str, variant: int, reading: str = "coordinate") -> tuple[np.ndarray, int]:
     """(offsets (16,) float64 px, n_perturbed) of one variant: no offsets for variant 0 (the hand-placed
-    trapezoid); otherwise a random subset of n_perturbed = 2..16 of the 16 coordinates, each moved by 0, 1, 2
-    or 3 px with a random sign, drawn from np.random.default_rng(seed_from_key(seed, scene, variant))."""
+    trapezoid); otherwise a random subset of n_perturbed = 2..16 of the 16 coordinates, drawn from
+    np.random.default_rng(seed_from_key(seed, scene, variant)), moved as the paper's "a random perturbation of
+    0, 1, 2, or 3 pixels was applied to a randomly selected subset of 2 to 16 coordinate values" reads:
+      "coordinate": each chosen coordinate by its own 0, 1, 2 or 3 px with its own random sign (the default);
+      "variant": every chosen coordinate by the variant's one 0, 1, 2 or 3 px, each with its own random sign;
+      "variant-positive": every chosen coordinate by + the variant's one 0, 1, 2 or 3 px.
+    """
+    if reading not in PERTURBATIONS:
+        raise ValueError(f"--perturbation {reading!r}: expected one of {', '.join(PERTURBATIONS)}")
     offsets = np.zeros(N_COORDS)
     if variant == 0:
         return offsets, 0
     rng = np.random.default_rng(seed_from_key(seed, scene, variant))
     n = int(rng.integers(2, N_COORDS + 1))
     chosen = rng.choice(N_COORDS, size=n, replace=False)
-    offsets[chosen] = rng.integers(0, MAX_PIXELS + 1, size=n) * rng.choice([-1.0, 1.0], size=n)
+    size = rng.integers(0, MAX_PIXELS + 1, size=1 if reading != "coordinate" else n)
+    offsets[chosen] = size * (1.0 if reading == "variant-positive" else rng.choice([-1.0, 1.0], size=n))
     return offsets, n
 
 

@@ -106,8 +106,10 @@ def config_label(study: dict) -> str:
     params = StudyParams.from_dict(study)
     parts = ["hand-placed trapezoid as it is" if params.horizon_shift is None else option_text("horizon_shift", params.horizon_shift),
              option_text("click_noise", params.click_noise), option_text("metric", params.metric)]
-    parts += [option_text(name, getattr(params, name)) for name in ("test_lateral_max", "map_scale")
+    parts += [option_text(name, getattr(params, name)) for name in ("test_lateral_max", "map_scale", "image_width")
               if getattr(params, name) is not None]
+    if params.perturbation != StudyParams().perturbation:
+        parts.append(option_text("perturbation", params.perturbation))
     if params.descent["delta_max"] != StudyParams().descent["delta_max"]:
         parts.append(option_text("descent", params.descent))
     return f"preset {study.get('preset')}, {study.get('n_variants')} variants: " + " ".join(parts)
@@ -181,7 +183,8 @@ def gap_facts(study: dict) -> list[str]:
         facts.append(f"{ds.name}: the hand-placed trapezoid's horizon lies {rows[0] - rows[1]:+.2f} px above the exact one's "
                      f"(negative: below; the mapping then overestimates range), and {base}; {100 * near:.1f} % of its "
                      f"{len(ground)} test points are within 2 m of the calibration line (the calibration objects stand on it); "
-                     f"the map perturbations are px of {_map_scale_words(study, ds.site_map.scale_px_per_m)}.")
+                     f"the map perturbations are px of {_map_scale_words(study, ds.site_map.scale_px_per_m)}; "
+                     f"the image perturbations are px of {_image_width_words(study, float(ds.camera['width']))}.")
     return facts
 
 
@@ -212,6 +215,15 @@ def _map_scale_words(study: dict, own: float) -> str:
     return f"{which}, up to {MAX_PIXELS / (scale or own):.2f} m"
 
 
+def _image_width_words(study: dict, own: float) -> str:
+    """Which camera image the study's 0-3 px image perturbations are in, and their largest size in its own px."""
+    width = study.get("image_width")
+    if width is None:
+        return f"its own {own:g} px wide image"
+    return (f"a {width:g} px wide image of the same field of view (--image-width; its own is {own:g} px wide), "
+            f"up to {MAX_PIXELS * own / width:.2f} px of its own")
+
+
 def law_html(results_dir: Path, study: dict) -> list[str]:
     """The quadratic law (paper Section 3) measured on each dataset's exact trapezoid (study.law)."""
     e = html.escape
@@ -237,7 +249,7 @@ def law_html(results_dir: Path, study: dict) -> list[str]:
             ["horizon shift (px)", "exponent vs Y", "exponent vs Y - Offset", "error at 44 m (m)", "first order (m)", "eq. (17) (m)"],
             shift_rows, numeric=True)]
         law = perturbation_law(vt, np.asarray(exact["map"], float), ds.site_map, ds.camera_origin, K[0, 2],
-                               study.get("seed", 0), ds.name)
+                               study.get("seed", 0), ds.name, reading=study.get("perturbation", "coordinate"))
         parts.append(f"<p>Random corner perturbations ({law['variants']} variants of the study's perturbation model on the "
                      f"exact trapezoid): median exponent {law['median_exponent']:.2f}; the signed error changes sign "
                      f"between 10 and 44 m in {100 * law['sign_change_share']:.0f} % of variants; median relative RMS "

@@ -29,7 +29,7 @@ from homocal.study.metrics import D_KEYS, METHODS, METRICS, PAPER, build_table, 
 
 FORMAT = "homocal-sweep"  # sweep.json's "format": marks a sweep folder (homocal.files.output_folder)
 SWEEPABLE = ("horizon_shift", "click_noise", "test_lateral_max", "max_test_distance", "metric", "seed", "descent_delta_max",
-             "map_scale")
+             "map_scale", "image_width", "perturbation")
 CSV_KEYS = ("n", *D_KEYS, "median_cal", "iqr_cal", "std_cal")
 
 
@@ -124,7 +124,7 @@ def sweep_figure(rows: list[dict], param: str) -> Figure:
                 break
         ax.set_title("D to the paper's Table 1 (pp)" if key == "D" else METRICS[key][0], fontsize=9)
         unit = {"horizon_shift": " (px)", "click_noise": " (px)", "descent_delta_max": " (px)",
-                "map_scale": " (px/m)"}.get(param, "")
+                "map_scale": " (px/m)", "image_width": " (px)"}.get(param, "")
         ax.set_xlabel(param.replace("_", " ") + unit, fontsize=8)
         if labels is not None:
             ax.set_xticks(x, labels, rotation=30, fontsize=7)
@@ -138,11 +138,11 @@ def sweep_figure(rows: list[dict], param: str) -> Figure:
 
 def _typed(param: str, value: str):
     """A swept value as StudyParams takes it."""
-    if param in ("horizon_shift", "metric"):
+    if param in ("horizon_shift", "metric", "perturbation"):
         return value
     if param == "seed":
         return int(value)
-    if param in ("test_lateral_max", "max_test_distance", "map_scale") and value.lower() == "none":
+    if param in ("test_lateral_max", "max_test_distance", "map_scale", "image_width") and value.lower() == "none":
         return None
     try:
         return float(value)

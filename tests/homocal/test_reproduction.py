@@ -245,7 +245,55 @@ def test_report_says_how_large_the_map_perturbations_are(datasets, map_scale, wo
     """The report's 'Measured' list: 3 px of the map the perturbations are in, in metres (3 / 10, 3 / 2.5)."""
     study = {**StudyParams(n_test=50, map_scale=map_scale).to_dict(), "datasets": [{"path": datasets[0]}]}
     (fact,) = gap_facts(study)
-    assert fact.endswith(f"the map perturbations are px of {words}.")
+    assert f"the map perturbations are px of {words}; " in fact
+
+
+@pytest.mark.parametrize("image_width", [640.0, 1920.0, 3840.0])
+def test_image_width_sets_the_size_of_the_image_perturbations(datasets, image_width):
+    """--image-width W: the 0-3 px image offsets are px of a W px wide image of the same field of view, so each
+    image vertex of a variant moves |offset| x 1280 / W px of the dataset's 1280 px wide image from the base one;
+    the map quad, the horizon shift's base quad and the variants table's map offsets are untouched."""
+    scene = StudyScene.from_dataset(datasets[0], StudyParams(n_test=50))
+    assert scene.image_width == 1280.0
+    drawn, _ = draw_variant(0, scene.name, 5)
+    assert drawn[:8].any()
+    for shift in (None, "6"):
+        plain, wide = StudyParams(horizon_shift=shift), StudyParams(horizon_shift=shift, image_width=image_width)
+        base = scene.base_image_quad(wide, 5)
+        assert (base == scene.base_image_quad(plain, 5)).all()
+        image, map_quad = scene.variant_quads(wide, 5)
+        assert np.abs(image - base).ravel() == pytest.approx(np.abs(drawn[:8]) * 1280.0 / image_width, abs=1e-12)
+        assert (map_quad == scene.variant_quads(plain, 5)[1]).all()
+    own = StudyParams(image_width=1280.0)
+    assert np.allclose(scene.variant_quads(own, 5)[0], scene.variant_quads(StudyParams(), 5)[0], rtol=0, atol=1e-12)
+
+
+def test_image_width_is_recorded_and_said(datasets):
+    """image_width is in study.json when set and left out at None (earlier studies keep their keys); the
+    report's label names it and its 'Measured' list says how large 3 px of that image is in the dataset's px."""
+    assert "image_width" not in StudyParams().to_dict()
+    params = StudyParams(image_width=2560.0)
+    assert params.to_dict()["image_width"] == 2560.0
+    assert StudyParams.from_dict(json.loads(json.dumps(params.to_dict()))) == params
+    assert _typed("image_width", "none") is None and _typed("image_width", "1920") == 1920.0
+    assert config_label({"preset": "quick", "n_variants": 50, **params.to_dict()}).endswith("--image-width 2560")
+    (fact,) = gap_facts({**StudyParams(n_test=50, image_width=2560.0).to_dict(), "datasets": [{"path": datasets[0]}]})
+    assert fact.endswith("the image perturbations are px of a 2560 px wide image of the same field of view "
+                         "(--image-width; its own is 1280 px wide), up to 1.50 px of its own.")
+    (fact,) = gap_facts({**StudyParams(n_test=50).to_dict(), "datasets": [{"path": datasets[0]}]})
+    assert fact.endswith("the image perturbations are px of its own 1280 px wide image.")
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "nan", "inf", "1e6", "wide"])
+def test_image_width_bad_values_are_one_line(datasets, tmp_path, capsys, value):
+    """A bad --image-width (zero, negative, NaN, infinite, past 100000 px, not a number) is refused before any
+    run, one line naming the flag, exit 2, for study and sweep alike; nothing is written."""
+    for command, values in (("study", value), ("sweep", f"1920,{value}")):
+        out = tmp_path / command
+        assert exit_code([command, *datasets, "-o", str(out), "--variants", "1", "--n-test", "20", "--image-width", values]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--image-width" in err[0], err
+        assert not out.exists()
 
 
 def test_params_round_trip_and_resume_compares_every_field(datasets, tmp_path, capsys):
@@ -440,3 +488,55 @@ def test_radial_ceiling_bounds_every_sample_of_a_study(datasets, tmp_path):
     for variants in ("0", "-1", "ten", "nan", ""):
         done = subprocess.run([sys.executable, str(script), str(out), "--variants", variants], capture_output=True, text=True, timeout=300)
         assert done.returncode == 2 and done.stderr.strip().splitlines()[-1].startswith("radial_ceiling.py: error: argument --variants")
+
+
+def test_perturbation_readings_draw_what_they_say():
+    """The three readings of the paper's "a random perturbation of 0, 1, 2, or 3 pixels ... to a randomly selected
+    subset of 2 to 16 coordinate values", over 400 variants: the same number of chosen coordinates in each
+    reading; "coordinate" (the default, unchanged) gives each its own size and sign, "variant" one size per variant with
+    signs of both kinds, "variant-positive" one size added to every chosen coordinate; each size 0-3 px comes up
+    in about a quarter of the variants of the one-size readings (binomial, 400 draws: within 0.25 +- 0.08)."""
+    sizes = {"variant": [], "variant-positive": []}
+    mixed_sizes = mixed_signs = 0
+    for v in range(1, 401):
+        default, n = draw_variant(5, "scene1", v)
+        coordinate, n_c = draw_variant(5, "scene1", v, "coordinate")
+        assert (default == coordinate).all() and n == n_c
+        mixed_sizes += len(set(np.abs(default[default != 0]))) > 1
+        for reading in sizes:
+            offsets, n_r = draw_variant(5, "scene1", v, reading)
+            assert n_r == n and np.count_nonzero(offsets) in (0, n)  # one size for all n chosen coordinates
+            size = set(np.abs(offsets[offsets != 0]))
+            assert len(size) <= 1 and size <= {1.0, 2.0, 3.0}
+            sizes[reading].append(size.pop() if size else 0.0)
+            if reading == "variant-positive":
+                assert (offsets >= 0).all()
+            else:
+                mixed_signs += (offsets > 0).any() and (offsets < 0).any()
+    assert mixed_sizes > 300 and mixed_signs > 250
+    for reading, drawn in sizes.items():
+        share = np.bincount(np.array(drawn, dtype=int), minlength=4) / len(drawn)
+        assert np.all(np.abs(share - 0.25) < 0.08), (reading, share)
+    with pytest.raises(ValueError, match="--perturbation 'each'"):
+        draw_variant(5, "scene1", 1, "each")
+
+
+def test_perturbation_is_recorded_said_and_checked(datasets, tmp_path, capsys):
+    """perturbation is in study.json when not the default (left out at "coordinate", so earlier studies resume),
+    named in the report's label, swept as text; a bad reading is one line, exit 2, for study and sweep."""
+    assert "perturbation" not in StudyParams().to_dict()
+    params = StudyParams(perturbation="variant-positive")
+    assert params.to_dict()["perturbation"] == "variant-positive"
+    assert StudyParams.from_dict(json.loads(json.dumps(params.to_dict()))) == params
+    assert _typed("perturbation", "variant") == "variant"
+    assert config_label({"preset": "quick", "n_variants": 50, **params.to_dict()}).endswith("--perturbation variant-positive")
+    scene = StudyScene.from_dataset(datasets[0], StudyParams(n_test=50))
+    offsets, _ = scene.variant_offsets(StudyParams(perturbation="variant-positive", map_scale=2.5), 7)
+    drawn, _ = draw_variant(0, scene.name, 7, "variant-positive")
+    assert (offsets[:8] == drawn[:8]).all() and (offsets[8:] == drawn[8:] * 4).all()  # map px of 10 px/m from 2.5 px/m
+    for command, values in (("study", "each"), ("sweep", "variant,each")):
+        out = tmp_path / command
+        assert exit_code([command, *datasets, "-o", str(out), "--variants", "1", "--n-test", "20", "--perturbation", values]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--perturbation" in err[0] and "each" in err[0], err
+        assert not out.exists()
