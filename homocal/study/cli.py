@@ -28,7 +28,8 @@ def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
     p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
                    help="paper: the paper's protocol (1000 variants, 2000 test points) with the open choices closest "
                         f"to its Table 1 (see README): base error (horizon {PRESETS['paper']['horizon_shift']} px "
-                        f"above), site-map scale ({PRESETS['paper']['map_scale']:g} px/m) and descent's largest move "
+                        f"above), the perturbation read as {PRESETS['paper']['perturbation']}, site-map scale "
+                        f"({PRESETS['paper']['map_scale']:g} px/m) and descent's largest move "
                         f"({PRESETS['paper']['descent']['delta_max']:g} px), errors as {PRESETS['paper']['metric']} errors; "
                         "quick: 50 variants, no base error, the dataset's site map, descent's defaults, euclidean "
                         "errors (default)")

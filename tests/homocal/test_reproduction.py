@@ -140,23 +140,25 @@ def test_bad_study_options_are_one_clear_error(datasets, tmp_path, capsys, args,
 
 
 def test_paper_preset_and_the_options_over_it(datasets, tmp_path, capsys):
-    """--preset paper writes the README's configuration to study.json (horizon 15 px, 2.5 px/m, descent's
-    largest move 16 px with its phase-1 grid +/- 8 px, range errors); an option given overrides the preset's, and
-    --horizon-shift none turns its base error off."""
+    """--preset paper writes the README's configuration to study.json (horizon 16 px, the variant-positive
+    perturbation, 1.5 px/m, descent's largest move 16 px with its phase-1 grid +/- 8 px, range errors); an option
+    given overrides the preset's, and --horizon-shift none turns its base error off."""
     def written(*args):
         out = tmp_path / f"s{len(list(tmp_path.iterdir()))}"
         assert main(["study", *datasets, "-o", str(out), "--preset", "paper", "--variants", "1", "--n-test", "20",
                      "--no-progress", *args]) == 0
         return json.loads((out / "study.json").read_text())
     study = written()
-    assert (study["horizon_shift"], study["map_scale"], study["n_test"], study["metric"]) == ("15", 2.5, 20, "range")
+    assert (study["horizon_shift"], study["map_scale"], study["n_test"], study["metric"]) == ("16", 1.5, 20, "range")
+    assert study["perturbation"] == "variant-positive"
     assert study["descent"]["delta_max"] == 16.0 and study["descent"]["grid_offsets"] == [-8.0, -4.0, 0.0, 4.0, 8.0]
     assert {k: v for k, v in study["descent"].items() if k not in ("delta_max", "grid_offsets")} == \
         {k: v for k, v in StudyParams().descent.items() if k not in ("delta_max", "grid_offsets")}
-    over = written("--descent-delta-max", "8", "--horizon-shift", "none", "--map-scale", "none", "--metric", "euclidean")
+    over = written("--descent-delta-max", "8", "--horizon-shift", "none", "--map-scale", "none", "--metric", "euclidean",
+                   "--perturbation", "coordinate")
     assert over["descent"] == StudyParams().to_dict()["descent"] and over["horizon_shift"] is None
     assert over["metric"] == "euclidean"
-    assert "map_scale" not in over
+    assert "map_scale" not in over and "perturbation" not in over
     capsys.readouterr()
 
 
