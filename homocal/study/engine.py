@@ -34,10 +34,10 @@ from homocal.study.triples import n_samples
 # paper: the paper's protocol (1000 variants, 2000 test points) with the open choices closest to its Table 1 found
 # by `homocal sweep` (README, "Reproducing Table 1"): the clicked trapezoid's horizon 16 px above the true one, the
 # paper's perturbation read as one 0-3 px size per variant added to every chosen coordinate, the map perturbations
-# in px of a 1.5 px/m site map, descent's largest move (the paper's delta_max) 16 px, and the improvements of
+# in px of a 1.5 px/m site map, descent's largest move (the paper's delta_max) 18 px, and the improvements of
 # range errors (the paper's "distance estimation error")
 PRESETS = {"paper": dict(n_variants=1000, n_test=2000, horizon_shift="16", perturbation="variant-positive", map_scale=1.5,
-                        descent=descent_settings(16.0), metric="range"),
+                        descent=descent_settings(18.0), metric="range"),
            "quick": dict(n_variants=50, n_test=2000)}
 GROUP = 8  # variants per Dask task
 FORMAT = "homocal-study"  # study.json's "format": marks a results directory as homocal study's (homocal.files.output_folder)

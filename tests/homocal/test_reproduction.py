@@ -141,7 +141,7 @@ def test_bad_study_options_are_one_clear_error(datasets, tmp_path, capsys, args,
 
 def test_paper_preset_and_the_options_over_it(datasets, tmp_path, capsys):
     """--preset paper writes the README's configuration to study.json (horizon 16 px, the variant-positive
-    perturbation, 1.5 px/m, descent's largest move 16 px with its phase-1 grid +/- 8 px, range errors); an option
+    perturbation, 1.5 px/m, descent's largest move 18 px with its phase-1 grid +/- 9 px, range errors); an option
     given overrides the preset's, and --horizon-shift none turns its base error off."""
     def written(*args):
         out = tmp_path / f"s{len(list(tmp_path.iterdir()))}"
@@ -151,7 +151,7 @@ def test_paper_preset_and_the_options_over_it(datasets, tmp_path, capsys):
     study = written()
     assert (study["horizon_shift"], study["map_scale"], study["n_test"], study["metric"]) == ("16", 1.5, 20, "range")
     assert study["perturbation"] == "variant-positive"
-    assert study["descent"]["delta_max"] == 16.0 and study["descent"]["grid_offsets"] == [-8.0, -4.0, 0.0, 4.0, 8.0]
+    assert study["descent"]["delta_max"] == 18.0 and study["descent"]["grid_offsets"] == [-9.0, -4.5, 0.0, 4.5, 9.0]
     assert {k: v for k, v in study["descent"].items() if k not in ("delta_max", "grid_offsets")} == \
         {k: v for k, v in StudyParams().descent.items() if k not in ("delta_max", "grid_offsets")}
     over = written("--descent-delta-max", "8", "--horizon-shift", "none", "--map-scale", "none", "--metric", "euclidean",
@@ -542,3 +542,33 @@ def test_perturbation_is_recorded_said_and_checked(datasets, tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "--perturbation" in err[0] and "each" in err[0], err
         assert not out.exists()
+
+
+def test_perturbation_spread_measures_each_reading(datasets):
+    """benchmarks/perturbation_spread.py: one row per scene and reading; its share of unperturbed variants counted
+    from draw_variant here, and its horizon spread against the horizon row computed here from OpenCV's homography
+    of each variant's quads (the row where its denominator h31 u + h32 v + h33 vanishes); a bad option is one line."""
+    import cv2
+    script = Path(__file__).parents[2] / "benchmarks" / "perturbation_spread.py"
+    done = subprocess.run([sys.executable, str(script), datasets[0], "--variants", "40", "--n-test", "50",
+                           "--horizon-shift", "6", "--map-scale", "2.5"], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    rows = {tuple(c.strip() for c in line.split("|")[1:3]): [c.strip() for c in line.split("|")[3:-1]]
+            for line in done.stdout.splitlines() if line.startswith("| scene_a")}
+    scene = StudyScene.from_dataset(datasets[0], StudyParams(n_test=50))
+    u = scene.K[0, 2]
+
+    def horizon(params, v):
+        image, map_quad = scene.variant_quads(params, v)
+        H = cv2.getPerspectiveTransform(image.astype(np.float32), scene.site_map.to_metres(map_quad).astype(np.float32))
+        return -(H[2, 0] * u + H[2, 2]) / H[2, 1]
+    assert set(rows) == {("scene_a", r) for r in ("coordinate", "variant", "variant-positive")}
+    for reading in ("coordinate", "variant", "variant-positive"):
+        params = StudyParams(n_test=50, horizon_shift="6", map_scale=2.5, perturbation=reading)
+        zero = sum(not draw_variant(0, scene.name, v, reading)[0].any() for v in range(1, 41))
+        variants, sd_px, _, _, share = rows[("scene_a", reading)]
+        assert int(variants) == 40 and share == f"{100 * zero / 40:.1f} %"
+        moves = [horizon(params, 0) - horizon(params, v) for v in range(1, 41)]
+        assert float(sd_px) == pytest.approx(np.std(moves), abs=0.02)
+    bad = subprocess.run([sys.executable, str(script), datasets[0], "--variants", "1"], capture_output=True, text=True, timeout=300)
+    assert bad.returncode == 1 and bad.stderr.strip() == "perturbation_spread.py: --variants must be at least 2 (a spread needs two variants)"
