@@ -29,25 +29,23 @@ RANGE_M = 44.0  # the farthest calibration distance of scene1 (the paper's 5-44 
 
 def spread(scene: StudyScene, params, variants: int) -> dict[str, float]:
     """{horizon_sd_px, range_sd_m, range_mean_m, unperturbed, variants} of one scene's variants 1..variants."""
-    base = ViewTransformer(*_quads(scene, params, 0))
+    base_image, base_map = scene.variant_quads(params, 0)
+    base = ViewTransformer(base_image, scene.site_map.to_metres(base_map))
     u = scene.K[0, 2]
+    base_row = base.horizon_row(u)
     q = base.inverse_transform_points(scene.origin + np.array([[0.0, RANGE_M]]))
     rows, ranges, unperturbed = [], [], 0
     for v in range(1, variants + 1):
-        unperturbed += not scene.variant_offsets(params, v)[0].any()
+        image, map_quad = scene.variant_quads(params, v)
+        unperturbed += bool((image == base_image).all() and (map_quad == base_map).all())
         try:
-            other = ViewTransformer(*_quads(scene, params, v))
+            other = ViewTransformer(image, scene.site_map.to_metres(map_quad))
         except ValueError:  # a degenerate variant (the study leaves it out too)
             continue
-        rows.append(base.horizon_row(u) - other.horizon_row(u))
+        rows.append(base_row - other.horizon_row(u))
         ranges.append(np.linalg.norm(other.transform_points(q)[0] - scene.origin) - RANGE_M)
     return {"horizon_sd_px": float(np.std(rows)), "range_sd_m": float(np.std(ranges)),
             "range_mean_m": float(np.mean(ranges)), "unperturbed": unperturbed / variants, "variants": len(rows)}
-
-
-def _quads(scene: StudyScene, params, variant: int):
-    image, map_quad = scene.variant_quads(params, variant)
-    return image, scene.site_map.to_metres(map_quad)
 
 
 def main() -> None:

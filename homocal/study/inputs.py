@@ -11,7 +11,7 @@ from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.least_change import LeastChangeCorrector
 from homocal.dataset import EXACT, calibration_source, load_dataset
 from homocal.geometry import SiteMap, ViewTransformer
-from homocal.study.perturb import PERTURBATIONS, ShiftSpec, base_quad, draw_base_error, draw_variant, perturbed_quads
+from homocal.study.perturb import ShiftSpec, base_quad, check_reading, draw_base_error, draw_variant, perturbed_quads
 from homocal.study.triples import distance_features, triples
 
 METRICS = ("euclidean", "range")
@@ -62,8 +62,7 @@ class StudyParams:
             object.__setattr__(self, "horizon_shift", str(ShiftSpec.parse(self.horizon_shift)))  # one spelling
         grid = tuple(float(x) for x in self.descent["grid_offsets"])
         object.__setattr__(self, "descent", {**self.descent, "grid_offsets": grid})
-        if self.perturbation not in PERTURBATIONS:
-            raise ValueError(f"--perturbation {self.perturbation!r}: expected one of {', '.join(PERTURBATIONS)}")
+        check_reading(self.perturbation)
         if self.metric not in METRICS:
             raise ValueError(f"--metric {self.metric!r}: expected one of {', '.join(METRICS)}")
         if not (isinstance(self.click_noise, (int, float)) and 0 <= self.click_noise <= 100):
@@ -85,8 +84,9 @@ class StudyParams:
         """Every field, JSON-ready (study.json; what --resume compares). map_scale, image_width and perturbation
         are left out at their defaults, so studies written before they existed keep their study keys and resume."""
         d = asdict(self)
-        for name, default in (("map_scale", None), ("image_width", None), ("perturbation", "coordinate")):
-            if d[name] == default:
+        defaults = {f.name: f.default for f in fields(self)}
+        for name in ("map_scale", "image_width", "perturbation"):
+            if d[name] == defaults[name]:
                 del d[name]
         d["descent"]["grid_offsets"] = list(d["descent"]["grid_offsets"])
         return d
@@ -111,11 +111,12 @@ def option_text(name: str, value) -> str:
     return f"{flag} {'none' if value is None else f'{value:g}' if isinstance(value, (int, float)) else value}"
 
 
-def changed_options(params: StudyParams, base: StudyParams) -> list[str]:
-    """The study options (OPTIONS, as option_text) whose values in params differ from base's."""
+def changed_options(params: StudyParams, base: StudyParams, names: tuple[str, ...] = OPTIONS) -> list[str]:
+    """The study options among names (OPTIONS by default, in its order; as option_text) whose values in params
+    differ from base's."""
     return [option_text(n, getattr(params, n)) for n in OPTIONS
-            if (getattr(params, n)["delta_max"] != getattr(base, n)["delta_max"] if n == "descent"
-                else getattr(params, n) != getattr(base, n))]
+            if n in names and (getattr(params, n)["delta_max"] != getattr(base, n)["delta_max"] if n == "descent"
+                               else getattr(params, n) != getattr(base, n))]
 
 
 def options_label(params: StudyParams) -> str:
@@ -161,9 +162,10 @@ class StudyScene:
         return float(ViewTransformer(self.image_quad, self.site_map.to_metres(self.map_quad)).horizon_row(self.K[0, 2]))
 
     def variant_offsets(self, params: StudyParams, variant: int) -> tuple[np.ndarray, int]:
-        """(offsets (16,), n_perturbed) of the variant (perturb.draw_variant, as params.perturbation reads it) in px of this scene's image and site
-        map: its 8 image offsets drawn in px of an image params.image_width px wide (this one's by default), its 8
-        map offsets in px of a site map of params.map_scale px/m (this one's by default)."""
+        """(offsets (16,), n_perturbed) of the variant (perturb.draw_variant, as params.perturbation reads it) in px
+        of this scene's image and site map: its 8 image offsets drawn in px of an image params.image_width px wide
+        (this one's by default), its 8 map offsets in px of a site map of params.map_scale px/m (this one's by
+        default)."""
         offsets, n = draw_variant(params.seed, self.name, variant, params.perturbation)
         if params.image_width is not None:
             offsets[:8] *= self.image_width / params.image_width

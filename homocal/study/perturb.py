@@ -105,6 +105,13 @@ def base_quad(image: np.ndarray, K: np.ndarray, horizon_row: float, true_row: fl
 PERTURBATIONS = ("coordinate", "variant", "variant-positive")  # readings of the paper's perturbation (draw_variant)
 
 
+def check_reading(reading: str) -> str:
+    """reading if it is one of PERTURBATIONS; else a ValueError naming the --perturbation option."""
+    if reading not in PERTURBATIONS:
+        raise ValueError(f"--perturbation {reading!r}: expected one of {', '.join(PERTURBATIONS)}")
+    return reading
+
+
 def draw_variant(seed: int, scene: str, variant: int, reading: str = "coordinate") -> tuple[np.ndarray, int]:
     """(offsets (16,) float64 px, n_perturbed) of one variant: no offsets for variant 0 (the hand-placed
     trapezoid); otherwise a random subset of n_perturbed = 2..16 of the 16 coordinates, drawn from
@@ -114,8 +121,7 @@ def draw_variant(seed: int, scene: str, variant: int, reading: str = "coordinate
       "variant": every chosen coordinate by the variant's one 0, 1, 2 or 3 px, each with its own random sign;
       "variant-positive": every chosen coordinate by + the variant's one 0, 1, 2 or 3 px.
     """
-    if reading not in PERTURBATIONS:
-        raise ValueError(f"--perturbation {reading!r}: expected one of {', '.join(PERTURBATIONS)}")
+    check_reading(reading)
     offsets = np.zeros(N_COORDS)
     if variant == 0:
         return offsets, 0

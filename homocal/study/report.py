@@ -24,7 +24,7 @@ from homocal.study.figures import FigureFile, figure_names, make_figures
 from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer
 from homocal.study.ceiling import QUADRATIC, variant_ceilings, weighted_median
-from homocal.study.inputs import StudyParams, StudyScene, option_text
+from homocal.study.inputs import OPTIONS, StudyParams, StudyScene, changed_options, option_text
 from homocal.study.law import horizon_shift_law, perturbation_law
 from homocal.study.metrics import (D_KEYS, D_METHODS, METRICS, PAPER, Table, build_table, load_study, paper_distance,
                                    table_cells, to_csv, to_markdown, to_text, verified_shard_files)
@@ -102,16 +102,13 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None, com
 
 
 def config_label(study: dict) -> str:
-    """The base-error configuration of a study, in its options' words."""
+    """A study's configuration in its options' words: its base error, click noise and metric always, then every
+    other study option that differs from homocal study's defaults (inputs.changed_options)."""
     params = StudyParams.from_dict(study)
     parts = ["hand-placed trapezoid as it is" if params.horizon_shift is None else option_text("horizon_shift", params.horizon_shift),
              option_text("click_noise", params.click_noise), option_text("metric", params.metric)]
-    parts += [option_text(name, getattr(params, name)) for name in ("test_lateral_max", "map_scale", "image_width")
-              if getattr(params, name) is not None]
-    if params.perturbation != StudyParams().perturbation:
-        parts.append(option_text("perturbation", params.perturbation))
-    if params.descent["delta_max"] != StudyParams().descent["delta_max"]:
-        parts.append(option_text("descent", params.descent))
+    rest = tuple(n for n in OPTIONS if n not in ("n_variants", "horizon_shift", "click_noise", "metric"))
+    parts += changed_options(params, StudyParams(), rest)  # the other options, where they differ from the defaults
     return f"preset {study.get('preset')}, {study.get('n_variants')} variants: " + " ".join(parts)
 
 

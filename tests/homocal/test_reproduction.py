@@ -570,5 +570,30 @@ def test_perturbation_spread_measures_each_reading(datasets):
         assert int(variants) == 40 and share == f"{100 * zero / 40:.1f} %"
         moves = [horizon(params, 0) - horizon(params, v) for v in range(1, 41)]
         assert float(sd_px) == pytest.approx(np.std(moves), abs=0.02)
-    bad = subprocess.run([sys.executable, str(script), datasets[0], "--variants", "1"], capture_output=True, text=True, timeout=300)
-    assert bad.returncode == 1 and bad.stderr.strip() == "perturbation_spread.py: --variants must be at least 2 (a spread needs two variants)"
+
+
+
+@pytest.mark.parametrize("args, code, message", [
+    (["--variants", "1"], 1, "perturbation_spread.py: --variants must be at least 2 (a spread needs two variants)"),
+    (["--variants", "0"], 1, "perturbation_spread.py: --variants must be at least 2"),
+    (["--image-width", "0"], 2, "argument --image-width: must be px in (0, 100000] or 'none', got 0"),
+    (["--map-scale", "nan"], 2, "argument --map-scale"),
+    (["--perturbation", "each"], 2, "argument --perturbation: invalid choice: 'each'"),
+    (["--horizon-shift", "normal:1"], 1, "perturbation_spread.py: "),
+])
+def test_perturbation_spread_bad_inputs_are_one_line(datasets, args, code, message):
+    """benchmarks/perturbation_spread.py's bad inputs: each one line on stderr naming the problem, its exit code."""
+    script = Path(__file__).parents[2] / "benchmarks" / "perturbation_spread.py"
+    bad = subprocess.run([sys.executable, str(script), datasets[0], *args], capture_output=True, text=True, timeout=300)
+    last = bad.stderr.strip().splitlines()[-1]
+    assert bad.returncode == code and message in last and bad.stdout == "", bad.stderr
+
+
+@pytest.mark.parametrize("folder", ["missing", "empty"])
+def test_perturbation_spread_refuses_a_folder_that_is_not_a_dataset(tmp_path, folder):
+    script = Path(__file__).parents[2] / "benchmarks" / "perturbation_spread.py"
+    path = tmp_path / folder
+    if folder == "empty":
+        path.mkdir()
+    bad = subprocess.run([sys.executable, str(script), str(path)], capture_output=True, text=True, timeout=300)
+    assert bad.returncode == 1 and bad.stderr.strip().startswith(f"perturbation_spread.py: {path}"), bad.stderr
