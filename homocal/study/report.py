@@ -199,7 +199,7 @@ def ceiling_fact(study: dict, regression_median: float, variants: int = 50) -> s
     weights = np.repeat([float(len(scene.triples)) for scene in scenes], n)
     return (f"the best a d^2 + b d correction there is, fitted to the test points themselves (an oracle), improves their "
             f"{params.metric} error by a median of {weighted_median(ceilings, weights):.1f} % over variants 0-{n - 1} of each scene "
-            f"(benchmarks/radial_ceiling.py: over all): on them no correction of the paper's regression form has a "
+            f"(research/radial_ceiling.py: over all): on them no correction of the paper's regression form has a "
             f"higher median path improvement; ours, as written, has {regression_median:.1f} % over all, the paper's "
             f"{PAPER['regression']['median_path']:.1f} %.")
 

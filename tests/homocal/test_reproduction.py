@@ -370,12 +370,12 @@ def test_sweep_resumed_after_a_kill_gives_identical_files(datasets, tmp_path):
 
 
 def test_table1_reach_reads_a_sweep(datasets, tmp_path):
-    """benchmarks/table1_reach.py on a sweep: every run named by its options, ranked by sweep.csv's D, and each
+    """research/table1_reach.py on a sweep: every run named by its options, ranked by sweep.csv's D, and each
     number's nearest value and the bound (the RMS of the nearest gaps) as computed here from sweep.csv."""
     out = tmp_path / "sweep"
     assert main(["sweep", *datasets, "-o", str(out), "--variants", "3", "--n-test", "50",
                  "--horizon-shift", "0,12", "--no-progress"]) == 0
-    script = Path(__file__).parents[2] / "benchmarks" / "table1_reach.py"
+    script = Path(__file__).parents[2] / "research" / "table1_reach.py"
     done = subprocess.run([sys.executable, str(script), str(out)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     rows = [r.split(",") for r in (out / "sweep.csv").read_text().splitlines()[1:]]
@@ -432,9 +432,9 @@ def test_least_mean_error_against_a_one_dimensional_search():
 def test_radial_ceiling_bounds_every_sample_of_a_study(datasets, tmp_path):
     """study.ceiling on a sweep of the metric: no sample's path improvement under a radial method exceeds its
     variant's ceiling for that method's family (float32 shards: 1e-3 pp), and the families nest;
-    benchmarks/radial_ceiling.py's table has a row per run with Table 1's regression numbers, and a folder that is
+    research/radial_ceiling.py's table has a row per run with Table 1's regression numbers, and a folder that is
     not a study is one line; the report's fact states the median ceiling of its first variants."""
-    script = Path(__file__).parents[2] / "benchmarks" / "radial_ceiling.py"
+    script = Path(__file__).parents[2] / "research" / "radial_ceiling.py"
     out = tmp_path / "sweep"
     assert main(["sweep", *datasets, "-o", str(out), "--variants", "4", "--n-test", "120", "--horizon-shift", "8",
                  "--metric", "euclidean,range", "--no-progress"]) == 0
@@ -463,7 +463,7 @@ def test_radial_ceiling_bounds_every_sample_of_a_study(datasets, tmp_path):
         median = np.percentile(per_sample, 50, method="lower")
         assert ceiling_fact(study, 12.0, variants=3) == (
             f"the best a d^2 + b d correction there is, fitted to the test points themselves (an oracle), improves their "
-            f"{params.metric} error by a median of {median:.1f} % over variants 0-2 of each scene (benchmarks/radial_ceiling.py: "
+            f"{params.metric} error by a median of {median:.1f} % over variants 0-2 of each scene (research/radial_ceiling.py: "
             "over all): on them no correction of the paper's regression form has a higher median path improvement; ours, "
             "as written, has 12.0 % over all, the paper's 90.0 %.")
     done = subprocess.run([sys.executable, str(script), str(out)], capture_output=True, text=True, timeout=300)
@@ -545,11 +545,11 @@ def test_perturbation_is_recorded_said_and_checked(datasets, tmp_path, capsys):
 
 
 def test_perturbation_spread_measures_each_reading(datasets):
-    """benchmarks/perturbation_spread.py: one row per scene and reading; its share of unperturbed variants counted
+    """research/perturbation_spread.py: one row per scene and reading; its share of unperturbed variants counted
     from draw_variant here, and its horizon spread against the horizon row computed here from OpenCV's homography
     of each variant's quads (the row where its denominator h31 u + h32 v + h33 vanishes); a bad option is one line."""
     import cv2
-    script = Path(__file__).parents[2] / "benchmarks" / "perturbation_spread.py"
+    script = Path(__file__).parents[2] / "research" / "perturbation_spread.py"
     done = subprocess.run([sys.executable, str(script), datasets[0], "--variants", "40", "--n-test", "50",
                            "--horizon-shift", "6", "--map-scale", "2.5"], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
@@ -582,8 +582,8 @@ def test_perturbation_spread_measures_each_reading(datasets):
     (["--horizon-shift", "normal:1"], 1, "perturbation_spread.py: "),
 ])
 def test_perturbation_spread_bad_inputs_are_one_line(datasets, args, code, message):
-    """benchmarks/perturbation_spread.py's bad inputs: each one line on stderr naming the problem, its exit code."""
-    script = Path(__file__).parents[2] / "benchmarks" / "perturbation_spread.py"
+    """research/perturbation_spread.py's bad inputs: each one line on stderr naming the problem, its exit code."""
+    script = Path(__file__).parents[2] / "research" / "perturbation_spread.py"
     bad = subprocess.run([sys.executable, str(script), datasets[0], *args], capture_output=True, text=True, timeout=300)
     last = bad.stderr.strip().splitlines()[-1]
     assert bad.returncode == code and message in last and bad.stdout == "", bad.stderr
@@ -591,7 +591,7 @@ def test_perturbation_spread_bad_inputs_are_one_line(datasets, args, code, messa
 
 @pytest.mark.parametrize("folder", ["missing", "empty"])
 def test_perturbation_spread_refuses_a_folder_that_is_not_a_dataset(tmp_path, folder):
-    script = Path(__file__).parents[2] / "benchmarks" / "perturbation_spread.py"
+    script = Path(__file__).parents[2] / "research" / "perturbation_spread.py"
     path = tmp_path / folder
     if folder == "empty":
         path.mkdir()

@@ -5,11 +5,12 @@ the clicked horizon 6 px above the true one, plus the variant's 0-3 px corner pe
 quads) and a triple of the scene's calibration points; the path improvement is over the study's test points
 (n_test 2000, out to 50 m). Printed per scene, setting and method: path improvement median, mean, 1st and
 5th percentile, share positive, and the calibration improvement median (percent). Settings: hand-placed
-(horizon_shift None) and the clicked horizon 6 px above the true one ("6", the paper preset of sessions
-12-18; the site map at the dataset's scale). --sweep adds least-change with other priors; --foot-source
-takes a detector's points as the study does (its calibration points are then the segmentation detector's).
+(horizon_shift None) and the clicked horizon 6 px above the true one ("6"), both at the dataset's own site-map
+scale. --sweep adds least-change with other priors (the search that chose LeastChangeCorrector's defaults);
+--foot-source takes a detector's points as the study does (its calibration points are then the segmentation
+detector's).
 
-    python benchmarks/compare_least_change.py DATA/scene1 DATA/scene2 [--samples 300] [--seed 1] [--sweep] [--foot-source segmentation]
+    python research/compare_least_change.py DATA/scene1 DATA/scene2 [--samples 300] [--seed 1] [--sweep] [--foot-source segmentation]
 """
 import argparse
 

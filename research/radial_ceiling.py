@@ -1,6 +1,7 @@
-"""How much of a study's path error a radial correction can remove at best (README, "Reproducing Table 1").
+"""How much of a study's path error a radial correction can remove at best (docs/reproduction.md,
+"What no configuration reaches").
 
-Run: python benchmarks/radial_ceiling.py FOLDER [FOLDER ...] [--variants N]
+Run: python research/radial_ceiling.py FOLDER [FOLDER ...] [--variants N]
      (each FOLDER a complete `homocal study` results folder, or a `homocal sweep` folder: each of its runs)
 
 The paper's regression moves each mapped point p along its bearing from the camera origin o by

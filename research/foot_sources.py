@@ -1,8 +1,9 @@
-"""Table 1 per foot source: what a detector's foot points change in the study (README, "Detection noise").
+"""Table 1 per foot source: what a detector's foot points change in the study (docs/reproduction.md,
+"Detection noise").
 
-Run: python benchmarks/foot_sources.py STUDY [STUDY ...]
+Run: python research/foot_sources.py STUDY [STUDY ...]
      (each STUDY a results folder of `homocal study DATASET... -o STUDY --foot-source F`)
-     python benchmarks/foot_sources.py --calibration exact|segmentation DATASET OUT
+     python research/foot_sources.py --calibration exact|segmentation DATASET OUT
      (OUT: DATASET with every calibration object's foot point, exact and detected alike, taken from the exact
      projection or from the segmentation detector, the other files linked: a study on it with --foot-source
      exact then has segmentation calibration points and exact test points, one with a detector exact

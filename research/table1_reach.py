@@ -1,6 +1,7 @@
-"""How near any searched configuration comes to each of Table 1's numbers (README, "Reproducing Table 1").
+"""How near any searched configuration comes to each of Table 1's numbers (docs/reproduction.md,
+"What no configuration reaches").
 
-Run: python benchmarks/table1_reach.py FOLDER [FOLDER ...] [--top N]
+Run: python research/table1_reach.py FOLDER [FOLDER ...] [--top N]
      (each FOLDER a `homocal sweep` folder, whose runs are read from sweep.csv and runs/*/study.json, or a
      `homocal study` results folder)
 

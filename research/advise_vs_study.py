@@ -2,7 +2,7 @@
 
     homocal study DATASET -o STUDY --variants 50
     homocal advise --trapezoid DATASET/trapezoids.json --distances <the dataset's calibration distances> -o A.csv
-    python benchmarks/advise_vs_study.py STUDY SCENE METHOD A.csv
+    python research/advise_vs_study.py STUDY SCENE METHOD A.csv
 
 METHOD: a study method name (regression_intercept, descent, ...). Prints the advised triple's mean path improvement
 in the study (mean over the scene's variants, shards' path_<METHOD>), how many triples do better, and the correlation

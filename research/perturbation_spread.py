@@ -1,7 +1,7 @@
-"""How far the study's trapezoid variants spread under each reading of the paper's perturbation (README,
-"The perturbation's reading").
+"""How far the study's trapezoid variants spread under each reading of the paper's perturbation (docs/reproduction.md,
+"What Table 1 requires of the setup").
 
-Run: python benchmarks/perturbation_spread.py DATASET [DATASET ...] [study options] [--variants N]
+Run: python research/perturbation_spread.py DATASET [DATASET ...] [study options] [--variants N]
      (the study options as `homocal study` takes them, e.g. --preset paper --horizon-shift 15 --map-scale 2.5;
      --perturbation is ignored: every reading of perturb.PERTURBATIONS is measured)
 
