@@ -27,18 +27,11 @@ from tqdm import tqdm
 
 from homocal.files import output_folder, read_json, write_atomic, write_json_atomic
 from homocal.study.perturb import draw_base_error
-from homocal.study.inputs import StudyParams, StudyScene, descent_settings, shift_spec
+from homocal.study.inputs import StudyParams, StudyScene
+from homocal.study.options import PRESETS
 from homocal.study.shards import check_shard, compute_shard, study_key
 from homocal.study.triples import n_samples
 
-# paper: the paper's protocol (1000 variants, 2000 test points) with the open choices closest to its Table 1 found
-# by `homocal sweep` (README, "Reproducing Table 1"): the clicked trapezoid's horizon 16 px above the true one, the
-# paper's perturbation read as one 0-3 px size per variant added to every chosen coordinate, the map perturbations
-# in px of a 1.5 px/m site map, descent's largest move (the paper's delta_max) 18 px, and the improvements of
-# range errors (the paper's "distance estimation error")
-PRESETS = {"paper": dict(n_variants=1000, n_test=2000, horizon_shift="16", perturbation="variant-positive", map_scale=1.5,
-                        descent=descent_settings(18.0), metric="range"),
-           "quick": dict(n_variants=50, n_test=2000)}
 GROUP = 8  # variants per Dask task
 FORMAT = "homocal-study"  # study.json's "format": marks a results directory as homocal study's (homocal.files.output_folder)
 
@@ -60,7 +53,7 @@ def variants_table(scene: StudyScene, params: StudyParams, reasons: list[str]) -
     (n_variants + 1,) are the shards' ("" if not degenerate)."""
     n = params.n_variants + 1
     rows = [scene.variant_offsets(params, v) for v in range(n)]
-    base = [draw_base_error(params.seed, scene.name, v, shift_spec(params), params.click_noise) for v in range(n)]
+    base = [draw_base_error(params.seed, scene.name, v, params.horizon_shift, params.click_noise) for v in range(n)]
     offsets, click = np.array([r[0] for r in rows]), np.array([b[1] for b in base])
     cols = {"variant": pa.array(np.arange(n, dtype=np.int32)),
             "horizon_shift_px": pa.array([b[0] for b in base], pa.float64())}  # null: the hand-placed trapezoid as it is
@@ -84,6 +77,12 @@ def study_parameters(preset: str | None, params: StudyParams, scenes: list[Study
         "datasets": [{"scene": s.name, "path": str(Path(p).resolve()), "config_hash": s.config_hash,
                       "n_calibration": len(s.cal_image), "n_test": len(s.test_image)} for s, p in zip(scenes, paths)],
     }
+
+
+def preset_label(preset: str | None) -> dict:
+    """study.json's preset_label: what the preset is (options.PRESETS; e.g. "fitted to Table 1, not the paper's
+    protocol"); nothing without a preset. Not compared by --resume."""
+    return {} if preset is None else {"preset_label": PRESETS[preset].label}
 
 
 def load_scenes(paths: list[str], params: StudyParams) -> list[StudyScene]:
@@ -113,7 +112,7 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
         shards = [shard_path(out, s.name, v).relative_to(out) for s in scenes for v in range(params.n_variants + 1)]
         folder.remove_temporaries(["study.json", "timing.json", *(f"variants/{s.name}.parquet" for s in scenes), *map(str, shards)])
         elapsed = read_json(timing_file).get("elapsed_seconds", 0.0) if timing_file.is_file() else 0.0
-        study = {"format": FORMAT, **parameters, "samples_total": sum(len(s.triples) * (params.n_variants + 1) for s in scenes),
+        study = {"format": FORMAT, **parameters, **preset_label(preset), "samples_total": sum(len(s.triples) * (params.n_variants + 1) for s in scenes),
                  "complete": False, "versions": versions()}
         write_json_atomic(study_file, study)
         keys = {s.name: study_key(params.to_dict(), s.name, s.config_hash) for s in scenes}

@@ -28,6 +28,7 @@ from homocal.study.inputs import OPTIONS, StudyParams, StudyScene, changed_optio
 from homocal.study.law import horizon_shift_law, perturbation_law
 from homocal.study.metrics import (D_KEYS, D_METHODS, METRICS, PAPER, Table, build_table, load_study, paper_distance,
                                    table_cells, to_csv, to_markdown, to_text, verified_shard_files)
+from homocal.study.options import PRESETS
 from homocal.study.perturb import MAX_PIXELS
 
 STYLE = """body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em;color:#222}
@@ -102,14 +103,17 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None, com
 
 
 def config_label(study: dict) -> str:
-    """A study's configuration in its options' words: its base error, click noise and metric always, then every
-    other study option that differs from homocal study's defaults (inputs.changed_options)."""
+    """A study's configuration in its options' words: its preset and what it is (options.PRESETS), its base
+    error, click noise and metric always, then every other study option that differs from homocal study's
+    defaults (inputs.changed_options)."""
     params = StudyParams.from_dict(study)
     parts = ["hand-placed trapezoid as it is" if params.horizon_shift is None else option_text("horizon_shift", params.horizon_shift),
              option_text("click_noise", params.click_noise), option_text("metric", params.metric)]
     rest = tuple(n for n in OPTIONS if n not in ("n_variants", "horizon_shift", "click_noise", "metric"))
     parts += changed_options(params, StudyParams(), rest)  # the other options, where they differ from the defaults
-    return f"preset {study.get('preset')}, {study.get('n_variants')} variants: " + " ".join(parts)
+    preset = study.get("preset")
+    label = f" ({PRESETS[preset].label})" if preset in PRESETS else ""
+    return f"preset {preset}{label}, {params.n_variants} variants: " + " ".join(parts)
 
 
 def reproduction_html(studies: list[tuple[Path, dict, Table]], sweep_dir: Path | None, out_dir: Path) -> list[str]:
@@ -162,7 +166,7 @@ def gap_facts(study: dict) -> list[str]:
     """Per dataset of a study: how far the hand-placed trapezoid's horizon lies from the exact one's (px, at the
     principal column; positive: above, the mapping underestimates range), the share of its test points
     within 2 m of the calibration line, and the size in metres of the 0-3 px map perturbations."""
-    facts = []
+    facts, params = [], StudyParams.from_dict(study)
     for entry in study["datasets"]:
         try:
             ds = load_dataset(entry["path"])
@@ -171,17 +175,17 @@ def gap_facts(study: dict) -> list[str]:
         K = np.asarray(ds.camera["K"], dtype=np.float64)
         rows = [ViewTransformer(t["image"], ds.site_map.to_metres(t["map"])).horizon_row(K[0, 2])
                 for t in (ds.trapezoids["exact"], ds.trapezoids["hand_placed"])]
-        _, ground = ds.test_points(study.get("foot_source", "exact"), n=study.get("n_test"), seed=study.get("seed", 0),
-                                   max_distance=study.get("max_test_distance"), max_lateral=study.get("test_lateral_max"))
+        _, ground = ds.test_points(params.foot_source, n=params.n_test, seed=params.seed,
+                                   max_distance=params.max_test_distance, max_lateral=params.test_lateral_max)
         near = np.mean(np.abs(ground[:, 0] - ds.camera_origin[0]) <= 2.0)
-        shift = study.get("horizon_shift")
+        shift = params.horizon_shift
         base = ("the study uses it as it is" if shift is None
                 else f"the study moves it to lie {shift} px above the true horizon (--horizon-shift)")
         facts.append(f"{ds.name}: the hand-placed trapezoid's horizon lies {rows[0] - rows[1]:+.2f} px above the exact one's "
                      f"(negative: below; the mapping then overestimates range), and {base}; {100 * near:.1f} % of its "
                      f"{len(ground)} test points are within 2 m of the calibration line (the calibration objects stand on it); "
-                     f"the map perturbations are px of {_map_scale_words(study, ds.site_map.scale_px_per_m)}; "
-                     f"the image perturbations are px of {_image_width_words(study, float(ds.camera['width']))}.")
+                     f"the map perturbations are px of {_map_scale_words(params.map_scale, ds.site_map.scale_px_per_m)}; "
+                     f"the image perturbations are px of {_image_width_words(params.image_width, float(ds.camera['width']))}.")
     return facts
 
 
@@ -204,17 +208,17 @@ def ceiling_fact(study: dict, regression_median: float, variants: int = 50) -> s
             f"{PAPER['regression']['median_path']:.1f} %.")
 
 
-def _map_scale_words(study: dict, own: float) -> str:
-    """Which site map the study's 0-3 px map perturbations are in, and their largest size in metres."""
-    scale = study.get("map_scale")
+def _map_scale_words(scale: float | None, own: float) -> str:
+    """Which site map (scale: the study's map_scale) the 0-3 px map perturbations are in, and their largest size
+    in metres."""
     which = (f"its own {own:g} px/m site map" if scale is None
              else f"a {scale:g} px/m site map (--map-scale; its own is {own:g})")
     return f"{which}, up to {MAX_PIXELS / (scale or own):.2f} m"
 
 
-def _image_width_words(study: dict, own: float) -> str:
-    """Which camera image the study's 0-3 px image perturbations are in, and their largest size in its own px."""
-    width = study.get("image_width")
+def _image_width_words(width: float | None, own: float) -> str:
+    """Which camera image (width: the study's image_width) the 0-3 px image perturbations are in, and their
+    largest size in its own px."""
     if width is None:
         return f"its own {own:g} px wide image"
     return (f"a {width:g} px wide image of the same field of view (--image-width; its own is {own:g} px wide), "
