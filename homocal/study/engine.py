@@ -15,6 +15,8 @@ from __future__ import annotations
 import os
 import platform
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from concurrent.futures import ALL_COMPLETED, FIRST_COMPLETED, ThreadPoolExecutor, wait
 from importlib.metadata import version
 from pathlib import Path
@@ -103,26 +105,26 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
     scenes = load_scenes(paths, params)
     parameters = study_parameters(preset, params, scenes, paths)
     n_shards = len(scenes) * (params.n_variants + 1)
-    with output_folder(out, FORMAT, resume, marker="study.json") as folder:
+    with dask_client(workers, scheduler) as client, output_folder(out, FORMAT, resume, marker="study.json") as folder:
         study_file, timing_file = out / "study.json", out / "timing.json"
         if folder.resumed:
             previous = read_json(study_file)
             if {k: previous.get(k) for k in parameters} != parameters:
                 raise ValueError(f"{out} holds a study with other parameters; --resume needs the same datasets and options")
+        keys = {s.name: study_key(params.to_dict(), s.name, s.config_hash) for s in scenes}
+        reasons = {(s.name, v): check_shard(shard_path(out, s.name, v), s.name, v, keys[s.name], len(s.triples))
+                   for s in scenes for v in range(params.n_variants + 1) if shard_path(out, s.name, v).is_file()}
         shards = [shard_path(out, s.name, v).relative_to(out) for s in scenes for v in range(params.n_variants + 1)]
         folder.remove_temporaries(["study.json", "timing.json", *(f"variants/{s.name}.parquet" for s in scenes), *map(str, shards)])
         elapsed = read_json(timing_file).get("elapsed_seconds", 0.0) if timing_file.is_file() else 0.0
         study = {"format": FORMAT, **parameters, **preset_label(preset), "samples_total": sum(len(s.triples) * (params.n_variants + 1) for s in scenes),
                  "complete": False, "versions": versions()}
-        write_json_atomic(study_file, study)
-        keys = {s.name: study_key(params.to_dict(), s.name, s.config_hash) for s in scenes}
-        reasons = {(s.name, v): check_shard(shard_path(out, s.name, v), s.name, v, keys[s.name], len(s.triples))
-                   for s in scenes for v in range(params.n_variants + 1) if shard_path(out, s.name, v).is_file()}
+        write_json_atomic(study_file, study)  # after every refusal: a refused --resume leaves study.json as it was
         todo = [(s, v) for s in scenes for v in range(params.n_variants + 1) if (s.name, v) not in reasons]
         bar = tqdm(total=len(todo), unit="shard", desc="study", disable=not progress)
         with ThreadPoolExecutor(max_workers=1) as writer:  # writes overlap the next shard's computation
             writes = []
-            for scene, variant, table, reason in _execute(todo, scenes, params, workers, scheduler):
+            for scene, variant, table, reason in _execute(todo, scenes, params, client):
                 writes.append(writer.submit(write_table, shard_path(out, scene.name, variant), table))
                 writes[-1].add_done_callback(lambda _: bar.update())
                 reasons[scene.name, variant] = reason
@@ -140,14 +142,41 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
     return study | {"elapsed_seconds": elapsed}
 
 
-def _execute(todo, scenes, params, workers, scheduler):
-    """Yield (scene, variant, table, reason) for every (scene, variant) of todo, in-process or on Dask (the
-    loaded scenes are sent to the workers once each)."""
+@contextmanager
+def dask_client(workers: int | None, scheduler: str | None) -> Iterator:
+    """A Dask client of a local cluster of ``workers`` processes or of the running ``scheduler`` (None for neither:
+    the study runs in-process); entered before the output folder is made, so a scheduler that cannot be reached
+    leaves nothing behind."""
+    if workers is None and scheduler is None:
+        yield None
+        return
+    from dask.distributed import Client, LocalCluster
+
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True) if scheduler is None else None
+    try:
+        client = Client(cluster if cluster is not None else scheduler)
+    except BaseException as e:
+        if cluster is not None:
+            cluster.close()
+        if isinstance(e, OSError) and scheduler is not None:
+            raise ValueError(f"scheduler {scheduler!r}: cannot connect ({e})") from None
+        raise
+    try:
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _execute(todo, scenes, params, client):
+    """Yield (scene, variant, table, reason) for every (scene, variant) of todo, in-process (client None) or on
+    the Dask client's cluster (the loaded scenes are sent to the workers once each)."""
     groups = []
     for scene in scenes:
         vs = [v for s, v in todo if s is scene]
         groups += [(scene, vs[i:i + GROUP]) for i in range(0, len(vs), GROUP)]
-    if workers is None and scheduler is None:  # one shard per thread at a time; the kernel releases the GIL
+    if client is None:  # one shard per thread at a time; the kernel releases the GIL
         with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
             window = 2 * (os.cpu_count() or 1)
             shards = [(s, [v]) for s, vs in groups for v in vs]
@@ -160,20 +189,13 @@ def _execute(todo, scenes, params, workers, scheduler):
                         for v, table, reason in future.result():
                             yield futures.pop(future), v, table, reason
         return
-    from dask.distributed import Client, LocalCluster, as_completed
+    from dask.distributed import as_completed
 
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True) if scheduler is None else None
-    client = Client(cluster if cluster is not None else scheduler)
-    try:
-        remote = {s.name: client.scatter(s, broadcast=True) for s in scenes}
-        futures = {client.submit(run_group, remote[s.name], params, vs, pure=False): s for s, vs in groups}
-        for future in as_completed(futures):
-            for v, table, reason in future.result():
-                yield futures[future], v, table, reason
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    remote = {s.name: client.scatter(s, broadcast=True) for s in scenes}
+    futures = {client.submit(run_group, remote[s.name], params, vs, pure=False): s for s, vs in groups}
+    for future in as_completed(futures):
+        for v, table, reason in future.result():
+            yield futures[future], v, table, reason
 
 
 def _counts(scenes: list[StudyScene], reasons: dict[tuple[str, int], str]) -> dict:

@@ -86,17 +86,18 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None, com
     for other in compare:
         other_study = load_study(other)
         others.append((other, other_study, build_table(verified_shard_files(other, other_study)[0], progress)))
+    sweep = read_sweep(sweep_dir) if sweep_dir is not None else None
+    table = build_table(shards, progress)  # every input read before anything is written: a failing report writes nothing
     out_dir = Path(out_dir) if out_dir is not None else results_dir / "report"
     with output_folder(out_dir, FORMAT, resume=True, marker="report.json") as folder:
         folder.remove_temporaries(["report.json", "report.html", "table.md", "table.csv",
                                    *(f"figures/{name}" for name in figure_names(study))])
         write_json_atomic(folder.marker, {"format": FORMAT, "results_dir": str(results_dir.resolve())})
-        table = build_table(shards, progress)
         write_text_atomic(out_dir / "table.md", to_markdown(table))
         write_text_atomic(out_dir / "table.csv", to_csv(table))
         figures, notes = make_figures(results_dir, study, shards, out_dir / "figures", progress)
         page = out_dir / "report.html"
-        reproduction = reproduction_html([(results_dir, study, table), *others], sweep_dir, out_dir)
+        reproduction = reproduction_html([(results_dir, study, table), *others], sweep, out_dir)
         law = law_html(results_dir, study)
         write_text_atomic(page, render_html(study, table, figures, notes, out_dir, reproduction + law, missing))
     return page, to_text(table), missing
@@ -116,10 +117,24 @@ def config_label(study: dict) -> str:
     return f"preset {preset}{label}, {params.n_variants} variants: " + " ".join(parts)
 
 
-def reproduction_html(studies: list[tuple[Path, dict, Table]], sweep_dir: Path | None, out_dir: Path) -> list[str]:
+def read_sweep(sweep_dir: Path) -> tuple[Path, dict, bytes]:
+    """(sweep_dir, the regression row of sweep.csv with the least D, sweep.png's bytes) of a homocal sweep folder;
+    ValueError naming what is missing or malformed."""
+    try:
+        with (Path(sweep_dir) / "sweep.csv").open(encoding="utf-8") as f:
+            rows = list(csv.DictReader(f))
+        best = min((r for r in rows if r.get("method") == "regression"), key=lambda r: float(r["D"]))
+        return sweep_dir, best, (Path(sweep_dir) / "sweep.png").read_bytes()
+    except (OSError, UnicodeError, csv.Error, ValueError, KeyError, TypeError) as e:
+        reason = e.strerror if isinstance(e, OSError) and e.strerror else "no regression rows with a number D in sweep.csv"
+        raise ValueError(f"{sweep_dir}: not a finished homocal sweep folder ({reason})") from None
+
+
+def reproduction_html(studies: list[tuple[Path, dict, Table]], sweep: tuple[Path, dict, bytes] | None,
+                      out_dir: Path) -> list[str]:
     """The Reproduction section: the paper's Table 1 numbers (and the text's std and 1st percentile) beside
     each study's, with D (metrics.paper_distance); numbers more than 10 pp (0.10 for correlations) from the
-    paper are marked; the sweep's figure if given."""
+    paper are marked; the sweep's figure if given (read_sweep)."""
     e = html.escape
     header = ["method", "metric", "paper"] + [f"{i + 1}: {p.name}" for i, (p, _, _) in enumerate(studies)]
     rows, far = [], []
@@ -151,10 +166,9 @@ def reproduction_html(studies: list[tuple[Path, dict, Table]], sweep_dir: Path |
     parts += [f"<li>Study {i + 1}: {e(line)}</li>" for i, (_, st, table) in enumerate(studies)
               if (line := ceiling_fact(st, table.value("regression", "median_path")))]
     parts.append("</ul>")
-    if sweep_dir is not None:
-        rows_csv = list(csv.DictReader((Path(sweep_dir) / "sweep.csv").open(encoding="utf-8")))
-        best = min((r for r in rows_csv if r["method"] == "regression"), key=lambda r: float(r["D"]))
-        data = base64.b64encode((Path(sweep_dir) / "sweep.png").read_bytes()).decode("ascii")
+    if sweep is not None:
+        sweep_dir, best, png = sweep
+        data = base64.b64encode(png).decode("ascii")
         parts.append(f"<figure><img src='data:image/png;base64,{data}' alt='sweep'><figcaption><b>Sensitivity to "
                      f"{e(best['param'])}.</b> Table 1's metrics against the swept value ({e(str(sweep_dir))}); the "
                      f"paper's values dashed. Closest: {e(best['param'])} = {e(best['value'])}, D = {float(best['D']):.1f} "
