@@ -8,7 +8,7 @@ from homocal.dataset import calibration_source
 from homocal.progress import add_progress_option, show_progress
 from homocal.study.engine import dry_run_counts, run_study
 from homocal.study.inputs import OPTIONS, StudyParams, preset_params
-from homocal.study.options import DEFAULT_PRESET, PRESETS, Choice, Option, OptionError, preset_values
+from homocal.study.options import DEFAULT_PRESET, PRESETS, Option, OptionError, preset_values
 
 
 def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
@@ -17,7 +17,8 @@ def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
     is given. sweep: the sweepable ones are read as text (a list of values, see sweep.expand_values)."""
     p.add_argument("--preset", choices=list(PRESETS), default=DEFAULT_PRESET, help=preset_help())
     for name, opt in OPTIONS.items():
-        metavar = "{" + ",".join(opt.kind.words) + "}" if isinstance(opt.kind, Choice) else opt.metavar
+        words = getattr(opt.kind, "words", ())
+        metavar = "{" + ",".join(words) + "}" if words else opt.metavar
         p.add_argument(opt.flag, dest=name, metavar=metavar, default=argparse.SUPPRESS,
                        type=str if sweep and opt.sweep else flag_type(opt), help=option_help(name))
     add_progress_option(p)

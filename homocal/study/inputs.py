@@ -11,8 +11,8 @@ from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.least_change import LeastChangeCorrector
 from homocal.dataset import EXACT, calibration_source, load_dataset
 from homocal.geometry import SiteMap, ViewTransformer
-from homocal.study.options import (DEFAULT_PRESET, Choice, Integer, Number, Parsed, Text, Via, declared_options, internal,
-                                   option, preset_values)
+from homocal.study.options import (DEFAULT_PRESET, Number, Parsed, Via, Words, declared_options, internal, option,
+                                   preset_values)
 from homocal.study.perturb import PERTURBATIONS, ShiftSpec, base_quad, draw_base_error, draw_variant, perturbed_quads
 from homocal.study.triples import distance_features, triples
 
@@ -44,16 +44,16 @@ class StudyParams:
     option (its declaration: flag, bounds, unit, help, presets; homocal.study.options) or internal; a bad value
     is a ValueError naming the field (options.OptionError)."""
 
-    seed: int = option(0, flag="--seed", kind=Integer(0, 2**63 - 1), sweep=True,
+    seed: int = option(0, flag="--seed", kind=Number(0, 2**63 - 1, integer=True), sweep=True,
                        help="run seed (variants, base errors, descent orders, test subsample)")
-    n_variants: int = option(1000, flag="--variants", kind=Integer(0, MAX_VARIANTS), metavar="N",
+    n_variants: int = option(1000, flag="--variants", kind=Number(0, MAX_VARIANTS, integer=True), metavar="N",
                              presets={"quick": "50", "paper": "1000", "table1-fit": "1000"},
                              help="perturbed trapezoid variants per scene (one shard each)")
-    foot_source: str = option(EXACT, flag="--foot-source", kind=Text(),
+    foot_source: str = option(EXACT, flag="--foot-source", kind=Words(),
                               help="exact (projected contact points) or a detector of the datasets: segmentation, rgb, "
                                    "hog (if generated with it) or an imported one; its test points are its matched "
                                    "detections, the calibration points are then the segmentation detector's")
-    n_test: int = option(2000, flag="--n-test", kind=Integer(1, MAX_N_TEST), metavar="N",
+    n_test: int = option(2000, flag="--n-test", kind=Number(1, MAX_N_TEST, integer=True), metavar="N",
                          presets={"quick": "2000", "paper": "2000", "table1-fit": "2000"},
                          help="test points per scene, a seeded subsample of those the dataset has (all of them if it "
                               "has fewer)")
@@ -75,7 +75,7 @@ class StudyParams:
                                                   "uniform:A:B (kept parsed as a perturb.ShiftSpec)")
     click_noise: float = option(0.0, flag="--click-noise", kind=Number(0.0, 100.0), unit="px", sweep=True, metavar="PX",
                                 help="per-variant Gaussian noise (standard deviation) on the 8 clicked image coordinates")
-    metric: str = option("euclidean", flag="--metric", kind=Choice(METRICS), sweep=True,
+    metric: str = option("euclidean", flag="--metric", kind=Words(METRICS), sweep=True,
                          presets={"paper": "range", "table1-fit": "range"},
                          help="the calibration and path errors the improvements are computed from: euclidean (ground "
                               "error ||p - g||) or range (| ||g - o|| - ||p - o|| |); the correctors are unchanged")
@@ -91,7 +91,7 @@ class StudyParams:
                                             "perturbations are clicked on (the paper never gives its camera's "
                                             "resolution; ours are 1280 px); --horizon-shift, --click-noise and "
                                             "descent's moves stay in the dataset's px")
-    perturbation: str = option("coordinate", flag="--perturbation", kind=Choice(PERTURBATIONS), sweep=True,
+    perturbation: str = option("coordinate", flag="--perturbation", kind=Words(PERTURBATIONS), sweep=True,
                                omit_default=True, presets={"paper": "coordinate", "table1-fit": "variant-positive"},
                                help="how the paper's 'perturbation of 0, 1, 2, or 3 pixels ... to a randomly selected "
                                     "subset of 2 to 16 coordinate values' is read (perturb.draw_variant): coordinate "

@@ -57,95 +57,52 @@ class OptionError(ValueError):
 
 
 def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-@dataclass(frozen=True)
-class Integer:
-    """An integer in [low, high]."""
-
-    low: int
-    high: int
-
-    def describe(self) -> str:
-        return f"an integer in [{self.low}, {bound_text(self.high)}]"
-
-    def check(self, value: Any) -> Any:
-        if not (isinstance(value, numbers.Integral) and not isinstance(value, bool) and self.low <= value <= self.high):
-            raise ValueError
-        return int(value)
-
-    def from_text(self, text: str) -> Any:
-        try:
-            value = int(text)
-        except ValueError:
-            raise ValueError from None
-        return self.check(value)
-
-    def to_text(self, value: Any) -> str:
-        return str(value)
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
 @dataclass(frozen=True)
 class Number:
-    """A finite number in [low, high] ((low, high] if low_open)."""
+    """A finite number in [low, high] ((low, high] if low_open); an integer if integer."""
 
     low: float
     high: float = math.inf
     low_open: bool = False
+    integer: bool = False
 
     def describe(self) -> str:
+        what = "an integer" if self.integer else "a number"
         if math.isinf(self.high):
-            return f"a finite number {'>' if self.low_open else '>='} {self.low:g}"
-        return f"a number in {'(' if self.low_open else '['}{self.low:g}, {self.high:g}]"
+            return f"{what} {'>' if self.low_open else '>='} {bound_text(self.low)}"
+        return f"{what} in {'(' if self.low_open else '['}{bound_text(self.low)}, {bound_text(self.high)}]"
 
     def check(self, value: Any) -> Any:
-        if not (_is_number(value) and math.isfinite(value) and value <= self.high
-                and (value > self.low if self.low_open else value >= self.low)):
+        if not (_is_number(value) and (isinstance(value, numbers.Integral) or not self.integer) and math.isfinite(value)
+                and value <= self.high and (value > self.low if self.low_open else value >= self.low)):
             raise ValueError
-        return value
+        return int(value) if self.integer else value if isinstance(value, (int, float)) else float(value)
 
     def from_text(self, text: str) -> Any:
         try:
-            value = float(text)
+            value = (int if self.integer else float)(text)
         except ValueError:
             raise ValueError from None
         return self.check(value)
 
     def to_text(self, value: Any) -> str:
-        return f"{value:g}"
+        return str(value) if self.integer else f"{value:g}"
 
 
 @dataclass(frozen=True)
-class Choice:
-    """One of a few words."""
+class Words:
+    """One of words; any non-empty text without words (a name checked where it is used)."""
 
-    words: tuple[str, ...]
-
-    def describe(self) -> str:
-        return "one of " + ", ".join(self.words)
-
-    def check(self, value: Any) -> Any:
-        if value not in self.words:
-            raise ValueError
-        return value
-
-    def from_text(self, text: str) -> Any:
-        return self.check(text)
-
-    def to_text(self, value: Any) -> str:
-        return value
-
-
-@dataclass(frozen=True)
-class Text:
-    """Any non-empty text (a name checked where it is used)."""
+    words: tuple[str, ...] = ()
 
     def describe(self) -> str:
-        return "a non-empty name"
+        return "one of " + ", ".join(self.words) if self.words else "a non-empty name"
 
     def check(self, value: Any) -> Any:
-        if not (isinstance(value, str) and value):
+        if not (isinstance(value, str) and value and (value in self.words or not self.words)):
             raise ValueError
         return value
 
@@ -220,7 +177,7 @@ class Via:
 class Option:
     """A study option's declaration (the metadata of its StudyParams field).
 
-    flag: its command-line flag; kind: its parser and bounds (Integer, Number, Choice, Text, Parsed, Via);
+    flag: its command-line flag; kind: its parser and bounds (Number, Words, Parsed, Via);
     help: what it sets; metavar: the flag's value in the help; unit: of its values ("px", "m", "px/m");
     none: what the value None ('none' on the command line) means, "" if None is not allowed; sweep: whether
     homocal sweep can sweep it; omit_default: left out of study.json at its default (options added after
