@@ -28,7 +28,6 @@ from homocal.study.inputs import OPTIONS, StudyParams, StudyScene, changed_optio
 from homocal.study.law import horizon_shift_law, perturbation_law
 from homocal.study.metrics import (D_KEYS, D_METHODS, METRICS, PAPER, Table, build_table, load_study, paper_distance,
                                    table_cells, to_csv, to_markdown, to_text, verified_shard_files)
-from homocal.study.options import PRESETS
 from homocal.study.perturb import MAX_PIXELS
 
 STYLE = """body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em;color:#222}
@@ -104,17 +103,17 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None, com
 
 
 def config_label(study: dict) -> str:
-    """A study's configuration in its options' words: its preset and what it is (options.PRESETS), its base
-    error, click noise and metric always, then every other study option that differs from homocal study's
-    defaults (inputs.changed_options)."""
+    """A study's configuration in its options' words: its preset and what it is (study.json's preset_label;
+    none in a study.json written before presets were labelled, whose "paper" may name another configuration),
+    its base error, click noise and metric always, then every other study option that differs from homocal
+    study's defaults (inputs.changed_options)."""
     params = StudyParams.from_dict(study)
     parts = ["hand-placed trapezoid as it is" if params.horizon_shift is None else option_text("horizon_shift", params.horizon_shift),
              option_text("click_noise", params.click_noise), option_text("metric", params.metric)]
     rest = tuple(n for n in OPTIONS if n not in ("n_variants", "horizon_shift", "click_noise", "metric"))
     parts += changed_options(params, StudyParams(), rest)  # the other options, where they differ from the defaults
-    preset = study.get("preset")
-    label = f" ({PRESETS[preset].label})" if preset in PRESETS else ""
-    return f"preset {preset}{label}, {params.n_variants} variants: " + " ".join(parts)
+    label = f" ({study['preset_label']})" if study.get("preset_label") else ""
+    return f"preset {study.get('preset')}{label}, {params.n_variants} variants: " + " ".join(parts)
 
 
 def read_sweep(sweep_dir: Path) -> tuple[Path, dict, bytes]:
