@@ -3,7 +3,7 @@ the figures hold on a shared machine better than wall time).
 
     python benchmarks/bench_path_loops.py DATA/scene1 [--variant 3] [--triples 2000]
 
-Prints the median of 7 repeats for each path kernel over the scene's test points (the paper preset's 2000),
+Prints the median of 7 repeats for each path kernel over the scene's test points (the table1-fit preset's 2000),
 least change's fit (method_kernels.least_change3) per triple, and run_tables' CPU per sample (every method) on
 the first --triples triples of one variant.
 """
@@ -17,8 +17,7 @@ import numpy as np
 
 from homocal.study import kernels
 from homocal.study import method_kernels as mk
-from homocal.study.engine import PRESETS
-from homocal.study.inputs import StudyParams, StudyScene
+from homocal.study.inputs import StudyScene, preset_params
 from homocal.study.shards import prepare_variant, run_tables
 
 
@@ -40,7 +39,7 @@ def main() -> None:
     ap.add_argument("--variant", type=int, default=3)
     ap.add_argument("--triples", type=int, default=2000)
     args = ap.parse_args()
-    params = StudyParams(**PRESETS["paper"])
+    params = preset_params("table1-fit")
     scene = StudyScene.from_dataset(args.dataset, params)
     tables = prepare_variant(scene, params, args.variant)
     test, n = tables.test, tables.test.shape[1]

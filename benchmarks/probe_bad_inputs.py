@@ -266,11 +266,22 @@ def cli_cases() -> list[Case]:
         Case("study out: read-only", [*STUDY, "mnt/out"], fault="readonly", message="Read-only file system"),
         Case("two studies at once", [*STUDY, "out", "--resume"], fault="concurrent", first=[*STUDY, "out"], wait_for="out/study.json", writes=("out",), message="locked by"),
         Case("study killed, resumed", [*STUDY, "out", "--variants", "30"], expect="ok", fault="killed", wait_for="out/shards/*/*.parquet", writes=("out",)),
+        Case("study manifest scene escapes", ["homocal", "study", "d/e/f/ds", "-o", "d/e/f/out"], setup=copy("synth", "d/e/f/ds", edit_json("d/e/f/ds/manifest.json", lambda m: m.update(scene="../../../../escaped"))), message="manifest.json: scene"),
+        Case("study site_map scale true", ["homocal", "study", "ds", "-o", "out"], setup=copy("synth", "ds", edit_json("ds/site_map.json", lambda m: m.update(scale_px_per_m=True))), message="site_map.json"),
+        Case("study scheduler unreachable", [*STUDY, "out", "--scheduler", "tcp://127.0.0.1:1"], message="scheduler"),
+        Case("study resume, swapped shard", [*STUDY, "res", "--resume"], setup=copy("results", "res", _swapped_shard), message="variant_00001"),
+        Case("study resume, truncated shard", [*STUDY, "res", "--resume"], setup=copy("results", "res", _truncated_shard), message="variant_00001"),
+        Case("study preset unknown", [*STUDY, "out", "--preset", "paper-ish"], message="--preset"),
+        Case("study descent-delta-max 0", [*STUDY, "out", "--descent-delta-max", "0"], message="--descent-delta-max"),
+        Case("study perturbation empty", [*STUDY, "out", "--perturbation", ""], message="--perturbation"),
         # ---- homocal sweep
         Case("sweep value twice", [*SWEEP, "out", "--horizon-shift", "1,1"], message="1"),
         Case("sweep value nan", [*SWEEP, "out", "--horizon-shift", "nan,1"], message="nan"),
         Case("sweep empty value", [*SWEEP, "out", "--horizon-shift", "1,,2"], message="empty"),
         Case("sweep map-scale -1", [*SWEEP, "out", "--map-scale", "2,-1"], message="--map-scale"),
+        Case("sweep descent-delta-max 0", [*SWEEP, "out", "--descent-delta-max", "8,0"], message="--descent-delta-max"),
+        Case("sweep image-width true", [*SWEEP, "out", "--image-width", "1280,true"], message="--image-width"),
+        Case("sweep seed 1.5", [*SWEEP, "out", "--seed", "0,1.5"], message="--seed"),
         Case("sweep out: user's folder, resume", [*SWEEP, "out", "--horizon-shift", "0,1", "--resume"], setup=USER, message="not a homocal-sweep"),
         Case("sweep out: a study folder", [*SWEEP, "out", "--horizon-shift", "0,1", "--resume"], setup=copy("results", "out"), message="not a homocal-sweep"),
         # ---- homocal report
@@ -284,6 +295,9 @@ def cli_cases() -> list[Case]:
         Case("report study.json UTF-16", [*REPORT, "res", "-o", "page"], setup=copy("results", "res", _utf16("res/study.json")), message="study.json"),
         Case("report shard binary", [*REPORT, "res", "-o", "page"], setup=copy("results", "res", _garbage_shard), message="variant_00001"),
         Case("report shard copied over another", [*REPORT, "res", "-o", "page"], setup=copy("results", "res", _swapped_shard), message="variant_00001"),
+        Case("report study.json scene escapes", [*REPORT, "a/b/c/d/res"], setup=both(copy("results", "a/b/c/d/res", edit_json("a/b/c/d/res/study.json", lambda m: m["datasets"][0].update(scene="../../../../../victim"))), put(**{"victim.png": b"a user's picture"})), message="datasets[0].scene"),
+        Case("report --sweep missing", [*REPORT, "{F}/results", "-o", "out", "--sweep", "MISSING"], message="MISSING"),
+        Case("report --sweep a user's folder", [*REPORT, "{F}/results", "-o", "out", "--sweep", "mine"], setup=put(mine__a="x"), message="mine"),
         Case("two reports at once", [*REPORT, "{F}/results", "-o", "out"], fault="concurrent", first=[*REPORT, "{F}/results", "-o", "out"], wait_for="out/report.json", writes=("out",), message="locked by"),
         # ---- homocal advise
         Case("advise distances twice", [*ADVISE[:4], "--distances", "10,10,20"], message="--distances"),
@@ -331,6 +345,11 @@ def _garbage_shard(d: Path) -> None:
 def _swapped_shard(d: Path) -> None:
     shards = sorted((d / "res" / "shards").glob("*/variant_0000*.parquet"))
     shutil.copy(shards[2], shards[1])
+
+
+def _truncated_shard(d: Path) -> None:
+    shard = next((d / "res" / "shards").glob("*/variant_00001.parquet"))
+    shard.write_bytes(shard.read_bytes()[:300])
 
 
 def _preview_once(d: Path) -> None:

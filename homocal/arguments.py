@@ -15,14 +15,15 @@ def number(kind: type, low: float, high: float = math.inf, low_open: bool = Fals
             raise argparse.ArgumentTypeError(f"expected {'an integer' if kind is int else 'a number'}, got {text!r}") from None
         if not (math.isfinite(value) and (value > low if low_open else value >= low) and value <= high):
             what = "an integer" if kind is int else "a finite number"
-            bounds = (f"in {'(' if low_open else '['}{_show(low)}, {_show(high)}]" if math.isfinite(high)
-                      else f"{'>' if low_open else '>='} {_show(low)}")
+            bounds = (f"in {'(' if low_open else '['}{bound_text(low)}, {bound_text(high)}]" if math.isfinite(high)
+                      else f"{'>' if low_open else '>='} {bound_text(low)}")
             raise argparse.ArgumentTypeError(f"must be {what} {bounds}, got {text}")
         return value
     return parse
 
 
-def _show(bound: float) -> str:
+def bound_text(bound: float) -> str:
+    """A bound as an error message shows it: 2**64 - 1, 1000, 0.5."""
     if isinstance(bound, int) and bound > 2**32 and (bound + 1).bit_count() == 1:
         return f"2**{bound.bit_length()} - 1"
     return str(bound) if isinstance(bound, int) else f"{bound:g}"

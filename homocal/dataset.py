@@ -11,6 +11,7 @@ import pyarrow.parquet as pq
 
 from homocal.files import read_json
 from homocal.geometry import SiteMap, validate_quad
+from homocal.names import check_name
 
 EXACT = "exact"
 SEGMENTATION = "segmentation"
@@ -27,7 +28,8 @@ class Dataset:
     """One simgen dataset: the scene's calibration set, its trapezoids and its test trajectories.
 
     Attributes:
-        path: the dataset folder. name: the scene name (manifest.json).
+        path: the dataset folder. name: the scene name (manifest.json's "scene", else the folder's name;
+            names.check_name: it becomes part of paths).
         camera: camera.json as a dict. camera_origin: (2,) world metres.
         site_map: scale and origin of the site map.
         trapezoid_image: (4, 2) hand-placed image trapezoid, px (TL, TR, BR, BL).
@@ -136,7 +138,7 @@ def load_dataset(path: str | Path) -> Dataset:
         raise ValueError(f"{path}: missing site_map.json")
     dataset = Dataset(
         path=path,
-        name=str(manifest.get("scene", path.name)),
+        name=check_name(manifest.get("scene", path.name), f"{path / 'manifest.json'}: scene"),
         manifest=manifest,
         camera=camera,
         camera_origin=origin,

@@ -48,11 +48,20 @@ class SiteMap:
 
     @classmethod
     def from_dict(cls, d: dict, where: str = "site map") -> "SiteMap":
-        """From {"scale_px_per_m": s, "origin_px": [ox, oy], ...}; ValueError naming ``where`` if malformed."""
+        """From {"scale_px_per_m": s, "origin_px": [ox, oy], ...} (JSON numbers: true, false and "10" are not);
+        ValueError naming ``where`` if malformed."""
         try:
-            return cls(float(d["scale_px_per_m"]), (float(d["origin_px"][0]), float(d["origin_px"][1])))
-        except (KeyError, TypeError, IndexError) as e:
+            scale, origin = d["scale_px_per_m"], d["origin_px"]
+            ox, oy = origin
+        except (KeyError, TypeError, ValueError) as e:
             raise ValueError(f"{where}: site map needs scale_px_per_m and origin_px [ox, oy] ({e})") from None
+        for name, value in (("scale_px_per_m", scale), ("origin_px", ox), ("origin_px", oy)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"{where}: site map {name} must be numbers, got {value!r}")
+        try:
+            return cls(float(scale), (float(ox), float(oy)))
+        except ValueError as e:
+            raise ValueError(f"{where}: {e}") from None
 
     @classmethod
     def from_json(cls, path: str | Path) -> "SiteMap":

@@ -2,88 +2,64 @@
 from __future__ import annotations
 
 import argparse
-import math
 
 from homocal.arguments import number
 from homocal.dataset import calibration_source
 from homocal.progress import add_progress_option, show_progress
-from homocal.study.engine import PRESETS, dry_run_counts, run_study
-from homocal.study.inputs import MAX_IMAGE_WIDTH, MAX_MAP_SCALE, METRICS, StudyParams, descent_settings
-from homocal.study.perturb import PERTURBATIONS
-
-
-MAX_VARIANTS = 100_000  # 100x the paper's 1000 trapezoid variants per scene (one shard each)
-MAX_N_TEST = 1_000_000  # test points per scene
+from homocal.study.engine import dry_run_counts, run_study
+from homocal.study.inputs import OPTIONS, StudyParams, preset_params
+from homocal.study.options import DEFAULT_PRESET, PRESETS, Option, OptionError, preset_values
 
 
 def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
-    """The options that set StudyParams (shared by study and sweep). Absent options are left out of the
-    namespace (argparse.SUPPRESS), so the preset's values apply unless an option is given. sweep: the
-    sweepable ones are read as text (a list of values, see sweep.expand_values)."""
-    quiet = dict(default=argparse.SUPPRESS)
-
-    def typed(kind):
-        return str if sweep else kind
-
-    p.add_argument("--preset", choices=sorted(PRESETS), default="quick",
-                   help="paper: the paper's protocol (1000 variants, 2000 test points) with the open choices closest "
-                        f"to its Table 1 (see README): base error (horizon {PRESETS['paper']['horizon_shift']} px "
-                        f"above), the perturbation read as {PRESETS['paper']['perturbation']}, site-map scale "
-                        f"({PRESETS['paper']['map_scale']:g} px/m) and descent's largest move "
-                        f"({PRESETS['paper']['descent']['delta_max']:g} px), errors as {PRESETS['paper']['metric']} errors; "
-                        "quick: 50 variants, no base error, the dataset's site map, descent's defaults, euclidean "
-                        "errors (default)")
-    p.add_argument("--variants", dest="n_variants", type=number(int, 0, MAX_VARIANTS), metavar="N",
-                   help="perturbed variants per scene (overrides the preset)", **quiet)
-    p.add_argument("--seed", type=typed(int), help="run seed (variants, base errors, descent orders, test subsample; default 0)", **quiet)
-    p.add_argument("--foot-source", help="exact (projected contact points, default) or a detector of the datasets: "
-                                         "segmentation, rgb, hog (if generated with it) or an imported one; its "
-                                         "test points are its matched detections, the calibration points are then "
-                                         "the segmentation detector's", **quiet)
-    p.add_argument("--n-test", type=number(int, 1, MAX_N_TEST), help="test points per scene, a seeded subsample of "
-                   "those the dataset has (all of them if it has fewer; default 2000)", **quiet)
-    p.add_argument("--max-test-distance", type=typed(metres_or_none), metavar="M", **quiet,
-                   help="test points at most M metres from the camera (default 50, the paper's operating range, Fig. 2); "
-                        "'none' for all")
-    p.add_argument("--test-lateral-max", type=typed(metres_or_none), metavar="M", **quiet,
-                   help="test points at most M metres to the side of the calibration line x = 0 (default: none)")
-    p.add_argument("--horizon-shift", metavar="SPEC", **quiet,
-                   help="the clicked trapezoid's systematic error: the hand-placed trapezoid moved as a tilt error "
-                        "moves it, so that its horizon lies SPEC px above the true one (positive: the mapping "
-                        "underestimates range); SPEC is a number or a per-variant distribution normal:MU:SIGMA or "
-                        "uniform:A:B; 'none': the hand-placed trapezoid as it is (the default, unless the preset sets one)")
-    p.add_argument("--click-noise", type=typed(float), metavar="PX", **quiet,
-                   help="per-variant Gaussian noise (standard deviation, px) on the 8 clicked image coordinates (default 0)")
-    p.add_argument("--metric", **({} if sweep else dict(choices=METRICS)), **quiet,
-                   help="calibration and path errors as Euclidean ground error (default) or range error |d_true - d_mapped|")
-    p.add_argument("--map-scale", type=typed(per_metre_or_none), metavar="PX_PER_M", **quiet,
-                   help="scale of the site map the 0-3 px map-side perturbations are clicked on, px per metre "
-                        "(the paper does not give its map's; default: the dataset's site map, 'none')")
-    p.add_argument("--image-width", type=typed(pixels_or_none), metavar="PX", **quiet,
-                   help="width of the camera image (same field of view) the 0-3 px image-side perturbations are "
-                        "clicked on, px (the paper does not give its camera's resolution; default: the dataset's "
-                        "image, 'none'); --horizon-shift, --click-noise and descent's moves stay in the dataset's px")
-    p.add_argument("--perturbation", **({} if sweep else dict(choices=PERTURBATIONS)), **quiet,
-                   help="how the paper's 'perturbation of 0, 1, 2, or 3 pixels ... to a randomly selected subset of 2 "
-                        "to 16 coordinate values' is read: coordinate (each chosen coordinate its own 0-3 px and "
-                        "sign, default), variant (one 0-3 px per variant, each coordinate its own sign) or "
-                        "variant-positive (one 0-3 px per variant, added to every chosen coordinate)")
-    p.add_argument("--descent-delta-max", type=typed(float), metavar="PX", **quiet,
-                   help="descent: largest move of a trapezoid coordinate, px (default 8; the phase-1 grid spans "
-                        "+/- half of it in 5 steps)")
+    """--preset and one flag per study option (StudyParams' declarations; shared by study and sweep). Absent
+    options are left out of the namespace (argparse.SUPPRESS), so the preset's values apply unless an option
+    is given. sweep: the sweepable ones are read as text (a list of values, see sweep.expand_values)."""
+    p.add_argument("--preset", choices=list(PRESETS), default=DEFAULT_PRESET, help=preset_help())
+    for name, opt in OPTIONS.items():
+        words = getattr(opt.kind, "words", ())
+        metavar = "{" + ",".join(words) + "}" if words else opt.metavar
+        p.add_argument(opt.flag, dest=name, metavar=metavar, default=argparse.SUPPRESS,
+                       type=str if sweep and opt.sweep else flag_type(opt), help=option_help(name))
     add_progress_option(p)
 
 
+def preset_help() -> str:
+    """--preset's help: each preset, what it is and the option values it sets."""
+    parts = []
+    for name, preset in PRESETS.items():
+        values = " ".join(f"{opt.flag} {opt.presets[name]}" for opt in OPTIONS.values() if name in opt.presets)
+        parts.append(f"{name}: {preset.label}{' (default)' if name == DEFAULT_PRESET else ''}: {preset.details} ({values})")
+    return "; ".join(parts)
+
+
+def option_help(name: str) -> str:
+    """A study option's help: its declaration's, its unit, its value in the default preset and what 'none' means."""
+    opt = OPTIONS[name]
+    default = opt.to_text(getattr(preset_params(DEFAULT_PRESET), name))
+    return (f"{opt.help} ({opt.unit + '; ' if opt.unit else ''}default: the preset's, {default} in {DEFAULT_PRESET}"
+            f"{'; none: ' + opt.none if opt.none else ''})")
+
+
+def flag_type(opt: Option):
+    """The argparse type of an option's flag: its from_text, refusals as argparse errors naming the flag."""
+    def parse(text: str):
+        try:
+            return opt.from_text(text)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+    return parse
+
+
 def params_from_args(args: argparse.Namespace, **override) -> StudyParams:
-    """StudyParams of the preset, then the options given, then override; ValueError naming a bad option."""
-    names = ("n_variants", "seed", "foot_source", "n_test", "max_test_distance", "test_lateral_max", "horizon_shift",
-             "click_noise", "metric", "map_scale", "image_width", "perturbation", "descent_delta_max")
-    values = {**PRESETS[args.preset], **{n: getattr(args, n) for n in names if hasattr(args, n)}, **override}
-    if str(values.get("horizon_shift")).lower() == "none":  # the hand-placed trapezoid as it is (a preset's shift off)
-        values["horizon_shift"] = None
-    if "descent_delta_max" in values:
-        values["descent"] = descent_settings(values.pop("descent_delta_max"))
-    return StudyParams(**values)
+    """StudyParams of the preset, then the options given, then override (field names); a ValueError naming the
+    flag of a bad value."""
+    values = {**preset_values(StudyParams, args.preset), **{n: getattr(args, n) for n in OPTIONS if hasattr(args, n)},
+              **override}
+    try:
+        return StudyParams(**values)
+    except OptionError as e:
+        raise ValueError(f"argument {OPTIONS[e.name].flag}: {e.expected}, got {e.value!r}") from None
 
 
 def add_parser(subparsers) -> None:
@@ -91,8 +67,8 @@ def add_parser(subparsers) -> None:
         "study", help="run the correction study (every trapezoid variant x every calibration triple)",
         description="Per scene: the clicked base trapezoid and N perturbed variants, every combination of three "
                     "calibration points, the seven corrections (the paper's two, their hybrid and four more: "
-                    "README); per-sample results as Parquet shards in --out. --preset paper runs the paper's 1000 "
-                    "variants.")
+                    "README); per-sample results as Parquet shards in --out. --preset paper runs the paper's protocol "
+                    "as the paper states it, --preset table1-fit the configuration fitted to its Table 1.")
     p.add_argument("datasets", nargs="+", metavar="DATASET", help="simgen dataset folders (one per scene)")
     p.add_argument("-o", "--out", required=True, help="results directory")
     add_study_options(p)
@@ -102,26 +78,6 @@ def add_parser(subparsers) -> None:
     p.add_argument("--resume", action="store_true", help="continue the study in --out, skipping finished shards")
     p.add_argument("--dry-run", action="store_true", help="print the sample counts and exit")
     p.set_defaults(handler=handle_study)
-
-
-def positive_or_none(what: str, upper: float = math.inf):
-    """An argparse type: 'none' (None) or a finite number in (0, upper], described by `what` in its error."""
-    def parse(text: str) -> float | None:
-        if text.lower() == "none":
-            return None
-        try:
-            value = float(text)
-        except ValueError:
-            value = float("nan")
-        if not (math.isfinite(value) and 0 < value <= upper):
-            raise argparse.ArgumentTypeError(f"must be {what} or 'none', got {text}")
-        return value
-    return parse
-
-
-metres_or_none = positive_or_none("a positive number of metres")
-per_metre_or_none = positive_or_none(f"px per metre in (0, {MAX_MAP_SCALE:g}]", MAX_MAP_SCALE)
-pixels_or_none = positive_or_none(f"px in (0, {MAX_IMAGE_WIDTH:g}]", MAX_IMAGE_WIDTH)
 
 
 def point_counts(entry: dict, params: StudyParams) -> str:

@@ -15,6 +15,8 @@ from __future__ import annotations
 import os
 import platform
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from concurrent.futures import ALL_COMPLETED, FIRST_COMPLETED, ThreadPoolExecutor, wait
 from importlib.metadata import version
 from pathlib import Path
@@ -27,18 +29,11 @@ from tqdm import tqdm
 
 from homocal.files import output_folder, read_json, write_atomic, write_json_atomic
 from homocal.study.perturb import draw_base_error
-from homocal.study.inputs import StudyParams, StudyScene, descent_settings, shift_spec
+from homocal.study.inputs import StudyParams, StudyScene
+from homocal.study.options import PRESETS
 from homocal.study.shards import check_shard, compute_shard, study_key
 from homocal.study.triples import n_samples
 
-# paper: the paper's protocol (1000 variants, 2000 test points) with the open choices closest to its Table 1 found
-# by `homocal sweep` (README, "Reproducing Table 1"): the clicked trapezoid's horizon 16 px above the true one, the
-# paper's perturbation read as one 0-3 px size per variant added to every chosen coordinate, the map perturbations
-# in px of a 1.5 px/m site map, descent's largest move (the paper's delta_max) 18 px, and the improvements of
-# range errors (the paper's "distance estimation error")
-PRESETS = {"paper": dict(n_variants=1000, n_test=2000, horizon_shift="16", perturbation="variant-positive", map_scale=1.5,
-                        descent=descent_settings(18.0), metric="range"),
-           "quick": dict(n_variants=50, n_test=2000)}
 GROUP = 8  # variants per Dask task
 FORMAT = "homocal-study"  # study.json's "format": marks a results directory as homocal study's (homocal.files.output_folder)
 
@@ -60,7 +55,7 @@ def variants_table(scene: StudyScene, params: StudyParams, reasons: list[str]) -
     (n_variants + 1,) are the shards' ("" if not degenerate)."""
     n = params.n_variants + 1
     rows = [scene.variant_offsets(params, v) for v in range(n)]
-    base = [draw_base_error(params.seed, scene.name, v, shift_spec(params), params.click_noise) for v in range(n)]
+    base = [draw_base_error(params.seed, scene.name, v, params.horizon_shift, params.click_noise) for v in range(n)]
     offsets, click = np.array([r[0] for r in rows]), np.array([b[1] for b in base])
     cols = {"variant": pa.array(np.arange(n, dtype=np.int32)),
             "horizon_shift_px": pa.array([b[0] for b in base], pa.float64())}  # null: the hand-placed trapezoid as it is
@@ -86,6 +81,12 @@ def study_parameters(preset: str | None, params: StudyParams, scenes: list[Study
     }
 
 
+def preset_label(preset: str | None) -> dict:
+    """study.json's preset_label: what the preset is (options.PRESETS; e.g. "fitted to Table 1, not the paper's
+    protocol"); nothing without a preset. Not compared by --resume."""
+    return {} if preset is None else {"preset_label": PRESETS[preset].label}
+
+
 def load_scenes(paths: list[str], params: StudyParams) -> list[StudyScene]:
     scenes = [StudyScene.from_dataset(str(Path(p).resolve()), params) for p in paths]  # read afresh: a dataset may be regenerated
     names = [s.name for s in scenes]
@@ -104,26 +105,26 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
     scenes = load_scenes(paths, params)
     parameters = study_parameters(preset, params, scenes, paths)
     n_shards = len(scenes) * (params.n_variants + 1)
-    with output_folder(out, FORMAT, resume, marker="study.json") as folder:
+    with dask_client(workers, scheduler) as client, output_folder(out, FORMAT, resume, marker="study.json") as folder:
         study_file, timing_file = out / "study.json", out / "timing.json"
         if folder.resumed:
             previous = read_json(study_file)
             if {k: previous.get(k) for k in parameters} != parameters:
                 raise ValueError(f"{out} holds a study with other parameters; --resume needs the same datasets and options")
-        shards = [shard_path(out, s.name, v).relative_to(out) for s in scenes for v in range(params.n_variants + 1)]
-        folder.remove_temporaries(["study.json", "timing.json", *(f"variants/{s.name}.parquet" for s in scenes), *map(str, shards)])
-        elapsed = read_json(timing_file).get("elapsed_seconds", 0.0) if timing_file.is_file() else 0.0
-        study = {"format": FORMAT, **parameters, "samples_total": sum(len(s.triples) * (params.n_variants + 1) for s in scenes),
-                 "complete": False, "versions": versions()}
-        write_json_atomic(study_file, study)
         keys = {s.name: study_key(params.to_dict(), s.name, s.config_hash) for s in scenes}
         reasons = {(s.name, v): check_shard(shard_path(out, s.name, v), s.name, v, keys[s.name], len(s.triples))
                    for s in scenes for v in range(params.n_variants + 1) if shard_path(out, s.name, v).is_file()}
+        shards = [shard_path(out, s.name, v).relative_to(out) for s in scenes for v in range(params.n_variants + 1)]
+        folder.remove_temporaries(["study.json", "timing.json", *(f"variants/{s.name}.parquet" for s in scenes), *map(str, shards)])
+        elapsed = read_json(timing_file).get("elapsed_seconds", 0.0) if timing_file.is_file() else 0.0
+        study = {"format": FORMAT, **parameters, **preset_label(preset), "samples_total": sum(len(s.triples) * (params.n_variants + 1) for s in scenes),
+                 "complete": False, "versions": versions()}
+        write_json_atomic(study_file, study)  # after every refusal: a refused --resume leaves study.json as it was
         todo = [(s, v) for s in scenes for v in range(params.n_variants + 1) if (s.name, v) not in reasons]
         bar = tqdm(total=len(todo), unit="shard", desc="study", disable=not progress)
         with ThreadPoolExecutor(max_workers=1) as writer:  # writes overlap the next shard's computation
             writes = []
-            for scene, variant, table, reason in _execute(todo, scenes, params, workers, scheduler):
+            for scene, variant, table, reason in _execute(todo, scenes, params, client):
                 writes.append(writer.submit(write_table, shard_path(out, scene.name, variant), table))
                 writes[-1].add_done_callback(lambda _: bar.update())
                 reasons[scene.name, variant] = reason
@@ -141,14 +142,41 @@ def run_study(paths: list[str], out: str | Path, params: StudyParams, preset: st
     return study | {"elapsed_seconds": elapsed}
 
 
-def _execute(todo, scenes, params, workers, scheduler):
-    """Yield (scene, variant, table, reason) for every (scene, variant) of todo, in-process or on Dask (the
-    loaded scenes are sent to the workers once each)."""
+@contextmanager
+def dask_client(workers: int | None, scheduler: str | None) -> Iterator:
+    """A Dask client of a local cluster of ``workers`` processes or of the running ``scheduler`` (None for neither:
+    the study runs in-process); entered before the output folder is made, so a scheduler that cannot be reached
+    leaves nothing behind."""
+    if workers is None and scheduler is None:
+        yield None
+        return
+    from dask.distributed import Client, LocalCluster
+
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True) if scheduler is None else None
+    try:
+        client = Client(cluster if cluster is not None else scheduler)
+    except BaseException as e:
+        if cluster is not None:
+            cluster.close()
+        if isinstance(e, OSError) and scheduler is not None:
+            raise ValueError(f"scheduler {scheduler!r}: cannot connect ({e})") from None
+        raise
+    try:
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _execute(todo, scenes, params, client):
+    """Yield (scene, variant, table, reason) for every (scene, variant) of todo, in-process (client None) or on
+    the Dask client's cluster (the loaded scenes are sent to the workers once each)."""
     groups = []
     for scene in scenes:
         vs = [v for s, v in todo if s is scene]
         groups += [(scene, vs[i:i + GROUP]) for i in range(0, len(vs), GROUP)]
-    if workers is None and scheduler is None:  # one shard per thread at a time; the kernel releases the GIL
+    if client is None:  # one shard per thread at a time; the kernel releases the GIL
         with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
             window = 2 * (os.cpu_count() or 1)
             shards = [(s, [v]) for s, vs in groups for v in vs]
@@ -161,20 +189,13 @@ def _execute(todo, scenes, params, workers, scheduler):
                         for v, table, reason in future.result():
                             yield futures.pop(future), v, table, reason
         return
-    from dask.distributed import Client, LocalCluster, as_completed
+    from dask.distributed import as_completed
 
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True) if scheduler is None else None
-    client = Client(cluster if cluster is not None else scheduler)
-    try:
-        remote = {s.name: client.scatter(s, broadcast=True) for s in scenes}
-        futures = {client.submit(run_group, remote[s.name], params, vs, pure=False): s for s, vs in groups}
-        for future in as_completed(futures):
-            for v, table, reason in future.result():
-                yield futures[future], v, table, reason
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    remote = {s.name: client.scatter(s, broadcast=True) for s in scenes}
+    futures = {client.submit(run_group, remote[s.name], params, vs, pure=False): s for s, vs in groups}
+    for future in as_completed(futures):
+        for v, table, reason in future.result():
+            yield futures[future], v, table, reason
 
 
 def _counts(scenes: list[StudyScene], reasons: dict[tuple[str, int], str]) -> dict:

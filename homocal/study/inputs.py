@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import functools
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -11,84 +11,116 @@ from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.least_change import LeastChangeCorrector
 from homocal.dataset import EXACT, calibration_source, load_dataset
 from homocal.geometry import SiteMap, ViewTransformer
-from homocal.study.perturb import ShiftSpec, base_quad, check_reading, draw_base_error, draw_variant, perturbed_quads
+from homocal.study.options import (DEFAULT_PRESET, Number, Parsed, Via, Words, declared_options, internal, option,
+                                   preset_values)
+from homocal.study.perturb import PERTURBATIONS, ShiftSpec, base_quad, draw_base_error, draw_variant, perturbed_quads
 from homocal.study.triples import distance_features, triples
 
 METRICS = ("euclidean", "range")
+MAX_VARIANTS = 100_000  # 100x the paper's 1000 trapezoid variants per scene (one shard each)
+MAX_N_TEST = 1_000_000  # test points per scene
 MAX_MAP_SCALE = 1000.0  # px per metre: a 1 mm map pixel
 MAX_IMAGE_WIDTH = 100_000.0  # px: 78x our datasets' 1280
+MAX_DELTA_MAX = 100.0  # px: descent's largest move
+
+
+def descent_settings(delta_max: float) -> dict:
+    """StudyParams.descent for a largest move delta_max (px): the phase-1 grid on TL and BR spans +/- delta_max / 2
+    in 5 steps (the defaults: delta_max 8, grid -4..4 in 2 px steps); phase 2 as by default."""
+    half = delta_max / 2
+    return {**DESCENT_DEFAULTS, "delta_max": float(delta_max), "grid_offsets": (-half, -half / 2, 0.0, half / 2, half)}
+
+
+DESCENT_DEFAULTS = {k: v for k, v in DescentCorrector().get_params().items() if k != "seed"}  # its seed is keyed per variant
+DESCENT = Via(Number(0.0, MAX_DELTA_MAX, low_open=True), descent_settings, lambda d: d["delta_max"],
+              lambda d: {**d, "grid_offsets": tuple(float(x) for x in d["grid_offsets"])},
+              lambda d: {**d, "grid_offsets": list(d["grid_offsets"])})
+SHIFT = Parsed(ShiftSpec, ShiftSpec.parse, "a number, normal:MU:SIGMA or uniform:A:B")
 
 
 @dataclass(frozen=True)
 class StudyParams:
-    """Everything that determines a study's numbers (written to study.json by to_dict).
+    """Everything that determines a study's numbers (written to study.json by to_dict). Each field is a study
+    option (its declaration: flag, bounds, unit, help, presets; homocal.study.options) or internal; a bad value
+    is a ValueError naming the field (options.OptionError)."""
 
-    horizon_shift: None (the hand-placed trapezoid as it is) or the clicked trapezoid's systematic error, a
-    ShiftSpec string: its horizon is put that many px above the true one (positive: the mapping
-    underestimates range). click_noise: standard deviation (px) of Gaussian noise on its 8 image coordinates.
-    metric: "euclidean" (ground error ||p - g||) or "range" (| ||g - o|| - ||p - o|| |) for the calibration
-    and path errors the improvements are computed from (the correctors themselves are unchanged).
-    test_lateral_max: test points at most this many metres to the side of the calibration line x = o_x.
-    map_scale: the scale (px per metre) of the site map the paper's 0-3 px map perturbations are clicked on
-    (the paper never gives its map's scale); None: the dataset's own site map (10 px/m in our scenes).
-    image_width: the width (px) of the camera image, of the same field of view, the paper's 0-3 px image
-    perturbations are clicked on (the paper never gives its camera's resolution); None: the dataset's own image
-    (1280 px in our scenes). Only those perturbations scale: horizon_shift, click_noise and descent's moves
-    stay in px of the dataset's image.
-    perturbation: how the paper's 0-3 px perturbation of 2-16 coordinates is read (perturb.draw_variant):
-    "coordinate" (each its own size and sign), "variant" (one size per variant, each its own sign) or
-    "variant-positive" (one size per variant, all +).
-    """
-
-    seed: int = 0
-    n_variants: int = 1000
-    foot_source: str = EXACT  # "exact", "segmentation" or another detector's name
-    n_test: int = 2000
-    max_test_distance: float | None = 50.0  # metres from the camera; the paper's operating range (Fig. 2); None: all
-    test_lateral_max: float | None = None
-    horizon_shift: str | None = None
-    click_noise: float = 0.0
-    metric: str = "euclidean"
-    map_scale: float | None = None
-    image_width: float | None = None
-    perturbation: str = "coordinate"
-    threshold: float = DEFAULT_THRESHOLD
-    descent: dict = field(default_factory=lambda: {  # DescentCorrector's defaults (its seed is keyed per variant)
-        k: v for k, v in DescentCorrector().get_params().items() if k != "seed"})
-    least_change: dict = field(default_factory=lambda: LeastChangeCorrector().get_params())  # its defaults
+    seed: int = option(0, flag="--seed", kind=Number(0, 2**63 - 1, integer=True), sweep=True,
+                       help="run seed (variants, base errors, descent orders, test subsample)")
+    n_variants: int = option(1000, flag="--variants", kind=Number(0, MAX_VARIANTS, integer=True), metavar="N",
+                             presets={"quick": "50", "paper": "1000", "table1-fit": "1000"},
+                             help="perturbed trapezoid variants per scene (one shard each)")
+    foot_source: str = option(EXACT, flag="--foot-source", kind=Words(),
+                              help="exact (projected contact points) or a detector of the datasets: segmentation, rgb, "
+                                   "hog (if generated with it) or an imported one; its test points are its matched "
+                                   "detections, the calibration points are then the segmentation detector's")
+    n_test: int = option(2000, flag="--n-test", kind=Number(1, MAX_N_TEST, integer=True), metavar="N",
+                         presets={"quick": "2000", "paper": "2000", "table1-fit": "2000"},
+                         help="test points per scene, a seeded subsample of those the dataset has (all of them if it "
+                              "has fewer)")
+    max_test_distance: float | None = option(50.0, flag="--max-test-distance", kind=Number(0.0, low_open=True),
+                                             unit="m", none="all test points", sweep=True, metavar="M",
+                                             help="test points at most M metres from the camera (50: the paper's "
+                                                  "operating range, Fig. 2)")
+    test_lateral_max: float | None = option(None, flag="--test-lateral-max", kind=Number(0.0, low_open=True),
+                                            unit="m", none="all test points", sweep=True, metavar="M",
+                                            help="test points at most M metres to the side of the calibration line "
+                                                 "x = 0")
+    horizon_shift: ShiftSpec | None = option(None, flag="--horizon-shift", kind=SHIFT, unit="px", sweep=True,
+                                             none="the hand-placed trapezoid as it is", metavar="SPEC",
+                                             presets={"paper": "none", "table1-fit": "16"},
+                                             help="the clicked trapezoid's systematic error: the hand-placed trapezoid "
+                                                  "moved as a tilt error moves it, so that its horizon lies SPEC px "
+                                                  "above the true one (positive: the mapping underestimates range); "
+                                                  "SPEC is a number or a per-variant distribution normal:MU:SIGMA or "
+                                                  "uniform:A:B (kept parsed as a perturb.ShiftSpec)")
+    click_noise: float = option(0.0, flag="--click-noise", kind=Number(0.0, 100.0), unit="px", sweep=True, metavar="PX",
+                                help="per-variant Gaussian noise (standard deviation) on the 8 clicked image coordinates")
+    metric: str = option("euclidean", flag="--metric", kind=Words(METRICS), sweep=True,
+                         presets={"paper": "range", "table1-fit": "range"},
+                         help="the calibration and path errors the improvements are computed from: euclidean (ground "
+                              "error ||p - g||) or range (| ||g - o|| - ||p - o|| |); the correctors are unchanged")
+    map_scale: float | None = option(None, flag="--map-scale", kind=Number(0.0, MAX_MAP_SCALE, low_open=True),
+                                     unit="px/m", none="the dataset's own site map", sweep=True, omit_default=True,
+                                     metavar="PX_PER_M", presets={"paper": "none", "table1-fit": "1.5"},
+                                     help="scale of the site map the paper's 0-3 px map perturbations are clicked on "
+                                          "(the paper never gives its map's; our scenes' maps are 10 px/m)")
+    image_width: float | None = option(None, flag="--image-width", kind=Number(0.0, MAX_IMAGE_WIDTH, low_open=True),
+                                       unit="px", none="the dataset's own image", sweep=True, omit_default=True,
+                                       metavar="PX",
+                                       help="width of the camera image (same field of view) the paper's 0-3 px image "
+                                            "perturbations are clicked on (the paper never gives its camera's "
+                                            "resolution; ours are 1280 px); --horizon-shift, --click-noise and "
+                                            "descent's moves stay in the dataset's px")
+    perturbation: str = option("coordinate", flag="--perturbation", kind=Words(PERTURBATIONS), sweep=True,
+                               omit_default=True, presets={"paper": "coordinate", "table1-fit": "variant-positive"},
+                               help="how the paper's 'perturbation of 0, 1, 2, or 3 pixels ... to a randomly selected "
+                                    "subset of 2 to 16 coordinate values' is read (perturb.draw_variant): coordinate "
+                                    "(each chosen coordinate its own 0-3 px and sign), variant (one 0-3 px per variant, "
+                                    "each coordinate its own sign) or variant-positive (one 0-3 px per variant, added to "
+                                    "every chosen coordinate)")
+    threshold: float = internal(DEFAULT_THRESHOLD, why="the hybrid's switch, fixed by the paper (Section 5.4)")
+    descent: dict = option(default_factory=lambda: dict(DESCENT_DEFAULTS), flag="--descent-delta-max", kind=DESCENT,
+                           unit="px", sweep=True, metavar="PX", presets={"table1-fit": "18"},
+                           help="descent's largest move of a trapezoid coordinate (the paper's delta_max, which it "
+                                "does not give); the phase-1 grid spans +/- half of it in 5 steps, the other settings "
+                                "are DescentCorrector's defaults")
+    least_change: dict = internal(default_factory=lambda: LeastChangeCorrector().get_params(),
+                                  why="least change's settings: its library defaults")
 
     def __post_init__(self) -> None:
-        if self.horizon_shift is not None:
-            object.__setattr__(self, "horizon_shift", str(ShiftSpec.parse(self.horizon_shift)))  # one spelling
-        grid = tuple(float(x) for x in self.descent["grid_offsets"])
-        object.__setattr__(self, "descent", {**self.descent, "grid_offsets": grid})
-        check_reading(self.perturbation)
-        if self.metric not in METRICS:
-            raise ValueError(f"--metric {self.metric!r}: expected one of {', '.join(METRICS)}")
-        if not (isinstance(self.click_noise, (int, float)) and 0 <= self.click_noise <= 100):
-            raise ValueError(f"--click-noise {self.click_noise!r}: expected a number of pixels in [0, 100]")
-        if not isinstance(self.seed, int) or not 0 <= self.seed < 2**63:
-            raise ValueError(f"--seed {self.seed!r}: expected an integer in [0, 2**63)")
-        for name in ("max_test_distance", "test_lateral_max"):
-            value = getattr(self, name)
-            if value is not None and not (isinstance(value, (int, float)) and 0 < value < float("inf")):
-                raise ValueError(f"--{name.replace('_', '-')} {value!r}: expected a positive number of metres or none")
-        scale = self.map_scale
-        if scale is not None and not (isinstance(scale, (int, float)) and 0 < scale <= MAX_MAP_SCALE):
-            raise ValueError(f"--map-scale {self.map_scale!r}: expected px per metre in (0, {MAX_MAP_SCALE:g}] or none")
-        width = self.image_width
-        if width is not None and not (isinstance(width, (int, float)) and 0 < width <= MAX_IMAGE_WIDTH):
-            raise ValueError(f"--image-width {width!r}: expected px in (0, {MAX_IMAGE_WIDTH:g}] or none")
+        for name, opt in OPTIONS.items():
+            object.__setattr__(self, name, opt.check(name, getattr(self, name)))
 
     def to_dict(self) -> dict:
-        """Every field, JSON-ready (study.json; what --resume compares). map_scale, image_width and perturbation
-        are left out at their defaults, so studies written before they existed keep their study keys and resume."""
-        d = asdict(self)
-        defaults = {f.name: f.default for f in fields(self)}
-        for name in ("map_scale", "image_width", "perturbation"):
-            if d[name] == defaults[name]:
-                del d[name]
-        d["descent"]["grid_offsets"] = list(d["descent"]["grid_offsets"])
+        """Every field, JSON-ready (study.json; what --resume compares); the options declared omit_default are
+        left out at their defaults, so studies written before they existed keep their study keys and resume."""
+        d = {}
+        for f in fields(self):
+            value, opt = getattr(self, f.name), f.metadata.get("option")
+            if opt is None:
+                d[f.name] = dict(value) if isinstance(value, dict) else value
+            elif not (opt.omit_default and value == f.default):
+                d[f.name] = opt.to_json(value)
         return d
 
     @classmethod
@@ -98,40 +130,31 @@ class StudyParams:
         return cls(**{k: v for k, v in d.items() if k in names})
 
 
-OPTIONS = ("n_variants", "foot_source", "n_test", "max_test_distance", "test_lateral_max", "horizon_shift",
-           "click_noise", "metric", "map_scale", "image_width", "perturbation", "seed", "descent")  # the StudyParams fields a study option sets
+OPTIONS = declared_options(StudyParams)  # {field name: its options.Option}, in field order
 
 
 def option_text(name: str, value) -> str:
     """A StudyParams field's value as the study option that sets it: option_text("n_variants", 50) ->
     "--variants 50", ("map_scale", None) -> "--map-scale none", ("descent", {...}) -> "--descent-delta-max 14"."""
-    if name == "descent":
-        name, value = "descent_delta_max", value["delta_max"]
-    flag = "--variants" if name == "n_variants" else "--" + name.replace("_", "-")
-    return f"{flag} {'none' if value is None else f'{value:g}' if isinstance(value, (int, float)) else value}"
+    return f"{OPTIONS[name].flag} {OPTIONS[name].to_text(value)}"
 
 
-def changed_options(params: StudyParams, base: StudyParams, names: tuple[str, ...] = OPTIONS) -> list[str]:
-    """The study options among names (OPTIONS by default, in its order; as option_text) whose values in params
-    differ from base's."""
+def changed_options(params: StudyParams, base: StudyParams, names: tuple[str, ...] = tuple(OPTIONS)) -> list[str]:
+    """The study options among names (all by default; in declaration order; as option_text) whose values in
+    params differ from base's as their flags give them."""
     return [option_text(n, getattr(params, n)) for n in OPTIONS
-            if n in names and (getattr(params, n)["delta_max"] != getattr(base, n)["delta_max"] if n == "descent"
-                               else getattr(params, n) != getattr(base, n))]
+            if n in names and option_text(n, getattr(params, n)) != option_text(n, getattr(base, n))]
+
+
+def preset_params(preset: str, **values) -> StudyParams:
+    """StudyParams of the preset (options.PRESETS), with values on top."""
+    return StudyParams(**{**preset_values(StudyParams, preset), **values})
 
 
 def options_label(params: StudyParams) -> str:
-    """The study options of params that differ from homocal study's defaults (its quick preset, 50 variants), as a
-    command line gives them; "(defaults)" if none."""
-    return " ".join(changed_options(params, StudyParams(n_variants=50))) or "(defaults)"
-
-
-def descent_settings(delta_max: float) -> dict:
-    """StudyParams.descent for a largest move delta_max (px): the phase-1 grid on TL and BR spans +/- delta_max / 2
-    in 5 steps (the defaults: delta_max 8, grid -4..4 in 2 px steps); phase 2 as by default."""
-    if not 0 < delta_max <= 100:
-        raise ValueError(f"--descent-delta-max must be in (0, 100] px, got {delta_max}")
-    half = delta_max / 2
-    return {**StudyParams().descent, "delta_max": float(delta_max), "grid_offsets": (-half, -half / 2, 0.0, half / 2, half)}
+    """The study options of params that differ from homocal study's defaults (its quick preset), as a command
+    line gives them; "(defaults)" if none."""
+    return " ".join(changed_options(params, preset_params(DEFAULT_PRESET))) or "(defaults)"
 
 
 @dataclass
@@ -183,7 +206,7 @@ class StudyScene:
         """The variant's clicked base image trapezoid (4, 2) px (perturb.base_quad): the hand-placed one, its
         horizon put the variant's horizon shift above the true one if params has a horizon shift, plus the
         variant's click noise; the hand-placed one itself by default."""
-        eps, noise = draw_base_error(params.seed, self.name, variant, shift_spec(params), params.click_noise)
+        eps, noise = draw_base_error(params.seed, self.name, variant, params.horizon_shift, params.click_noise)
         return base_quad(self.image_quad, self.K, self.horizon_row, self.true_horizon_row, eps, noise)
 
     @functools.cached_property
@@ -207,7 +230,3 @@ class StudyScene:
                    np.asarray(ds.camera["K"], dtype=np.float64), float(ds.camera["horizon_row"]),
                    float(ds.camera["width"]), str(ds.manifest.get("config_hash", "")))
 
-
-def shift_spec(params: StudyParams) -> ShiftSpec | None:
-    """The study's horizon-shift spec, None if it has none."""
-    return None if params.horizon_shift is None else ShiftSpec.parse(params.horizon_shift)

@@ -20,6 +20,7 @@ from typing import Sequence
 import numpy as np
 
 from homocal.files import read_json
+from homocal.names import check_name
 from homocal.study.aggregate import Quantiles, scan
 from homocal.study.kernels import METHODS  # the one list of the study's methods
 from homocal.study.inputs import StudyParams
@@ -81,6 +82,8 @@ def load_study(results_dir: str | Path) -> dict:
     study = read_json(results_dir / "study.json")
     if not isinstance(study.get("datasets"), list) or not all(isinstance(d, dict) and "scene" in d for d in study["datasets"]):
         raise ValueError(f"{results_dir / 'study.json'}: needs a 'datasets' list of {{scene, path, config_hash}}")
+    for i, d in enumerate(study["datasets"]):  # scene names become paths (shards/<scene>, figures)
+        check_name(d["scene"], f"{results_dir / 'study.json'}: datasets[{i}].scene")
     return study
 
 

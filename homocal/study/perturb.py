@@ -35,7 +35,7 @@ class ShiftSpec:
 
     @classmethod
     def parse(cls, text: str) -> "ShiftSpec":
-        """'8', '-2.5', 'normal:MU:SIGMA' or 'uniform:A:B'; ValueError naming the flag otherwise."""
+        """'8', '-2.5', 'normal:MU:SIGMA' or 'uniform:A:B'; a ValueError saying what is expected otherwise."""
         text = str(text).strip()
         usage = "expected a number of pixels, normal:MU:SIGMA or uniform:A:B"
         if re.fullmatch(_NUMBER, text):
@@ -43,13 +43,13 @@ class ShiftSpec:
         elif m := re.fullmatch(rf"(normal|uniform):({_NUMBER}):({_NUMBER})", text):
             spec = cls(m.group(1), float(m.group(2)), float(m.group(3)))
         else:
-            raise ValueError(f"--horizon-shift {text!r}: {usage}")
+            raise ValueError(usage)
         if not (math.isfinite(spec.a) and math.isfinite(spec.b) and abs(spec.a) <= 100 and abs(spec.b) <= 100):
-            raise ValueError(f"--horizon-shift {text!r}: values must be finite and at most 100 px")
+            raise ValueError("expected finite values of at most 100 px")
         if spec.kind == "normal" and spec.b < 0:
-            raise ValueError(f"--horizon-shift {text!r}: the standard deviation must be >= 0")
+            raise ValueError("expected a standard deviation >= 0")
         if spec.kind == "uniform" and spec.b < spec.a:
-            raise ValueError(f"--horizon-shift {text!r}: uniform:A:B needs A <= B")
+            raise ValueError("expected A <= B in uniform:A:B")
         return spec
 
     def __str__(self) -> str:
@@ -106,9 +106,9 @@ PERTURBATIONS = ("coordinate", "variant", "variant-positive")  # readings of the
 
 
 def check_reading(reading: str) -> str:
-    """reading if it is one of PERTURBATIONS; else a ValueError naming the --perturbation option."""
+    """reading if it is one of PERTURBATIONS; else a ValueError naming the parameter reading."""
     if reading not in PERTURBATIONS:
-        raise ValueError(f"--perturbation {reading!r}: expected one of {', '.join(PERTURBATIONS)}")
+        raise ValueError(f"reading {reading!r}: expected one of {', '.join(PERTURBATIONS)}")
     return reading
 
 

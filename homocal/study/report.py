@@ -85,37 +85,55 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None, com
     for other in compare:
         other_study = load_study(other)
         others.append((other, other_study, build_table(verified_shard_files(other, other_study)[0], progress)))
+    sweep = read_sweep(sweep_dir) if sweep_dir is not None else None
+    table = build_table(shards, progress)  # every input read before anything is written: a failing report writes nothing
     out_dir = Path(out_dir) if out_dir is not None else results_dir / "report"
     with output_folder(out_dir, FORMAT, resume=True, marker="report.json") as folder:
         folder.remove_temporaries(["report.json", "report.html", "table.md", "table.csv",
                                    *(f"figures/{name}" for name in figure_names(study))])
         write_json_atomic(folder.marker, {"format": FORMAT, "results_dir": str(results_dir.resolve())})
-        table = build_table(shards, progress)
         write_text_atomic(out_dir / "table.md", to_markdown(table))
         write_text_atomic(out_dir / "table.csv", to_csv(table))
         figures, notes = make_figures(results_dir, study, shards, out_dir / "figures", progress)
         page = out_dir / "report.html"
-        reproduction = reproduction_html([(results_dir, study, table), *others], sweep_dir, out_dir)
+        reproduction = reproduction_html([(results_dir, study, table), *others], sweep, out_dir)
         law = law_html(results_dir, study)
         write_text_atomic(page, render_html(study, table, figures, notes, out_dir, reproduction + law, missing))
     return page, to_text(table), missing
 
 
 def config_label(study: dict) -> str:
-    """A study's configuration in its options' words: its base error, click noise and metric always, then every
-    other study option that differs from homocal study's defaults (inputs.changed_options)."""
+    """A study's configuration in its options' words: its preset and what it is (study.json's preset_label;
+    none in a study.json written before presets were labelled, whose "paper" may name another configuration),
+    its base error, click noise and metric always, then every other study option that differs from homocal
+    study's defaults (inputs.changed_options)."""
     params = StudyParams.from_dict(study)
     parts = ["hand-placed trapezoid as it is" if params.horizon_shift is None else option_text("horizon_shift", params.horizon_shift),
              option_text("click_noise", params.click_noise), option_text("metric", params.metric)]
     rest = tuple(n for n in OPTIONS if n not in ("n_variants", "horizon_shift", "click_noise", "metric"))
     parts += changed_options(params, StudyParams(), rest)  # the other options, where they differ from the defaults
-    return f"preset {study.get('preset')}, {study.get('n_variants')} variants: " + " ".join(parts)
+    label = f" ({study['preset_label']})" if study.get("preset_label") else ""
+    return f"preset {study.get('preset')}{label}, {params.n_variants} variants: " + " ".join(parts)
 
 
-def reproduction_html(studies: list[tuple[Path, dict, Table]], sweep_dir: Path | None, out_dir: Path) -> list[str]:
+def read_sweep(sweep_dir: Path) -> tuple[Path, dict, bytes]:
+    """(sweep_dir, the regression row of sweep.csv with the least D, sweep.png's bytes) of a homocal sweep folder;
+    ValueError naming what is missing or malformed."""
+    try:
+        with (Path(sweep_dir) / "sweep.csv").open(encoding="utf-8") as f:
+            rows = list(csv.DictReader(f))
+        best = min((r for r in rows if r.get("method") == "regression"), key=lambda r: float(r["D"]))
+        return sweep_dir, best, (Path(sweep_dir) / "sweep.png").read_bytes()
+    except (OSError, UnicodeError, csv.Error, ValueError, KeyError, TypeError) as e:
+        reason = e.strerror if isinstance(e, OSError) and e.strerror else "no regression rows with a number D in sweep.csv"
+        raise ValueError(f"{sweep_dir}: not a finished homocal sweep folder ({reason})") from None
+
+
+def reproduction_html(studies: list[tuple[Path, dict, Table]], sweep: tuple[Path, dict, bytes] | None,
+                      out_dir: Path) -> list[str]:
     """The Reproduction section: the paper's Table 1 numbers (and the text's std and 1st percentile) beside
     each study's, with D (metrics.paper_distance); numbers more than 10 pp (0.10 for correlations) from the
-    paper are marked; the sweep's figure if given."""
+    paper are marked; the sweep's figure if given (read_sweep)."""
     e = html.escape
     header = ["method", "metric", "paper"] + [f"{i + 1}: {p.name}" for i, (p, _, _) in enumerate(studies)]
     rows, far = [], []
@@ -147,10 +165,9 @@ def reproduction_html(studies: list[tuple[Path, dict, Table]], sweep_dir: Path |
     parts += [f"<li>Study {i + 1}: {e(line)}</li>" for i, (_, st, table) in enumerate(studies)
               if (line := ceiling_fact(st, table.value("regression", "median_path")))]
     parts.append("</ul>")
-    if sweep_dir is not None:
-        rows_csv = list(csv.DictReader((Path(sweep_dir) / "sweep.csv").open(encoding="utf-8")))
-        best = min((r for r in rows_csv if r["method"] == "regression"), key=lambda r: float(r["D"]))
-        data = base64.b64encode((Path(sweep_dir) / "sweep.png").read_bytes()).decode("ascii")
+    if sweep is not None:
+        sweep_dir, best, png = sweep
+        data = base64.b64encode(png).decode("ascii")
         parts.append(f"<figure><img src='data:image/png;base64,{data}' alt='sweep'><figcaption><b>Sensitivity to "
                      f"{e(best['param'])}.</b> Table 1's metrics against the swept value ({e(str(sweep_dir))}); the "
                      f"paper's values dashed. Closest: {e(best['param'])} = {e(best['value'])}, D = {float(best['D']):.1f} "
@@ -162,7 +179,7 @@ def gap_facts(study: dict) -> list[str]:
     """Per dataset of a study: how far the hand-placed trapezoid's horizon lies from the exact one's (px, at the
     principal column; positive: above, the mapping underestimates range), the share of its test points
     within 2 m of the calibration line, and the size in metres of the 0-3 px map perturbations."""
-    facts = []
+    facts, params = [], StudyParams.from_dict(study)
     for entry in study["datasets"]:
         try:
             ds = load_dataset(entry["path"])
@@ -171,17 +188,17 @@ def gap_facts(study: dict) -> list[str]:
         K = np.asarray(ds.camera["K"], dtype=np.float64)
         rows = [ViewTransformer(t["image"], ds.site_map.to_metres(t["map"])).horizon_row(K[0, 2])
                 for t in (ds.trapezoids["exact"], ds.trapezoids["hand_placed"])]
-        _, ground = ds.test_points(study.get("foot_source", "exact"), n=study.get("n_test"), seed=study.get("seed", 0),
-                                   max_distance=study.get("max_test_distance"), max_lateral=study.get("test_lateral_max"))
+        _, ground = ds.test_points(params.foot_source, n=params.n_test, seed=params.seed,
+                                   max_distance=params.max_test_distance, max_lateral=params.test_lateral_max)
         near = np.mean(np.abs(ground[:, 0] - ds.camera_origin[0]) <= 2.0)
-        shift = study.get("horizon_shift")
+        shift = params.horizon_shift
         base = ("the study uses it as it is" if shift is None
                 else f"the study moves it to lie {shift} px above the true horizon (--horizon-shift)")
         facts.append(f"{ds.name}: the hand-placed trapezoid's horizon lies {rows[0] - rows[1]:+.2f} px above the exact one's "
                      f"(negative: below; the mapping then overestimates range), and {base}; {100 * near:.1f} % of its "
                      f"{len(ground)} test points are within 2 m of the calibration line (the calibration objects stand on it); "
-                     f"the map perturbations are px of {_map_scale_words(study, ds.site_map.scale_px_per_m)}; "
-                     f"the image perturbations are px of {_image_width_words(study, float(ds.camera['width']))}.")
+                     f"the map perturbations are px of {_map_scale_words(params.map_scale, ds.site_map.scale_px_per_m)}; "
+                     f"the image perturbations are px of {_image_width_words(params.image_width, float(ds.camera['width']))}.")
     return facts
 
 
@@ -204,17 +221,17 @@ def ceiling_fact(study: dict, regression_median: float, variants: int = 50) -> s
             f"{PAPER['regression']['median_path']:.1f} %.")
 
 
-def _map_scale_words(study: dict, own: float) -> str:
-    """Which site map the study's 0-3 px map perturbations are in, and their largest size in metres."""
-    scale = study.get("map_scale")
+def _map_scale_words(scale: float | None, own: float) -> str:
+    """Which site map (scale: the study's map_scale) the 0-3 px map perturbations are in, and their largest size
+    in metres."""
     which = (f"its own {own:g} px/m site map" if scale is None
              else f"a {scale:g} px/m site map (--map-scale; its own is {own:g})")
     return f"{which}, up to {MAX_PIXELS / (scale or own):.2f} m"
 
 
-def _image_width_words(study: dict, own: float) -> str:
-    """Which camera image the study's 0-3 px image perturbations are in, and their largest size in its own px."""
-    width = study.get("image_width")
+def _image_width_words(width: float | None, own: float) -> str:
+    """Which camera image (width: the study's image_width) the 0-3 px image perturbations are in, and their
+    largest size in its own px."""
     if width is None:
         return f"its own {own:g} px wide image"
     return (f"a {width:g} px wide image of the same field of view (--image-width; its own is {own:g} px wide), "

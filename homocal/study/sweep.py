@@ -24,12 +24,12 @@ from homocal.files import output_folder, read_json, write_json_atomic, write_tex
 from homocal.progress import show_progress
 from homocal.study.cli import add_study_options, params_from_args
 from homocal.study.engine import run_study
+from homocal.study.inputs import OPTIONS
 from homocal.study.figures import save
 from homocal.study.metrics import D_KEYS, METHODS, METRICS, PAPER, build_table, load_study, paper_distance, shard_files
 
 FORMAT = "homocal-sweep"  # sweep.json's "format": marks a sweep folder (homocal.files.output_folder)
-SWEEPABLE = ("horizon_shift", "click_noise", "test_lateral_max", "max_test_distance", "metric", "seed", "descent_delta_max",
-             "map_scale", "image_width", "perturbation")
+SWEEPABLE = {opt.name: field for field, opt in OPTIONS.items() if opt.sweep}  # sweep's parameter name -> StudyParams field
 CSV_KEYS = ("n", *D_KEYS, "median_cal", "iqr_cal", "std_cal")
 
 
@@ -61,14 +61,14 @@ def run_name(param: str, value: str) -> str:
 
 def run_sweep(paths: list[str], out: str | Path, param: str, values: list[str], args: argparse.Namespace,
               resume: bool = False, progress: bool = True) -> list[dict]:
-    """Run (or resume) one study per value of param under out/runs; write sweep.csv and sweep.png; return the
-    CSV rows. The other parameters come from args (homocal study's options)."""
+    """Run (or resume) one study per value of param (a SWEEPABLE name) under out/runs; write sweep.csv and
+    sweep.png; return the CSV rows. The other parameters come from args (homocal study's options)."""
     out = Path(out)
     fixed = params_from_args(args).to_dict()
     fixed.pop(param, None)
     meta = {"format": FORMAT, "param": param, "values": values, "preset": args.preset, "fixed": fixed,
             "datasets": [str(Path(p).resolve()) for p in paths]}
-    params = [params_from_args(args, **{param: _typed(param, v)}) for v in values]  # every value checked first
+    params = [params_from_args(args, **{SWEEPABLE[param]: _typed(param, v)}) for v in values]  # every value checked first
     with output_folder(out, FORMAT, resume, marker="sweep.json") as folder:
         if folder.resumed and read_json(out / "sweep.json") != meta:
             raise ValueError(f"{out} holds a sweep of other parameters; --resume needs the same datasets and options")
@@ -123,9 +123,8 @@ def sweep_figure(rows: list[dict], param: str) -> Figure:
             if key == "D":
                 break
         ax.set_title("D to the paper's Table 1 (pp)" if key == "D" else METRICS[key][0], fontsize=9)
-        unit = {"horizon_shift": " (px)", "click_noise": " (px)", "descent_delta_max": " (px)",
-                "map_scale": " (px/m)", "image_width": " (px)"}.get(param, "")
-        ax.set_xlabel(param.replace("_", " ") + unit, fontsize=8)
+        unit = OPTIONS[SWEEPABLE[param]].unit
+        ax.set_xlabel(param.replace("_", " ") + (f" ({unit})" if unit else ""), fontsize=8)
         if labels is not None:
             ax.set_xticks(x, labels, rotation=30, fontsize=7)
         ax.grid(alpha=0.3)
@@ -137,24 +136,19 @@ def sweep_figure(rows: list[dict], param: str) -> Figure:
 
 
 def _typed(param: str, value: str):
-    """A swept value as StudyParams takes it."""
-    if param in ("horizon_shift", "metric", "perturbation"):
-        return value
-    if param == "seed":
-        return int(value)
-    if param in ("test_lateral_max", "max_test_distance", "map_scale", "image_width") and value.lower() == "none":
-        return None
+    """A swept value (text) of the SWEEPABLE parameter param as StudyParams takes it; a ValueError naming the flag."""
+    opt = OPTIONS[SWEEPABLE[param]]
     try:
-        return float(value)
-    except ValueError:
-        raise ValueError(f"--{param.replace('_', '-')} {value!r}: expected a number") from None
+        return opt.from_text(value)
+    except ValueError as e:
+        raise ValueError(f"argument {opt.flag}: {e}") from None
 
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser(
         "sweep", help="one study per value of one parameter, and each one's distance to the paper's Table 1",
         description="Runs `homocal study` once per value of the swept parameter (give exactly one of "
-                    f"{', '.join('--' + s.replace('_', '-') for s in SWEEPABLE)} as a list: 0,1,2 or START:STOP:STEP), "
+                    f"{', '.join(OPTIONS[f].flag for f in SWEEPABLE.values())} as a list: 0,1,2 or START:STOP:STEP), "
                     "writes sweep.csv (Table 1 per method per value, and D, the RMS distance to the paper's 14 "
                     "numbers in pp) and sweep.png, and names the closest value.")
     p.add_argument("datasets", nargs="+", metavar="DATASET", help="simgen dataset folders (one per scene)")
@@ -165,19 +159,20 @@ def add_parser(subparsers) -> None:
 
 
 def handle_sweep(args: argparse.Namespace) -> int:
-    given = [s for s in SWEEPABLE if hasattr(args, s) and len(expand_values(str(getattr(args, s)))) > 1]
+    given = [s for s, f in SWEEPABLE.items() if hasattr(args, f) and len(expand_values(getattr(args, f))) > 1]
     if len(given) != 1:
         raise ValueError(f"sweep exactly one parameter with two or more values (got {len(given)}: {', '.join(given) or 'none'})")
     param = given[0]
-    values = expand_values(str(getattr(args, param)))
+    text = getattr(args, SWEEPABLE[param])
+    values = expand_values(text)
     typed = [_typed(param, v) for v in values]
     twice = list(dict.fromkeys(v for v, t in zip(values, typed) if typed.count(t) > 1))
     if twice:
-        raise ValueError(f"--{param.replace('_', '-')} {getattr(args, param)!r}: {', '.join(twice)} given more than once")
-    delattr(args, param)
-    for name in SWEEPABLE:  # single values of the other sweepable options, as the study takes them
-        if hasattr(args, name):
-            setattr(args, name, _typed(name, str(getattr(args, name))))
+        raise ValueError(f"{OPTIONS[SWEEPABLE[param]].flag} {text!r}: {', '.join(twice)} given more than once")
+    delattr(args, SWEEPABLE[param])
+    for name, field in SWEEPABLE.items():  # single values of the other sweepable options, as the study takes them
+        if hasattr(args, field):
+            setattr(args, field, _typed(name, getattr(args, field)))
     rows = run_sweep(args.datasets, args.out, param, values, args, resume=args.resume, progress=show_progress(args))
     best = closest(rows)
     print(f"homocal sweep: {len(values)} values of {param} in {args.out} (sweep.csv, sweep.png); closest to the paper's "

@@ -124,7 +124,7 @@ def test_negative_values_after_the_flag(datasets, tmp_path, capsys):
 def test_bad_shift_spec_is_one_clear_error(datasets, tmp_path, capsys, text):
     assert exit_code(["study", *datasets, "-o", str(tmp_path / "s"), "--variants", "1", "--horizon-shift", text]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("homocal: error: --horizon-shift")
+    assert len(err) == 1 and err[0].startswith("homocal: error: argument --horizon-shift: expected")
     assert not (tmp_path / "s").exists()
 
 
@@ -139,16 +139,18 @@ def test_bad_study_options_are_one_clear_error(datasets, tmp_path, capsys, args,
     assert not (tmp_path / "s").exists()
 
 
-def test_paper_preset_and_the_options_over_it(datasets, tmp_path, capsys):
-    """--preset paper writes the README's configuration to study.json (horizon 16 px, the variant-positive
-    perturbation, 1.5 px/m, descent's largest move 18 px with its phase-1 grid +/- 9 px, range errors); an option
-    given overrides the preset's, and --horizon-shift none turns its base error off."""
+def test_fitted_preset_and_the_options_over_it(datasets, tmp_path, capsys):
+    """--preset table1-fit writes the configuration fitted to Table 1 to study.json, labelled as fitted (horizon
+    16 px, the variant-positive perturbation, 1.5 px/m, descent's largest move 18 px with its phase-1 grid
+    +/- 9 px, range errors); an option given overrides the preset's, and --horizon-shift none turns its base
+    error off."""
     def written(*args):
         out = tmp_path / f"s{len(list(tmp_path.iterdir()))}"
-        assert main(["study", *datasets, "-o", str(out), "--preset", "paper", "--variants", "1", "--n-test", "20",
+        assert main(["study", *datasets, "-o", str(out), "--preset", "table1-fit", "--variants", "1", "--n-test", "20",
                      "--no-progress", *args]) == 0
         return json.loads((out / "study.json").read_text())
     study = written()
+    assert study["preset"] == "table1-fit" and study["preset_label"] == "fitted to Table 1, not the paper's protocol"
     assert (study["horizon_shift"], study["map_scale"], study["n_test"], study["metric"]) == ("16", 1.5, 20, "range")
     assert study["perturbation"] == "variant-positive"
     assert study["descent"]["delta_max"] == 18.0 and study["descent"]["grid_offsets"] == [-9.0, -4.5, 0.0, 4.5, 9.0]
@@ -236,9 +238,13 @@ def test_map_scale_is_recorded_and_left_out_at_its_default():
     assert StudyParams.from_dict(json.loads(json.dumps(params.to_dict()))) == params
     assert StudyParams.from_dict(StudyParams().to_dict()) == StudyParams()
     assert _typed("map_scale", "none") is None and _typed("map_scale", "2.5") == 2.5  # as homocal sweep reads values
-    label = config_label({"preset": "paper", "n_variants": 1000, **StudyParams(horizon_shift="12", map_scale=2.5).to_dict()})
-    assert label == "preset paper, 1000 variants: --horizon-shift 12 --click-noise 0 --metric euclidean --map-scale 2.5"
+    label = config_label({"preset": "table1-fit", "preset_label": "fitted to Table 1, not the paper's protocol",
+                          **StudyParams(horizon_shift="12", map_scale=2.5).to_dict()})
+    assert label == ("preset table1-fit (fitted to Table 1, not the paper's protocol), 1000 variants: --horizon-shift 12 "
+                     "--click-noise 0 --metric euclidean --map-scale 2.5")
     assert "--map-scale" not in config_label({"preset": "quick", **StudyParams().to_dict()})
+    assert config_label({"preset": "paper", **StudyParams(horizon_shift="16").to_dict()}).startswith(
+        "preset paper, 1000 variants: --horizon-shift 16")  # written before presets were labelled: no label
 
 
 @pytest.mark.parametrize("map_scale, words", [(None, "its own 10 px/m site map, up to 0.30 m"),
@@ -519,7 +525,7 @@ def test_perturbation_readings_draw_what_they_say():
     for reading, drawn in sizes.items():
         share = np.bincount(np.array(drawn, dtype=int), minlength=4) / len(drawn)
         assert np.all(np.abs(share - 0.25) < 0.08), (reading, share)
-    with pytest.raises(ValueError, match="--perturbation 'each'"):
+    with pytest.raises(ValueError, match="reading 'each'"):
         draw_variant(5, "scene1", 1, "each")
 
 
@@ -576,10 +582,10 @@ def test_perturbation_spread_measures_each_reading(datasets):
 @pytest.mark.parametrize("args, code, message", [
     (["--variants", "1"], 1, "perturbation_spread.py: --variants must be at least 2 (a spread needs two variants)"),
     (["--variants", "0"], 1, "perturbation_spread.py: --variants must be at least 2"),
-    (["--image-width", "0"], 2, "argument --image-width: must be px in (0, 100000] or 'none', got 0"),
+    (["--image-width", "0"], 2, "argument --image-width: expected a number in (0, 100000] (px) or none, got '0'"),
     (["--map-scale", "nan"], 2, "argument --map-scale"),
-    (["--perturbation", "each"], 2, "argument --perturbation: invalid choice: 'each'"),
-    (["--horizon-shift", "normal:1"], 1, "perturbation_spread.py: "),
+    (["--perturbation", "each"], 2, "argument --perturbation: expected one of coordinate, variant, variant-positive, got 'each'"),
+    (["--horizon-shift", "normal:1"], 2, "argument --horizon-shift: expected a number of pixels"),
 ])
 def test_perturbation_spread_bad_inputs_are_one_line(datasets, args, code, message):
     """research/perturbation_spread.py's bad inputs: each one line on stderr naming the problem, its exit code."""
