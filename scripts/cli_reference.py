@@ -38,6 +38,14 @@ def sections(parser: argparse.ArgumentParser, level: int = 2) -> list[str]:
     return text
 
 
+def study_options() -> str:
+    """The study options' table, from their one declaration (homocal.study.options)."""
+    from homocal.study.inputs import StudyParams
+    from homocal.study.options import options_markdown
+    return ("## Study options\n\nEvery option of `homocal study` and `homocal sweep`, its values, whether it sweeps, "
+            f"and its value in each preset, from the options' declarations.\n\n{options_markdown(StudyParams)}\n")
+
+
 def reference() -> str:
     """The whole page, as this checkout's parsers and this Python print it."""
     sys.path.insert(0, str(REPO))
@@ -46,6 +54,7 @@ def reference() -> str:
     try:
         parsers = [getattr(importlib.import_module(module), name)() for module, name in PARSERS]
         body = [s for parser in parsers for s in sections(parser)]
+        body.append(study_options())
     finally:
         sys.path.remove(str(REPO))
         if saved is None:
