@@ -7,6 +7,7 @@ from homocal.correctors import HorizonCorrector, LeastChangeCorrector, Regressio
 from homocal.correctors.least_change import mapped_jacobian
 from homocal.geometry import PinholeCamera, ViewTransformer
 from homocal.study import kernels, method_kernels as mk
+from homocal.study.rows import CAL_D, CAL_E_SIGNED, make_cal_table, make_test_table
 
 CAM = PinholeCamera()
 GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])
@@ -33,11 +34,8 @@ CASES = cases()
 
 
 def cal_table(vt):
-    """The study's cal rows d, rx, ry, ux, uy, e_faithful, e_signed of every candidate (scene.prepare_variant)."""
-    p, g = vt.transform_points(CANDIDATES_Q), CANDIDATES_G
-    d = np.linalg.norm(p - ORIGIN, axis=1)
-    r = p - g
-    return np.vstack([d, r.T, ((p - ORIGIN) / d[:, None]).T, np.linalg.norm(r, axis=1), np.linalg.norm(g, axis=1) - d])
+    """The study's cal table of every candidate (homocal.study.rows)."""
+    return make_cal_table(vt.transform_points(CANDIDATES_Q), CANDIDATES_G, ORIGIN)
 
 
 def test_intercept_regression_agrees():
@@ -45,7 +43,7 @@ def test_intercept_regression_agrees():
     for vt, sel in CASES:
         cal = cal_table(vt)
         i, j, k = sel
-        a, b, c, degenerate = mk.fit_quadratic_intercept3(*cal[0, sel], *cal[6, sel])
+        a, b, c, degenerate = mk.fit_quadratic_intercept3(*cal[CAL_D, sel], *cal[CAL_E_SIGNED, sel])
         reg = RegressionCorrector(signed=True, intercept=True).fit(vt, CANDIDATES_Q[sel], CANDIDATES_G[sel], ORIGIN)
         assert degenerate == reg.degenerate_
         assert (a, b, c) == pytest.approx((reg.a_, reg.b_, reg.c_), rel=1e-9, abs=1e-12)
@@ -67,12 +65,9 @@ def test_intercept_path_error_agrees():
     for vt, sel in CASES[:40]:
         reg = RegressionCorrector(signed=True, intercept=True).fit(vt, CANDIDATES_Q[sel], CANDIDATES_G[sel], ORIGIN)
         pt = vt.transform_points(test_q)
-        dt = np.linalg.norm(pt, axis=1)
-        rt, ut = pt - test_g, pt / dt[:, None]
-        f = kernels.FIXED
-        test = np.vstack([f * dt, f * f * (rt**2).sum(axis=1), f * 2 * (rt * ut).sum(axis=1)]).astype(np.float32)
+        test = make_test_table(test_q, vt.m, pt, test_g, ORIGIN)
         expected = np.linalg.norm(reg.transform_points(test_q) - test_g, axis=1).mean()
-        before = np.linalg.norm(rt, axis=1).mean()
+        before = np.linalg.norm(pt - test_g, axis=1).mean()
         # float32 residual form: path improvement (percent of before) to 1e-3 pp, as test_study_kernels
         assert mk.regression_path_intercept(test, reg.a_, reg.b_, reg.c_) == pytest.approx(expected, abs=1e-5 * before)
 

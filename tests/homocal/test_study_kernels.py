@@ -59,19 +59,20 @@ def test_kernel_agrees_with_correctors(scene, variant, params):
     rng = np.random.default_rng(variant)
     idx = scene.triples[rng.choice(len(scene.triples), 3, replace=False)]
     tables = prepare_variant(scene, params, variant)
-    out, ab, vfinal = run_tables(scene, tables, params, variant, idx)
+    res = run_tables(scene, tables, params, variant, idx)
+    out = res.out
     q, g, o = scene.test_image, scene.test_ground, scene.origin
     for s, triple in enumerate(idx):
         vt, reg, sig, dsc, hyb, icp, hor, lch = fitted(scene, variant, triple, params)
         base = vt.transform_points(q)
         # regression: the kernel's (a, b), clamping included, give the corrector's positions
-        np.testing.assert_allclose(radial_correction(base, scene.origin, ab[s, 0], ab[s, 1]), reg.transform_points(q), rtol=0, atol=1e-9)
-        np.testing.assert_allclose(radial_correction(base, scene.origin, ab[s, 2], ab[s, 3]), sig.transform_points(q), rtol=0, atol=1e-9)
-        assert (ab[s, 0], ab[s, 1]) == pytest.approx((reg.a_, reg.b_), rel=1e-9, abs=1e-15)
+        np.testing.assert_allclose(radial_correction(base, scene.origin, *res.faithful_ab[s]), reg.transform_points(q), rtol=0, atol=1e-9)
+        np.testing.assert_allclose(radial_correction(base, scene.origin, *res.signed_ab[s]), sig.transform_points(q), rtol=0, atol=1e-9)
+        assert tuple(res.faithful_ab[s]) == pytest.approx((reg.a_, reg.b_), rel=1e-9, abs=1e-15)
         # descent: the same final trapezoid (every accepted move) and the same number of evaluations
-        np.testing.assert_array_equal(vfinal[s, :8], dsc.transformer_.source.ravel())
-        assert vfinal[s, 8] == dsc.evaluations_
-        kernel_positions = ViewTransformer(vfinal[s, :8].reshape(4, 2), vt.target).transform_points(q)
+        np.testing.assert_array_equal(res.quads[s], dsc.transformer_.source.ravel())
+        assert res.evaluations[s] == dsc.evaluations_
+        kernel_positions = ViewTransformer(res.quads[s].reshape(4, 2), vt.target).transform_points(q)
         np.testing.assert_allclose(kernel_positions, dsc.transform_points(q), rtol=0, atol=1e-9)
         # calibration and path improvements in the study's metric (paths: float32 residual form); the hybrid
         # applies its threshold to the metric's calibration improvement of regression
@@ -93,7 +94,7 @@ def test_kernel_agrees_with_correctors(scene, variant, params):
             assert out[s, hyb_col] == pytest.approx(hyb.calibration_improvement_, abs=1e-9)
         chosen = reg_col if chose_regression else des_col
         assert tuple(out[s, hyb_col:hyb_col + 2]) == tuple(out[s, chosen:chosen + 2])
-        assert out[s, 0] == pytest.approx(errors(cal_base, cg, o, params.metric).mean(), rel=1e-12)
+        assert out[s, kernels.BEFORE] == pytest.approx(errors(cal_base, cg, o, params.metric).mean(), rel=1e-12)
 
 
 def test_descent_budget_and_bounds(scene):
@@ -102,13 +103,13 @@ def test_descent_budget_and_bounds(scene):
     tables = prepare_variant(scene, PARAMS, variant)
     for descent in (dict(max_evals=7), dict(delta_max=0.5, grid_offsets=(0.0,)), dict(grid_offsets=(-2.0, 0.0, 2.0))):
         params = StudyParams(n_test=300, descent={**PARAMS.descent, **descent})
-        _, _, vfinal = run_tables(scene, tables, params, variant, triple)
+        res = run_tables(scene, tables, params, variant, triple)
         vt, *_ = fitted(scene, variant, triple[0])
         sel = list(triple[0])
         seed = seed_from_key(PARAMS.seed, scene.name, variant, *map(int, triple[0]))
         ref = DescentCorrector(seed=seed, **{**PARAMS.descent, **descent}).fit(vt, scene.cal_image[sel], scene.cal_ground[sel], scene.origin)
-        np.testing.assert_array_equal(vfinal[0, :8], ref.transformer_.source.ravel())
-        assert vfinal[0, 8] == ref.evaluations_
+        np.testing.assert_array_equal(res.quads[0], ref.transformer_.source.ravel())
+        assert res.evaluations[0] == ref.evaluations_
 
 
 def test_invalid_candidates_are_infinite():
