@@ -30,7 +30,7 @@ from homocal.correctors.horizon import FLAT, GRID_INTERVALS, NEWTON_STEPS, newto
 from homocal.correctors.least_change import MAX_HALVINGS, STEP_TOLERANCE
 from homocal.correctors.regression import solve_normal3
 from homocal.study.frame import quad_frame
-from homocal.study.jit import FIXED, JIT, PATH_JIT, to_fixed
+from homocal.study.jit import FIXED, JIT, PATH_JIT, exact_mean, fixed_parts, over_clip, to_fixed
 from homocal.study.rows import CAL_D, CAL_RX, CAL_RY, CAL_UX, CAL_UY, TEST_D, TEST_RR, TEST_RU2
 
 _newton_step = nb.njit(inline="always", **JIT)(newton_step)  # the readable correctors' scalar steps, compiled
@@ -62,19 +62,34 @@ def radial_error_intercept(cal, i, a, b, c):
     return math.hypot(cal[CAL_RX, i] + cal[CAL_UX, i] * shift, cal[CAL_RY, i] + cal[CAL_UY, i] * shift)
 
 
+@nb.njit(inline="always", **PATH_JIT)
+def _radial_intercept32(test, t, a, b, c):
+    """kernels._radial32 with an intercept: c(d) = a d^2 + b d + c."""
+    d = test[TEST_D, t]
+    shift = d * (a * d + b) + c
+    q = test[TEST_RR, t] + shift * (test[TEST_RU2, t] + shift)
+    return math.sqrt(np.float32(0.0) if q < 0 else q)
+
+
 @nb.njit(**PATH_JIT)
 def regression_path_intercept(test, a, b, c):
     """Mean test-point error (m) after the intercept regression, as kernels.regression_paths (float32, units of
-    1/FIXED m, fixed-point sum): |r + u c|^2 = |r|^2 + c (2 r.u + c), c = a d^2 + b d + c0."""
+    1/FIXED m, fixed-point sum exact at any size, NaN if a point error is not finite): |r + u c|^2 =
+    |r|^2 + c (2 r.u + c), c = a d^2 + b d + c0."""
     n = test.shape[1]
     af, bf, cf = np.float32(a / FIXED), np.float32(b), np.float32(c * FIXED)
-    total = np.int64(0)
+    total = over = np.int64(0)
     for t in range(n):
-        d, rr, ru2 = test[TEST_D, t], test[TEST_RR, t], test[TEST_RU2, t]
-        shift = d * (af * d + bf) + cf
-        qq = rr + shift * (ru2 + shift)
-        total += to_fixed(math.sqrt(qq if qq > 0 else np.float32(0.0)))
-    return total / FIXED / n
+        e = _radial_intercept32(test, t, af, bf, cf)
+        total += to_fixed(e)
+        over += over_clip(e, True)
+    if over == 0:
+        return total / FIXED / n
+    hi = lo = over = np.int64(0)
+    for t in range(n):
+        h, low, o = fixed_parts(_radial_intercept32(test, t, af, bf, cf), True)
+        hi, lo, over = hi + h, lo + low, over + o
+    return exact_mean(hi, lo, over, n)
 
 
 @nb.njit(inline="always", **JIT)

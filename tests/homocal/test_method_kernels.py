@@ -137,3 +137,41 @@ def test_least_change_jacobian_is_the_readable_one():
         mk._jacobian_into(z, bs, bt, q, g, sigma, J, r, y, X, np.empty((3, 3)), np.empty((16, 3)))
         np.testing.assert_allclose(J, mapped_jacobian(vt.source, vt.target, q).reshape(6, 16) * sigma, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(r, (g - vt.transform_points(q)).ravel(), rtol=0, atol=1e-10)
+
+
+def far_test_table():
+    """(test table, mapped p, ground g) of test points 5-50 m ahead, 0.5 m off their ground truth."""
+    g = np.column_stack([np.linspace(-4.0, 4.0, 40), np.linspace(5.0, 50.0, 40)])
+    p = g + [0.3, 0.4]
+    return make_test_table(CAM.project_ground(g), ViewTransformer(IMAGE, GROUND).m, p, g, ORIGIN), p, g
+
+
+def test_intercept_error_beyond_8_km_keeps_its_true_value():
+    """A regression-intercept sample whose three calibration points are 2 mm apart in range and 1 m apart in signed
+    error: its quadratic moves the far test points by thousands of km. The kernel's mean path error is the float64
+    one (no clip: the fixed-point sum had one at 8 km)."""
+    test, p, g = far_test_table()
+    a, b, c, degenerate = mk.fit_quadratic_intercept3(20.0, 20.001, 20.002, 0.0, 1.0, 0.0)
+    assert not degenerate
+    d = np.linalg.norm(p - ORIGIN, axis=1)
+    corrected = p + (p - ORIGIN) / d[:, None] * (a * d**2 + b * d + c)[:, None]
+    expected = np.linalg.norm(corrected - g, axis=1).mean()
+    assert expected > 1e6  # metres: far beyond 8 km
+    assert mk.regression_path_intercept(test, a, b, c) == pytest.approx(expected, rel=1e-6)
+    in_range = np.abs(np.linalg.norm(g - ORIGIN, axis=1) - np.abs(d + a * d**2 + b * d + c)).mean()
+    assert kernels.regression_path_range(test, a, b, c) == pytest.approx(in_range, rel=1e-6)
+
+
+@pytest.mark.parametrize("a", [1e3, 1e30, np.inf, np.nan])
+def test_path_error_sums_are_exact_or_fail(a):
+    """Regression's mean path error for a = 1e3 /m (errors up to 2,500 km) is the float64 one; one whose point errors
+    overflow float32 or are NaN is not a number (a failed correction), never a clipped value."""
+    test, p, g = far_test_table()
+    faithful, signed = kernels.regression_paths(test, a, 0.0, 0.0, 0.0)
+    d = np.linalg.norm(p - ORIGIN, axis=1)
+    expected = np.linalg.norm(p + (p - ORIGIN) * (a * d)[:, None] - g, axis=1).mean()
+    if np.isfinite(a) and a < 1e10:
+        assert faithful == pytest.approx(expected, rel=1e-6)
+    else:
+        assert np.isnan(faithful)
+    assert signed == pytest.approx(np.linalg.norm(p - g, axis=1).mean(), rel=1e-6)
