@@ -32,6 +32,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from homocal.correctors.descent import within_reach
 from homocal.keyed_rng import packed_order, splitmix64
 from homocal.study import method_kernels as mk
 from homocal.study.frame import frame, min2
@@ -204,6 +205,7 @@ def grid_table(v0, grid, F, q):
     return table
 
 
+_within_reach = nb.njit(inline="always", **JIT)(within_reach)  # the readable corrector's reach rule, compiled
 LANES = 32  # phase-2 samples run side by side, each evaluating one coordinate's +step and -step at once
 
 
@@ -256,7 +258,7 @@ def descend_lanes(lo, hi, variant, samples, descent, seeds, quads, evaluations, 
     final ones on return, evaluations[s] the evaluations.
 
     Per lane, as DescentCorrector: each pass visits the coordinates in shuffled_order(seed, pass); a move
-    beyond delta_max of v0 is skipped unevaluated; +step is taken if it lowers L, else -step; the descent
+    beyond reach of v0 (correctors.descent.within_reach) is skipped unevaluated; +step is taken if it lowers L, else -step; the descent
     stops when evals == max_evals before an evaluation, or when step < min_step after a pass without
     improvement.
 
@@ -309,8 +311,8 @@ def descend_lanes(lo, hi, variant, samples, descent, seeds, quads, evaluations, 
                             pos[l] = 0
                             perm[l] = packed_order(seeds[sample[l]], pas[l])
                         k = (perm[l] >> (4 * pos[l])) & 7
-                        pok[l] = abs((X[k, l] + step[l]) - v0[k]) <= delta_max
-                        mok[l] = abs((X[k, l] - step[l]) - v0[k]) <= delta_max
+                        pok[l] = _within_reach((X[k, l] + step[l]) - v0[k], delta_max)
+                        mok[l] = _within_reach((X[k, l] - step[l]) - v0[k], delta_max)
                         if pok[l] or mok[l]:
                             ready = evals[l] < max_evals
                             break
@@ -373,8 +375,8 @@ def descend_lanes(lo, hi, variant, samples, descent, seeds, quads, evaluations, 
                 fs[2 * n * c + l] = fs[2 * n * c + n + l] = col
                 xn = col if c == k2 else xn
                 vn = v0[c] if c == k2 else vn
-            pn = abs((xn + sp) - vn) <= delta_max
-            mn = abs((xn - sp) - vn) <= delta_max
+            pn = _within_reach((xn + sp) - vn, delta_max)
+            mn = _within_reach((xn - sp) - vn, delta_max)
             ist[KC + l] = ist[KC + n + l] = k2
             fs[XK + l], ist[POK + l], ist[MOK + l] = xn, pn, mn
             # event: 0 none; 1 end of pass, k2 out of bounds both ways, budget spent, or idle; 2 or 3 budget hit
