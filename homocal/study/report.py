@@ -262,7 +262,7 @@ def render_html(study: dict, table: Table, figures: list[FigureFile], notes: lis
     e = html.escape
     done, total = study.get("samples_done"), study.get("samples_total")
     degenerate = study.get("degenerate", [])
-    rows_read = table.value("regression", "n") + table.value("regression", "nonfinite")
+    rows_read = table.value("regression", "n")
     parts = [
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>homocal study report</title><style>{STYLE}</style></head><body>",
         "<h1>homocal study report</h1>",

@@ -7,11 +7,12 @@ import pytest
 
 from homocal.correctors import (DescentCorrector, HorizonCorrector, HybridCorrector, LeastChangeCorrector, RegressionCorrector,
                                radial_correction)
-from homocal.geometry import ViewTransformer
+from homocal.geometry import ViewTransformer, apply_homography
 from homocal.keyed_rng import packed_order, seed_from_key, shuffled_order, splitmix64
-from homocal.study import kernels
+from homocal.study import kernels, metrics
 from homocal.study.perturb import draw_variant
 from homocal.study.inputs import StudyParams, StudyScene
+from homocal.study.rows import make_test_table
 from homocal.study.shards import prepare_variant, run_tables
 from homocal.study.triples import n_samples, triples
 from synthetic_dataset import write_dataset
@@ -204,3 +205,41 @@ def test_shuffled_orders_are_uniform():
             counts[np.arange(8), out] += 1
     expected = 40_000 / 8
     assert np.all(np.abs(counts - expected) < 5 * np.sqrt(expected))  # 5 sigma, binomial
+
+def test_a_test_point_beyond_the_corrected_horizon_is_a_counted_failure(scene):
+    """A variant whose clicked horizon is 16 px too high, with one test point 0.05 px below it: the horizon correction
+    lowers the horizon past it (the public corrector maps it to NaN), the kernel's path improvement is NaN, and the
+    table's statistics count the sample as a failure, not positive, below every percentile."""
+    params = StudyParams(n_test=300, horizon_shift="16")
+    variant = 1
+    clean = prepare_variant(scene, params, variant)
+    H0 = clean.H0
+    u = float(scene.test_image[:, 0].mean())
+    point = np.array([[u, -(H0[2, 0] * u + H0[2, 2]) / H0[2, 1] + 0.05]])
+    image = np.vstack([scene.test_image, point])
+    p = apply_homography(H0, image)
+    assert np.isfinite(p).all()
+    g = np.vstack([scene.test_ground, p[-1:]])
+    tables = clean._replace(test=make_test_table(image, H0, p, g, scene.origin),
+                             path_before=float(np.linalg.norm(p - g, axis=1).mean()))
+    idx = scene.triples[::7]
+    out = run_tables(scene, tables, params, variant, idx).out
+    path, cal = out[:, kernels.HOR + 1].astype(np.float32), out[:, kernels.HOR].astype(np.float32)
+    failed = np.isnan(path)
+    assert failed.sum() > len(idx) // 2
+    image_quad, map_quad = scene.variant_quads(params, variant)
+    vt = ViewTransformer(image_quad, scene.site_map.to_metres(map_quad))
+    for s, triple in enumerate(idx):
+        hor = HorizonCorrector().fit(vt, scene.cal_image[list(triple)], scene.cal_ground[list(triple)], scene.origin)
+        assert np.isnan(hor.transform_points(point)).any() == failed[s]
+    # beside the same samples without that test point (no failure)
+    clean_out = run_tables(scene, clean, params, variant, idx).out
+    path = np.concatenate([path, clean_out[:, kernels.HOR + 1].astype(np.float32)])
+    cal = np.concatenate([cal, clean_out[:, kernels.HOR].astype(np.float32)])
+    finite = np.isfinite(path)
+    assert finite.sum() == 2 * len(idx) - failed.sum()
+    stats = metrics.method_stats(path, cal)
+    assert (stats["n"], stats["failures"], stats["finite"]) == (2 * len(idx), failed.sum(), finite.sum())
+    assert stats["pos_path"] == pytest.approx(100 * np.count_nonzero(path[finite] > 0) / (2 * len(idx)))
+    assert stats["mean_path"] == pytest.approx(path[finite].astype(np.float64).mean())
+    assert stats["p1_path"] == -np.inf

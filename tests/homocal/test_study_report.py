@@ -100,7 +100,7 @@ def expected_stats(path: list[float], cal: list[float], chose: list[bool] | None
     pct = statistics.quantiles(path, n=100, method="inclusive")
     quart = statistics.quantiles(cal, n=4, method="inclusive")
     out = {
-        "n": len(path), "nonfinite": 0,
+        "n": len(path), "failures": 0, "finite": len(path), "cal_failures": 0,
         "pos_path": 100 * sum(p > 0 for p in path) / len(path),
         "pos_cal": 100 * sum(c > 0 for c in cal) / len(cal),
         "mean_path": statistics.fmean(path), "median_path": statistics.median(path),
@@ -128,14 +128,23 @@ class TestMethodStats:
     def test_by_hand(self):
         # path = 5 cal - 100 exactly: correlation 1; sorted path -50, 0, 50, 100
         s = metrics.method_stats(np.array([0, -50, 100, 50], np.float32), np.array([20, 10, 40, 30], np.float32))
-        expected = {"n": 4, "nonfinite": 0, "pos_path": 50.0, "pos_cal": 100.0, "mean_path": 25.0, "median_path": 25.0,
+        expected = {"n": 4, "failures": 0, "finite": 4, "cal_failures": 0, "pos_path": 50.0, "pos_cal": 100.0, "mean_path": 25.0, "median_path": 25.0,
                     "corr": 1.0, "std_path": math.sqrt(3125), "p1_path": -48.5,  # -50 + 0.03 * 50
                     "median_cal": 25.0, "iqr_cal": 15.0, "std_cal": math.sqrt(125)}  # quartiles 17.5 and 32.5
         assert s == pytest.approx(expected)
 
-    def test_non_finite_samples_are_counted_and_left_out(self):
-        s = metrics.method_stats(np.array([10, np.nan, 30, 50], np.float32), np.array([1, 2, np.inf, 3], np.float32))
-        assert (s["n"], s["nonfinite"], s["mean_path"], s["median_cal"]) == (2, 2, 30.0, 2.0)
+    def test_failures_are_counted_below_every_percentile(self):
+        """A failed correction (NaN path improvement) is a sample: counted, not positive, at -inf in the percentiles;
+        the mean and std are over the finite samples, the correlation over those with both finite."""
+        path = np.array([10, np.nan, 30, 50, -20], np.float32)
+        cal = np.array([1, 2, -np.inf, 3, 4], np.float32)
+        s = metrics.method_stats(path, cal)
+        assert (s["n"], s["failures"], s["finite"], s["cal_failures"]) == (5, 1, 4, 1)
+        assert s["pos_path"] == 60.0 and s["pos_cal"] == 80.0
+        assert s["mean_path"] == pytest.approx(17.5) and s["std_path"] == pytest.approx(np.std([10, 30, 50, -20]))
+        assert s["median_path"] == 10.0  # sorted -inf, -20, 10, 30, 50
+        assert s["p1_path"] == -math.inf and s["median_cal"] == 2.0  # cal sorted -inf, 1, 2, 3, 4
+        assert s["corr"] == pytest.approx(np.corrcoef([10, 50, -20], [1, 3, 4])[0, 1])
 
     def test_no_samples_gives_nan(self):
         s = metrics.method_stats(np.empty(0, np.float32), np.empty(0, np.float32), np.empty(0, bool))
