@@ -46,6 +46,8 @@ METRICS = {
     "corr": ("path-calibration correlation, finite samples", "{:.2f}"),
     "std_path": ("path improvement std, finite samples (pp)", "{:.1f}"),
     "p1_path": ("path improvement 1st percentile (%)", "{:.1f}"),
+    "p0.1_path": ("path improvement 0.1th percentile (%)", "{:.1f}"),
+    "below_minus100": ("path error more than doubled: improvement below -100 %, failures included (%)", "{:.3f}"),
     "median_cal": ("calibration improvement median (%)", "{:.1f}"),
     "iqr_cal": ("calibration improvement IQR (pp)", "{:.1f}"),
     "std_cal": ("calibration improvement std, finite samples (pp)", "{:.1f}"),
@@ -129,8 +131,8 @@ class MethodSummary:
     def __init__(self, hybrid: bool = False):
         self.hybrid = hybrid
         self.sums = dict.fromkeys(("n", "failures", "cal_failures", "pos_path", "pos_cal", "path", "cal", "chose", "pp",
-                                   "cc", "both", "bp", "bc", "bpp", "bcc", "bpc"), 0.0)
-        self.path_q, self.cal_q = Quantiles((1, 50)), Quantiles((25, 50, 75))
+                                   "cc", "both", "bp", "bc", "bpp", "bcc", "bpc", "below"), 0.0)
+        self.path_q, self.cal_q = Quantiles((0.1, 1, 50)), Quantiles((25, 50, 75))
         self.means: tuple[float, float] | None = None  # (path, cal) over their finite samples, after the first pass
 
     def add(self, path: np.ndarray, cal: np.ndarray, chose_regression: np.ndarray | None = None) -> None:
@@ -146,6 +148,7 @@ class MethodSummary:
             s["failures"] += path.size - p.size
             s["cal_failures"] += cal.size - c.size
             s["pos_path"] += np.count_nonzero(p > 0)
+            s["below"] += np.count_nonzero(p < -100) + path.size - p.size  # a failure's error is infinite
             s["pos_cal"] += np.count_nonzero(c > 0)
             s["path"] += float(p.sum(dtype=np.float64))
             s["cal"] += float(c.sum(dtype=np.float64))
@@ -178,7 +181,7 @@ class MethodSummary:
             stats["chose_regression"] = 100 * s["chose"] / n if n else math.nan
         if n == 0:
             return stats | {k: math.nan for k in METRICS.keys() - stats.keys() - {"chose_regression"}}
-        p1, p50 = self.path_q.values()
+        p01, p1, p50 = self.path_q.values()
         c25, c50, c75 = self.cal_q.values()
         return stats | {
             "pos_path": 100 * s["pos_path"] / n,
@@ -188,6 +191,8 @@ class MethodSummary:
             "corr": _pearson(s["both"], s["bp"], s["bc"], s["bpp"], s["bcc"], s["bpc"]),
             "std_path": math.sqrt(s["pp"] / finite) if finite else math.nan,
             "p1_path": p1,
+            "p0.1_path": p01,
+            "below_minus100": 100 * s["below"] / n,
             "median_cal": c50,
             "iqr_cal": c75 - c25,
             "std_cal": math.sqrt(s["cc"] / finite_cal) if finite_cal else math.nan,

@@ -90,12 +90,13 @@ def numpy_stats(path: np.ndarray, cal: np.ndarray) -> dict[str, float]:
     fp, fc = np.isfinite(path), np.isfinite(cal)
     p, c = path[fp].astype(np.float64), cal[fc].astype(np.float64)
     both = fp & fc
-    p1, p50 = percentiles_with_failures(path, [1, 50])
+    p01, p1, p50 = percentiles_with_failures(path, [0.1, 1, 50])
     c25, c50, c75 = percentiles_with_failures(cal, [25, 50, 75])
     return {"n": path.size, "failures": path.size - p.size, "finite": p.size, "cal_failures": cal.size - c.size,
             "pos_path": 100 * np.count_nonzero(p > 0) / path.size, "pos_cal": 100 * np.count_nonzero(c > 0) / cal.size,
             "mean_path": p.mean(), "median_path": p50, "corr": np.corrcoef(path[both], cal[both])[0, 1],
-            "std_path": p.std(), "p1_path": p1, "median_cal": c50, "iqr_cal": c75 - c25, "std_cal": c.std()}
+            "std_path": p.std(), "p1_path": p1, "p0.1_path": p01,
+            "below_minus100": 100 * (np.count_nonzero(p < -100) + path.size - p.size) / path.size, "median_cal": c50, "iqr_cal": c75 - c25, "std_cal": c.std()}
 
 
 def test_table_equals_numpy_in_memory(shards):
@@ -109,6 +110,7 @@ def test_table_equals_numpy_in_memory(shards):
             got = {k: table.value(m, k, scope) for k in expected}
             assert got == pytest.approx(expected, rel=1e-9, abs=1e-9)
             assert (got["median_path"], got["p1_path"], got["iqr_cal"]) == (expected["median_path"], expected["p1_path"], expected["iqr_cal"])
+            assert got["p0.1_path"] == expected["p0.1_path"]
 
 
 def test_histogram_equals_numpy_in_memory(shards):

@@ -105,6 +105,8 @@ def expected_stats(path: list[float], cal: list[float], chose: list[bool] | None
         "pos_cal": 100 * sum(c > 0 for c in cal) / len(cal),
         "mean_path": statistics.fmean(path), "median_path": statistics.median(path),
         "corr": statistics.correlation(path, cal), "std_path": statistics.pstdev(path), "p1_path": pct[0],
+        "p0.1_path": statistics.quantiles(path, n=1000, method="inclusive")[0],
+        "below_minus100": 100 * sum(p < -100 for p in path) / len(path),
         "median_cal": statistics.median(cal), "iqr_cal": quart[2] - quart[0], "std_cal": statistics.pstdev(cal),
     }
     if chose is not None:
@@ -130,6 +132,7 @@ class TestMethodStats:
         s = metrics.method_stats(np.array([0, -50, 100, 50], np.float32), np.array([20, 10, 40, 30], np.float32))
         expected = {"n": 4, "failures": 0, "finite": 4, "cal_failures": 0, "pos_path": 50.0, "pos_cal": 100.0, "mean_path": 25.0, "median_path": 25.0,
                     "corr": 1.0, "std_path": math.sqrt(3125), "p1_path": -48.5,  # -50 + 0.03 * 50
+                    "p0.1_path": -49.85, "below_minus100": 0.0,
                     "median_cal": 25.0, "iqr_cal": 15.0, "std_cal": math.sqrt(125)}  # quartiles 17.5 and 32.5
         assert s == pytest.approx(expected)
 
@@ -143,7 +146,8 @@ class TestMethodStats:
         assert s["pos_path"] == 60.0 and s["pos_cal"] == 80.0
         assert s["mean_path"] == pytest.approx(17.5) and s["std_path"] == pytest.approx(np.std([10, 30, 50, -20]))
         assert s["median_path"] == 10.0  # sorted -inf, -20, 10, 30, 50
-        assert s["p1_path"] == -math.inf and s["median_cal"] == 2.0  # cal sorted -inf, 1, 2, 3, 4
+        assert s["p1_path"] == s["p0.1_path"] == -math.inf and s["median_cal"] == 2.0  # cal sorted -inf, 1, 2, 3, 4
+        assert s["below_minus100"] == 20.0  # the failure's error more than doubled
         assert s["corr"] == pytest.approx(np.corrcoef([10, 50, -20], [1, 3, 4])[0, 1])
 
     def test_no_samples_gives_nan(self):
@@ -152,6 +156,10 @@ class TestMethodStats:
 
 
 class TestTable:
+    def test_csv_has_the_tail_rows_of_every_method(self, table):
+        rows = {(r["method"], r["metric"]) for r in csv.DictReader(io.StringIO(metrics.to_csv(table)))}
+        assert {(m, k) for m in METHODS for k in ("below_minus100", "p0.1_path", "failures")} <= rows
+
     @pytest.mark.parametrize("method", METHODS)
     @pytest.mark.parametrize("scope", [*SCENES, metrics.OVERALL])
     def test_matches_standard_library(self, results, table, method, scope):
