@@ -53,3 +53,24 @@ def fixed_parts(e, ok):
 def exact_mean(hi, lo, over, n):
     """The mean (m) of n point errors from the sums of their fixed_parts; NaN if one was over LIMIT."""
     return (hi * 2147483648.0 + lo) / FIXED / n if over == 0 else math.nan
+
+
+@nb.njit(inline="always", **PATH_JIT)
+def fixed_point_mean(point_error, test, args):
+    """The mean (m) of point_error(test, t, args) -> (e, ok) over the test points t (test (rows, N), e a float32
+    error in units of 2^-18 m, ok False for a failure): summed with to_fixed, and again with fixed_parts if one
+    was a failure or at least 8 km (NaN if a failure or beyond LIMIT)."""
+    n = test.shape[1]
+    total = over = np.int64(0)
+    for t in range(n):
+        e, ok = point_error(test, t, args)
+        total += to_fixed(e)
+        over += over_clip(e, ok)
+    if over == 0:
+        return total / FIXED / n
+    hi = lo = over = np.int64(0)
+    for t in range(n):
+        e, ok = point_error(test, t, args)
+        h, low, o = fixed_parts(e, ok)
+        hi, lo, over = hi + h, lo + low, over + o
+    return exact_mean(hi, lo, over, n)

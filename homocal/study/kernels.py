@@ -36,7 +36,7 @@ from homocal.correctors.descent import within_reach
 from homocal.keyed_rng import packed_order, splitmix64
 from homocal.study import method_kernels as mk
 from homocal.study.frame import frame, min2
-from homocal.study.jit import FIXED, JIT, PATH_JIT, exact_mean, fixed_parts, over_clip, to_fixed
+from homocal.study.jit import FIXED, JIT, PATH_JIT, fixed_point_mean
 from homocal.study.rows import (CAL_D, CAL_E_FAITHFUL, CAL_E_SIGNED, CAL_RX, CAL_RY, CAL_UX, CAL_UY, TEST_D, TEST_DG, TEST_GOX,
                                 TEST_GOY, TEST_GX, TEST_GY, TEST_RR, TEST_RU2, TEST_RX, TEST_RY, TEST_S0, TEST_S1, TEST_S2)
 
@@ -414,67 +414,39 @@ def radial_error(cal, i, a, b, in_range):
 
 
 @nb.njit(inline="always", **PATH_JIT)
-def _radial32(test, t, a, b):
-    """float32 error of test point t after the radial correction (eq. (24)), c = a d^2 + b d (a in FIXED/m):
-    |r + u c| = sqrt(|r|^2 + c (2 r.u + c)), units of 1/FIXED m (NaN stays NaN)."""
+def _radial32(test, t, ab):
+    """(e, True): the float32 error of test point t after the radial correction (eq. (24)), c = a d^2 + b d,
+    (a, b) = ab (a in FIXED/m): |r + u c| = sqrt(|r|^2 + c (2 r.u + c)), units of 1/FIXED m (NaN stays NaN)."""
+    a, b = ab
     d = test[TEST_D, t]
     c = d * (a * d + b)
     q = test[TEST_RR, t] + c * (test[TEST_RU2, t] + c)
-    return math.sqrt(np.float32(0.0) if q < 0 else q)
+    return math.sqrt(np.float32(0.0) if q < 0 else q), True
 
 
 @nb.njit(**PATH_JIT)
 def regression_paths(test, af, bf, as_, bs):
     """Mean test-point error (m) after both regressions (_radial32), in float32 and units of 1/FIXED m, summed
-    exactly (jit.to_fixed, jit.fixed_parts beyond 8 km; NaN if a point error is not finite); test
-    (rows.TEST_ROWS, N), its rows d, rr, ru2 read."""
-    n = test.shape[1]
+    exactly (jit.fixed_point_mean: NaN if a point error is not finite); test (rows.TEST_ROWS, N), its rows d, rr,
+    ru2 read."""
     af, bf, as_, bs = np.float32(af / FIXED), np.float32(bf), np.float32(as_ / FIXED), np.float32(bs)
-    sf = ss = over = np.int64(0)
-    for t in range(n):
-        ef, es = _radial32(test, t, af, bf), _radial32(test, t, as_, bs)
-        sf += to_fixed(ef)
-        ss += to_fixed(es)
-        over += over_clip(ef, True) + over_clip(es, True)
-    if over == 0:
-        return sf / FIXED / n, ss / FIXED / n
-    hf = lf = of = hs = ls = os_ = np.int64(0)
-    for t in range(n):
-        h, lo, o = fixed_parts(_radial32(test, t, af, bf), True)
-        hf, lf, of = hf + h, lf + lo, of + o
-        h, lo, o = fixed_parts(_radial32(test, t, as_, bs), True)
-        hs, ls, os_ = hs + h, ls + lo, os_ + o
-    return exact_mean(hf, lf, of, n), exact_mean(hs, ls, os_, n)
+    return fixed_point_mean(_radial32, test, (af, bf)), fixed_point_mean(_radial32, test, (as_, bs))
 
 
 @nb.njit(inline="always", **PATH_JIT)
-def _range32(test, t, a, b):
-    """float32 range error | ||g - o|| - |d + c| | of test point t after the radial correction c = a d^2 + b d (the
-    corrected point p + u c lies at range |d + c|), units of 1/FIXED m."""
+def _range32(test, t, ab):
+    """(e, True): the float32 range error | ||g - o|| - |d + c| | of test point t after the radial correction
+    c = a d^2 + b d (the corrected point p + u c lies at range |d + c|), units of 1/FIXED m."""
+    a, b = ab
     d = test[TEST_D, t]
-    return abs(test[TEST_DG, t] - abs(d + d * (a * d + b)))
+    return abs(test[TEST_DG, t] - abs(d + d * (a * d + b))), True
 
 
 @nb.njit(**PATH_JIT)
 def regression_paths_range(test, af, bf, as_, bs):
     """As regression_paths, with the range error (_range32); test rows d and dg (||g - o||) read."""
-    n = test.shape[1]
     af, bf, as_, bs = np.float32(af / FIXED), np.float32(bf), np.float32(as_ / FIXED), np.float32(bs)
-    sf = ss = over = np.int64(0)
-    for t in range(n):
-        ef, es = _range32(test, t, af, bf), _range32(test, t, as_, bs)
-        sf += to_fixed(ef)
-        ss += to_fixed(es)
-        over += over_clip(ef, True) + over_clip(es, True)
-    if over == 0:
-        return sf / FIXED / n, ss / FIXED / n
-    hf = lf = of = hs = ls = os_ = np.int64(0)
-    for t in range(n):
-        h, lo, o = fixed_parts(_range32(test, t, af, bf), True)
-        hf, lf, of = hf + h, lf + lo, of + o
-        h, lo, o = fixed_parts(_range32(test, t, as_, bs), True)
-        hs, ls, os_ = hs + h, ls + lo, os_ + o
-    return exact_mean(hf, lf, of, n), exact_mean(hs, ls, os_, n)
+    return fixed_point_mean(_range32, test, (af, bf)), fixed_point_mean(_range32, test, (as_, bs))
 
 
 @nb.njit(inline="always", **PATH_JIT)
@@ -488,10 +460,10 @@ def _residual(test, dH, t):
 
 
 @nb.njit(inline="always", **PATH_JIT)
-def _homography32(test, dH, t):
-    """(e, ok): the float32 error ||H(t) - g|| of test point t under H0 + dH, units of 1/FIXED m, and whether t is in
-    front of the horizon (w > 0; e is meaningless if not)."""
-    nx, ny, w = _residual(test, dH, t)
+def _homography32(test, t, args):
+    """(e, ok): the float32 error ||H(t) - g|| of test point t under H0 + dH, dH = args[0], units of 1/FIXED m,
+    and whether t is in front of the horizon (w > 0; e is meaningless if not)."""
+    nx, ny, w = _residual(test, args[0], t)
     ok = w > 0
     return math.sqrt(nx * nx + ny * ny) / (w if ok else np.float32(1.0)), ok
 
@@ -502,27 +474,14 @@ def descent_path(test, dH):
     r = p0 - g, H(t) - g = (r + dH01 s - g dH2 s) / (1 + dH2 s). test rows s0, s1, s2, rx, ry, gx, gy read;
     dH (9,) float32, rows 0-1 in units of 1/FIXED m. Summed as regression_paths; NaN if a point crosses the
     horizon."""
-    n = test.shape[1]
-    total = over = np.int64(0)
-    for t in range(n):
-        e, ok = _homography32(test, dH, t)
-        total += to_fixed(e)
-        over += over_clip(e, ok)
-    if over == 0:
-        return total / FIXED / n
-    hi = lo = over = np.int64(0)
-    for t in range(n):
-        e, ok = _homography32(test, dH, t)
-        h, low, o = fixed_parts(e, ok)
-        hi, lo, over = hi + h, lo + low, over + o
-    return exact_mean(hi, lo, over, n)
+    return fixed_point_mean(_homography32, test, (dH,))
 
 
 @nb.njit(inline="always", **PATH_JIT)
-def _homography_range32(test, dH, t):
-    """float32 range error | ||g - o|| - ||H(t) - o|| | of test point t under H0 + dH, H(t) - o = (H(t) - g) + (g - o),
-    units of 1/FIXED m, and ok as _homography32."""
-    nx, ny, w = _residual(test, dH, t)
+def _homography_range32(test, t, args):
+    """(e, ok): the float32 range error | ||g - o|| - ||H(t) - o|| | of test point t under H0 + dH (args[0]),
+    H(t) - o = (H(t) - g) + (g - o), units of 1/FIXED m, and ok as _homography32."""
+    nx, ny, w = _residual(test, args[0], t)
     ok = w > 0
     wi = np.float32(1.0) / (w if ok else np.float32(1.0))
     px = nx * wi + test[TEST_GOX, t]
@@ -534,46 +493,21 @@ def _homography_range32(test, dH, t):
 def descent_path_range(test, dH):
     """As descent_path, with the range error (_homography_range32); test rows gox, goy (g - o) and dg (||g - o||)
     read too."""
-    n = test.shape[1]
-    total = over = np.int64(0)
-    for t in range(n):
-        e, ok = _homography_range32(test, dH, t)
-        total += to_fixed(e)
-        over += over_clip(e, ok)
-    if over == 0:
-        return total / FIXED / n
-    hi = lo = over = np.int64(0)
-    for t in range(n):
-        e, ok = _homography_range32(test, dH, t)
-        h, low, o = fixed_parts(e, ok)
-        hi, lo, over = hi + h, lo + low, over + o
-    return exact_mean(hi, lo, over, n)
+    return fixed_point_mean(_homography_range32, test, (dH,))
 
 
 @nb.njit(inline="always", **PATH_JIT)
-def _range_intercept32(test, t, a, b, c):
-    """_range32 for the radial correction with an intercept, c(d) = a d^2 + b d + c."""
+def _range_intercept32(test, t, abc):
+    """_range32 for the radial correction with an intercept, c(d) = a d^2 + b d + c, (a, b, c) = abc."""
+    a, b, c = abc
     d = test[TEST_D, t]
-    return abs(test[TEST_DG, t] - abs(d + d * (a * d + b) + c))
+    return abs(test[TEST_DG, t] - abs(d + d * (a * d + b) + c)), True
 
 
 @nb.njit(**PATH_JIT)
 def regression_path_range(test, a, b, c):
     """As regression_paths_range for one regression with an intercept, c(d) = a d^2 + b d + c (m)."""
-    n = test.shape[1]
-    af, bf, cf = np.float32(a / FIXED), np.float32(b), np.float32(c * FIXED)
-    total = over = np.int64(0)
-    for t in range(n):
-        e = _range_intercept32(test, t, af, bf, cf)
-        total += to_fixed(e)
-        over += over_clip(e, True)
-    if over == 0:
-        return total / FIXED / n
-    hi = lo = over = np.int64(0)
-    for t in range(n):
-        h, low, o = fixed_parts(_range_intercept32(test, t, af, bf, cf), True)
-        hi, lo, over = hi + h, lo + low, over + o
-    return exact_mean(hi, lo, over, n)
+    return fixed_point_mean(_range_intercept32, test, (np.float32(a / FIXED), np.float32(b), np.float32(c * FIXED)))
 
 
 @nb.njit(**JIT)

@@ -30,7 +30,7 @@ from homocal.correctors.horizon import FLAT, GRID_INTERVALS, NEWTON_STEPS, newto
 from homocal.correctors.least_change import MAX_HALVINGS, STEP_TOLERANCE
 from homocal.correctors.regression import solve_normal3
 from homocal.study.frame import quad_frame
-from homocal.study.jit import FIXED, JIT, PATH_JIT, exact_mean, fixed_parts, over_clip, to_fixed
+from homocal.study.jit import FIXED, JIT, PATH_JIT, fixed_point_mean
 from homocal.study.rows import CAL_D, CAL_RX, CAL_RY, CAL_UX, CAL_UY, TEST_D, TEST_RR, TEST_RU2
 
 _newton_step = nb.njit(inline="always", **JIT)(newton_step)  # the readable correctors' scalar steps, compiled
@@ -63,33 +63,21 @@ def radial_error_intercept(cal, i, a, b, c):
 
 
 @nb.njit(inline="always", **PATH_JIT)
-def _radial_intercept32(test, t, a, b, c):
-    """kernels._radial32 with an intercept: c(d) = a d^2 + b d + c."""
+def _radial_intercept32(test, t, abc):
+    """kernels._radial32 with an intercept: c(d) = a d^2 + b d + c, (a, b, c) = abc."""
+    a, b, c = abc
     d = test[TEST_D, t]
     shift = d * (a * d + b) + c
     q = test[TEST_RR, t] + shift * (test[TEST_RU2, t] + shift)
-    return math.sqrt(np.float32(0.0) if q < 0 else q)
+    return math.sqrt(np.float32(0.0) if q < 0 else q), True
 
 
 @nb.njit(**PATH_JIT)
 def regression_path_intercept(test, a, b, c):
     """Mean test-point error (m) after the intercept regression, as kernels.regression_paths (float32, units of
-    1/FIXED m, fixed-point sum exact at any size, NaN if a point error is not finite): |r + u c|^2 =
+    1/FIXED m, jit.fixed_point_mean: exact at any size, NaN if a point error is not finite): |r + u c|^2 =
     |r|^2 + c (2 r.u + c), c = a d^2 + b d + c0."""
-    n = test.shape[1]
-    af, bf, cf = np.float32(a / FIXED), np.float32(b), np.float32(c * FIXED)
-    total = over = np.int64(0)
-    for t in range(n):
-        e = _radial_intercept32(test, t, af, bf, cf)
-        total += to_fixed(e)
-        over += over_clip(e, True)
-    if over == 0:
-        return total / FIXED / n
-    hi = lo = over = np.int64(0)
-    for t in range(n):
-        h, low, o = fixed_parts(_radial_intercept32(test, t, af, bf, cf), True)
-        hi, lo, over = hi + h, lo + low, over + o
-    return exact_mean(hi, lo, over, n)
+    return fixed_point_mean(_radial_intercept32, test, (np.float32(a / FIXED), np.float32(b), np.float32(c * FIXED)))
 
 
 @nb.njit(inline="always", **JIT)
