@@ -12,6 +12,15 @@ from homocal.correctors.serialization import integer, number
 from homocal.geometry import ViewTransformer, apply_homography, homography_from_quads, validate_quad
 from homocal.keyed_rng import shuffled_order
 
+REACH_TOLERANCE = 1e-9  # px: far above the rounding of a coordinate's offset (~1e-13 px), far below any step
+
+
+def within_reach(offset: float, delta_max: float) -> bool:
+    """Descent's reach rule: a coordinate may sit at offset (px) from the clicked trapezoid's iff |offset| <= delta_max
+    + REACH_TOLERANCE, so that a move exactly to delta_max is allowed whatever the rounding of the offset (the
+    readable corrector and the study's kernel share this function)."""
+    return abs(offset) <= delta_max + REACH_TOLERANCE
+
 
 def calibration_loss(v: np.ndarray, target: np.ndarray, image_points: np.ndarray, ground_points: np.ndarray) -> float:
     """Eq. (25): L(v) = mean_i ||H_v(q_i) - g_i||, H_v = homography_from_quads(v.reshape(4, 2), target).
@@ -43,7 +52,7 @@ class DescentCorrector(Corrector):
     Phase 2 (fine): L = L(v), step = initial_step, pass_index = 0, evals = 0. Each pass visits the 8
       coordinates k in the order shuffled_order(seed, pass_index) (keyed splitmix64, shared with the
       compiled kernels); for sign in (+1, -1): cand = v with cand[k] += sign step; skipped without
-      evaluation if |cand[k] - v0[k]| > delta_max; the whole search stops when evals == max_evals before an
+      evaluation unless within_reach(cand[k] - v0[k], delta_max); the whole search stops when evals == max_evals before an
       evaluation; if L(cand) < L it is accepted (and the other sign not tried). After a pass: pass_index
       += 1; if nothing improved, step /= 2, and the search stops once step < min_step. (A pass without
       improvement has tried every allowed move from an unchanged v, so another pass at the same step
@@ -129,7 +138,7 @@ class DescentCorrector(Corrector):
                 for sign in (1.0, -1.0):
                     cand = v.copy()
                     cand[k] += sign * step
-                    if abs(cand[k] - v0[k]) > self.delta_max:
+                    if not within_reach(cand[k] - v0[k], self.delta_max):
                         continue
                     if evals == self.max_evals:
                         return v, L, evals
@@ -163,7 +172,7 @@ class DescentCorrector(Corrector):
         except (TypeError, ValueError) as e:
             raise ValueError(f"field fitted.source: {e}") from None
         moved = float(np.abs(self.transformer_.source - self.base_transformer_.source).max())
-        if moved > self.delta_max * (1 + 1e-12):
+        if not within_reach(moved, self.delta_max):
             raise ValueError(f"field fitted.source: a corner moved {moved:g} px from the clicked trapezoid, more than "
                              f"delta_max = {self.delta_max:g}")
         self.loss_initial_ = number(state["loss_initial"], "fitted.loss_initial", minimum=0)

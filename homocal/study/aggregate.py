@@ -78,7 +78,7 @@ class Quantiles:
         return int(self.high.sum())
 
     def add(self, values: np.ndarray) -> None:
-        """values: (N,) finite float32."""
+        """values: (N,) float32, no NaN (-inf and inf sort below and above every finite value)."""
         keys = sortable_keys(values)
         if self.low is None:
             self.high += np.bincount(keys >> 16, minlength=BUCKETS)
@@ -120,5 +120,8 @@ class Quantiles:
 
 
 def _lerp(a: float, b: float, t: float) -> float:
-    """numpy's interpolation between neighbours a <= b at weight t in [0, 1] (from b's side when t >= 0.5)."""
+    """numpy's interpolation between neighbours a <= b at weight t in [0, 1) (from b's side when t >= 0.5); -inf
+    if a is (where numpy gives NaN)."""
+    if a == -math.inf:
+        return a
     return b - (b - a) * (1 - t) if t >= 0.5 else a + (b - a) * t

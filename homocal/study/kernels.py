@@ -27,14 +27,18 @@ compilation on one machine, whatever the vectorisation).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
 
+from homocal.correctors.descent import within_reach
 from homocal.keyed_rng import packed_order, splitmix64
 from homocal.study import method_kernels as mk
 from homocal.study.frame import frame, min2
-from homocal.study.jit import FIXED, JIT, PATH_JIT, to_fixed
+from homocal.study.jit import FIXED, JIT, PATH_JIT, fixed_point_mean
+from homocal.study.rows import (CAL_D, CAL_E_FAITHFUL, CAL_E_SIGNED, CAL_RX, CAL_RY, CAL_UX, CAL_UY, TEST_D, TEST_DG, TEST_GOX,
+                                TEST_GOY, TEST_GX, TEST_GY, TEST_RR, TEST_RU2, TEST_RX, TEST_RY, TEST_S0, TEST_S1, TEST_S2)
 
 
 METHODS = ("regression", "regression_signed", "regression_intercept", "horizon", "least_change", "descent", "hybrid")
@@ -43,6 +47,80 @@ METHODS = ("regression", "regression_signed", "regression_intercept", "horizon",
 OUT_COLUMNS = ("cal_before", *(f"{kind}_{m}" for m in METHODS for kind in ("cal", "path")), "hybrid_regression")
 REG, SIG, INT, HOR, LCH, DES, HYB = (1 + 2 * METHODS.index(m) for m in METHODS)  # calibration columns
 CHOSE = len(OUT_COLUMNS) - 1
+BEFORE = OUT_COLUMNS.index("cal_before")
+
+
+class Variant(NamedTuple):
+    """One trapezoid variant, as run_variant reads it (shards.prepare_variant makes it): v0 (8,) its image quad
+    (px), t0 (8,) its map quad (m), Bt (3, 3) the map quad's basis (target_basis), H0 (3, 3) = homography(v0, Bt);
+    F (M, 9) (ground_frames), q (M, 2) image (px) and g (M, 2) ground (m) calibration points; origin (2,) the
+    camera's ground point o; cal (len(rows.CAL_ROWS), M) and test (len(rows.TEST_ROWS), N) float32, the tables of
+    homocal.study.rows; path_before the mean test-point error before correction (m)."""
+
+    v0: np.ndarray
+    t0: np.ndarray
+    Bt: np.ndarray
+    H0: np.ndarray
+    F: np.ndarray
+    q: np.ndarray
+    g: np.ndarray
+    origin: np.ndarray
+    cal: np.ndarray
+    test: np.ndarray
+    path_before: float
+
+
+class Samples(NamedTuple):
+    """The calibration triples (I, J, K) (S,) int64 of one variant and base = seed_from_key(run seed, scene,
+    variant) (uint64), the key of their descent orders (sample_seed_kernel)."""
+
+    I: np.ndarray
+    J: np.ndarray
+    K: np.ndarray
+    base: np.uint64
+
+
+class DescentSettings(NamedTuple):
+    """DescentCorrector's settings: grid (G,) phase-1 offsets, px; delta_max, initial_step, min_step px; max_evals."""
+
+    grid: np.ndarray
+    delta_max: float
+    initial_step: float
+    min_step: float
+    max_evals: int
+
+
+class LeastChangeSettings(NamedTuple):
+    """LeastChangeCorrector's settings: click_sigma (px), map_sigma (m), point_sigma (m), iterations."""
+
+    click_sigma: float
+    map_sigma: float
+    point_sigma: float
+    iterations: int
+
+
+class Settings(NamedTuple):
+    """The methods' settings: descent, least_change, the hybrid's threshold (%), in_range (the range metric)."""
+
+    descent: DescentSettings
+    least_change: LeastChangeSettings
+    threshold: float
+    in_range: bool
+
+
+class Results(NamedTuple):
+    """run_variant's outputs for S samples (see there)."""
+
+    out: np.ndarray
+    faithful_ab: np.ndarray
+    signed_ab: np.ndarray
+    quads: np.ndarray
+    evaluations: np.ndarray
+
+    @classmethod
+    def empty(cls, S: int) -> "Results":
+        return cls(np.empty((S, len(OUT_COLUMNS))), np.empty((S, 2)), np.empty((S, 2)), np.empty((S, 8)),
+                   np.empty(S, np.int64))
 
 
 @nb.njit(inline="always", **JIT)
@@ -127,6 +205,7 @@ def grid_table(v0, grid, F, q):
     return table
 
 
+_within_reach = nb.njit(inline="always", **JIT)(within_reach)  # the readable corrector's reach rule, compiled
 LANES = 32  # phase-2 samples run side by side, each evaluating one coordinate's +step and -step at once
 
 
@@ -171,14 +250,15 @@ def eval_lanes(X, kc, dl, Fl, Ql, out):
 
 
 @nb.njit(**JIT)
-def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step, min_step, delta_max, max_evals):
-    """Phase 2 of DescentCorrector for samples lo..hi-1, LANES at a time: each lane l holds one sample and
-    resolves one coordinate per round, its +step and -step candidates evaluated together in slots l and
-    LANES + l; a finished lane takes the next sample. vfinal[s, :8] holds the phase-1 trapezoid and Lfinal[s]
-    its loss on entry, the final ones on return, vfinal[s, 8] the evaluations.
+def descend_lanes(lo, hi, variant, samples, descent, seeds, quads, evaluations, Lfinal):
+    """Phase 2 of DescentCorrector (settings descent: DescentSettings) for samples lo..hi-1 of variant (Variant),
+    samples (Samples), seeds (S,) their keys, LANES at a time: each lane l holds one sample and resolves one
+    coordinate per round, its +step and -step candidates evaluated together in slots l and LANES + l; a finished
+    lane takes the next sample. quads[s] (8,) holds the phase-1 trapezoid and Lfinal[s] its loss on entry, the
+    final ones on return, evaluations[s] the evaluations.
 
     Per lane, as DescentCorrector: each pass visits the coordinates in shuffled_order(seed, pass); a move
-    beyond delta_max of v0 is skipped unevaluated; +step is taken if it lowers L, else -step; the descent
+    beyond reach of v0 (correctors.descent.within_reach) is skipped unevaluated; +step is taken if it lowers L, else -step; the descent
     stops when evals == max_evals before an evaluation, or when step < min_step after a pass without
     improvement.
 
@@ -193,6 +273,8 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
     the pass order packed 4 bits a position (perm, keyed_rng.packed_order), step, loss Ls, and for the
     coordinate in evaluation (kc[l]) its value xk and whether +step, -step are within delta_max (pok, mok, 0/1).
     """
+    v0, F, q, I, J, K = variant.v0, variant.F, variant.q, samples.I, samples.J, samples.K
+    initial_step, min_step, delta_max, max_evals = descent.initial_step, descent.min_step, descent.delta_max, descent.max_evals
     n = LANES
     # all lane state in two flat arrays at constant offsets (named views for the scalar code): the vectorised
     # loop indexes them directly, so it needs no runtime alias checks between a dozen arrays (with them,
@@ -229,8 +311,8 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
                             pos[l] = 0
                             perm[l] = packed_order(seeds[sample[l]], pas[l])
                         k = (perm[l] >> (4 * pos[l])) & 7
-                        pok[l] = abs((X[k, l] + step[l]) - v0[k]) <= delta_max
-                        mok[l] = abs((X[k, l] - step[l]) - v0[k]) <= delta_max
+                        pok[l] = _within_reach((X[k, l] + step[l]) - v0[k], delta_max)
+                        mok[l] = _within_reach((X[k, l] - step[l]) - v0[k], delta_max)
                         if pok[l] or mok[l]:
                             ready = evals[l] < max_evals
                             break
@@ -243,8 +325,8 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
                 s = sample[l]
                 if s >= 0:  # the lane's descent ended
                     for c in range(8):
-                        vfinal[s, c] = X[c, l]
-                    vfinal[s, 8] = evals[l]
+                        quads[s, c] = X[c, l]
+                    evaluations[s] = evals[l]
                     Lfinal[s] = Ls[l]
                     sample[l] = -1
                     pok[l] = mok[l] = 0
@@ -256,7 +338,7 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
                 active += 1
                 sample[l], pas[l], evals[l], pos[l], improved[l] = s, 0, 0, 0, 0
                 for c in range(8):
-                    X[c, l] = X[c, n + l] = vfinal[s, c]
+                    X[c, l] = X[c, n + l] = quads[s, c]
                 Ls[l], step[l] = Lfinal[s], initial_step
                 for t in range(3):
                     i = I[s] if t == 0 else (J[s] if t == 1 else K[s])
@@ -293,8 +375,8 @@ def descend_lanes(lo, hi, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step
                 fs[2 * n * c + l] = fs[2 * n * c + n + l] = col
                 xn = col if c == k2 else xn
                 vn = v0[c] if c == k2 else vn
-            pn = abs((xn + sp) - vn) <= delta_max
-            mn = abs((xn - sp) - vn) <= delta_max
+            pn = _within_reach((xn + sp) - vn, delta_max)
+            mn = _within_reach((xn - sp) - vn, delta_max)
             ist[KC + l] = ist[KC + n + l] = k2
             fs[XK + l], ist[POK + l], ist[MOK + l] = xn, pn, mn
             # event: 0 none; 1 end of pass, k2 out of bounds both ways, budget spent, or idle; 2 or 3 budget hit
@@ -323,102 +405,109 @@ def fit_quadratic(d0, d1, d2, e0, e1, e2, faithful):
 @nb.njit(**JIT)
 def radial_error(cal, i, a, b, in_range):
     """Error of calibration candidate i after the radial correction (eq. (24)), c = a d^2 + b d: ||p + u c - g||,
-    or in_range the range error | ||g - o|| - |d + c| |; cal rows d, rx, ry, ux, uy, e, ||g - o|| - d."""
-    d = cal[0, i]
+    or in_range the range error | ||g - o|| - |d + c| |; cal (rows.CAL_ROWS, M)."""
+    d = cal[CAL_D, i]
     c = a * d * d + b * d
     if in_range:
-        return abs(cal[6, i] + d - abs(d + c))
-    return math.hypot(cal[1, i] + cal[3, i] * c, cal[2, i] + cal[4, i] * c)
+        return abs(cal[CAL_E_SIGNED, i] + d - abs(d + c))
+    return math.hypot(cal[CAL_RX, i] + cal[CAL_UX, i] * c, cal[CAL_RY, i] + cal[CAL_UY, i] * c)
+
+
+@nb.njit(inline="always", **PATH_JIT)
+def _radial32(test, t, ab):
+    """(e, True): the float32 error of test point t after the radial correction (eq. (24)), c = a d^2 + b d,
+    (a, b) = ab (a in FIXED/m): |r + u c| = sqrt(|r|^2 + c (2 r.u + c)), units of 1/FIXED m (NaN stays NaN)."""
+    a, b = ab
+    d = test[TEST_D, t]
+    c = d * (a * d + b)
+    q = test[TEST_RR, t] + c * (test[TEST_RU2, t] + c)
+    return math.sqrt(np.float32(0.0) if q < 0 else q), True
 
 
 @nb.njit(**PATH_JIT)
 def regression_paths(test, af, bf, as_, bs):
-    """Mean test-point error (m) after both regressions: |r + u c|^2 = |r|^2 + c (2 r.u + c), c = a d^2 + b d,
-    in float32 and units of 1/FIXED m. test rows 0-2: d, |r|^2, 2 r.u (N,) in those units."""
-    n = test.shape[1]
+    """Mean test-point error (m) after both regressions (_radial32), in float32 and units of 1/FIXED m, summed
+    exactly (jit.fixed_point_mean: NaN if a point error is not finite); test (rows.TEST_ROWS, N), its rows d, rr,
+    ru2 read."""
     af, bf, as_, bs = np.float32(af / FIXED), np.float32(bf), np.float32(as_ / FIXED), np.float32(bs)
-    sf = np.int64(0)
-    ss = np.int64(0)
-    for t in range(n):
-        d, rr, ru2 = test[0, t], test[1, t], test[2, t]
-        cf = d * (af * d + bf)
-        cs = d * (as_ * d + bs)
-        qf = rr + cf * (ru2 + cf)
-        qs = rr + cs * (ru2 + cs)
-        sf += to_fixed(math.sqrt(qf if qf > 0 else np.float32(0.0)))
-        ss += to_fixed(math.sqrt(qs if qs > 0 else np.float32(0.0)))
-    return sf / FIXED / n, ss / FIXED / n
+    return fixed_point_mean(_radial32, test, (af, bf)), fixed_point_mean(_radial32, test, (as_, bs))
+
+
+@nb.njit(inline="always", **PATH_JIT)
+def _range32(test, t, ab):
+    """(e, True): the float32 range error | ||g - o|| - |d + c| | of test point t after the radial correction
+    c = a d^2 + b d (the corrected point p + u c lies at range |d + c|), units of 1/FIXED m."""
+    a, b = ab
+    d = test[TEST_D, t]
+    return abs(test[TEST_DG, t] - abs(d + d * (a * d + b))), True
 
 
 @nb.njit(**PATH_JIT)
 def regression_paths_range(test, af, bf, as_, bs):
-    """As regression_paths, with the range error | ||g - o|| - |d + c| | (the corrected point p + u c lies at range
-    |d + c|); test rows 0 and 12: d and ||g - o||, in units of 1/FIXED m."""
-    n = test.shape[1]
+    """As regression_paths, with the range error (_range32); test rows d and dg (||g - o||) read."""
     af, bf, as_, bs = np.float32(af / FIXED), np.float32(bf), np.float32(as_ / FIXED), np.float32(bs)
-    sf = np.int64(0)
-    ss = np.int64(0)
-    for t in range(n):
-        d, dg = test[0, t], test[12, t]
-        sf += to_fixed(abs(dg - abs(d + d * (af * d + bf))))
-        ss += to_fixed(abs(dg - abs(d + d * (as_ * d + bs))))
-    return sf / FIXED / n, ss / FIXED / n
+    return fixed_point_mean(_range32, test, (af, bf)), fixed_point_mean(_range32, test, (as_, bs))
 
 
 @nb.njit(inline="always", **PATH_JIT)
 def _residual(test, dH, t):
     """(nx, ny, w) of test point t under H0 + dH (see descent_path): H(t) - g = (nx, ny) / w, float32."""
-    s0, s1, s2 = test[3, t], test[4, t], test[5, t]
+    s0, s1, s2 = test[TEST_S0, t], test[TEST_S1, t], test[TEST_S2, t]
     dw = dH[6] * s0 + dH[7] * s1 + dH[8] * s2
-    nx = test[6, t] + (dH[0] * s0 + dH[1] * s1 + dH[2] * s2) - test[8, t] * dw
-    ny = test[7, t] + (dH[3] * s0 + dH[4] * s1 + dH[5] * s2) - test[9, t] * dw
+    nx = test[TEST_RX, t] + (dH[0] * s0 + dH[1] * s1 + dH[2] * s2) - test[TEST_GX, t] * dw
+    ny = test[TEST_RY, t] + (dH[3] * s0 + dH[4] * s1 + dH[5] * s2) - test[TEST_GY, t] * dw
     return nx, ny, np.float32(1.0) + dw
+
+
+@nb.njit(inline="always", **PATH_JIT)
+def _homography32(test, t, args):
+    """(e, ok): the float32 error ||H(t) - g|| of test point t under H0 + dH, dH = args[0], units of 1/FIXED m,
+    and whether t is in front of the horizon (w > 0; e is meaningless if not)."""
+    nx, ny, w = _residual(test, args[0], t)
+    ok = w > 0
+    return math.sqrt(nx * nx + ny * ny) / (w if ok else np.float32(1.0)), ok
 
 
 @nb.njit(**PATH_JIT)
 def descent_path(test, dH):
     """Mean test-point error (m) of H0 + dH, float32, residual form: with s = t/w0 (H0 s = (p0, 1)) and
-    r = p0 - g, H(t) - g = (r + dH01 s - g dH2 s) / (1 + dH2 s). test rows 3-9: s0, s1, s2, then rx, ry, gx, gy
-    in units of 1/FIXED m; dH (9,) float32, rows 0-1 in those units. NaN if a point crosses the horizon."""
-    n = test.shape[1]
-    total = np.int64(0)
-    beyond = np.int64(0)
-    for t in range(n):
-        nx, ny, w = _residual(test, dH, t)
-        ok = w > 0
-        total += to_fixed(math.sqrt(nx * nx + ny * ny) / (w if ok else np.float32(1.0)))
-        beyond += np.int64(not ok)
-    return total / FIXED / n if beyond == 0 else math.nan
+    r = p0 - g, H(t) - g = (r + dH01 s - g dH2 s) / (1 + dH2 s). test rows s0, s1, s2, rx, ry, gx, gy read;
+    dH (9,) float32, rows 0-1 in units of 1/FIXED m. Summed as regression_paths; NaN if a point crosses the
+    horizon."""
+    return fixed_point_mean(_homography32, test, (dH,))
+
+
+@nb.njit(inline="always", **PATH_JIT)
+def _homography_range32(test, t, args):
+    """(e, ok): the float32 range error | ||g - o|| - ||H(t) - o|| | of test point t under H0 + dH (args[0]),
+    H(t) - o = (H(t) - g) + (g - o), units of 1/FIXED m, and ok as _homography32."""
+    nx, ny, w = _residual(test, args[0], t)
+    ok = w > 0
+    wi = np.float32(1.0) / (w if ok else np.float32(1.0))
+    px = nx * wi + test[TEST_GOX, t]
+    py = ny * wi + test[TEST_GOY, t]
+    return abs(test[TEST_DG, t] - math.sqrt(px * px + py * py)), ok
 
 
 @nb.njit(**PATH_JIT)
 def descent_path_range(test, dH):
-    """As descent_path, with the range error | ||g - o|| - ||H(t) - o|| |, H(t) - o = (H(t) - g) + (g - o);
-    test rows 10-12: g - o (2) and ||g - o||, in units of 1/FIXED m."""
-    n = test.shape[1]
-    total = np.int64(0)
-    beyond = np.int64(0)
-    for t in range(n):
-        nx, ny, w = _residual(test, dH, t)
-        ok = w > 0
-        wi = np.float32(1.0) / (w if ok else np.float32(1.0))
-        px = nx * wi + test[10, t]
-        py = ny * wi + test[11, t]
-        total += to_fixed(abs(test[12, t] - math.sqrt(px * px + py * py)))
-        beyond += np.int64(not ok)
-    return total / FIXED / n if beyond == 0 else math.nan
+    """As descent_path, with the range error (_homography_range32); test rows gox, goy (g - o) and dg (||g - o||)
+    read too."""
+    return fixed_point_mean(_homography_range32, test, (dH,))
+
+
+@nb.njit(inline="always", **PATH_JIT)
+def _range_intercept32(test, t, abc):
+    """_range32 for the radial correction with an intercept, c(d) = a d^2 + b d + c, (a, b, c) = abc."""
+    a, b, c = abc
+    d = test[TEST_D, t]
+    return abs(test[TEST_DG, t] - abs(d + d * (a * d + b) + c)), True
 
 
 @nb.njit(**PATH_JIT)
 def regression_path_range(test, a, b, c):
     """As regression_paths_range for one regression with an intercept, c(d) = a d^2 + b d + c (m)."""
-    n = test.shape[1]
-    af, bf, cf = np.float32(a / FIXED), np.float32(b), np.float32(c * FIXED)
-    total = np.int64(0)
-    for t in range(n):
-        d = test[0, t]
-        total += to_fixed(abs(test[12, t] - abs(d + d * (af * d + bf) + cf)))
-    return total / FIXED / n
+    return fixed_point_mean(_range_intercept32, test, (np.float32(a / FIXED), np.float32(b), np.float32(c * FIXED)))
 
 
 @nb.njit(**JIT)
@@ -471,22 +560,21 @@ def _calibration_error(H, q, g, i, j, k, origin, in_range):
 
 
 @nb.njit(nogil=True, **JIT)
-def run_variant(v0, t0, Bt, H0, F, q, g, cal, test, path_before, I, J, K, base, grid, delta_max, initial_step, min_step,
-                max_evals, lc_sigmas, lc_iterations, threshold, in_range, origin, out, ab, vfinal):
-    """Every method on every triple (I, J, K) (S,) of one trapezoid variant.
+def run_variant(variant, samples, settings, results):
+    """Every method on every triple of samples (Samples) of one trapezoid variant (Variant), with settings
+    (Settings); writes results (Results): out (S, len(OUT_COLUMNS)) in OUT_COLUMNS order, cal_before (m), then
+    (cal, path) improvement (%) of each of the METHODS, then 1.0 if hybrid chose regression; faithful_ab and
+    signed_ab (S, 2): the two regressions' a, b; quads (S, 8) and evaluations (S,): descent's final trapezoid and
+    its phase-2 evaluations.
 
-    v0 (8,) image quad, t0 (8,) target (map) quad, Bt (3, 3) its basis, H0 (3, 3) = homography(v0, Bt); F (M, 9), q (M, 2) image and
-    g (M, 2) ground calibration points; cal (7, M) of the mapped candidates p: d = |p - o|, r = p - g (2),
-    u = (p - o)/d (2), faithful e = |p - g| (eq. (18)), signed e = |g - o| - |p - o|; test (13, N) float32 (see
-    regression_paths, descent_path and their _range forms); path_before: mean test error (metres);
-    in_range: errors are range errors | ||g - o|| - ||p - o|| | instead of ||p - g|| (the study's metric; the
-    methods themselves do not change, the hybrid's threshold applies to the metric's improvement);
-    origin (2,) the camera's ground point o; lc_sigmas (3,) least change's click, map and point sigmas (px, m, m)
-    and lc_iterations its most Gauss-Newton steps.
-    Writes out (S, len(OUT_COLUMNS)) float64 in OUT_COLUMNS order: cal_before (m), then (cal, path)
-    improvement (%) of each of the METHODS, then 1.0 if hybrid chose regression; ab (S, 4): a, b faithful,
-    a, b signed; vfinal (S, 9): descent's final trapezoid and its phase-2 evaluations.
+    With settings.in_range, errors are range errors | ||g - o|| - ||p - o|| | instead of ||p - g|| (the study's
+    metric; the methods themselves do not change, the hybrid's threshold applies to the metric's improvement).
     """
+    v0, t0, Bt, H0, F, q, g = variant.v0, variant.t0, variant.Bt, variant.H0, variant.F, variant.q, variant.g
+    cal, test, path_before, origin = variant.cal, variant.test, variant.path_before, variant.origin
+    I, J, K = samples.I, samples.J, samples.K
+    grid, lc, threshold, in_range = settings.descent.grid, settings.least_change, settings.threshold, settings.in_range
+    out, quads = results.out, results.quads
     table = grid_table(v0, grid, F, q)
     G, G4 = grid.shape[0], table.shape[1]
     S = I.shape[0]
@@ -501,13 +589,14 @@ def run_variant(v0, t0, Bt, H0, F, q, g, cal, test, path_before, I, J, K, base, 
         i, j, k = I[s], J[s], K[s]
         # ---- regression, faithful and signed (eqs. (18)-(24))
         if in_range:
-            e_before = _mean3(abs(cal[6, i]), abs(cal[6, j]), abs(cal[6, k]))
+            e_before = _mean3(abs(cal[CAL_E_SIGNED, i]), abs(cal[CAL_E_SIGNED, j]), abs(cal[CAL_E_SIGNED, k]))
         else:
-            e_before = _mean3(cal[5, i], cal[5, j], cal[5, k])
-        di, dj, dk = cal[0, i], cal[0, j], cal[0, k]
-        af, bf, _ = fit_quadratic(di, dj, dk, cal[5, i], cal[5, j], cal[5, k], True)
-        as_, bs, _ = fit_quadratic(di, dj, dk, cal[6, i], cal[6, j], cal[6, k], False)
-        out[s, 0] = e_before
+            e_before = _mean3(cal[CAL_E_FAITHFUL, i], cal[CAL_E_FAITHFUL, j], cal[CAL_E_FAITHFUL, k])
+        di, dj, dk = cal[CAL_D, i], cal[CAL_D, j], cal[CAL_D, k]
+        ei, ej, ek = cal[CAL_E_SIGNED, i], cal[CAL_E_SIGNED, j], cal[CAL_E_SIGNED, k]
+        af, bf, _ = fit_quadratic(di, dj, dk, cal[CAL_E_FAITHFUL, i], cal[CAL_E_FAITHFUL, j], cal[CAL_E_FAITHFUL, k], True)
+        as_, bs, _ = fit_quadratic(di, dj, dk, ei, ej, ek, False)
+        out[s, BEFORE] = e_before
         out[s, REG] = _improvement(e_before, _mean3(radial_error(cal, i, af, bf, in_range), radial_error(cal, j, af, bf, in_range),
                                                     radial_error(cal, k, af, bf, in_range)))
         out[s, SIG] = _improvement(e_before, _mean3(radial_error(cal, i, as_, bs, in_range), radial_error(cal, j, as_, bs, in_range),
@@ -517,13 +606,14 @@ def run_variant(v0, t0, Bt, H0, F, q, g, cal, test, path_before, I, J, K, base, 
         else:
             path_f, path_s = regression_paths(test, af, bf, as_, bs)
         out[s, REG + 1], out[s, SIG + 1] = _improvement(path_before, path_f), _improvement(path_before, path_s)
-        ab[s, 0], ab[s, 1], ab[s, 2], ab[s, 3] = af, bf, as_, bs
+        results.faithful_ab[s, 0], results.faithful_ab[s, 1] = af, bf
+        results.signed_ab[s, 0], results.signed_ab[s, 1] = as_, bs
         # ---- regression with an intercept (signed e = a d^2 + b d + c, exact through the three points)
-        ai, bi, ci, _ = mk.fit_quadratic_intercept3(di, dj, dk, cal[6, i], cal[6, j], cal[6, k])
+        ai, bi, ci, _ = mk.fit_quadratic_intercept3(di, dj, dk, ei, ej, ek)
         if in_range:
-            cal_i = _mean3(abs(cal[6, i] + di - abs(di + ai * di * di + bi * di + ci)),
-                           abs(cal[6, j] + dj - abs(dj + ai * dj * dj + bi * dj + ci)),
-                           abs(cal[6, k] + dk - abs(dk + ai * dk * dk + bi * dk + ci)))
+            cal_i = _mean3(abs(ei + di - abs(di + ai * di * di + bi * di + ci)),
+                           abs(ej + dj - abs(dj + ai * dj * dj + bi * dj + ci)),
+                           abs(ek + dk - abs(dk + ai * dk * dk + bi * dk + ci)))
             path_i = regression_path_range(test, ai, bi, ci)
         else:
             cal_i = _mean3(mk.radial_error_intercept(cal, i, ai, bi, ci), mk.radial_error_intercept(cal, j, ai, bi, ci),
@@ -540,26 +630,26 @@ def run_variant(v0, t0, Bt, H0, F, q, g, cal, test, path_before, I, J, K, base, 
         for t in range(3):
             c = i if t == 0 else (j if t == 1 else k)
             q3[t, 0], q3[t, 1], g3[t, 0], g3[t, 1] = q[c, 0], q[c, 1], g[c, 0], g[c, 1]
-        mk.least_change3(z0, q3, g3, lc_sigmas[0], lc_sigmas[1], lc_sigmas[2], lc_iterations, zl, Bl)
+        mk.least_change3(z0, q3, g3, lc.click_sigma, lc.map_sigma, lc.point_sigma, lc.iterations, zl, Bl)
         homography_into(zl[:8], Bl, Hd)
         cal_l = _calibration_error(Hd, q, g, i, j, k, origin, in_range)
         out[s, LCH], out[s, LCH + 1] = _improvement(e_before, cal_l), _improvement(path_before, homography_paths(test, Hd, H0, dH, in_range))
         # ---- descent phase 1: the grid cell of least mean loss, first on ties
         best, gbest = grid_best(table, i, j, k, sums)
-        vfinal[s, :8] = v0
-        vfinal[s, 0] += grid[gbest // G**3]
-        vfinal[s, 1] += grid[(gbest // G**2) % G]
-        vfinal[s, 4] += grid[(gbest // G) % G]
-        vfinal[s, 5] += grid[gbest % G]
+        quads[s] = v0
+        quads[s, 0] += grid[gbest // G**3]
+        quads[s, 1] += grid[(gbest // G**2) % G]
+        quads[s, 4] += grid[(gbest // G) % G]
+        quads[s, 5] += grid[gbest % G]
         Lfinal[s] = best
-        seeds[s] = sample_seed_kernel(base, i, j, k)
+        seeds[s] = sample_seed_kernel(samples.base, i, j, k)
     # ---- descent phase 2, LANES samples side by side over the whole variant (lanes idle only at its end)
-    descend_lanes(0, S, v0, vfinal, Lfinal, F, q, I, J, K, seeds, initial_step, min_step, delta_max, max_evals)
+    descend_lanes(0, S, variant, samples, settings.descent, seeds, quads, results.evaluations, Lfinal)
     for s in range(S):
         i, j, k = I[s], J[s], K[s]
-        homography_into(vfinal[s, :8], Bt, Hd)
+        homography_into(quads[s], Bt, Hd)
         cal_d = _calibration_error(Hd, q, g, i, j, k, origin, True) if in_range else Lfinal[s]
-        out[s, DES], out[s, DES + 1] = _improvement(out[s, 0], cal_d), _improvement(path_before, homography_paths(test, Hd, H0, dH, in_range))
+        out[s, DES], out[s, DES + 1] = _improvement(out[s, BEFORE], cal_d), _improvement(path_before, homography_paths(test, Hd, H0, dH, in_range))
         # ---- hybrid: regression if its calibration improvement reaches the threshold (Section 7)
         hyb = out[s, REG] >= threshold
         out[s, HYB] = out[s, REG] if hyb else out[s, DES]

@@ -5,13 +5,13 @@ functions of one calibration triple, the same algorithm, iteration counts and to
 correctors; tests/homocal/test_method_kernels.py checks that their results agree to 1e-9 (rounding-level ties
 aside, every decision is the same; where one is not, both still converge to the same minimum). Least change's
 last Gauss-Newton steps change its objective below rounding, so its step counts may differ and its quads agree
-to 2e-6 px. Conventions as homocal.study.kernels: cal table rows d, rx, ry, ux, uy,
-e_faithful, e_signed; test-point lengths in units of 1/FIXED m (jit.FIXED).
+to 2e-6 px. Conventions as homocal.study.kernels: the cal and test tables' rows named in homocal.study.rows;
+test-point lengths in units of 1/FIXED m (jit.FIXED).
 
 Use in a per-sample loop (i, j, k the triple, H0 the variant's homography, q (M, 2) image and g (M, 2) ground
 calibration points)::
 
-    a, b, c, _ = fit_quadratic_intercept3(cal[0, i], cal[0, j], cal[0, k], cal[6, i], cal[6, j], cal[6, k])
+    a, b, c, _ = fit_quadratic_intercept3(cal[CAL_D, i], ... j ..., ... k ..., cal[CAL_E_SIGNED, i], ... j ..., ... k ...)
     cal_after = (radial_error_intercept(cal, i, a, b, c) + ... j ... + ... k ...) / 3
     path_after = regression_path_intercept(test, a, b, c)
     eps, delta = fit_horizon_shift3(H0, q[i, 0], q[i, 1], g[i, 0], g[i, 1], ... j ..., ... k ...)
@@ -30,7 +30,8 @@ from homocal.correctors.horizon import FLAT, GRID_INTERVALS, NEWTON_STEPS, newto
 from homocal.correctors.least_change import MAX_HALVINGS, STEP_TOLERANCE
 from homocal.correctors.regression import solve_normal3
 from homocal.study.frame import quad_frame
-from homocal.study.jit import FIXED, JIT, PATH_JIT, to_fixed
+from homocal.study.jit import FIXED, JIT, PATH_JIT, fixed_point_mean
+from homocal.study.rows import CAL_D, CAL_RX, CAL_RY, CAL_UX, CAL_UY, TEST_D, TEST_RR, TEST_RU2
 
 _newton_step = nb.njit(inline="always", **JIT)(newton_step)  # the readable correctors' scalar steps, compiled
 _solve_normal3 = nb.njit(inline="always", **JIT)(solve_normal3)
@@ -56,24 +57,27 @@ def fit_quadratic_intercept3(d0, d1, d2, e0, e1, e2):
 @nb.njit(**JIT)
 def radial_error_intercept(cal, i, a, b, c):
     """||p + u c(d) - g|| (eq. (24)) of calibration candidate i, c(d) = a d^2 + b d + c."""
-    d = cal[0, i]
+    d = cal[CAL_D, i]
     shift = a * d * d + b * d + c
-    return math.hypot(cal[1, i] + cal[3, i] * shift, cal[2, i] + cal[4, i] * shift)
+    return math.hypot(cal[CAL_RX, i] + cal[CAL_UX, i] * shift, cal[CAL_RY, i] + cal[CAL_UY, i] * shift)
+
+
+@nb.njit(inline="always", **PATH_JIT)
+def _radial_intercept32(test, t, abc):
+    """kernels._radial32 with an intercept: c(d) = a d^2 + b d + c, (a, b, c) = abc."""
+    a, b, c = abc
+    d = test[TEST_D, t]
+    shift = d * (a * d + b) + c
+    q = test[TEST_RR, t] + shift * (test[TEST_RU2, t] + shift)
+    return math.sqrt(np.float32(0.0) if q < 0 else q), True
 
 
 @nb.njit(**PATH_JIT)
 def regression_path_intercept(test, a, b, c):
     """Mean test-point error (m) after the intercept regression, as kernels.regression_paths (float32, units of
-    1/FIXED m, fixed-point sum): |r + u c|^2 = |r|^2 + c (2 r.u + c), c = a d^2 + b d + c0."""
-    n = test.shape[1]
-    af, bf, cf = np.float32(a / FIXED), np.float32(b), np.float32(c * FIXED)
-    total = np.int64(0)
-    for t in range(n):
-        d, rr, ru2 = test[0, t], test[1, t], test[2, t]
-        shift = d * (af * d + bf) + cf
-        qq = rr + shift * (ru2 + shift)
-        total += to_fixed(math.sqrt(qq if qq > 0 else np.float32(0.0)))
-    return total / FIXED / n
+    1/FIXED m, jit.fixed_point_mean: exact at any size, NaN if a point error is not finite): |r + u c|^2 =
+    |r|^2 + c (2 r.u + c), c = a d^2 + b d + c0."""
+    return fixed_point_mean(_radial_intercept32, test, (np.float32(a / FIXED), np.float32(b), np.float32(c * FIXED)))
 
 
 @nb.njit(inline="always", **JIT)

@@ -5,7 +5,12 @@ at a time in two passes (homocal.study.aggregate): memory does not grow with the
 Every statistic is exact over the full column: percentiles and medians are numpy's (linear
 interpolation) on all samples, never sketches; means, standard deviations and correlations are sums
 in float64 (about their means in the second pass). Standard deviations are population ones (ddof = 0).
-Samples whose path or calibration improvement is not finite are counted and left out of every statistic.
+
+A failed correction (a test point mapped beyond the horizon: the shards hold a path improvement that is not a
+number) is a sample whose path error is infinite: it is counted (``failures``), is not positive and sits below
+every percentile (as -inf); means and standard deviations are taken over the finite samples (``finite``), the
+correlation over the samples whose two improvements are finite. A calibration improvement that is not finite
+(``cal_failures``) is treated alike in the calibration statistics. Nothing is left out silently.
 """
 from __future__ import annotations
 
@@ -32,17 +37,21 @@ SHARD_NAME = re.compile(r"variant_\d+\.parquet")
 # key -> (label, format); the order of the table's rows
 METRICS = {
     "n": ("samples", "{:,.0f}"),
-    "nonfinite": ("non-finite samples (left out)", "{:,.0f}"),
+    "failures": ("failed corrections (path error infinite)", "{:,.0f}"),
+    "finite": ("samples with a finite path error (means and stds over them)", "{:,.0f}"),
+    "cal_failures": ("calibration error infinite", "{:,.0f}"),
     "pos_path": ("positive path improvement (%)", "{:.1f}"),
     "pos_cal": ("positive calibration improvement (%)", "{:.1f}"),
-    "mean_path": ("mean path improvement (%)", "{:.1f}"),
+    "mean_path": ("mean path improvement, finite samples (%)", "{:.1f}"),
     "median_path": ("median path improvement (%)", "{:.1f}"),
-    "corr": ("path-calibration correlation", "{:.2f}"),
-    "std_path": ("path improvement std (pp)", "{:.1f}"),
+    "corr": ("path-calibration correlation, finite samples", "{:.2f}"),
+    "std_path": ("path improvement std, finite samples (pp)", "{:.1f}"),
     "p1_path": ("path improvement 1st percentile (%)", "{:.1f}"),
+    "p0.1_path": ("path improvement 0.1th percentile (%)", "{:.1f}"),
+    "below_minus100": ("path error more than doubled: improvement below -100 %, failures included (%)", "{:.3f}"),
     "median_cal": ("calibration improvement median (%)", "{:.1f}"),
     "iqr_cal": ("calibration improvement IQR (pp)", "{:.1f}"),
-    "std_cal": ("calibration improvement std (pp)", "{:.1f}"),
+    "std_cal": ("calibration improvement std, finite samples (pp)", "{:.1f}"),
     "chose_regression": ("hybrid chose regression (%)", "{:.1f}"),
 }
 
@@ -124,60 +133,81 @@ class MethodSummary:
 
     def __init__(self, hybrid: bool = False):
         self.hybrid = hybrid
-        self.sums = dict.fromkeys(("n", "nonfinite", "pos_path", "pos_cal", "path", "cal", "chose", "pp", "cc", "pc"), 0.0)
-        self.path_q, self.cal_q = Quantiles((1, 50)), Quantiles((25, 50, 75))
-        self.means: tuple[float, float] | None = None  # (path, cal), known after the first pass
+        self.sums = dict.fromkeys(("n", "failures", "cal_failures", "pos_path", "pos_cal", "path", "cal", "chose", "pp",
+                                   "cc", "both", "bp", "bc", "bpp", "bcc", "bpc", "below"), 0.0)
+        self.path_q, self.cal_q = Quantiles((0.1, 1, 50)), Quantiles((25, 50, 75))
+        self.means: tuple[float, float] | None = None  # (path, cal) over their finite samples, after the first pass
 
     def add(self, path: np.ndarray, cal: np.ndarray, chose_regression: np.ndarray | None = None) -> None:
-        """path, cal: (N,) improvements, percent, float32; chose_regression: (N,) bool (the hybrid's)."""
-        ok = np.isfinite(path) & np.isfinite(cal)
-        p, c = path[ok], cal[ok]
-        self.path_q.add(p)
-        self.cal_q.add(c)
+        """path, cal: (N,) improvements, percent, float32 (not finite: a failure); chose_regression: (N,) bool (the
+        hybrid's)."""
+        fp, fc = np.isfinite(path), np.isfinite(cal)
+        self.path_q.add(np.where(fp, path, np.float32(-np.inf)))  # a failure sits below every percentile
+        self.cal_q.add(np.where(fc, cal, np.float32(-np.inf)))
+        p, c = path[fp], cal[fc]
         s = self.sums
         if self.means is None:
-            s["n"] += p.size
-            s["nonfinite"] += path.size - p.size
+            s["n"] += path.size
+            s["failures"] += path.size - p.size
+            s["cal_failures"] += cal.size - c.size
             s["pos_path"] += np.count_nonzero(p > 0)
+            s["below"] += np.count_nonzero(p < -100) + path.size - p.size  # a failure's error is infinite
             s["pos_cal"] += np.count_nonzero(c > 0)
             s["path"] += float(p.sum(dtype=np.float64))
             s["cal"] += float(c.sum(dtype=np.float64))
-            s["chose"] += np.count_nonzero(chose_regression[ok]) if self.hybrid else 0
+            s["chose"] += np.count_nonzero(chose_regression) if self.hybrid else 0
             return
         dp, dc = p.astype(np.float64) - self.means[0], c.astype(np.float64) - self.means[1]
         s["pp"] += float(np.einsum("i,i->", dp, dp))  # einsum: no BLAS threads
         s["cc"] += float(np.einsum("i,i->", dc, dc))
-        s["pc"] += float(np.einsum("i,i->", dp, dc))
+        both = fp & fc  # the correlation's samples, about the same means
+        bp, bc = path[both].astype(np.float64) - self.means[0], cal[both].astype(np.float64) - self.means[1]
+        s["both"] += bp.size
+        s["bp"] += float(bp.sum())
+        s["bc"] += float(bc.sum())
+        s["bpp"] += float(np.einsum("i,i->", bp, bp))
+        s["bcc"] += float(np.einsum("i,i->", bc, bc))
+        s["bpc"] += float(np.einsum("i,i->", bp, bc))
 
     def second_pass(self) -> None:
-        n = max(self.sums["n"], 1)
-        self.means = (self.sums["path"] / n, self.sums["cal"] / n)
+        s = self.sums
+        self.means = (s["path"] / max(s["n"] - s["failures"], 1), s["cal"] / max(s["n"] - s["cal_failures"], 1))
         self.path_q.second_pass()
         self.cal_q.second_pass()
 
     def stats(self) -> dict[str, float]:
         """{metric key: value} for the keys of METRICS (chose_regression only for the hybrid); after both passes."""
         s, n = self.sums, int(self.sums["n"])
-        stats = {"n": n, "nonfinite": int(s["nonfinite"])}
+        finite, finite_cal = n - int(s["failures"]), n - int(s["cal_failures"])
+        stats = {"n": n, "failures": int(s["failures"]), "finite": finite, "cal_failures": int(s["cal_failures"])}
         if self.hybrid:
             stats["chose_regression"] = 100 * s["chose"] / n if n else math.nan
         if n == 0:
             return stats | {k: math.nan for k in METRICS.keys() - stats.keys() - {"chose_regression"}}
-        p1, p50 = self.path_q.values()
+        p01, p1, p50 = self.path_q.values()
         c25, c50, c75 = self.cal_q.values()
-        denom = math.sqrt(s["pp"] * s["cc"])
         return stats | {
             "pos_path": 100 * s["pos_path"] / n,
             "pos_cal": 100 * s["pos_cal"] / n,
-            "mean_path": self.means[0],
+            "mean_path": self.means[0] if finite else math.nan,
             "median_path": p50,
-            "corr": s["pc"] / denom if denom > 0 else math.nan,  # Pearson's
-            "std_path": math.sqrt(s["pp"] / n),
+            "corr": _pearson(s["both"], s["bp"], s["bc"], s["bpp"], s["bcc"], s["bpc"]),
+            "std_path": math.sqrt(s["pp"] / finite) if finite else math.nan,
             "p1_path": p1,
+            "p0.1_path": p01,
+            "below_minus100": 100 * s["below"] / n,
             "median_cal": c50,
             "iqr_cal": c75 - c25,
-            "std_cal": math.sqrt(s["cc"] / n),
+            "std_cal": math.sqrt(s["cc"] / finite_cal) if finite_cal else math.nan,
         }
+
+
+def _pearson(n: float, sx: float, sy: float, sxx: float, syy: float, sxy: float) -> float:
+    """Pearson's correlation of n pairs from their sums of deviations about any fixed point; NaN if undefined."""
+    if n == 0:
+        return math.nan
+    cxx, cyy, cxy = sxx - sx * sx / n, syy - sy * sy / n, sxy - sx * sy / n
+    return cxy / math.sqrt(cxx * cyy) if cxx * cyy > 0 else math.nan
 
 
 def method_stats(path: np.ndarray, cal: np.ndarray, chose_regression: np.ndarray | None = None) -> dict[str, float]:

@@ -1,8 +1,10 @@
-"""``homocal report RESULTS_DIR``: the study's table and figures gathered on one self-contained HTML page.
+"""``homocal report RESULTS_DIR [RESULTS_DIR ...]``: the study's table and figures gathered on one self-contained
+HTML page; several studies of one configuration at other seeds add each Table 1 number and D as mean and range.
 
-Writes into RESULTS_DIR/report (or --out): report.json (the folder's marker, homocal.files.output_folder),
-report.html (figures embedded as data URIs, linked to their files beside it), table.md, table.csv and
-figures/*.png; prints the table and the page's path. A folder that is not empty and has no report.json is
+Writes into the first RESULTS_DIR/report (or --out): report.json (the folder's marker, homocal.files.output_folder),
+report.html (figures embedded as data URIs, linked to their files beside it), table.md, table.csv (the first
+study's), table_spread.csv (Table 1's numbers and D over all the studies given) and figures/*.png; prints the
+table and the page's path. A folder that is not empty and has no report.json is
 refused untouched; a report folder of ours is written again (its own files replaced).
 """
 from __future__ import annotations
@@ -11,6 +13,7 @@ import argparse
 import base64
 import csv
 import html
+import io
 import json
 import sys
 from pathlib import Path
@@ -45,7 +48,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         description="Compute the paper's Table 1 (and more) from a study's results directory, draw the figures and "
         "write one HTML page with all of it; print the table and the page's path.",
     )
-    parser.add_argument("results_dir", metavar="RESULTS_DIR", type=Path, help="a folder written by `homocal study`")
+    parser.add_argument("results_dir", metavar="RESULTS_DIR", type=Path, nargs="+",
+                        help="a folder written by `homocal study`; several: studies of one configuration at other seeds, "
+                             "whose Table 1 numbers and D the report gives as mean and range (table_spread.csv)")
     parser.add_argument("-o", "--out", type=Path, default=None, help="folder for the page, table and figures (default: RESULTS_DIR/report)")
     parser.add_argument("--compare", type=Path, action="append", default=[], metavar="RESULTS_DIR",
                         help="another study to show beside this one in the Reproduction table (repeatable)")
@@ -57,7 +62,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def handle_report(args: argparse.Namespace) -> int:
     """Handler of ``homocal report``: print the table and the page's path; ValueError on bad input."""
-    page, text, missing = write_report(args.results_dir, args.out, args.compare, args.sweep, show_progress(args))
+    first, *replicates = args.results_dir
+    page, text, missing = write_report(first, args.out, args.compare, args.sweep, show_progress(args), replicates)
     print(text)
     print(page)
     if missing:
@@ -68,19 +74,30 @@ def handle_report(args: argparse.Namespace) -> int:
 
 
 def write_report(results_dir: str | Path, out_dir: str | Path | None = None, compare: Sequence[Path] = (),
-                 sweep_dir: Path | None = None, progress: bool = False) -> tuple[Path, str]:
-    """Write table.md, table.csv, figures/ and report.html; return the page's path and the table as text.
+                 sweep_dir: Path | None = None, progress: bool = False, replicates: Sequence[Path] = ()) -> tuple[Path, str, int]:
+    """Write table.md, table.csv, table_spread.csv, figures/ and report.html; return the page's path, the table
+    as text and the number of shards missing.
 
     compare: other results directories shown beside this one in the Reproduction table; sweep_dir: a sweep
-    folder whose figure and closest value it shows; progress: a bar on stderr per pass over the shards that
-    takes more than a second (the table's two passes, the figures' four). ValueError if a results directory
-    is not one (no study.json) or holds no shard yet.
+    folder whose figure and closest value it shows; replicates: studies of the same configuration at other
+    seeds (check_replicates), over which with this one table_spread.csv and the page give every Table 1 number
+    and D as mean and range; progress: a bar on stderr per pass over the shards that takes more than a second
+    (the table's two passes, the figures' four). ValueError if a results directory is not one (no study.json)
+    or holds no shard yet, or a replicate's configuration differs other than by seed.
     """
     results_dir = Path(results_dir)
     study = load_study(results_dir)
     shards, missing = verified_shard_files(results_dir, study)
     if not any(shards.values()):
         raise ValueError(f"{results_dir}: no finished shards under shards/<scene>/ yet")
+    replicate_studies = [(Path(r), load_study(r)) for r in replicates]
+    check_replicates([(results_dir, study), *replicate_studies])
+    replicate_tables = []
+    for path, replicate in replicate_studies:
+        replicate_shards, replicate_missing = verified_shard_files(path, replicate)
+        if replicate_missing or not any(replicate_shards.values()):
+            raise ValueError(f"{path}: the study is not complete ({replicate_missing} shard(s) missing)")
+        replicate_tables.append(build_table(replicate_shards, progress))
     others = []
     for other in compare:
         other_study = load_study(other)
@@ -89,17 +106,93 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None, com
     table = build_table(shards, progress)  # every input read before anything is written: a failing report writes nothing
     out_dir = Path(out_dir) if out_dir is not None else results_dir / "report"
     with output_folder(out_dir, FORMAT, resume=True, marker="report.json") as folder:
-        folder.remove_temporaries(["report.json", "report.html", "table.md", "table.csv",
+        folder.remove_temporaries(["report.json", "report.html", "table.md", "table.csv", "table_spread.csv",
                                    *(f"figures/{name}" for name in figure_names(study))])
         write_json_atomic(folder.marker, {"format": FORMAT, "results_dir": str(results_dir.resolve())})
         write_text_atomic(out_dir / "table.md", to_markdown(table))
         write_text_atomic(out_dir / "table.csv", to_csv(table))
+        spread = spread_rows([table, *replicate_tables])
+        write_text_atomic(out_dir / "table_spread.csv", spread_csv(spread, [study, *(r for _, r in replicate_studies)]))
         figures, notes = make_figures(results_dir, study, shards, out_dir / "figures", progress)
         page = out_dir / "report.html"
         reproduction = reproduction_html([(results_dir, study, table), *others], sweep, out_dir)
+        if replicate_tables:
+            reproduction += spread_html(spread, [study, *(r for _, r in replicate_studies)])
         law = law_html(results_dir, study)
         write_text_atomic(page, render_html(study, table, figures, notes, out_dir, reproduction + law, missing))
     return page, to_text(table), missing
+
+
+def check_replicates(studies: list[tuple[Path, dict]]) -> None:
+    """ValueError (one line) unless the studies (path, study.json) share one configuration other than their seeds:
+    every StudyParams field but seed, and the datasets' scenes and config hashes; and no seed twice."""
+    def configuration(study: dict) -> dict:
+        params = StudyParams.from_dict(study).to_dict()
+        del params["seed"]
+        return {**params, "datasets": [(d["scene"], d.get("config_hash")) for d in study["datasets"]]}
+
+    (first_path, first), seeds = studies[0], {}
+    for path, study in studies:
+        mine, theirs = configuration(study), configuration(first)
+        differ = [k for k in sorted(mine.keys() | theirs.keys()) if mine.get(k) != theirs.get(k)]
+        if differ:
+            raise ValueError(f"{path}: its configuration differs from {first_path}'s other than by seed ({', '.join(differ)}); "
+                             "several studies in one report must be one configuration at other seeds")
+        seed = StudyParams.from_dict(study).seed
+        if seed in seeds:
+            raise ValueError(f"{path}: the same seed ({seed}) as {seeds[seed]}; several studies in one report need other seeds")
+        seeds[seed] = path
+
+
+SpreadRow = tuple[str, str, str, list[float], float]  # method, metric, scope, its value in each study, the paper's
+
+
+def spread_rows(tables: list[Table]) -> list[SpreadRow]:
+    """Every Table 1 number (the metrics of metrics.PAPER but n, per paper method) and D (metrics.paper_distance,
+    paper value 0), per scope (the scenes, then overall), with its value in each of the studies' tables."""
+    rows = []
+    for scope in tables[0].scopes:
+        for method in D_METHODS:
+            rows += [(method, key, scope, [t.value(method, key, scope) for t in tables], PAPER[method][key])
+                     for key in METRICS if key in PAPER[method] and key != "n"]
+        rows.append(("", "D", scope, [paper_distance(t, scope) for t in tables], 0.0))
+    return rows
+
+
+def spread_csv(rows: list[SpreadRow], studies: list[dict]) -> str:
+    """table_spread.csv: method, metric, scope, mean, min, max (over the studies; D's metric is "D"), paper, then
+    the value of each study in a column named by its seed (seed_N), at full precision."""
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(["method", "metric", "scope", "mean", "min", "max", "paper", *(f"seed_{s.get('seed', 0)}" for s in studies)])
+    for method, metric, scope, values, paper in rows:
+        writer.writerow([method, metric, scope, *(repr(float(x)) for x in _spread(values)), repr(float(paper)),
+                         *(repr(float(v)) for v in values)])
+    return buf.getvalue()
+
+
+def spread_html(rows: list[SpreadRow], studies: list[dict]) -> list[str]:
+    """The page's section of the Table 1 numbers and D as mean (min-max) over the studies, one column per scope."""
+    scopes = list(dict.fromkeys(scope for _, _, scope, _, _ in rows))
+    cells: dict[tuple[str, str], dict[str, str]] = {}
+    for method, metric, scope, values, paper in rows:
+        fmt = METRICS[metric][1] if metric in METRICS else "{:.1f}"
+        mean, low, high = _spread(values)
+        cells.setdefault((method, metric), {"paper": fmt.format(paper)})[scope] = (
+            f"{fmt.format(mean)} ({fmt.format(low)} to {fmt.format(high)})")
+    seeds = ", ".join(str(s.get("seed", 0)) for s in studies)
+    body = [[method, METRICS[metric][0] if metric in METRICS else "D, RMS distance to the paper (pp)", c["paper"],
+             *(c[s] for s in scopes)] for (method, metric), c in cells.items()]
+    return [f"<h2>Over {len(studies)} studies of this configuration (seeds {html.escape(seeds)})</h2>",
+            "<p>Each Table 1 number and D as the mean over the studies and, in brackets, their range (least to "
+            "greatest); also in <a href='table_spread.csv'>table_spread.csv</a> with each study's value.</p>",
+            _html_table(["method", "metric", "paper", *scopes], body, numeric=True)]
+
+
+def _spread(values: list[float]) -> tuple[float, float, float]:
+    """(mean, min, max) of values; NaN if any is NaN."""
+    a = np.asarray(values, dtype=np.float64)
+    return float(a.mean()), float(a.min()), float(a.max())
 
 
 def config_label(study: dict) -> str:
@@ -279,7 +372,7 @@ def render_html(study: dict, table: Table, figures: list[FigureFile], notes: lis
     e = html.escape
     done, total = study.get("samples_done"), study.get("samples_total")
     degenerate = study.get("degenerate", [])
-    rows_read = table.value("regression", "n") + table.value("regression", "nonfinite")
+    rows_read = table.value("regression", "n")
     parts = [
         f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>homocal study report</title><style>{STYLE}</style></head><body>",
         "<h1>homocal study report</h1>",

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import dataclass
-
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
@@ -14,6 +12,7 @@ from homocal.geometry import ViewTransformer, apply_homography
 from homocal.keyed_rng import seed_from_key
 from homocal.study import kernels
 from homocal.study.inputs import StudyParams, StudyScene
+from homocal.study.rows import make_cal_table, make_test_table
 
 SHARD_SCHEMA = pa.schema(
     [("variant", pa.int32()), ("i", pa.int16()), ("j", pa.int16()), ("k", pa.int16()),
@@ -21,20 +20,6 @@ SHARD_SCHEMA = pa.schema(
     + [(name, pa.bool_() if name == "hybrid_regression" else pa.float32()) for name in kernels.OUT_COLUMNS]
 )
 REASON_KEY = "degenerate_reason"  # a shard's Parquet schema metadata: why its variant is degenerate, "" if it is not
-
-
-@dataclass
-class VariantTables:
-    """Per-variant work hoisted out of the sample loop (inputs of kernels.run_variant)."""
-
-    v0: np.ndarray
-    t0: np.ndarray
-    Bt: np.ndarray
-    H0: np.ndarray
-    F: np.ndarray
-    cal: np.ndarray
-    test: np.ndarray
-    path_before: float
 
 
 def variant_mapping(scene: StudyScene, params: StudyParams, variant: int):
@@ -59,47 +44,38 @@ def variant_mapping(scene: StudyScene, params: StudyParams, variant: int):
     return v0, target.ravel(), Bt, H0, p, pt
 
 
-def prepare_variant(scene: StudyScene, params: StudyParams, variant: int) -> VariantTables | str:
-    """The variant's tables, or the reason (str) it is degenerate (see variant_mapping)."""
+def prepare_variant(scene: StudyScene, params: StudyParams, variant: int) -> kernels.Variant | str:
+    """The variant's kernels.Variant, or the reason (str) it is degenerate (see variant_mapping)."""
     mapping = variant_mapping(scene, params, variant)
     if isinstance(mapping, str):
         return mapping
     v0, t0, Bt, H0, p, pt = mapping
     o, g, gt = scene.origin, scene.cal_ground, scene.test_ground
-    d = np.linalg.norm(p - o, axis=1)
-    r = p - g
-    cal = np.vstack([d, r.T, ((p - o) / d[:, None]).T, np.linalg.norm(r, axis=1), np.linalg.norm(g - o, axis=1) - d])
-    dt = np.linalg.norm(pt - o, axis=1)
-    dgt = np.linalg.norm(gt - o, axis=1)
-    rt = pt - gt
-    ut = (pt - o) / dt[:, None]
-    w0 = np.column_stack([scene.test_image, np.ones(len(pt))]) @ H0[2]
-    s = np.column_stack([scene.test_image, np.ones(len(pt))]) / w0[:, None]
-    f = kernels.FIXED  # lengths in units of 1/FIXED m (homocal.study.jit)
-    test = np.vstack([f * dt, f * f * (rt**2).sum(axis=1), f * 2 * (rt * ut).sum(axis=1), s.T, f * rt.T, f * gt.T,
-                      f * (gt - o).T, f * dgt])
-    test = test.astype(np.float32)
     F = kernels.ground_frames(Bt, g)
-    before = np.abs(dgt - dt) if params.metric == "range" else np.linalg.norm(rt, axis=1)
-    return VariantTables(v0, np.ascontiguousarray(t0), Bt, H0, F, np.ascontiguousarray(cal), np.ascontiguousarray(test), float(before.mean()))
+    before = (np.abs(np.linalg.norm(gt - o, axis=1) - np.linalg.norm(pt - o, axis=1)) if params.metric == "range"
+              else np.linalg.norm(pt - gt, axis=1))
+    return kernels.Variant(v0, np.ascontiguousarray(t0), Bt, H0, F, np.ascontiguousarray(scene.cal_image),
+                           np.ascontiguousarray(g), o, make_cal_table(p, g, o), make_test_table(scene.test_image, H0, pt, gt, o),
+                           float(before.mean()))
 
 
-def run_tables(scene: StudyScene, tables: VariantTables, params: StudyParams, variant: int, idx: np.ndarray):
-    """kernels.run_variant on triples idx (S, 3): (out (S, len(OUT_COLUMNS)), ab (S, 4), vfinal (S, 9)), see there."""
-    S = len(idx)
-    out, ab, vfinal = np.empty((S, len(kernels.OUT_COLUMNS))), np.empty((S, 4)), np.empty((S, 9))
+def settings(params: StudyParams) -> kernels.Settings:
+    """The methods' settings of a study (kernels.Settings)."""
     dp, lc = params.descent, params.least_change
+    descent = kernels.DescentSettings(np.asarray(dp["grid_offsets"], dtype=np.float64), float(dp["delta_max"]),
+                                      float(dp["initial_step"]), float(dp["min_step"]), int(dp["max_evals"]))
+    least_change = kernels.LeastChangeSettings(float(lc["click_sigma_px"]), float(lc["map_sigma_m"]),
+                                               float(lc["point_sigma_m"]), int(lc["iterations"]))
+    return kernels.Settings(descent, least_change, float(params.threshold), params.metric == "range")
+
+
+def run_tables(scene: StudyScene, tables: kernels.Variant, params: StudyParams, variant: int, idx: np.ndarray) -> kernels.Results:
+    """kernels.run_variant on triples idx (S, 3) of the variant's tables (prepare_variant): its kernels.Results."""
+    results = kernels.Results.empty(len(idx))
     I, J, K = (np.ascontiguousarray(idx[:, c].astype(np.int64)) for c in range(3))
-    kernels.run_variant(
-        tables.v0, tables.t0, tables.Bt, tables.H0, tables.F, np.ascontiguousarray(scene.cal_image),
-        np.ascontiguousarray(scene.cal_ground), tables.cal, tables.test,
-        tables.path_before, I, J, K, np.uint64(seed_from_key(params.seed, scene.name, variant)),
-        np.asarray(dp["grid_offsets"], dtype=np.float64), float(dp["delta_max"]), float(dp["initial_step"]),
-        float(dp["min_step"]), int(dp["max_evals"]),
-        np.array([lc["click_sigma_px"], lc["map_sigma_m"], lc["point_sigma_m"]], dtype=np.float64), int(lc["iterations"]),
-        float(params.threshold), params.metric == "range", scene.origin,
-        out, ab, vfinal)
-    return out, ab, vfinal
+    samples = kernels.Samples(I, J, K, np.uint64(seed_from_key(params.seed, scene.name, variant)))
+    kernels.run_variant(tables, samples, settings(params), results)
+    return results
 
 
 def compute_shard(scene: StudyScene, params: StudyParams, variant: int) -> tuple[pa.Table, str]:
@@ -110,7 +86,7 @@ def compute_shard(scene: StudyScene, params: StudyParams, variant: int) -> tuple
     identity = {"scene": scene.name, "variant": str(variant), "study_key": study_key(params.to_dict(), scene.name, scene.config_hash)}
     if isinstance(tables, str):
         return SHARD_SCHEMA.empty_table().replace_schema_metadata({REASON_KEY: tables, **identity, "rows": "0"}), tables
-    out, _, _ = run_tables(scene, tables, params, variant, scene.triples)
+    out = run_tables(scene, tables, params, variant, scene.triples).out
     d_sum, d_spread = scene.distance_features
     S = len(scene.triples)
     f32 = lambda x: pa.array(np.asarray(x, dtype=np.float32))  # noqa: E731

@@ -7,6 +7,7 @@ from homocal.correctors import HorizonCorrector, LeastChangeCorrector, Regressio
 from homocal.correctors.least_change import mapped_jacobian
 from homocal.geometry import PinholeCamera, ViewTransformer
 from homocal.study import kernels, method_kernels as mk
+from homocal.study.rows import CAL_D, CAL_E_SIGNED, make_cal_table, make_test_table
 
 CAM = PinholeCamera()
 GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])
@@ -33,11 +34,8 @@ CASES = cases()
 
 
 def cal_table(vt):
-    """The study's cal rows d, rx, ry, ux, uy, e_faithful, e_signed of every candidate (scene.prepare_variant)."""
-    p, g = vt.transform_points(CANDIDATES_Q), CANDIDATES_G
-    d = np.linalg.norm(p - ORIGIN, axis=1)
-    r = p - g
-    return np.vstack([d, r.T, ((p - ORIGIN) / d[:, None]).T, np.linalg.norm(r, axis=1), np.linalg.norm(g, axis=1) - d])
+    """The study's cal table of every candidate (homocal.study.rows)."""
+    return make_cal_table(vt.transform_points(CANDIDATES_Q), CANDIDATES_G, ORIGIN)
 
 
 def test_intercept_regression_agrees():
@@ -45,7 +43,7 @@ def test_intercept_regression_agrees():
     for vt, sel in CASES:
         cal = cal_table(vt)
         i, j, k = sel
-        a, b, c, degenerate = mk.fit_quadratic_intercept3(*cal[0, sel], *cal[6, sel])
+        a, b, c, degenerate = mk.fit_quadratic_intercept3(*cal[CAL_D, sel], *cal[CAL_E_SIGNED, sel])
         reg = RegressionCorrector(signed=True, intercept=True).fit(vt, CANDIDATES_Q[sel], CANDIDATES_G[sel], ORIGIN)
         assert degenerate == reg.degenerate_
         assert (a, b, c) == pytest.approx((reg.a_, reg.b_, reg.c_), rel=1e-9, abs=1e-12)
@@ -67,12 +65,9 @@ def test_intercept_path_error_agrees():
     for vt, sel in CASES[:40]:
         reg = RegressionCorrector(signed=True, intercept=True).fit(vt, CANDIDATES_Q[sel], CANDIDATES_G[sel], ORIGIN)
         pt = vt.transform_points(test_q)
-        dt = np.linalg.norm(pt, axis=1)
-        rt, ut = pt - test_g, pt / dt[:, None]
-        f = kernels.FIXED
-        test = np.vstack([f * dt, f * f * (rt**2).sum(axis=1), f * 2 * (rt * ut).sum(axis=1)]).astype(np.float32)
+        test = make_test_table(test_q, vt.m, pt, test_g, ORIGIN)
         expected = np.linalg.norm(reg.transform_points(test_q) - test_g, axis=1).mean()
-        before = np.linalg.norm(rt, axis=1).mean()
+        before = np.linalg.norm(pt - test_g, axis=1).mean()
         # float32 residual form: path improvement (percent of before) to 1e-3 pp, as test_study_kernels
         assert mk.regression_path_intercept(test, reg.a_, reg.b_, reg.c_) == pytest.approx(expected, abs=1e-5 * before)
 
@@ -142,3 +137,41 @@ def test_least_change_jacobian_is_the_readable_one():
         mk._jacobian_into(z, bs, bt, q, g, sigma, J, r, y, X, np.empty((3, 3)), np.empty((16, 3)))
         np.testing.assert_allclose(J, mapped_jacobian(vt.source, vt.target, q).reshape(6, 16) * sigma, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(r, (g - vt.transform_points(q)).ravel(), rtol=0, atol=1e-10)
+
+
+def far_test_table():
+    """(test table, mapped p, ground g) of test points 5-50 m ahead, 0.5 m off their ground truth."""
+    g = np.column_stack([np.linspace(-4.0, 4.0, 40), np.linspace(5.0, 50.0, 40)])
+    p = g + [0.3, 0.4]
+    return make_test_table(CAM.project_ground(g), ViewTransformer(IMAGE, GROUND).m, p, g, ORIGIN), p, g
+
+
+def test_intercept_error_beyond_8_km_keeps_its_true_value():
+    """A regression-intercept sample whose three calibration points are 2 mm apart in range and 1 m apart in signed
+    error: its quadratic moves the far test points by thousands of km. The kernel's mean path error is the float64
+    one (no clip: the fixed-point sum had one at 8 km)."""
+    test, p, g = far_test_table()
+    a, b, c, degenerate = mk.fit_quadratic_intercept3(20.0, 20.001, 20.002, 0.0, 1.0, 0.0)
+    assert not degenerate
+    d = np.linalg.norm(p - ORIGIN, axis=1)
+    corrected = p + (p - ORIGIN) / d[:, None] * (a * d**2 + b * d + c)[:, None]
+    expected = np.linalg.norm(corrected - g, axis=1).mean()
+    assert expected > 1e6  # metres: far beyond 8 km
+    assert mk.regression_path_intercept(test, a, b, c) == pytest.approx(expected, rel=1e-6)
+    in_range = np.abs(np.linalg.norm(g - ORIGIN, axis=1) - np.abs(d + a * d**2 + b * d + c)).mean()
+    assert kernels.regression_path_range(test, a, b, c) == pytest.approx(in_range, rel=1e-6)
+
+
+@pytest.mark.parametrize("a", [1e3, 1e30, np.inf, np.nan])
+def test_path_error_sums_are_exact_or_fail(a):
+    """Regression's mean path error for a = 1e3 /m (errors up to 2,500 km) is the float64 one; one whose point errors
+    overflow float32 or are NaN is not a number (a failed correction), never a clipped value."""
+    test, p, g = far_test_table()
+    faithful, signed = kernels.regression_paths(test, a, 0.0, 0.0, 0.0)
+    d = np.linalg.norm(p - ORIGIN, axis=1)
+    expected = np.linalg.norm(p + (p - ORIGIN) * (a * d)[:, None] - g, axis=1).mean()
+    if np.isfinite(a) and a < 1e10:
+        assert faithful == pytest.approx(expected, rel=1e-6)
+    else:
+        assert np.isnan(faithful)
+    assert signed == pytest.approx(np.linalg.norm(p - g, axis=1).mean(), rel=1e-6)

@@ -65,6 +65,7 @@ def shards(tmp_path_factory):
                 cols[f"cal_{m}"] = (100 - rng.exponential(15, n)).astype(np.float32)
                 cols[f"path_{m}"] = awkward(rng, n) if m == "descent" else (rng.normal(20, 60, n)).astype(np.float32)
                 cols[f"path_{m}"][rng.random(n) < 0.02] = rng.choice([np.nan, np.inf])
+                cols[f"cal_{m}"][rng.random(n) < 0.005] = -np.inf
             path = root / scene / f"variant_{v:05d}.parquet"
             path.parent.mkdir(exist_ok=True)
             pq.write_table(pa.table(cols), path)
@@ -74,15 +75,28 @@ def shards(tmp_path_factory):
     return files, columns
 
 
+def percentiles_with_failures(values: np.ndarray, qs) -> list[float]:
+    """numpy's linear percentiles of values (N,) with every non-finite value a failure at -inf, below every other:
+    -inf where the lower neighbour of a rank is a failure (numpy itself gives NaN there)."""
+    ranked = np.sort(np.where(np.isfinite(values), values.astype(np.float64), -np.inf))
+    stand_in = np.where(np.isinf(ranked), ranked[np.isfinite(ranked)].min() - 1.0, ranked)
+    return [-np.inf if np.isinf(ranked[int(np.floor((len(ranked) - 1) * q / 100))]) else float(np.percentile(stand_in, q))
+            for q in qs]
+
+
 def numpy_stats(path: np.ndarray, cal: np.ndarray) -> dict[str, float]:
-    """The table's statistics by numpy on the whole (N,) columns in memory."""
-    ok = np.isfinite(path) & np.isfinite(cal)
-    p, c = path[ok].astype(np.float64), cal[ok].astype(np.float64)
-    p1, p50 = np.percentile(p, [1, 50])
-    c25, c50, c75 = np.percentile(c, [25, 50, 75])
-    return {"n": p.size, "nonfinite": path.size - p.size, "pos_path": 100 * np.mean(p > 0), "pos_cal": 100 * np.mean(c > 0),
-            "mean_path": p.mean(), "median_path": p50, "corr": np.corrcoef(p, c)[0, 1], "std_path": p.std(), "p1_path": p1,
-            "median_cal": c50, "iqr_cal": c75 - c25, "std_cal": c.std()}
+    """The table's statistics by numpy on the whole (N,) columns in memory: failures (non-finite) counted, not
+    positive, at -inf in the percentiles; means and stds over the finite ones, the correlation over both finite."""
+    fp, fc = np.isfinite(path), np.isfinite(cal)
+    p, c = path[fp].astype(np.float64), cal[fc].astype(np.float64)
+    both = fp & fc
+    p01, p1, p50 = percentiles_with_failures(path, [0.1, 1, 50])
+    c25, c50, c75 = percentiles_with_failures(cal, [25, 50, 75])
+    return {"n": path.size, "failures": path.size - p.size, "finite": p.size, "cal_failures": cal.size - c.size,
+            "pos_path": 100 * np.count_nonzero(p > 0) / path.size, "pos_cal": 100 * np.count_nonzero(c > 0) / cal.size,
+            "mean_path": p.mean(), "median_path": p50, "corr": np.corrcoef(path[both], cal[both])[0, 1],
+            "std_path": p.std(), "p1_path": p1, "p0.1_path": p01,
+            "below_minus100": 100 * (np.count_nonzero(p < -100) + path.size - p.size) / path.size, "median_cal": c50, "iqr_cal": c75 - c25, "std_cal": c.std()}
 
 
 def test_table_equals_numpy_in_memory(shards):
@@ -96,6 +110,7 @@ def test_table_equals_numpy_in_memory(shards):
             got = {k: table.value(m, k, scope) for k in expected}
             assert got == pytest.approx(expected, rel=1e-9, abs=1e-9)
             assert (got["median_path"], got["p1_path"], got["iqr_cal"]) == (expected["median_path"], expected["p1_path"], expected["iqr_cal"])
+            assert got["p0.1_path"] == expected["p0.1_path"]
 
 
 def test_histogram_equals_numpy_in_memory(shards):

@@ -7,11 +7,12 @@ import pytest
 
 from homocal.correctors import (DescentCorrector, HorizonCorrector, HybridCorrector, LeastChangeCorrector, RegressionCorrector,
                                radial_correction)
-from homocal.geometry import ViewTransformer
+from homocal.geometry import ViewTransformer, apply_homography
 from homocal.keyed_rng import packed_order, seed_from_key, shuffled_order, splitmix64
-from homocal.study import kernels
+from homocal.study import kernels, metrics
 from homocal.study.perturb import draw_variant
 from homocal.study.inputs import StudyParams, StudyScene
+from homocal.study.rows import make_test_table
 from homocal.study.shards import prepare_variant, run_tables
 from homocal.study.triples import n_samples, triples
 from synthetic_dataset import write_dataset
@@ -59,19 +60,20 @@ def test_kernel_agrees_with_correctors(scene, variant, params):
     rng = np.random.default_rng(variant)
     idx = scene.triples[rng.choice(len(scene.triples), 3, replace=False)]
     tables = prepare_variant(scene, params, variant)
-    out, ab, vfinal = run_tables(scene, tables, params, variant, idx)
+    res = run_tables(scene, tables, params, variant, idx)
+    out = res.out
     q, g, o = scene.test_image, scene.test_ground, scene.origin
     for s, triple in enumerate(idx):
         vt, reg, sig, dsc, hyb, icp, hor, lch = fitted(scene, variant, triple, params)
         base = vt.transform_points(q)
         # regression: the kernel's (a, b), clamping included, give the corrector's positions
-        np.testing.assert_allclose(radial_correction(base, scene.origin, ab[s, 0], ab[s, 1]), reg.transform_points(q), rtol=0, atol=1e-9)
-        np.testing.assert_allclose(radial_correction(base, scene.origin, ab[s, 2], ab[s, 3]), sig.transform_points(q), rtol=0, atol=1e-9)
-        assert (ab[s, 0], ab[s, 1]) == pytest.approx((reg.a_, reg.b_), rel=1e-9, abs=1e-15)
+        np.testing.assert_allclose(radial_correction(base, scene.origin, *res.faithful_ab[s]), reg.transform_points(q), rtol=0, atol=1e-9)
+        np.testing.assert_allclose(radial_correction(base, scene.origin, *res.signed_ab[s]), sig.transform_points(q), rtol=0, atol=1e-9)
+        assert tuple(res.faithful_ab[s]) == pytest.approx((reg.a_, reg.b_), rel=1e-9, abs=1e-15)
         # descent: the same final trapezoid (every accepted move) and the same number of evaluations
-        np.testing.assert_array_equal(vfinal[s, :8], dsc.transformer_.source.ravel())
-        assert vfinal[s, 8] == dsc.evaluations_
-        kernel_positions = ViewTransformer(vfinal[s, :8].reshape(4, 2), vt.target).transform_points(q)
+        np.testing.assert_array_equal(res.quads[s], dsc.transformer_.source.ravel())
+        assert res.evaluations[s] == dsc.evaluations_
+        kernel_positions = ViewTransformer(res.quads[s].reshape(4, 2), vt.target).transform_points(q)
         np.testing.assert_allclose(kernel_positions, dsc.transform_points(q), rtol=0, atol=1e-9)
         # calibration and path improvements in the study's metric (paths: float32 residual form); the hybrid
         # applies its threshold to the metric's calibration improvement of regression
@@ -93,7 +95,7 @@ def test_kernel_agrees_with_correctors(scene, variant, params):
             assert out[s, hyb_col] == pytest.approx(hyb.calibration_improvement_, abs=1e-9)
         chosen = reg_col if chose_regression else des_col
         assert tuple(out[s, hyb_col:hyb_col + 2]) == tuple(out[s, chosen:chosen + 2])
-        assert out[s, 0] == pytest.approx(errors(cal_base, cg, o, params.metric).mean(), rel=1e-12)
+        assert out[s, kernels.BEFORE] == pytest.approx(errors(cal_base, cg, o, params.metric).mean(), rel=1e-12)
 
 
 def test_descent_budget_and_bounds(scene):
@@ -102,13 +104,13 @@ def test_descent_budget_and_bounds(scene):
     tables = prepare_variant(scene, PARAMS, variant)
     for descent in (dict(max_evals=7), dict(delta_max=0.5, grid_offsets=(0.0,)), dict(grid_offsets=(-2.0, 0.0, 2.0))):
         params = StudyParams(n_test=300, descent={**PARAMS.descent, **descent})
-        _, _, vfinal = run_tables(scene, tables, params, variant, triple)
+        res = run_tables(scene, tables, params, variant, triple)
         vt, *_ = fitted(scene, variant, triple[0])
         sel = list(triple[0])
         seed = seed_from_key(PARAMS.seed, scene.name, variant, *map(int, triple[0]))
         ref = DescentCorrector(seed=seed, **{**PARAMS.descent, **descent}).fit(vt, scene.cal_image[sel], scene.cal_ground[sel], scene.origin)
-        np.testing.assert_array_equal(vfinal[0, :8], ref.transformer_.source.ravel())
-        assert vfinal[0, 8] == ref.evaluations_
+        np.testing.assert_array_equal(res.quads[0], ref.transformer_.source.ravel())
+        assert res.evaluations[0] == ref.evaluations_
 
 
 def test_invalid_candidates_are_infinite():
@@ -203,3 +205,41 @@ def test_shuffled_orders_are_uniform():
             counts[np.arange(8), out] += 1
     expected = 40_000 / 8
     assert np.all(np.abs(counts - expected) < 5 * np.sqrt(expected))  # 5 sigma, binomial
+
+def test_a_test_point_beyond_the_corrected_horizon_is_a_counted_failure(scene):
+    """A variant whose clicked horizon is 16 px too high, with one test point 0.05 px below it: the horizon correction
+    lowers the horizon past it (the public corrector maps it to NaN), the kernel's path improvement is NaN, and the
+    table's statistics count the sample as a failure, not positive, below every percentile."""
+    params = StudyParams(n_test=300, horizon_shift="16")
+    variant = 1
+    clean = prepare_variant(scene, params, variant)
+    H0 = clean.H0
+    u = float(scene.test_image[:, 0].mean())
+    point = np.array([[u, -(H0[2, 0] * u + H0[2, 2]) / H0[2, 1] + 0.05]])
+    image = np.vstack([scene.test_image, point])
+    p = apply_homography(H0, image)
+    assert np.isfinite(p).all()
+    g = np.vstack([scene.test_ground, p[-1:]])
+    tables = clean._replace(test=make_test_table(image, H0, p, g, scene.origin),
+                             path_before=float(np.linalg.norm(p - g, axis=1).mean()))
+    idx = scene.triples[::7]
+    out = run_tables(scene, tables, params, variant, idx).out
+    path, cal = out[:, kernels.HOR + 1].astype(np.float32), out[:, kernels.HOR].astype(np.float32)
+    failed = np.isnan(path)
+    assert failed.sum() > len(idx) // 2
+    image_quad, map_quad = scene.variant_quads(params, variant)
+    vt = ViewTransformer(image_quad, scene.site_map.to_metres(map_quad))
+    for s, triple in enumerate(idx):
+        hor = HorizonCorrector().fit(vt, scene.cal_image[list(triple)], scene.cal_ground[list(triple)], scene.origin)
+        assert np.isnan(hor.transform_points(point)).any() == failed[s]
+    # beside the same samples without that test point (no failure)
+    clean_out = run_tables(scene, clean, params, variant, idx).out
+    path = np.concatenate([path, clean_out[:, kernels.HOR + 1].astype(np.float32)])
+    cal = np.concatenate([cal, clean_out[:, kernels.HOR].astype(np.float32)])
+    finite = np.isfinite(path)
+    assert finite.sum() == 2 * len(idx) - failed.sum()
+    stats = metrics.method_stats(path, cal)
+    assert (stats["n"], stats["failures"], stats["finite"]) == (2 * len(idx), failed.sum(), finite.sum())
+    assert stats["pos_path"] == pytest.approx(100 * np.count_nonzero(path[finite] > 0) / (2 * len(idx)))
+    assert stats["mean_path"] == pytest.approx(path[finite].astype(np.float64).mean())
+    assert stats["p1_path"] == -np.inf

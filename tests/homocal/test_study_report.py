@@ -41,18 +41,20 @@ def f32(x: float) -> float:
 PARAMS = StudyParams(seed=3, n_variants=2, n_test=300)
 
 
-def write_shard(root: Path, scene: str, variant: int, columns: dict[str, list], reason: str = "") -> None:
-    """A shard file with the metadata the engine writes (scene.compute_shard) for the study of PARAMS."""
+def write_shard(root: Path, scene: str, variant: int, columns: dict[str, list], reason: str = "",
+                params: StudyParams = PARAMS) -> None:
+    """A shard file with the metadata the engine writes (scene.compute_shard) for the study of params."""
     types = {"variant": pa.int32(), "i": pa.int16(), "j": pa.int16(), "k": pa.int16(), "hybrid_regression": pa.bool_()}
     table = pa.table({c: pa.array(v, type=types.get(c, pa.float32())) for c, v in columns.items()})
-    key = study_key(PARAMS.to_dict(), scene, "0" * 64)
+    key = study_key(params.to_dict(), scene, "0" * 64)
     table = table.replace_schema_metadata({"degenerate_reason": reason, "scene": scene, "variant": str(variant),
                                            "study_key": key, "rows": str(table.num_rows)})
     pq.write_table(table, root / "shards" / scene / f"variant_{variant:05d}.parquet")
 
 
-def write_results(root: Path, datasets: dict[str, str] | None = None, seed: int = 7) -> dict:
-    """A results directory after the contract; returns {scene: {column: [values]}} of what the shards hold."""
+def write_results(root: Path, datasets: dict[str, str] | None = None, seed: int = 7, params: StudyParams = PARAMS) -> dict:
+    """A results directory after the contract (the study of params, its values drawn with seed); returns
+    {scene: {column: [values]}} of what the shards hold."""
     rng = random.Random(seed)
     stored = {}
     for scene, dist in SCENES.items():
@@ -76,16 +78,16 @@ def write_results(root: Path, datasets: dict[str, str] | None = None, seed: int 
                     cal = 100 - rng.expovariate(1 / 15)
                     shard[f"cal_{m}"].append(f32(cal))
                     shard[f"path_{m}"].append(f32(0.8 * cal + rng.gauss(0, 30) - (200 if rng.random() < 0.03 else 0)))
-            write_shard(root, scene, variant, shard)
+            write_shard(root, scene, variant, shard, params=params)
             for c in rows:
                 rows[c] += shard[c]
         if scene == "beta":  # its last variant is degenerate: an empty shard that says why
-            write_shard(root, scene, 2, {c: [] for c in rows}, "collinear vertices")
+            write_shard(root, scene, 2, {c: [] for c in rows}, "collinear vertices", params=params)
         stored[scene] = rows
     (root / "shards" / "alpha" / "variant_00009.parquet.tmp").write_bytes(b"half-written")  # must be ignored
     n = sum(len(r["variant"]) for r in stored.values())
     study = {
-        "format": "homocal-study", "preset": "test", **PARAMS.to_dict(),
+        "format": "homocal-study", "preset": "test", **params.to_dict(),
         "datasets": [{"scene": s, "path": (datasets or {}).get(s, f"/nonexistent/{s}"), "config_hash": "0" * 64,
                       "n_calibration": len(SCENES[s])} for s in SCENES],
         "samples_total": n, "samples_done": n, "degenerate": [{"scene": "beta", "variant": 2, "reason": "collinear vertices"}],
@@ -100,11 +102,13 @@ def expected_stats(path: list[float], cal: list[float], chose: list[bool] | None
     pct = statistics.quantiles(path, n=100, method="inclusive")
     quart = statistics.quantiles(cal, n=4, method="inclusive")
     out = {
-        "n": len(path), "nonfinite": 0,
+        "n": len(path), "failures": 0, "finite": len(path), "cal_failures": 0,
         "pos_path": 100 * sum(p > 0 for p in path) / len(path),
         "pos_cal": 100 * sum(c > 0 for c in cal) / len(cal),
         "mean_path": statistics.fmean(path), "median_path": statistics.median(path),
         "corr": statistics.correlation(path, cal), "std_path": statistics.pstdev(path), "p1_path": pct[0],
+        "p0.1_path": statistics.quantiles(path, n=1000, method="inclusive")[0],
+        "below_minus100": 100 * sum(p < -100 for p in path) / len(path),
         "median_cal": statistics.median(cal), "iqr_cal": quart[2] - quart[0], "std_cal": statistics.pstdev(cal),
     }
     if chose is not None:
@@ -128,14 +132,25 @@ class TestMethodStats:
     def test_by_hand(self):
         # path = 5 cal - 100 exactly: correlation 1; sorted path -50, 0, 50, 100
         s = metrics.method_stats(np.array([0, -50, 100, 50], np.float32), np.array([20, 10, 40, 30], np.float32))
-        expected = {"n": 4, "nonfinite": 0, "pos_path": 50.0, "pos_cal": 100.0, "mean_path": 25.0, "median_path": 25.0,
+        expected = {"n": 4, "failures": 0, "finite": 4, "cal_failures": 0, "pos_path": 50.0, "pos_cal": 100.0, "mean_path": 25.0, "median_path": 25.0,
                     "corr": 1.0, "std_path": math.sqrt(3125), "p1_path": -48.5,  # -50 + 0.03 * 50
+                    "p0.1_path": -49.85, "below_minus100": 0.0,
                     "median_cal": 25.0, "iqr_cal": 15.0, "std_cal": math.sqrt(125)}  # quartiles 17.5 and 32.5
         assert s == pytest.approx(expected)
 
-    def test_non_finite_samples_are_counted_and_left_out(self):
-        s = metrics.method_stats(np.array([10, np.nan, 30, 50], np.float32), np.array([1, 2, np.inf, 3], np.float32))
-        assert (s["n"], s["nonfinite"], s["mean_path"], s["median_cal"]) == (2, 2, 30.0, 2.0)
+    def test_failures_are_counted_below_every_percentile(self):
+        """A failed correction (NaN path improvement) is a sample: counted, not positive, at -inf in the percentiles;
+        the mean and std are over the finite samples, the correlation over those with both finite."""
+        path = np.array([10, np.nan, 30, 50, -20], np.float32)
+        cal = np.array([1, 2, -np.inf, 3, 4], np.float32)
+        s = metrics.method_stats(path, cal)
+        assert (s["n"], s["failures"], s["finite"], s["cal_failures"]) == (5, 1, 4, 1)
+        assert s["pos_path"] == 60.0 and s["pos_cal"] == 80.0
+        assert s["mean_path"] == pytest.approx(17.5) and s["std_path"] == pytest.approx(np.std([10, 30, 50, -20]))
+        assert s["median_path"] == 10.0  # sorted -inf, -20, 10, 30, 50
+        assert s["p1_path"] == s["p0.1_path"] == -math.inf and s["median_cal"] == 2.0  # cal sorted -inf, 1, 2, 3, 4
+        assert s["below_minus100"] == 20.0  # the failure's error more than doubled
+        assert s["corr"] == pytest.approx(np.corrcoef([10, 50, -20], [1, 3, 4])[0, 1])
 
     def test_no_samples_gives_nan(self):
         s = metrics.method_stats(np.empty(0, np.float32), np.empty(0, np.float32), np.empty(0, bool))
@@ -143,6 +158,10 @@ class TestMethodStats:
 
 
 class TestTable:
+    def test_csv_has_the_tail_rows_of_every_method(self, table):
+        rows = {(r["method"], r["metric"]) for r in csv.DictReader(io.StringIO(metrics.to_csv(table)))}
+        assert {(m, k) for m in METHODS for k in ("below_minus100", "p0.1_path", "failures")} <= rows
+
     @pytest.mark.parametrize("method", METHODS)
     @pytest.mark.parametrize("scope", [*SCENES, metrics.OVERALL])
     def test_matches_standard_library(self, results, table, method, scope):
@@ -287,3 +306,64 @@ def assert_nontrivial_png(path: Path) -> None:
     image = imread(path)
     assert image.shape[0] > 300 and image.shape[1] > 300
     assert image[..., :3].std() > 0.05
+
+
+class TestSeveralStudies:
+    """homocal report STUDY [STUDY ...]: one configuration at several seeds, each Table 1 number and D as mean and
+    range over them (table_spread.csv and the page)."""
+
+    @pytest.fixture(scope="class")
+    def studies(self, tmp_path_factory):
+        roots = []
+        for seed in (0, 1, 2):
+            root = tmp_path_factory.mktemp(f"seed{seed}")
+            write_results(root, seed=seed, params=StudyParams(seed=seed, n_variants=2, n_test=300))
+            roots.append(root)
+        return roots
+
+    def test_spread_table(self, studies, tmp_path, capsys):
+        out = tmp_path / "report"
+        assert main(["report", *map(str, studies), "--out", str(out)]) == 0
+        tables = [metrics.build_table(metrics.shard_files(r, metrics.load_study(r))) for r in studies]
+        rows = list(csv.DictReader((out / "table_spread.csv").open(encoding="utf-8")))
+        keys = [k for k in metrics.PAPER["descent"] if k != "n"] + [k for k in metrics.PAPER["regression"] if k != "n"]
+        assert len(rows) == 3 * (len(keys) + 1)  # alpha, beta, overall: Table 1's numbers and D
+        for row in rows:
+            if row["metric"] == "D":
+                values = [metrics.paper_distance(t, row["scope"]) for t in tables]
+            else:
+                values = [t.value(row["method"], row["metric"], row["scope"]) for t in tables]
+            assert [float(row[f"seed_{s}"]) for s in (0, 1, 2)] == values
+            assert (float(row["mean"]), float(row["min"]), float(row["max"])) == pytest.approx(
+                (sum(values) / 3, min(values), max(values)), rel=1e-12)
+            if row["metric"] == "D":
+                assert min(values) < max(values)  # three seeds, three distances
+        assert "Over 3 studies of this configuration (seeds 0, 1, 2)" in (out / "report.html").read_text()
+
+    def test_one_study_has_a_spread_table_too(self, studies, tmp_path):
+        report.write_report(studies[0], tmp_path / "one")
+        rows = list(csv.DictReader((tmp_path / "one" / "table_spread.csv").open(encoding="utf-8")))
+        assert all(row["mean"] == row["min"] == row["max"] == row["seed_0"] for row in rows)
+
+    @pytest.mark.parametrize("case, message", [
+        ("other n_test", "differs from .* other than by seed \\(n_test\\)"),
+        ("same seed", "the same seed \\(1\\)"),
+        ("other scene", "differs from .* other than by seed \\(datasets\\)"),
+    ])
+    def test_refused_in_one_line_before_writing(self, studies, tmp_path, capsys, case, message):
+        other = tmp_path / "other"
+        params = StudyParams(seed=5, n_variants=2, n_test=300 if case != "other n_test" else 200)
+        if case == "same seed":
+            params = StudyParams(seed=1, n_variants=2, n_test=300)
+        write_results(other, params=params)
+        if case == "other scene":
+            study = json.loads((other / "study.json").read_text())
+            study["datasets"][0]["config_hash"] = "1" * 64
+            (other / "study.json").write_text(json.dumps(study))
+        out = tmp_path / "report"
+        with pytest.raises(ValueError, match=message):
+            report.write_report(studies[0], out, replicates=[studies[1], other])
+        assert not out.exists()
+        assert main(["report", str(studies[0]), str(studies[1]), str(other), "--out", str(out)]) != 0
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and not out.exists()
