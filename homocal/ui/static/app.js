@@ -87,7 +87,8 @@ let dragBusy = false, dragAgain = false;
 function dragView() {  // at most one light request in flight while a corner is dragged
   if (dragBusy) { dragAgain = true; return; }
   dragBusy = true;
-  refreshView(true).finally(() => { dragBusy = false; if (dragAgain) { dragAgain = false; dragView(); } });
+  // Once the corner is let go, the full refresh of onUp shows the final trapezoid: no light request after it.
+  refreshView(true).finally(() => { dragBusy = false; if (dragAgain) { dragAgain = false; if (drag) dragView(); } });
 }
 
 function invalidateFit() {
