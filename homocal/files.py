@@ -180,14 +180,17 @@ def _lock_content() -> bytes:
 def _place_lock(lock: Path) -> None:
     """Put a lock file of ours at ``lock`` if nothing is there: written whole under a temporary name, then
     linked into place (``os.link`` never replaces), so a lock file is never seen empty."""
-    tmp = create_temporary(lock)
     try:
-        tmp.write_bytes(_lock_content())
-        os.link(tmp, lock)
+        tmp = create_temporary(lock)
+        try:
+            tmp.write_bytes(_lock_content())
+            os.link(tmp, lock)
+        finally:
+            tmp.unlink()
     except FileExistsError:
         pass  # another run's, or a user's: examined by the caller
-    finally:
-        tmp.unlink()
+    except OSError as e:  # a full disk, a read-only folder: named as the lock file
+        raise OSError(e.errno, os.strerror(e.errno) if e.errno else str(e), str(lock)) from None
 
 
 @contextmanager
@@ -224,6 +227,7 @@ def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "mani
         raise OutputFolderError(f"{path}: exists and is not a folder")
     lock = path / LOCK_NAME
     fd = _lock(lock, create=False) if _holder(lock) else None  # a run writing it is named before other refusals
+    created = False
     try:
         entries = {p.name for p in path.iterdir()} - ({LOCK_NAME} if _holder(lock) else set()) if path.is_dir() else set()
         foreign_lock = (f" (its {LOCK_NAME} is not a lock of ours: it is neither taken nor deleted)"
@@ -241,6 +245,8 @@ def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "mani
     except BaseException:
         if fd is not None:
             os.close(fd)
+        if created and path.is_dir() and not any(path.iterdir()):  # made here, the lock could not be placed
+            path.rmdir()
         raise
     try:
         try:

@@ -135,6 +135,20 @@ def test_remove_temporaries_only_ours(tmp_path):
         assert sorted(_tree(out)) == sorted(user + [LOCK_NAME])
 
 
+def test_a_lock_that_cannot_be_placed_names_it_and_leaves_no_folder(tmp_path, monkeypatch):
+    """A full disk when the lock file is placed: one OSError naming .lock; the folder made for it is removed."""
+    def full(*args):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(files.os, "link", full)
+    out = tmp_path / "out"
+    with pytest.raises(OSError) as e:
+        with output_folder(out, TOOL, False):
+            pytest.fail("entered")
+    assert os_message(e.value) == f"{out / LOCK_NAME}: No space left on device" and not out.exists()
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_users_lock_symlink_is_not_followed(tmp_path):
     out = _make(tmp_path, {"manifest.json": OURS})
     victim = tmp_path / "victim"
