@@ -20,10 +20,12 @@ from __future__ import annotations
 
 import argparse
 import hashlib
+import http.client
 import json
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -308,11 +310,38 @@ def cli_cases() -> list[Case]:
         Case("advise test-points NaN", [*ADVISE, "--test-points", "g.csv"], setup=put(**{"g.csv": "x,y\n0,nan\n"}), message="g.csv"),
         Case("advise -o user's file", [*ADVISE, "-o", "mine.csv"], setup=put(**{"mine.csv": "my,data\n"}), message="mine.csv"),
         Case("advise -o full disk", [*ADVISE, "-o", "mnt/a.csv"], fault="full", message="No space left on device"),
+        Case("advise --out writes", [*ADVISE, "--out", "a.csv"], expect="ok", writes=("a.csv",)),
+        Case("advise --output (not a flag)", [*ADVISE, "--output", "a.csv"], message="--output"),
+        Case("advise test-points 100,001 rows", [*ADVISE, "--test-points", "g.csv"], setup=_many_points("g.csv", 100_001, "x,y"), message="more than 100,000 points"),
+        # ---- homocal fit: the bound on reference points, least change's memory
+        Case("fit least-change 20,000 points", fit("--method", "least-change", r="ref.csv"), expect="ok", setup=_many_points("ref.csv", 20_000), writes=("c.json",), timeout=600),
+        Case("fit 100,001 points", fit(r="ref.csv"), setup=_many_points("ref.csv", 100_001), message="more than 100,000 points"),
+        # ---- output folders: a user's .lock
+        Case("study out: a user's empty .lock", [*STUDY, "out"], setup=put(**{"out__.lock": ""}), message="not a lock of ours"),
+        Case("study out: a user's empty .lock, resume", [*STUDY, "out", "--resume"], setup=copy("results", "out", put(**{"out__.lock": ""})), message="not a lock of ours"),
         # ---- homocal ui (command line)
+        Case("ui -o two missing folders", ["homocal", "ui", "--frame", "{F}/map.png", "--site-map", "{F}/map.png", "--scale", "10", "-o", "a/b"], timeout=30, message="its parent folder"),
         Case("ui frame UTF-16 text", ["homocal", "ui", "--frame", "f.png", "--site-map", "{F}/map.png", "--scale", "10", "-o", "."], setup=put(**{"f.png": "x".encode("utf-16")}), timeout=30, message="f.png"),
         Case("ui scale nan", ["homocal", "ui", "--frame", "{F}/map.png", "--site-map", "{F}/map.png", "--scale", "nan", "-o", "."], timeout=30, message="--scale"),
         Case("ui -o a file", ["homocal", "ui", "--frame", "{F}/map.png", "--site-map", "{F}/map.png", "--scale", "10", "-o", "f"], setup=put(f="x"), timeout=30, message="f"),
     ]
+
+
+def _many_points(name: str, n: int, columns: str = "u,v,x,y") -> Callable[[Path], None]:
+    """A setup writing n distinct points below the fixture trapezoid's horizon (u,v,x,y: the ground position is
+    the trapezoid's mapping moved by up to 5 cm; x,y: ground points 10-60 m ahead)."""
+    def setup(d: Path) -> None:
+        import numpy as np
+        from homocal.geometry import SiteMap, ViewTransformer
+
+        i = np.arange(n)
+        q = np.column_stack([450 + (i % 400) * 1.0, 300 + (i // 400) * (170 / max(1, (n - 1) // 400))])
+        site = SiteMap(10.0, (400.0, 600.0))
+        g = ViewTransformer(np.array(TRAP["image"], float), site.to_metres(np.array(TRAP["map"], float))).transform_points(q)
+        g += np.random.default_rng(0).uniform(-0.05, 0.05, g.shape)
+        rows = np.column_stack([q, g]) if columns == "u,v,x,y" else np.column_stack([i % 7 - 3.0, 10 + i * 50 / n])
+        (d / name).write_text(columns + "\n" + "".join(",".join(map(repr, r)) + "\n" for r in rows.tolist()))
+    return setup
 
 
 def _mirror_trapezoid(text: str) -> str:
@@ -385,8 +414,27 @@ def library_cases() -> list[tuple[str, str, Callable[[], object]]]:
             return load_corrector(p)
         return call
 
+    from homocal.correctors import LeastChangeCorrector
+    from homocal.correctors.catalogue import METHODS, get_method
+    from homocal.files import read_points_csv
+
+    def file(name: str, data: bytes | str, then: Callable[[Path], object]):
+        def call():
+            p = Path(tempfile.mkdtemp()) / name
+            p.write_bytes(data if isinstance(data, bytes) else data.encode())
+            return then(p)
+        return call
+
+    many = np.column_stack([450 + np.arange(100_001) % 400, 300 + np.arange(100_001) // 400 * 0.6])
     good = json.loads(Path(FIXTURES / "correction.json").read_text())
     return [
+        ("least-change 100,001 points", "LeastChangeCorrector.fit", fit(LeastChangeCorrector(), q=many, g=vt.transform_points(many))),
+        ("catalogue method a list", "get_method", lambda: get_method(["regression"])),
+        ("catalogue descent threshold", "Method.make", lambda: METHODS["descent"].make(threshold=50.0)),
+        ("from_trapezoid_file UTF-16", "ViewTransformer.from_trapezoid_file", file("t.json", json.dumps(TRAP).encode("utf-16"), ViewTransformer.from_trapezoid_file)),
+        ("from_trapezoid_file binary", "ViewTransformer.from_trapezoid_file", file("t.json", BINARY, ViewTransformer.from_trapezoid_file)),
+        ("read_points_csv binary", "read_points_csv", file("r.csv", BINARY, lambda p: read_points_csv(p, ("u", "v"), True))),
+        ("read_points_csv over its bound", "read_points_csv", file("r.csv", "u,v\n" + "1,2\n" * 11, lambda p: read_points_csv(p, ("u", "v"), True, most=10))),
         ("ViewTransformer NaN vertex", "ViewTransformer", lambda: ViewTransformer(np.vstack([[nan, 1], image[1:]]), ground)),
         ("ViewTransformer inf vertex", "ViewTransformer", lambda: ViewTransformer(image, np.vstack([[np.inf, 1], ground[1:]]))),
         ("ViewTransformer 1e308 vertex", "ViewTransformer", lambda: ViewTransformer(np.vstack([[big, 1], image[1:]]), ground)),
@@ -428,21 +476,27 @@ def run_library(name: str, call: Callable[[], object]) -> tuple[str, bool]:
 
 # ---- homocal ui's JSON API ---------------------------------------------------------------------------
 def ui_api_rows(d: Path) -> list[tuple[str, str, str, str, bool]]:
-    """Bad requests to a real ``homocal ui`` server: each must get its 4xx status and {"error": one line}, no
-    500; Save into a folder holding a user's trapezoid.json must get 409 and leave it; the server must still
-    answer afterwards."""
+    """Bad requests to a real ``homocal ui`` server: each must get its 4xx status (or 503) and {"error": one line},
+    never 500 nor a dropped connection; Save into a folder holding a user's trapezoid.json must get 409 and leave
+    it, Save over a symlink 409 and leave its target; a POST without the printed URL's token 403; the server must
+    still answer afterwards, and print no traceback."""
     out = d / "uiout"
     out.mkdir(parents=True)
     (out / "trapezoid.json").write_text("a user's file")
     args = ["ui", "--frame", f"{FIXTURES}/map.png", "--site-map", f"{FIXTURES}/map.png", "--scale", "10", "-o", str(out)]
     server = subprocess.Popen([sys.executable, "-m", "homocal.cli", *args], cwd=d, env=ENV, stdout=subprocess.PIPE,
-                              stderr=subprocess.DEVNULL, text=True)
+                              stderr=subprocess.PIPE, text=True)
     try:
-        url = server.stdout.readline().split(" on ")[-1].split(" ")[0]
+        printed = server.stdout.readline().split(" on ")[-1].split(" ")[0]
+        url, token = printed.split("?token=")
         points = [[float(x) for x in line.split(",")] for line in REF.splitlines()[1:]]
         good = {"trapezoid": {"image": TRAP["image"], "map": TRAP["map"]}, "camera_origin": [0, 0], "points": points,
                 "method": "regression-signed"}
         image = TRAP["image"]
+        setup_many = Path(d / "many")
+        setup_many.mkdir()
+        _many_points("ref.csv", 20_000)(setup_many)
+        many = [[float(x) for x in line.split(",")] for line in (setup_many / "ref.csv").read_text().splitlines()[1:]]
         cases = [
             ("NaN point", "fit", json.dumps({**good, "points": [[float("nan"), 300, 0, 15], *points]}).encode(), 400),
             ("1e308 point", "fit", json.dumps({**good, "points": [[1e308, 300, 0, 15], *points]}).encode(), 400),
@@ -452,26 +506,56 @@ def ui_api_rows(d: Path) -> list[tuple[str, str, str, str, bool]]:
             ("UTF-16 body (JSON's encoding detection)", "fit", json.dumps(good).encode("utf-16"), 200),
             ("binary body", "fit", BINARY, 400),
             ("a list, not an object", "fit", b"[1, 2]", 400),
+            ("JSON nested 100,000 deep", "fit", b"[" * 100_000 + b"]" * 100_000, 400),
+            ("a 5,000-digit integer", "fit", json.dumps({**good, "seed": 0}).replace('"seed": 0', '"seed": ' + "9" * 5000).encode(), 400),
+            ("seed 1e30", "fit", json.dumps({**good, "method": "descent", "seed": 1e30}).encode(), 400),
+            ("method a list", "fit", json.dumps({**good, "method": ["regression"]}).encode(), 400),
+            ("click_sigma_px 1e308", "view", json.dumps({**good, "click_sigma_px": 1e308}).encode(), 400),
+            ("100,001 points", "fit", json.dumps({**good, "points": [[1.0, 2.0, 3.0, 4.0]] * 100_001}).encode(), 400),
+            ("least-change 20,000 points", "fit", json.dumps({**good, "method": "least-change", "points": many}).encode(), 200),
+            ("no token", "fit", json.dumps(good).encode(), 403),
             ("save over a user's file", "save", json.dumps(good).encode(), 409),
             ("still serving", "fit", json.dumps(good).encode(), 200),
         ]
         rows = []
         for name, endpoint, body, status in cases:
-            request = urllib.request.Request(url + "api/" + endpoint, data=body, headers={"Content-Type": "application/json"})
-            try:
-                with urllib.request.urlopen(request, timeout=60) as response:
-                    got, answer = response.status, json.loads(response.read())
-            except urllib.error.HTTPError as e:
-                got, answer = e.code, json.loads(e.read())
-            error = str(answer.get("error", ""))
+            headers = {"Content-Type": "application/json", "X-Homocal-Token": "" if name == "no token" else token}
+            request = urllib.request.Request(url + "api/" + endpoint, data=body, headers=headers)
+            got, error = _answer(request)
             ok = got == status and (status == 200 or (error and "\n" not in error and "internal error" not in error))
             rows.append((f"ui {name}", f"POST /api/{endpoint}", f"{status}", f"{got}: {error[:110]}", ok))
+        port = url.rsplit(":", 1)[1].strip("/")
+        with socket.create_connection(("127.0.0.1", int(port)), timeout=60) as conn:
+            conn.sendall(f"POST /api/fit HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nContent-Type: application/json\r\n"
+                         f"X-Homocal-Token: {token}\r\nContent-Length: abc\r\n\r\n{{}}".encode())
+            response = http.client.HTTPResponse(conn)
+            response.begin()
+            error = str(json.loads(response.read()).get("error", ""))
+        rows.append(("ui Content-Length: abc", "POST /api/fit", "400", f"{response.status}: {error[:110]}", response.status == 400 and "Content-Length" in error))
         user_file_kept = (out / "trapezoid.json").read_text() == "a user's file"
         rows.append(("ui save left the user's file", "POST /api/save", "unchanged", "unchanged" if user_file_kept else "overwritten", user_file_kept))
-        return rows
+        (out / "trapezoid.json").unlink()
+        (out / "trapezoid.json").symlink_to(d / "victim.txt")
+        (d / "victim.txt").write_text("a user's file")
+        got, error = _answer(urllib.request.Request(url + "api/save", data=json.dumps({**good, "overwrite": True}).encode(),
+                                                    headers={"Content-Type": "application/json", "X-Homocal-Token": token}))
+        kept = (d / "victim.txt").read_text() == "a user's file" and (out / "trapezoid.json").is_symlink()
+        rows.append(("ui save over a symlink", "POST /api/save", "409, target unchanged", f"{got}: {error[:90]}", got == 409 and kept))
     finally:
         server.kill()
         server.wait()
+    traceback = "Traceback" in server.stderr.read()
+    rows.append(("ui no traceback on the server's terminal", "homocal ui", "none", "a traceback" if traceback else "none", not traceback))
+    return rows
+
+
+def _answer(request: urllib.request.Request) -> tuple[int, str]:
+    """(status, error message) of a request to the page's server."""
+    try:
+        with urllib.request.urlopen(request, timeout=120) as response:
+            return response.status, str(json.loads(response.read()).get("error", ""))
+    except urllib.error.HTTPError as e:
+        return e.code, str(json.loads(e.read()).get("error", ""))
 
 
 # ---- running the command cases ------------------------------------------------------------------

@@ -30,3 +30,14 @@ def bound_text(bound: float) -> str:
 
 
 SEED = number(int, 0, 2**64 - 1)  # a run seed: numpy's SeedSequence and the keyed generators take 64 bits
+
+
+def xy_pair(text: str) -> tuple[float, float]:
+    """argparse type: two finite numbers ``X,Y`` (a point: metres or pixels, as the flag says)."""
+    try:
+        x, y = (float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected two numbers X,Y, got {text!r}") from None
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise argparse.ArgumentTypeError(f"expected two finite numbers X,Y, got {text!r}")
+    return x, y

@@ -5,8 +5,10 @@ from __future__ import annotations
 import csv
 import fcntl
 import json
+import math
 import os
 import re
+import secrets
 import socket
 import time
 from collections.abc import Callable, Iterable, Iterator
@@ -14,14 +16,23 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 LOCK_NAME = ".lock"
 
 
-def temporary_path(path: str | Path) -> Path:
-    """The temporary name this process writes ``path`` under: ``<stem>.tmp<pid><suffix>`` beside it (same
-    extension: tools pick formats by it)."""
+def create_temporary(path: str | Path) -> Path:
+    """Create, exclusively, an empty file beside ``path`` to write it under: ``<stem>.tmp<12 random
+    digits><suffix>`` (same extension: tools pick formats by it). ``O_CREAT | O_EXCL``: a name that exists (a
+    file, or a symlink planted there) is never opened; another random name is tried."""
     path = Path(path)
-    return path.with_name(f"{path.stem}.tmp{os.getpid()}{path.suffix}")
+    while True:
+        tmp = path.with_name(f"{path.stem}.tmp{secrets.randbelow(10**12):012d}{path.suffix}")
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            return tmp
+        except FileExistsError:
+            continue
 
 
 def temporaries_of(path: str | Path) -> list[Path]:
@@ -35,12 +46,15 @@ def temporaries_of(path: str | Path) -> list[Path]:
 
 
 def write_atomic(path: str | Path, write: Callable[[Path], object]) -> None:
-    """Call write(tmp) on ``temporary_path(path)``, then rename it to ``path``; on any failure the temporary
-    file is removed and nothing is left behind. An OSError that names no file (pyarrow's, ffmpeg's) or the
+    """Call write(tmp) on a new temporary file beside ``path`` (``create_temporary``), then rename it to ``path``;
+    on any failure the temporary file is removed and nothing is left behind. An OSError that names no file (pyarrow's, ffmpeg's) or the
     temporary one is raised again naming ``path``, so a full disk reads "path: No space left on device"."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temporary_path(path)
+    try:
+        tmp = create_temporary(path)
+    except OSError as e:
+        raise OSError(e.errno, os.strerror(e.errno) if e.errno else str(e), str(path)) from e
     try:
         write(tmp)
         os.replace(tmp, path)
@@ -149,16 +163,34 @@ def check_output_file(path: str | Path, is_ours: Callable[[Path], bool], what: s
 
 
 def _holder(lock: Path) -> str | None:
-    """Who a lock file of ours names ("pid P on HOST since T"; "another process" if it is still empty), or
-    None if ``lock`` is missing or not one of ours."""
+    """Who a lock file of ours names ("pid P on HOST since T"), or None if ``lock`` is missing or not one of
+    ours: a lock is ours only when its content is the JSON this module writes (a user's empty ``.lock`` is not)."""
     try:
-        text = lock.read_text(encoding="utf-8")
-        if not text:
-            return "another process"
-        h = json.loads(text)
+        h = json.loads(lock.read_text(encoding="utf-8"))
         return f"pid {h['pid']} on {h['host']} since {h['since']}"
     except (OSError, ValueError, KeyError, TypeError):
         return None
+
+
+def _lock_content() -> bytes:
+    since = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+    return json.dumps({"pid": os.getpid(), "host": socket.gethostname(), "since": since}).encode()
+
+
+def _place_lock(lock: Path) -> None:
+    """Put a lock file of ours at ``lock`` if nothing is there: written whole under a temporary name, then
+    linked into place (``os.link`` never replaces), so a lock file is never seen empty."""
+    try:
+        tmp = create_temporary(lock)
+        try:
+            tmp.write_bytes(_lock_content())
+            os.link(tmp, lock)
+        finally:
+            tmp.unlink()
+    except FileExistsError:
+        pass  # another run's, or a user's: examined by the caller
+    except OSError as e:  # a full disk, a read-only folder: named as the lock file
+        raise OSError(e.errno, os.strerror(e.errno) if e.errno else str(e), str(lock)) from None
 
 
 @contextmanager
@@ -175,13 +207,14 @@ def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "mani
       2. Another process holds the folder's lock (``fcntl.flock`` on ``path/.lock``): refused with who
          holds it ("locked by pid P on HOST since 2026-11-23T05:30:00Z"). The kernel releases a lock when
          its holder dies, so a killed run never blocks a resume.
-      3. The folder is missing, or holds nothing but a lock file of ours (empty, or the JSON this function
-         writes): a new folder (created with its parents), ``resumed`` False, whatever ``resume`` says.
+      3. The folder is missing, or holds nothing but a lock file of ours (the JSON this function writes; a
+         ``.lock`` with other content, even empty, is a user's file: it counts as content and is never taken
+         or deleted): a new folder (created with its parents), ``resumed`` False, whatever ``resume`` says.
       4. Otherwise: without ``resume``, refused ("exists and is not empty"); with ``resume``, refused unless
          the marker is there with the right format ("not a <tool> output folder"): a folder that is not
          the tool's is never written to.
-      5. The lock is taken (``LOCK_EX | LOCK_NB``, ``path/.lock`` created if missing) and the lock file
-         then holds this process's pid, host and start time (UTC).
+      5. The lock is taken (``LOCK_EX | LOCK_NB``; ``path/.lock`` placed whole if missing, ``_place_lock``) and
+         the lock file then holds this process's pid, host and start time (UTC).
     On exit (normal or exception): the lock file is deleted, then unlocked; if the block raised and this
     call created the folder and nothing is in it, the folder is removed (a run that fails before writing
     anything, e.g. no OpenGL, leaves nothing behind). Locking checks that the locked
@@ -194,25 +227,32 @@ def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "mani
         raise OutputFolderError(f"{path}: exists and is not a folder")
     lock = path / LOCK_NAME
     fd = _lock(lock, create=False) if _holder(lock) else None  # a run writing it is named before other refusals
+    created = False
     try:
         entries = {p.name for p in path.iterdir()} - ({LOCK_NAME} if _holder(lock) else set()) if path.is_dir() else set()
+        foreign_lock = (f" (its {LOCK_NAME} is not a lock of ours: it is neither taken nor deleted)"
+                        if LOCK_NAME in entries else "")
         resumed = bool(entries)
         if resumed and not resume:
-            raise OutputFolderError(f"{path}: exists and is not empty (use --resume to continue it, or another output folder)")
+            raise OutputFolderError(f"{path}: exists and is not empty{foreign_lock} (use --resume to continue it, or "
+                                    "another output folder)")
         if resumed and json_format(path / marker) != tool:
-            raise OutputFolderError(f"{path}: not a {tool} output folder (no {marker} with format {tool!r}); refused, nothing touched")
+            raise OutputFolderError(f"{path}: not a {tool} output folder (no {marker} with format {tool!r}); refused, "
+                                    "nothing touched")
         created = not path.exists()
         path.mkdir(parents=True, exist_ok=True)
         fd = fd if fd is not None else _lock(lock, create=True)
     except BaseException:
         if fd is not None:
             os.close(fd)
+        if created and path.is_dir() and not any(path.iterdir()):  # made here, the lock could not be placed
+            path.rmdir()
         raise
     try:
-        since = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
         try:
-            os.ftruncate(fd, 0)
-            os.write(fd, json.dumps({"pid": os.getpid(), "host": socket.gethostname(), "since": since}).encode())
+            content = _lock_content()  # written over the old content, then cut to length: never seen empty
+            os.pwrite(fd, content, 0)
+            os.ftruncate(fd, len(content))
         except OSError as e:
             raise OSError(e.errno, e.strerror, str(lock)) from None
         yield OutputFolder(path, path / marker, resumed)
@@ -227,15 +267,25 @@ def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "mani
 
 
 def _lock(lock: Path, create: bool) -> int | None:
-    """Open and exclusively lock ``lock`` (created if ``create``; None if it is absent and not ``create``):
-    the descriptor of the file that is at that path once locked."""
+    """Open and exclusively lock the lock file of ours at ``lock`` (placed first if missing and ``create``; None if
+    it is absent and not ``create``): the descriptor of the file that is at that path once locked. A file there
+    that is not a lock of ours (``_holder``) is refused (``OutputFolderError``) and left alone."""
     while True:
+        if create:
+            _place_lock(lock)
         try:
-            fd = os.open(lock, os.O_RDWR | (os.O_CREAT if create else 0), 0o644)
+            fd = os.open(lock, os.O_RDWR | os.O_NOFOLLOW)
         except FileNotFoundError:
             if create:
-                raise
+                continue  # its holder deleted it after we placed ours: place it again
             return None
+        except OSError:  # a symlink (ELOOP) or unreadable: not ours
+            fd = None
+        if fd is None or _holder(lock) is None:
+            if fd is not None:
+                os.close(fd)
+            raise OutputFolderError(f"{lock}: not a lock of ours (its content is not the JSON this tool writes); "
+                                    "it is neither taken nor deleted: move it away to use the folder")
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -250,3 +300,55 @@ def _lock(lock: Path, create: bool) -> int | None:
         except FileNotFoundError:
             pass
         os.close(fd)  # the holder deleted the file between our open and our lock: try again
+
+
+# ---- input tables ---------------------------------------------------------------------------
+def read_points_csv(
+    path: str | Path, required: tuple[str, ...], finite: bool, most: int | None = None
+) -> tuple[list[str], list[dict[str, str]], dict[str, np.ndarray], list[int]]:
+    """Read a CSV of points with a header line (``homocal fit``'s REF.csv, ``apply``'s FEET.csv); return (column
+    names, rows as dicts of text, the ``required`` columns as (N,) float64, the line number of each row).
+
+    ValueError naming the file (and line) for: a missing file or column, a column name given twice, text that
+    is not UTF-8, a row of the wrong length, a value that is not a number (or not finite, if ``finite``), more
+    than ``most`` rows (the file is read no further).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"{path}: no such file")
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as f:
+            return _read_points(csv.reader(f), path, required, finite, most)
+    except UnicodeDecodeError as e:
+        raise ValueError(f"{path}: not UTF-8 text ({e})") from None
+
+
+def _read_points(reader, path: Path, required: tuple[str, ...], finite: bool, most: int | None):
+    header = [name.strip() for name in next(reader, [])]
+    twice = sorted({name for name in header if header.count(name) > 1})
+    if twice:
+        raise ValueError(f"{path}: column(s) {', '.join(map(repr, twice))} appear more than once in the header line")
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise ValueError(f"{path}: missing column(s) {', '.join(missing)} in the header line "
+                         f"(found: {', '.join(header) or 'nothing'}; expected {','.join(required)})")
+    rows, values, lines = [], {c: [] for c in required}, []
+    for fields in reader:
+        if not fields:
+            continue
+        if most is not None and len(rows) == most:
+            raise ValueError(f"{path}, line {reader.line_num}: more than {most:,} points (the most this command takes)")
+        if len(fields) != len(header):
+            raise ValueError(f"{path}, line {reader.line_num}: {len(fields)} fields, the header has {len(header)}")
+        row = dict(zip(header, fields))
+        for c in required:
+            try:
+                value = float(row[c])
+            except ValueError:
+                raise ValueError(f"{path}, line {reader.line_num}: column {c}: {row[c]!r} is not a number") from None
+            if finite and not math.isfinite(value):
+                raise ValueError(f"{path}, line {reader.line_num}: column {c}: {row[c]!r} is not a finite number")
+            values[c].append(value)
+        rows.append(row)
+        lines.append(reader.line_num)
+    return header, rows, {c: np.array(v, dtype=np.float64) for c, v in values.items()}, lines

@@ -27,6 +27,7 @@ from homocal.correctors.serialization import (
 from homocal.files import read_json, write_text_atomic
 from homocal.geometry import ViewTransformer, as_points, check_magnitude
 
+MAX_REFERENCE_POINTS = 100_000  # calibration pairs a fit takes (fit, advise and the page refuse more)
 
 def mean_error(points: np.ndarray, ground_points: np.ndarray) -> float:
     """Mean Euclidean distance between (N, 2) points and their (N, 2) ground truth (mean of eq. (18))."""
@@ -43,7 +44,7 @@ def check_calibration(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Validate calibration input; return q (N, 2) px, p = transformer(q) (N, 2), g (N, 2), o (2,), float64.
 
-    Raises ValueError naming the problem: fewer than 3 pairs, mismatched shapes, a NaN/inf or a coordinate
+    Raises ValueError naming the problem: fewer than 3 or more than MAX_REFERENCE_POINTS pairs, mismatched shapes, a NaN/inf or a coordinate
     beyond +/-1e9 (with the point's index), two pairs with the same image point or the same ground point (they
     would count twice), or an image point on or above the horizon of the transformer (it maps to NaN).
     Warns (UserWarning) for a ground point behind the camera (y < camera_origin y: homocal's y axis points
@@ -58,6 +59,8 @@ def check_calibration(
         raise ValueError(f"image_points has {len(q)} points but ground_points has {len(g)}")
     if len(q) < 3:
         raise ValueError(f"need at least 3 calibration points, got {len(q)}")
+    if len(q) > MAX_REFERENCE_POINTS:
+        raise ValueError(f"image_points: at most {MAX_REFERENCE_POINTS:,} calibration points, got {len(q):,}")
     if o.shape != (2,):
         raise ValueError(f"camera_origin: expected shape (2,), got {o.shape}")
     if not np.isfinite(o).all():
@@ -67,11 +70,12 @@ def check_calibration(
         if bad.size:
             raise ValueError(f"{name}[{bad[0]}] is not finite: {arr[bad[0]].tolist()}")
         check_magnitude(arr, name)
-        for i in range(len(arr)):
-            same = np.flatnonzero((arr[i + 1 :] == arr[i]).all(axis=1))
-            if same.size:
-                raise ValueError(f"{name}[{i}] and {name}[{i + 1 + same[0]}] are the same point {arr[i].tolist()}: "
-                                 "each reference point must be measured once")
+        _, first, inverse, counts = np.unique(arr, axis=0, return_index=True, return_inverse=True, return_counts=True)
+        repeated = np.flatnonzero(counts > 1)
+        if repeated.size:  # the first point measured twice, and its first repeat
+            i, j = np.flatnonzero(inverse.ravel() == repeated[np.argmin(first[repeated])])[:2]
+            raise ValueError(f"{name}[{i}] and {name}[{j}] are the same point {arr[i].tolist()}: "
+                             "each reference point must be measured once")
     for i in np.flatnonzero(g[:, 1] < o[1]):
         warnings.warn(f"ground_points[{i}] = {g[i].tolist()} is behind the camera (y < {o[1]:g}, the camera "
                       "origin's y; y points forward): a sign error?", UserWarning, stacklevel=3)
@@ -193,7 +197,7 @@ class Corrector:
         if data.get("format_version") != FORMAT_VERSION:
             raise ValueError(f"{where}: unsupported format_version {data.get('format_version')!r} (expected 1)")
         method = data.get("method")
-        if method not in Corrector._registry:
+        if not isinstance(method, str) or method not in Corrector._registry:
             raise ValueError(f"{where}: unknown method {method!r} (known: {', '.join(Corrector._registry)})")
         target_cls = Corrector._registry[method]
         if cls is not Corrector and target_cls is not cls:

@@ -14,29 +14,18 @@ from pathlib import Path
 
 import numpy as np
 
-from homocal.arguments import SEED, number
-from homocal.correctors.base import Corrector, load_corrector
-from homocal.correctors.descent import DescentCorrector
-from homocal.correctors.horizon import HorizonCorrector
-from homocal.correctors.hybrid import DEFAULT_THRESHOLD, HybridCorrector
+from homocal.arguments import SEED, number, xy_pair
+from homocal.correctors.base import MAX_REFERENCE_POINTS, load_corrector
+from homocal.correctors.catalogue import (DEFAULT_METHOD, LEAST_CHANGE_PRIORS, METHODS, fit_note, label, mapping_of,
+                                          quality)
+from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.least_change import LeastChangeCorrector
-from homocal.correctors.regression import RegressionCorrector
 from homocal.correctors.serialization import FORMAT
-from homocal.files import check_output_file, csv_header, json_format, read_json, write_text_atomic
-from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, check_orientation, validate_quad
+from homocal.files import check_output_file, csv_header, json_format, read_points_csv, write_text_atomic
+from homocal.geometry import MAX_COORDINATE, ViewTransformer
 from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius, straight_ahead_column
 
-DEFAULT_METHOD = "least-change"  # fit's, advise's and the page's default: near the best in every study setting (README)
-METHODS = {
-    "regression": lambda args: RegressionCorrector(),
-    "regression-signed": lambda args: RegressionCorrector(signed=True),
-    "regression-intercept": lambda args: RegressionCorrector(signed=True, intercept=True),
-    "horizon": lambda args: HorizonCorrector(),
-    "descent": lambda args: DescentCorrector(seed=args.seed),
-    "hybrid": lambda args: HybridCorrector(threshold=args.threshold, seed=args.seed),
-    "least-change": lambda args: LeastChangeCorrector(**{k: v for k, v in vars(args).items() if k in LEAST_CHANGE and v is not None}),
-}
-LEAST_CHANGE = {k: v for k, v in LeastChangeCorrector().get_params().items() if k != "iterations"}  # fit's prior flags
+LEAST_CHANGE = {k: LeastChangeCorrector().get_params()[k] for k in LEAST_CHANGE_PRIORS}  # fit's prior flags, defaults
 TRUST_TOLERANCE_M = 0.5  # homocal fit reports how far the 1-sigma error stays under this
 APPLIED = ("x", "y", "sigma_m", "status")  # the columns homocal apply adds (last in its output)
 
@@ -82,15 +71,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         description="Fit a correction of a trapezoid homography from three or more reference points.",
     )
     fit.add_argument("--trapezoid", required=True, type=Path, metavar="TRAP.json", help="the trapezoid (see below)")
-    fit.add_argument("--points", required=True, type=Path, metavar="REF.csv", help="reference points u,v,x,y")
-    fit.add_argument("--method", default=DEFAULT_METHOD, choices=METHODS, help="least-change (the smallest "
-                     "move of the clicked image and map corners that explains the reference points; the default: "
-                     "beats both paper methods on median and failure tail in the study's four base-error settings, "
-                     "README), regression-intercept (signed, "
-                     "a d^2 + b d + c), regression (the paper's, clamped), regression-signed (also corrects "
-                     "overestimated range), horizon (fits the horizon shift of Section 3), descent, hybrid")
+    fit.add_argument("--points", required=True, type=Path, metavar="REF.csv",
+                     help=f"reference points u,v,x,y (at most {MAX_REFERENCE_POINTS:,})")
+    fit.add_argument("--method", default=DEFAULT_METHOD, choices=METHODS, help="; ".join(
+                     f"{m.name}: {m.description}" for m in METHODS.values()) + f" (default {DEFAULT_METHOD})")
     fit.add_argument("-o", "--out", required=True, type=Path, metavar="CORRECTION.json", help="the correction to write")
-    fit.add_argument("--camera-origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
+    fit.add_argument("--camera-origin", type=xy_pair, default=(0.0, 0.0), metavar="X,Y",
                      help="ground point under the camera, metres (default 0,0)")
     fit.add_argument("--threshold", type=number(float, 0, 100), default=DEFAULT_THRESHOLD, help="hybrid: keep regression at or "
                      "above this calibration improvement, percent (default %(default)g)")
@@ -119,16 +105,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def handle_fit(args: argparse.Namespace) -> int:
-    transformer = load_trapezoid(args.trapezoid)
-    _, _, cols, _ = read_points_csv(args.points, ("u", "v", "x", "y"), finite=True)
+    transformer = ViewTransformer.from_trapezoid_file(args.trapezoid)
+    _, _, cols, _ = read_points_csv(args.points, ("u", "v", "x", "y"), finite=True, most=MAX_REFERENCE_POINTS)
     if str(args.out) == "-":
         raise ValueError("-o -: the correction is a JSON file, not a table: give its file name")
     check_output_file(args.out, lambda p: json_format(p) == FORMAT, "homocal correction (JSON with format "
                       f"{FORMAT!r})")
+    method = METHODS[args.method]
     given = [f"--{k.replace('_', '-')}" for k in LEAST_CHANGE if getattr(args, k) is not None]
     if given and args.method != "least-change":
         raise ValueError(f"{', '.join(given)}: the priors of --method least-change, not of {args.method}")
-    corrector = METHODS[args.method](args)
+    corrector = method.make(**{k: getattr(args, k) for k in method.settings})
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -140,8 +127,8 @@ def handle_fit(args: argparse.Namespace) -> int:
         print(f"homocal: warning: {args.points}: {w.message}", file=sys.stderr)
     corrector.save(args.out)
     print(f"homocal fit: {args.method} correction from {len(cols['u'])} reference points written to {args.out}: "
-          f"{_quality(corrector)}.{_method_note(corrector)}")
-    mapping = _mapping(corrector)
+          f"{quality(corrector)}.{fit_note(corrector)}")
+    mapping = mapping_of(corrector)
     trust = max_trustworthy_range(mapping, TRUST_TOLERANCE_M, camera_origin=args.camera_origin)
     print(f"Error bars (1.5 px clicking error on each trapezoid corner, 1 px on a foot point): the 1-sigma error "
           f"stays under {TRUST_TOLERANCE_M:g} m out to {trust:.1f} m straight ahead (image column "
@@ -160,7 +147,7 @@ def handle_apply(args: argparse.Namespace) -> int:
     bad_input = ~(np.abs(q) <= MAX_COORDINATE).all(axis=1)  # nan, inf, or an overflow
     q[bad_input] = np.nan
     xy = corrector.transform_points(q)
-    sigma = sigma_radius(ground_uncertainty(_mapping(corrector), q, args.click_sigma_px, args.point_sigma_px))
+    sigma = sigma_radius(ground_uncertainty(mapping_of(corrector), q, args.click_sigma_px, args.point_sigma_px))
     status = np.where(bad_input, "bad_input", np.where(np.isnan(xy).any(axis=1), "beyond_horizon", "ok"))
     out_fields = [f for f in fields if f not in APPLIED] + list(APPLIED)
     buffer = io.StringIO()
@@ -177,95 +164,11 @@ def handle_apply(args: argparse.Namespace) -> int:
     bad_lines = [lines[i] for i in np.flatnonzero(bad_input)]
     bad = (f"; {len(bad_lines)} with u or v nan, inf or beyond 1e9 (status bad_input, line"
            f"{'s' if len(bad_lines) > 1 else ''} {_line_list(bad_lines)})" if bad_lines else "")
-    print(f"homocal apply: {len(rows)} points mapped with the {_label(corrector)} correction of {args.correction} "
+    print(f"homocal apply: {len(rows)} points mapped with the {label(corrector)} correction of {args.correction} "
           f"and written to {'stdout' if to_stdout else args.out}; {beyond} on or above the horizon (status "
-          f"beyond_horizon){bad}; x, y, sigma_m = nan for those. The correction was fitted with {_quality(corrector)}.",
+          f"beyond_horizon){bad}; x, y, sigma_m = nan for those. The correction was fitted with {quality(corrector)}.",
           file=sys.stderr if to_stdout else sys.stdout)
     return 0
-
-
-def load_trapezoid(path: Path) -> ViewTransformer:
-    """A ViewTransformer from TRAP.json (see FIT_FORMATS); ValueError naming the file for bad content."""
-    return load_trapezoid_site_map(path)[0]
-
-
-def load_trapezoid_site_map(path: Path) -> tuple[ViewTransformer, SiteMap | None]:
-    """load_trapezoid and the file's site map (None for a map in metres)."""
-    data = read_json(path)
-    try:
-        if "hand_placed" in data:  # a simgen dataset's trapezoids.json: map in site-map pixels
-            entry, site_map_path = data["hand_placed"], path.parent / "site_map.json"
-            if not site_map_path.is_file():
-                raise ValueError(f"a dataset's trapezoids.json needs the site_map.json beside it ({site_map_path})")
-            site_map = SiteMap.from_json(site_map_path)
-        else:
-            entry = data
-            sm = data.get("site_map")
-            site_map = None if sm is None else SiteMap.from_dict(sm, f"{path} site_map")
-        image, ground = validate_quad(entry["image"], "image"), validate_quad(entry["map"], "map")
-        if site_map is not None:
-            ground = site_map.to_metres(ground)
-        check_orientation(image, ground, target_y_up=True)  # metres now (site-map pixels converted)
-        return ViewTransformer(image, ground), site_map
-    except KeyError as e:
-        raise ValueError(f"{path}: missing key {e} (expected \"image\" and \"map\", see homocal fit --help)") from None
-    except (TypeError, ValueError) as e:
-        raise ValueError(f"{path}: {e}") from None
-
-
-def read_points_csv(
-    path: Path, required: tuple[str, ...], finite: bool
-) -> tuple[list[str], list[dict[str, str]], dict[str, np.ndarray], list[int]]:
-    """Read a CSV with a header; return (column names, rows as dicts of text, required columns as float64, the
-    line number of each row).
-
-    ValueError naming the file (and line) for: a missing file or column, a column name given twice, text that
-    is not UTF-8, a row of the wrong length, a value that is not a number (or not finite, if ``finite``).
-    """
-    if not path.is_file():
-        raise ValueError(f"{path}: no such file")
-    try:
-        with path.open(newline="", encoding="utf-8-sig") as f:
-            return _read_points(csv.reader(f), path, required, finite)
-    except UnicodeDecodeError as e:
-        raise ValueError(f"{path}: not UTF-8 text ({e})") from None
-
-
-def _read_points(reader, path: Path, required: tuple[str, ...], finite: bool):
-    header = [name.strip() for name in next(reader, [])]
-    twice = sorted({name for name in header if header.count(name) > 1})
-    if twice:
-        raise ValueError(f"{path}: column(s) {', '.join(map(repr, twice))} appear more than once in the header line")
-    missing = [c for c in required if c not in header]
-    if missing:
-        raise ValueError(f"{path}: missing column(s) {', '.join(missing)} in the header line "
-                         f"(found: {', '.join(header) or 'nothing'}; expected {','.join(required)})")
-    rows, values, lines = [], {c: [] for c in required}, []
-    for fields in reader:
-        if not fields:
-            continue
-        if len(fields) != len(header):
-            raise ValueError(f"{path}, line {reader.line_num}: {len(fields)} fields, the header has {len(header)}")
-        row = dict(zip(header, fields))
-        for c in required:
-            try:
-                value = float(row[c])
-            except ValueError:
-                raise ValueError(f"{path}, line {reader.line_num}: column {c}: {row[c]!r} is not a number") from None
-            if finite and not math.isfinite(value):
-                raise ValueError(f"{path}, line {reader.line_num}: column {c}: {row[c]!r} is not a finite number")
-            values[c].append(value)
-        rows.append(row)
-        lines.append(reader.line_num)
-    return header, rows, {c: np.array(v, dtype=np.float64) for c, v in values.items()}, lines
-
-
-def _mapping(corrector: Corrector) -> ViewTransformer:
-    """The trapezoid mapping a correction maps with: descent's, horizon's and least-change's own, the hybrid's
-    chosen one's, the clicked one for the regressions (their radial correction is not in the error bars)."""
-    if isinstance(corrector, HybridCorrector):
-        return _mapping(corrector.regression_ if corrector.chosen_ == "regression" else corrector.descent_)
-    return getattr(corrector, "transformer_", corrector.base_transformer_)
 
 
 def _line_list(lines: list[int], most: int = 10) -> str:
@@ -281,49 +184,3 @@ def _sigma(text: str) -> float:
     if not (math.isfinite(value) and value >= 0):
         raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
     return value
-
-
-def _xy(text: str) -> tuple[float, float]:
-    try:
-        x, y = (float(part) for part in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected two numbers X,Y, got {text!r}") from None
-    if not (math.isfinite(x) and math.isfinite(y)):
-        raise argparse.ArgumentTypeError(f"expected two finite numbers X,Y, got {text!r}")
-    return x, y
-
-
-def _label(corrector: Corrector) -> str:
-    if isinstance(corrector, HybridCorrector):
-        return f"hybrid ({corrector.chosen_})"
-    if isinstance(corrector, RegressionCorrector) and corrector.signed:
-        return "regression-intercept" if corrector.intercept else "regression-signed"
-    return corrector.method
-
-
-def _quality(corrector: Corrector) -> str:
-    return (f"mean calibration error {corrector.error_before_:.3f} m before, {corrector.error_after_:.3f} m after "
-            f"(improvement {corrector.calibration_improvement_:.1f} %)")
-
-
-def _method_note(corrector: Corrector) -> str:
-    if isinstance(corrector, HybridCorrector):
-        reg = corrector.regression_.calibration_improvement_
-        relation = ">=" if corrector.chosen_ == "regression" else "<"
-        return (f" The hybrid chose {corrector.chosen_}: regression's improvement {reg:.1f} % {relation} "
-                f"threshold {corrector.threshold:g} %.")
-    if isinstance(corrector, DescentCorrector):
-        return f" Descent used {corrector.evaluations_} phase-2 evaluations."
-    if isinstance(corrector, RegressionCorrector):
-        note = " (fallback of lower order: the reference distances are nearly equal)" if corrector.degenerate_ else ""
-        constant = f" {'-' if corrector.c_ < 0 else '+'} {abs(corrector.c_):.6g}" if corrector.intercept else ""
-        return f" Error law e(d) = {corrector.a_:.6g} d^2 + {corrector.b_:.6g} d{constant}{note}."
-    if isinstance(corrector, LeastChangeCorrector):
-        px, m = corrector.corner_moves()
-        return (f" Least change: the largest corner move is {px:.3f} px on the image and {m:.3f} m on the map "
-                f"({corrector.iterations_} Gauss-Newton steps).")
-    if isinstance(corrector, HorizonCorrector):
-        eps = corrector.horizon_shift_
-        return (f" Horizon shift epsilon = {eps:.3f} px (the clicked trapezoid's horizon lies that far below the "
-                f"fitted one; corrected trapezoid: the clicked one moved {eps:.3f} px up).")
-    return ""

@@ -72,12 +72,17 @@ def objective(x: np.ndarray, f: np.ndarray, g: np.ndarray, point_sigma: float) -
 
 
 def gauss_newton_step(x: np.ndarray, J: np.ndarray, r: np.ndarray, point_sigma: float) -> np.ndarray:
-    """The minimiser of Phi linearised at x: x' = J^T (J J^T + point_sigma^2 I)^-1 (r + J x).
+    """The minimiser of Phi linearised at x: the least-squares solution x' of [J / s; I] x' = [b / s; 0].
 
-    x (16,) normalised offsets; J (2N, 16) the Jacobian of f in normalised units; r = g - f(x) (2N,).
-    With f(x') ~ f(x) + J (x' - x) =: g - b + J x', b = r + J x, Phi ~ ||x'||^2 + ||b - J x'||^2 / s^2 is minimal
-    at x' = (J^T J + s^2 I)^-1 J^T b = J^T (J J^T + s^2 I)^-1 b (push-through identity; a (2N, 2N) solve)."""
-    return J.T @ np.linalg.solve(J @ J.T + point_sigma**2 * np.eye(len(r)), r + J @ x)
+    x (16,) normalised offsets; J (2N, 16) the Jacobian of f in normalised units; r = g - f(x) (2N,); s =
+    point_sigma. With f(x') ~ f(x) + J (x' - x) =: g - b + J x', b = r + J x, Phi ~ ||x'||^2 + ||b - J x'||^2 / s^2
+    is that stacked system's squared residual, minimal at x' = (J^T J + s^2 I)^-1 J^T b. Solved by orthogonal
+    factorisation of the (2N + 16, 16) stacked matrix (not the normal equations, whose condition is squared:
+    with s small against the click sigmas J^T J + s^2 I is nearly singular), so memory and time grow linearly
+    with the point count N."""
+    n = J.shape[1]
+    stacked = np.vstack([J / point_sigma, np.eye(n)])
+    return np.linalg.lstsq(stacked, np.concatenate([(r + J @ x) / point_sigma, np.zeros(n)]), rcond=None)[0]
 
 
 def safeguarded_step(x: np.ndarray, step: np.ndarray, phi: float,
@@ -110,7 +115,8 @@ class LeastChangeCorrector(Corrector):
     the reference points leave free (three points on one line fix 6 of 16 numbers), which descent leaves to its
     search order. map_sigma_m = 0 moves the image trapezoid only, like descent.
 
-    Fit. Gauss-Newton from x = 0 (``gauss_newton_step``): x <- J^T (J J^T + point_sigma_m^2 I)^-1 (g - f + J x),
+    Fit. Gauss-Newton from x = 0 (``gauss_newton_step``): x <- (J^T J + point_sigma_m^2 I)^-1 J^T (g - f + J x),
+    a 16-unknown least-squares solve whose memory grows linearly with the point count,
     J (2N, 16) = df/dx = (df/dz) diag(sigma), df/dz analytic through the projective basis (``mapped_jacobian``;
     tested against central differences of the closed-form homography).
     Stopping rule: at most ``iterations`` steps; stop after an accepted step shorter than 1e-9 (normalised).

@@ -13,6 +13,7 @@ from homocal.geometry.homography import (
     validate_quad,
 )
 from homocal.geometry.sitemap import SiteMap
+from homocal.geometry.trapezoid_file import read_trapezoid_file
 
 __all__ = [
     "BOX_CONVENTIONS",
@@ -27,5 +28,6 @@ __all__ = [
     "check_orientation",
     "homography_from_quads",
     "signed_area",
+    "read_trapezoid_file",
     "validate_quad",
 ]

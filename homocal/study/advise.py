@@ -24,9 +24,11 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from homocal.correctors.cli import DEFAULT_METHOD, METHODS as CLI_METHODS, _xy, load_trapezoid_site_map, read_points_csv
-from homocal.files import check_output_file, csv_header, write_text_atomic
-from homocal.geometry import SiteMap, ViewTransformer
+from homocal.arguments import xy_pair
+from homocal.correctors.base import MAX_REFERENCE_POINTS
+from homocal.correctors.catalogue import DEFAULT_METHOD, METHODS as CATALOGUE_METHODS
+from homocal.files import check_output_file, csv_header, read_points_csv, write_text_atomic
+from homocal.geometry import SiteMap, ViewTransformer, read_trapezoid_file
 from homocal.keyed_rng import seed_from_key
 from homocal.study import kernels
 from homocal.study.inputs import StudyParams, StudyScene
@@ -38,6 +40,7 @@ from homocal.uncertainty import straight_ahead_column
 NAME = "advise"  # the scene name that keys the variants' random draws
 DEFAULT_MAP_SCALE = 10.0  # px per metre: a map given in metres is perturbed as a site map of this scale (the scenes')
 MAX_SAMPLES = 20_000_000  # triples x samples (about a minute on 2 cores)
+MAX_TEST_POINTS = 100_000  # --test-points rows read
 CSV_FIELDS = ("rank", "x1", "y1", "x2", "y2", "x3", "y3", "mean_path", "p5_path", "median_path", "positive_path")
 
 
@@ -178,12 +181,12 @@ def add_parser(subparsers) -> None:
                    help="lateral offsets (x, metres) tried at each distance, e.g. -3,0,3 (default 0: straight ahead "
                         "only); the candidates are every (offset, distance) pair, triples any three of them")
     p.add_argument("--method", default=DEFAULT_METHOD,  # the methods with a study kernel
-                   choices=[m for m in CLI_METHODS if m.replace("-", "_") in kernels.METHODS],
+                   choices=[m.name for m in CATALOGUE_METHODS.values() if m.column in kernels.METHODS],
                    help="the correction to advise for (default %(default)s, homocal fit's)")
     p.add_argument("--samples", type=int, default=100, metavar="N",
                    help="perturbed trapezoids (default 100; 1000 orders triples that differ by tenths of a point as "
                         "the study does, about 3 min for least-change: README)")
-    p.add_argument("--camera-origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
+    p.add_argument("--camera-origin", type=xy_pair, default=(0.0, 0.0), metavar="X,Y",
                    help="ground point under the camera, metres (default 0,0)")
     p.add_argument("--test-range", default="5:50", metavar="MIN:MAX",
                    help="test points' distance ahead of the camera origin, metres (default 5:50)")
@@ -197,7 +200,7 @@ def add_parser(subparsers) -> None:
                         f"{DEFAULT_MAP_SCALE:g} for a map in metres)")
     p.add_argument("--seed", type=int, default=0, help="seed of the perturbations and test points (default 0)")
     p.add_argument("--top", type=int, default=5, help="triples to print (default 5)")
-    p.add_argument("-o", "--output", type=Path, metavar="ADVICE.csv", help="write every triple, ranked")
+    p.add_argument("-o", "--out", type=Path, metavar="ADVICE.csv", help="write every triple, ranked")
     p.set_defaults(handler=handle_advise)
 
 
@@ -241,33 +244,36 @@ def handle_advise(args: argparse.Namespace) -> int:
     if not 0 <= args.seed < 2**63:
         raise ValueError(f"--seed must be in [0, 2**63), got {args.seed}")
     positions = candidate_positions(distances, laterals, args.camera_origin)
+    if len(positions) > MAX_REFERENCE_POINTS:
+        raise ValueError(f"--distances x --lateral: {len(positions):,} reference positions, at most "
+                         f"{MAX_REFERENCE_POINTS:,}")
     n_triples = math.comb(len(positions), 3)
     if n_triples * args.samples > MAX_SAMPLES:
         raise ValueError(f"{n_triples:,} triples x {args.samples} samples is over {MAX_SAMPLES:,} samples: use fewer "
                          f"distances or lateral offsets, or fewer --samples")
-    if args.output is not None:
-        check_output_file(args.output, lambda p: csv_header(p) == list(CSV_FIELDS), "homocal advise CSV")
-    transformer, site_map = load_trapezoid_site_map(args.trapezoid)
+    if args.out is not None:
+        check_output_file(args.out, lambda p: csv_header(p) == list(CSV_FIELDS), "homocal advise CSV")
+    transformer, site_map = read_trapezoid_file(args.trapezoid)
     if site_map is None or args.map_scale is not None:
         site_map = SiteMap(args.map_scale or DEFAULT_MAP_SCALE, site_map.origin_px if site_map else (0.0, 0.0))
     if args.test_points is None:
         test_ground = uniform_test_points(StudyParams().n_test, args.seed, args.camera_origin, test_range, args.test_lateral)
         test_area = f"|x| <= {args.test_lateral:g} m, y {test_range[0]:g}..{test_range[1]:g} m"
     else:
-        _, _, cols, _ = read_points_csv(args.test_points, ("x", "y"), finite=True)
+        _, _, cols, _ = read_points_csv(args.test_points, ("x", "y"), finite=True, most=MAX_TEST_POINTS)
         test_ground, test_area = np.column_stack([cols["x"], cols["y"]]), f"from {args.test_points}"
         if not len(test_ground):
             raise ValueError(f"{args.test_points}: no test points")
     scene = advise_scene(transformer, site_map, positions, test_ground, args.camera_origin)
     start = time.perf_counter()
-    advice = advise(scene, args.method.replace("-", "_"), args.samples, args.seed, progress=True)
+    advice = advise(scene, CATALOGUE_METHODS[args.method].column, args.samples, args.seed, progress=True)
     elapsed = time.perf_counter() - start
     skipped = f"; skipped: {_skipped_text(advice.skipped)}" if advice.skipped else ""
     print(f"homocal advise: {args.method} from {n_triples:,} triples of {len(positions)} reference positions, each "
           f"corrected on {advice.n_used} of {args.samples} perturbed trapezoids{skipped} ({elapsed:.1f} s); path "
           f"improvement on {len(test_ground)} test points, {test_area}; map perturbations in px of a {site_map.scale_px_per_m:g} px/m site map.")
     print(summary(advice, lateral=laterals != [0.0], top=args.top))
-    if args.output is not None:
-        write_text_atomic(args.output, to_csv(advice))
-        print(f"Every triple, ranked: {args.output}")
+    if args.out is not None:
+        write_text_atomic(args.out, to_csv(advice))
+        print(f"Every triple, ranked: {args.out}")
     return 0

@@ -1,49 +1,61 @@
 """The page's JSON API: each endpoint takes the request's JSON object and returns the response's.
 
-Bad input raises ValueError (the server answers 400 with its message) or FileExistsError (409). Every
+Bad input raises ValueError naming the request's field (the server answers 400 with its message),
+FileExistsError (409, the page asks before replacing) or ``Refused`` (409, never replaced). Every
 computation goes through the library: the trapezoid's ViewTransformer is built as ``homocal fit`` builds it
-from the saved trapezoid.json, and the correction is fitted with ``homocal fit``'s METHODS.
+from the saved trapezoid.json, and the correction is made from the method catalogue as ``homocal fit`` does.
+Bounds: at most MAX_REFERENCE_POINTS points, coordinates within +/-MAX_COORDINATE, sigmas up to MAX_SIGMA_PX,
+seeds in [0, 2**64), the hybrid's threshold in [0, 100] percent.
 """
 from __future__ import annotations
 
-import argparse
 import csv
 import io
 import math
+import os
 import warnings
 
 import numpy as np
 
-from homocal.correctors import cli as corrector_cli
-from homocal.correctors.base import Corrector, load_corrector
-from homocal.correctors.hybrid import DEFAULT_THRESHOLD, HybridCorrector
-from homocal.files import read_json, write_json_atomic, write_text_atomic
-from homocal.geometry import SiteMap, ViewTransformer, signed_area, validate_quad
+from homocal.correctors.base import MAX_REFERENCE_POINTS, Corrector, load_corrector
+from homocal.correctors.catalogue import Method, fit_note, get_method, mapping_of, method_of, quality
+from homocal.correctors.hybrid import DEFAULT_THRESHOLD
+from homocal.files import read_json, read_points_csv, write_json_atomic, write_text_atomic
+from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, signed_area, validate_quad
 from homocal.ui import overlay
 from homocal.ui.errorbars import error_bars
 from homocal.ui.session import Session
 
 TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE = "trapezoid.json", "reference_points.csv", "correction.json"
+MAX_SIGMA_PX = 100.0  # the error bars' sigmas (pixels): a clicking error beyond this is no click
+MAX_TOLERANCE_M = 1e6
+MAX_SEED = 2**64 - 1
+
+
+class Refused(Exception):
+    """A request the server refuses whatever the page says (409, no "Replace?")."""
 
 
 # ---- request fields -------------------------------------------------------------------------------
-def _number(req: dict, key: str, default: float | None = None, positive: bool = False) -> float:
+def _number(req: dict, key: str, default: float, low: float, high: float) -> float:
+    """The request's field ``key`` (``default`` if absent): a finite number in [low, high]."""
     value = req.get(key, default)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise ValueError(f"{key}: expected a finite number, got {value!r}")
-    if positive and value < 0:
-        raise ValueError(f"{key}: expected a number >= 0, got {value!r}")
+    if not low <= value <= high:
+        raise ValueError(f"{key}: expected a number in [{low:g}, {high:g}], got {value!r}")
     return float(value)
 
 
 def _points(value, name: str, width: int, most: int | None = None) -> np.ndarray:
-    """A list of points of ``width`` finite numbers each, as (N, width) float64."""
+    """A list of points of ``width`` finite numbers within +/-MAX_COORDINATE each, as (N, width) float64."""
     if not isinstance(value, list) or (most is not None and len(value) > most):
-        raise ValueError(f"{name}: expected a list of " + (f"at most {most} " if most else "") + "points")
+        raise ValueError(f"{name}: expected a list of " + (f"at most {most:,} " if most else "") + "points")
     for i, p in enumerate(value):
         if (not isinstance(p, list) or len(p) != width
-                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in p)):
-            raise ValueError(f"{name}[{i}]: expected {width} finite numbers, got {p!r}")
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and abs(x) <= MAX_COORDINATE
+                           for x in p)):
+            raise ValueError(f"{name}[{i}]: expected {width} finite numbers within +/-{MAX_COORDINATE:g}, got {p!r}")
     return np.array(value, dtype=np.float64).reshape(len(value), width)
 
 
@@ -93,37 +105,37 @@ def _complete_transformer(session: Session, req: dict) -> ViewTransformer:
     return transformer
 
 
-def _fitted(session: Session, req: dict) -> tuple[Corrector, ViewTransformer, np.ndarray, argparse.Namespace, list]:
-    """Fit the request's method as ``homocal fit`` does; return it with the transformer, the points (N, 4) u,v,x,y,
-    homocal fit's arguments and the library's warnings (texts)."""
+def method_request(req: dict) -> tuple[Method, dict]:
+    """The request's method (the catalogue's name) and the settings the page gives it: seed (an integer in
+    [0, 2**64)) and threshold (percent, [0, 100]), homocal fit's defaults if absent."""
+    method = get_method(req.get("method"))
+    seed = _number(req, "seed", 0, 0, MAX_SEED)
+    if seed != int(seed):
+        raise ValueError(f"seed: expected an integer, got {req.get('seed')!r}")
+    page = {"seed": int(req.get("seed", 0)), "threshold": _number(req, "threshold", DEFAULT_THRESHOLD, 0, 100)}
+    return method, {k: v for k, v in page.items() if k in method.settings}
+
+
+def _fitted(session: Session, req: dict) -> tuple[Corrector, ViewTransformer, np.ndarray, list]:
+    """Fit the request's method as ``homocal fit`` does; return it with the transformer, the points (N, 4) u,v,x,y
+    and the library's warnings (texts)."""
     transformer = _complete_transformer(session, req)
-    points = _points(req.get("points"), "points", 4)
-    args = fit_arguments(req)
-    corrector = corrector_cli.METHODS[args.method](args)
+    points = _points(req.get("points"), "points", 4, MAX_REFERENCE_POINTS)
+    method, settings = method_request(req)
+    corrector = method.make(**settings)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         corrector.fit(transformer, points[:, :2], points[:, 2:], _camera_origin(req))
-    return corrector, transformer, points, args, [str(w.message) for w in caught]
-
-
-def fit_arguments(req: dict) -> argparse.Namespace:
-    """``homocal fit``'s parsed arguments for the request's method, seed and threshold (its defaults otherwise)."""
-    method = req.get("method")
-    if method not in corrector_cli.METHODS:
-        raise ValueError(f"method: expected one of {', '.join(corrector_cli.METHODS)}, got {method!r}")
-    seed = _number(req, "seed", 0.0, positive=True)
-    if seed != int(seed):
-        raise ValueError(f"seed: expected an integer, got {seed!r}")
-    parser = argparse.ArgumentParser()
-    corrector_cli.add_parser(parser.add_subparsers())
-    return parser.parse_args(["fit", "--trapezoid", TRAPEZOID_FILE, "--points", POINTS_FILE, "-o", CORRECTION_FILE,
-                              "--method", method, "--seed", str(int(seed)),
-                              "--threshold", repr(_number(req, "threshold", DEFAULT_THRESHOLD))])
+    return corrector, transformer, points, [str(w.message) for w in caught]
 
 
 def _sigmas(req: dict) -> dict:
-    return {key: _number(req, key, default, positive=True)
+    return {key: _number(req, key, default, 0, MAX_SIGMA_PX)
             for key, default in (("click_sigma_px", 1.5), ("point_sigma_px", 1.0), ("map_sigma_px", 0.0))}
+
+
+def _tolerance(req: dict) -> float:
+    return _number(req, "tolerance_m", 0.5, 0, MAX_TOLERANCE_M)
 
 
 # ---- endpoints ------------------------------------------------------------------------------------
@@ -146,25 +158,24 @@ def view(session: Session, req: dict) -> dict:
         "footprint": overlay.footprint(transformer, w, h, session.site_map, origin, max_range),
         "errorbars": None if req.get("errorbars") is False else error_bars(
             session, transformer, overlay.grid_nodes(field, transformer), origin,
-            _number(req, "tolerance_m", 0.5, positive=True), **_sigmas(req)),
+            _tolerance(req), **_sigmas(req)),
     }
 
 
 def fit(session: Session, req: dict) -> dict:
     """Fit the chosen method on the reference points; errors before/after, per-point residuals, the
     corrected grid and the correction's JSON (what Save writes)."""
-    corrector, transformer, points, args, caught = _fitted(session, req)
+    corrector, transformer, points, caught = _fitted(session, req)
     mapped = transformer.transform_points(points[:, :2])
     corrected = corrector.transform_points(points[:, :2])
     w, h = session.frame_size
-    tolerance = _number(req, "tolerance_m", 0.5, positive=True)
-    trust = error_bars(session, corrector_cli._mapping(corrector), np.zeros((0, 2)), _camera_origin(req), tolerance,
+    tolerance = _tolerance(req)
+    trust = error_bars(session, mapping_of(corrector), np.zeros((0, 2)), _camera_origin(req), tolerance,
                        **_sigmas(req))["trustworthy_range_m"]
     trust_note = (f" With its mapping the 1-sigma error stays under {tolerance:g} m out to "
                   + ("any range" if trust is None else f"{trust:.1f} m") + " straight ahead.")
     return {
-        "summary": f"{args.method}: {corrector_cli._quality(corrector)}."
-                   f"{corrector_cli._method_note(corrector)}{trust_note}",
+        "summary": f"{method_of(corrector).name}: {quality(corrector)}.{fit_note(corrector)}{trust_note}",
         "warnings": caught,
         "error_before": corrector.error_before_,
         "error_after": corrector.error_after_,
@@ -189,6 +200,8 @@ def locate(session: Session, req: dict) -> dict:
     origin = _camera_origin(req)
     out = {"ground": ground.tolist(), "distance": float(np.hypot(*(ground - origin))), "corrected": None}
     if req.get("correction") is not None:
+        if not isinstance(req["correction"], dict):
+            raise ValueError("correction: expected the object /api/fit answered with")
         corrector = Corrector.from_dict(req["correction"], "correction")
         corrected = corrector.transform_points(point)[0]
         out["corrected"] = corrected.tolist() if np.isfinite(corrected).all() else None
@@ -198,12 +211,18 @@ def locate(session: Session, req: dict) -> dict:
 
 def save(session: Session, req: dict) -> dict:
     """Write trapezoid.json, reference_points.csv and correction.json (the formats of ``homocal fit --help``)
-    to the session's folder. A file this server did not write is overwritten only with "overwrite": true
-    (the page asks first); otherwise FileExistsError."""
-    corrector, _, points, args, _ = _fitted(session, req)
+    to the session's folder. A file this server did not write (or that was replaced since) is overwritten only
+    with "overwrite": true (the page asks first; otherwise FileExistsError); a symbolic link is never replaced
+    (``Refused``)."""
+    corrector, _, points, _ = _fitted(session, req)
+    method = method_of(corrector)
     image, map_px = trapezoid(req)
     paths = [session.out_dir / name for name in (TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE)]
-    foreign = [p for p in paths if p.exists() and p not in session.written]
+    links = [p.name for p in paths if p.is_symlink()]
+    if links:
+        raise Refused(f"{', '.join(links)} in {session.out_dir}: a symbolic link, which Save never replaces "
+                      "(remove it, or save to another folder)")
+    foreign = [p for p in paths if p.exists() and _identity(p) != session.written.get(p)]
     if foreign and req.get("overwrite") is not True:
         raise FileExistsError(f"{', '.join(p.name for p in foreign)} already in {session.out_dir} "
                               "(not written by this homocal ui)")
@@ -215,12 +234,22 @@ def save(session: Session, req: dict) -> dict:
     write_json_atomic(paths[0], {"image": image.tolist(), "map": map_px.tolist(), "site_map": site})
     write_text_atomic(paths[1], buffer.getvalue())
     corrector.save(paths[2])
-    session.written.update(paths)
-    return {"written": [str(p) for p in paths], "method": args.method,
-            "command": f"homocal fit --trapezoid {paths[0]} --points {paths[1]} --method {args.method} "
+    session.written.update({p: _identity(p) for p in paths})
+    params = corrector.get_params()
+    return {"written": [str(p) for p in paths], "method": method.name,
+            "command": f"homocal fit --trapezoid {paths[0]} --points {paths[1]} --method {method.name} "
                        f"-o CORRECTION.json --camera-origin={','.join(repr(float(x)) for x in corrector.camera_origin_)}"
-                       + (f" --seed {args.seed}" if "seed" in corrector.get_params() else "")
-                       + (f" --threshold {args.threshold!r}" if "threshold" in corrector.get_params() else "")}
+                       + "".join(f" --{k} {params[k]!r}" for k in ("seed", "threshold") if k in method.settings)}
+
+
+def _identity(path) -> tuple[int, int, int, int] | None:
+    """(device, inode, size, modification time ns) of the file at ``path`` itself (a link is not followed), None
+    if there is none: a file replaced since differs in one of them, even if its inode number was reused."""
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return None
+    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
 
 
 def load(session: Session, req: dict) -> dict:
@@ -239,13 +268,14 @@ def load(session: Session, req: dict) -> dict:
     out = {"trapezoid": {"image": image.tolist(), "map": map_px.tolist()},
            "points": [], "fit": None, "loaded": [TRAPEZOID_FILE]}
     if (folder / POINTS_FILE).is_file():
-        _, _, cols, _ = corrector_cli.read_points_csv(folder / POINTS_FILE, ("u", "v", "x", "y"), finite=True)
+        _, _, cols, _ = read_points_csv(folder / POINTS_FILE, ("u", "v", "x", "y"), finite=True,
+                                      most=MAX_REFERENCE_POINTS)
         out["points"] = np.column_stack([cols[c] for c in ("u", "v", "x", "y")]).tolist()
         out["loaded"].append(POINTS_FILE)
     if (folder / CORRECTION_FILE).is_file():
         corrector = load_corrector(folder / CORRECTION_FILE)
         params = corrector.get_params()
-        out["fit"] = {"method": "hybrid" if isinstance(corrector, HybridCorrector) else corrector_cli._label(corrector),
+        out["fit"] = {"method": method_of(corrector).name,
                       "camera_origin": corrector.camera_origin_.tolist(),
                       "seed": params.get("seed", 0), "threshold": params.get("threshold", DEFAULT_THRESHOLD),
                       "error_before": corrector.error_before_, "error_after": corrector.error_after_}

@@ -4,8 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from homocal.arguments import number
-from homocal.correctors.cli import _xy
+from homocal.arguments import number, xy_pair
 from homocal.geometry import SiteMap
 from homocal.ui import session as sessions
 from homocal.ui.server import UIServer
@@ -32,11 +31,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     ui.add_argument("--frame-index", type=number(int, 0), default=0, metavar="N", help="video frame to show, from 0 (default 0)")
     ui.add_argument("--site-map", type=Path, metavar="MAP.png", help="the site map image (top-down, map up = forward)")
     ui.add_argument("--scale", type=number(float, 0, low_open=True), metavar="PX_PER_M", help="site map pixels per metre")
-    ui.add_argument("--origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
+    ui.add_argument("--origin", type=xy_pair, default=(0.0, 0.0), metavar="X,Y",
                     help="site map pixel of the ground origin (default 0,0: the top-left pixel)")
-    ui.add_argument("--camera-origin", type=_xy, default=(0.0, 0.0), metavar="X,Y",
+    ui.add_argument("--camera-origin", type=xy_pair, default=(0.0, 0.0), metavar="X,Y",
                     help="ground point under the camera, metres (default 0,0; the page can change it)")
-    ui.add_argument("-o", "--out", type=Path, default=Path("."), metavar="DIR", help="folder Save writes to (default .)")
+    ui.add_argument("-o", "--out", type=Path, default=Path("."), metavar="DIR",
+                    help="folder Save writes to (default .); made if missing, inside an existing folder")
     ui.add_argument("--port", type=number(int, 0, 65535), default=0, help="port on 127.0.0.1 (default 0: a free one)")
     ui.set_defaults(handler=handle_ui)
 
@@ -56,6 +56,7 @@ def handle_ui(args: argparse.Namespace) -> int:
                                       args.out, args.frame_index)
     server = UIServer(session, args.port)
     try:
+        session.out_dir.mkdir(exist_ok=True)
         print(f"homocal ui: {session.title} on {server.url} (saves to {session.out_dir}; Ctrl-C to stop)", flush=True)
         server.serve_forever()
     except KeyboardInterrupt:

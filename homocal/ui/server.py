@@ -2,14 +2,22 @@
 
 The standard library is enough for one user's page and a few JSON endpoints, and adds nothing to install.
 Routes: GET / (the page), /app.js, /frame.png, /map.png, /api/session; POST /api/<endpoint> with a JSON
-object (``homocal.ui.api.ENDPOINTS``). Bad requests get 4xx and {"error": message}, which the page shows.
-Requests must name this server in their Host header (no DNS rebinding) and POSTs must be JSON (which a
-foreign web page cannot send here without a CORS preflight, which this server never grants).
+object (``homocal.ui.api.ENDPOINTS``). Every answer to an API request is JSON; bad requests get 4xx and
+{"error": message naming the field}, which the page shows; 5xx only for a bug (500) or a busy server (503).
+Requests must name this server in their Host header (no DNS rebinding); POSTs must be JSON (which a foreign
+web page cannot send here without a CORS preflight, which this server never grants) and carry the per-launch
+token of the printed URL (``?token=...``, as Jupyter's) in the X-Homocal-Token header, or get 403.
+Bounds: a body of at most MAX_BODY bytes, JSON nested at most MAX_DEPTH deep, integers of at most
+MAX_INTEGER_DIGITS digits, MAX_CONCURRENT POSTs read and answered at once (another one waits up to QUEUE_SECONDS,
+then gets 503).
 """
 from __future__ import annotations
 
 import json
+import re
+import secrets
 import sys
+import threading
 import traceback
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib.resources import files
@@ -18,8 +26,21 @@ from homocal.ui import api
 from homocal.ui.session import Session
 
 HOST = "127.0.0.1"
-MAX_BODY = 10 * 1024 * 1024
+MAX_BODY = 10 * 1024 * 1024  # bytes
+MAX_DEPTH = 20  # nesting of JSON arrays and objects (the page's deepest request nests 5)
+MAX_INTEGER_DIGITS = 20  # a seed is below 2**64, 20 digits
+MAX_CONCURRENT = 2  # POSTs read and computed at once (2 cores): at most 2 bodies in memory
+QUEUE_SECONDS = 10.0  # a POST waits this long for one of them, then gets 503
+TOKEN_HEADER = "X-Homocal-Token"
 STATIC = {"/": ("index.html", "text/html; charset=utf-8"), "/app.js": ("app.js", "text/javascript; charset=utf-8")}
+
+
+class BadRequest(ValueError):
+    """A request refused before it reaches an endpoint: (status, message)."""
+
+    def __init__(self, status: int, message: str) -> None:
+        super().__init__(message)
+        self.status = status
 
 
 class UIServer(ThreadingHTTPServer):
@@ -28,14 +49,61 @@ class UIServer(ThreadingHTTPServer):
     def __init__(self, session: Session, port: int = 0) -> None:
         super().__init__((HOST, port), Handler)
         self.session = session
+        self.token = secrets.token_urlsafe(24)
+        self.slots = threading.BoundedSemaphore(MAX_CONCURRENT)
+        self.queue_seconds = QUEUE_SECONDS
+
+    @property
+    def address(self) -> str:
+        """http://127.0.0.1:PORT/"""
+        return f"http://{HOST}:{self.server_address[1]}/"
 
     @property
     def url(self) -> str:
-        return f"http://{HOST}:{self.server_address[1]}/"
+        """The page's URL with this launch's token, as printed: http://127.0.0.1:PORT/?token=..."""
+        return f"{self.address}?token={self.token}"
+
+
+def parse_body(body: bytes) -> dict:
+    """The request's JSON object; BadRequest (400) for text that is not UTF-8 JSON, nesting deeper than
+    MAX_DEPTH, an integer of more than MAX_INTEGER_DIGITS digits, or a value that is not an object."""
+    def integer(text: str) -> int:
+        if len(text.lstrip("-")) > MAX_INTEGER_DIGITS:
+            raise BadRequest(400, f"body: an integer of {len(text.lstrip('-'))} digits (at most {MAX_INTEGER_DIGITS})")
+        return int(text)
+
+    if _depth(body) > MAX_DEPTH:
+        raise BadRequest(400, f"body: JSON nested deeper than {MAX_DEPTH} levels")
+    try:
+        request = json.loads(body, parse_int=integer)
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise BadRequest(400, f"body: not valid JSON: {e}") from None
+    if not isinstance(request, dict):
+        raise BadRequest(400, "body: expected a JSON object")
+    return request
+
+
+_STRING_OR_BRACKET = re.compile(rb'"(?:[^"\\]|\\.)*"|[\[\]{}]')
+
+
+def _depth(body: bytes) -> int:
+    """The deepest nesting of [ and { in a JSON text (brackets inside strings not counted)."""
+    depth = deepest = 0
+    for match in _STRING_OR_BRACKET.finditer(body):
+        token = match.group()
+        if token in (b"[", b"{"):
+            depth += 1
+            deepest = max(deepest, depth)
+            if deepest > MAX_DEPTH:
+                break
+        elif token in (b"]", b"}"):
+            depth -= 1
+    return deepest
 
 
 class Handler(BaseHTTPRequestHandler):
     server: UIServer
+    timeout = 30  # seconds a client may take to send its request (a stalled one frees its slot)
 
     def do_GET(self) -> None:
         if not self._host_ok():
@@ -56,29 +124,68 @@ class Handler(BaseHTTPRequestHandler):
     def do_POST(self) -> None:
         if not self._host_ok():
             return
-        endpoint = api.ENDPOINTS.get(self.path.removeprefix("/api/")) if self.path.startswith("/api/") else None
-        if endpoint is None:
-            return self._json(404, {"error": f"no such endpoint: {self.path}"})
-        if self.headers.get("Content-Type", "").split(";")[0].strip() != "application/json":
-            return self._json(415, {"error": "send JSON (Content-Type: application/json)"})
-        length = int(self.headers.get("Content-Length") or 0)
-        if not 0 < length <= MAX_BODY:
-            return self._json(400, {"error": f"expected a JSON body of 1 byte to {MAX_BODY} bytes, got {length}"})
         try:
-            request = json.loads(self.rfile.read(length))
-        except (UnicodeDecodeError, json.JSONDecodeError) as e:
-            return self._json(400, {"error": f"not valid JSON: {e}"})
-        if not isinstance(request, dict):
-            return self._json(400, {"error": "expected a JSON object"})
+            endpoint = self._check_post()
+        except BadRequest as e:
+            self.close_connection = True  # an unread body must not be taken for the next request
+            return self._json(e.status, {"error": str(e)})
+        if not self.server.slots.acquire(timeout=self.server.queue_seconds):
+            self.close_connection = True
+            return self._json(503, {"error": f"busy: {MAX_CONCURRENT} requests were being answered for "
+                                             f"{self.server.queue_seconds:g} s; try again"})
+        try:
+            self._answer_post(endpoint)
+        finally:
+            self.server.slots.release()
+
+    def _answer_post(self, endpoint) -> None:
+        try:
+            request = self._read_body()
+        except BadRequest as e:
+            self.close_connection = True
+            return self._json(e.status, {"error": str(e)})
         try:
             self._json(200, endpoint(self.server.session, request))
         except FileExistsError as e:
             self._json(409, {"error": str(e), "exists": True})
+        except api.Refused as e:
+            self._json(409, {"error": str(e)})
         except (ValueError, OSError) as e:
             self._json(400, {"error": " ".join(str(e).split())})
         except Exception as e:  # a bug: tell the page, keep serving, print the traceback for the report
             traceback.print_exc(file=sys.stderr)
             self._json(500, {"error": f"internal error ({type(e).__name__}: {e}); see the terminal"})
+
+    def _check_post(self):
+        """The endpoint of a POST whose headers pass, or BadRequest: an unknown endpoint (404), no or a wrong
+        token (403), not JSON (415)."""
+        endpoint = api.ENDPOINTS.get(self.path.removeprefix("/api/")) if self.path.startswith("/api/") else None
+        if endpoint is None:
+            raise BadRequest(404, f"no such endpoint: {self.path}")
+        if not secrets.compare_digest(self.headers.get(TOKEN_HEADER, "").encode(), self.server.token.encode()):
+            raise BadRequest(403, f"{TOKEN_HEADER}: missing or wrong (open the URL homocal ui printed, with its "
+                                  "token)")
+        if self.headers.get("Content-Type", "").split(";")[0].strip() != "application/json":
+            raise BadRequest(415, "Content-Type: send JSON (Content-Type: application/json)")
+        return endpoint
+
+    def _read_body(self) -> dict:
+        """The request's JSON object (``parse_body``), or BadRequest: a Content-Length that is not 1..MAX_BODY
+        (400, 413), fewer bytes than it says, a bad body (400)."""
+        text = self.headers.get("Content-Length", "").strip()
+        if not text.isdigit() or len(text) > 12:
+            raise BadRequest(400, f"Content-Length: expected a number of bytes, got {text!r}")
+        length = int(text)
+        if not 0 < length <= MAX_BODY:
+            raise BadRequest(413 if length else 400,
+                             f"Content-Length: expected a JSON body of 1 byte to {MAX_BODY} bytes, got {length}")
+        try:
+            body = self.rfile.read(length)
+        except OSError:
+            body = b""
+        if len(body) != length:
+            raise BadRequest(400, f"body: {len(body)} of the {length} bytes of Content-Length arrived")
+        return parse_body(body)
 
     def _host_ok(self) -> bool:
         port = self.server.server_address[1]

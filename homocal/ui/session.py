@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from homocal.correctors.cli import DEFAULT_METHOD, METHODS
+from homocal.correctors.catalogue import DEFAULT_METHOD, METHODS
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.dataset import load_dataset
 from homocal.geometry import SiteMap
@@ -29,7 +29,8 @@ class Session:
     out_dir: Path
     title: str
     dataset: dict | None = None  # {"hand_placed": {"image", "map"}, "calibration": [[u, v, x, y], ...]}
-    written: set[Path] = field(default_factory=set)  # files this server wrote (Save may overwrite them)
+    written: dict[Path, tuple] = field(default_factory=dict)  # the identity (api._identity) of each file this
+    # server wrote: Save replaces those without asking while they are still what it wrote
 
     def info(self) -> dict:
         """The JSON the page starts from."""
@@ -101,6 +102,12 @@ def _png(image: np.ndarray | None, path: Path) -> tuple[bytes, tuple[int, int]]:
 
 
 def _folder(path: Path) -> Path:
-    if not path.is_dir():
-        raise ValueError(f"{path}: the output folder does not exist")
+    """The folder Save writes to, resolved: an existing folder, or a new one inside an existing folder (``homocal
+    ui`` makes it when it starts: one new folder, never a chain of missing parents, so a typo in a parent's name
+    is refused rather than built)."""
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{path}: exists and is not a folder")
+    if not path.exists() and not path.resolve().parent.is_dir():
+        raise ValueError(f"{path}: its parent folder {path.resolve().parent} does not exist (homocal ui makes one "
+                         "new folder, not its parents)")
     return path.resolve()

@@ -150,6 +150,12 @@ def test_samples_are_the_study_variants():
     ("test point behind the camera", ["--test-points", "tp.csv"], {"tp.csv": "x,y\n0,10\n1,-3\n"},
      "test point (1, -3) m lies behind the camera"),
     ("bad trapezoid", [], {"trap.json": '{"image": [[0, 0]], "map": []}'}, "trap.json"),
+    ("too many test points", ["--test-points", "tp.csv"],
+     {"tp.csv": "x,y\n" + "".join(f"{i % 7},{10 + i / 1e4}\n" for i in range(100_001))},
+     "tp.csv, line 100002: more than 100,000 points"),
+    ("too many reference positions", ["--distances", "1:1000:1", "--lateral", "-50:50:1"], {},
+     "--distances x --lateral: 101,000 reference positions, at most 100,000"),
+    ("--output is not a flag", ["--output", "b.csv"], {}, "unrecognized arguments: --output"),
 ])
 def test_bad_input(work, name, extra, files, message, capsys, monkeypatch):
     for file, text in files.items():

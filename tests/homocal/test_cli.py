@@ -213,6 +213,9 @@ def _bad_fit_inputs():
          [], "turned against the image's"),
         ("street rotated", {"trap.json": json.dumps(_street_variants()["rotated"])}, [], "turned against the image's"),
         ("negative seed", {}, ["--seed", "-1"], "argument --seed: must be an integer in [0, 2**64 - 1], got -1"),
+        ("too many points", {"ref.csv": ref_header + "".join(f"{600 + i % 300},{300 + i // 300},{i},1\n"
+                                                             for i in range(100_001))}, [],
+         "ref.csv, line 100002: more than 100,000 points (the most this command takes)"),
         ("huge seed", {}, ["--seed", str(2**64)], "argument --seed: must be an integer in [0, 2**64 - 1]"),
         ("NaN threshold", {}, ["--threshold", "nan"], "argument --threshold: must be a finite number in [0, 100], got nan"),
         ("threshold 101", {}, ["--threshold", "101"], "argument --threshold: must be a finite number in [0, 100]"),

@@ -12,7 +12,7 @@ from homocal.progress import show_progress
 
 from test_cli import GROUND, IMAGE, REF_G, REF_Q, homocal_main, work  # noqa: F401 (work is a fixture)
 
-WRITERS = ("fit", "apply", "study", "sweep", "report", "ui")
+WRITERS = ("fit", "apply", "study", "sweep", "report", "ui", "advise")
 
 
 def subparsers() -> dict[str, argparse.ArgumentParser]:
@@ -35,7 +35,7 @@ def test_every_option_has_help(name):
 @pytest.mark.parametrize("name", WRITERS)
 def test_every_writer_takes_o_and_out(name):
     options = {s: a for a in subparsers()[name]._actions for s in a.option_strings}
-    assert options["-o"] is options["--out"]
+    assert options["-o"] is options["--out"] and options["-o"].option_strings == ["-o", "--out"]  # one spelling
 
 
 @pytest.mark.parametrize("flag,expected", [(["--progress"], True), (["--no-progress"], False), ([], False)])

@@ -2,6 +2,8 @@
 a brute-force grid for descent phase 1, a pinhole camera for recovery; checks, hybrid choice, JSON."""
 import json
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,6 +22,7 @@ from homocal.correctors import (
     load_corrector,
     radial_correction,
 )
+from homocal.correctors.catalogue import METHODS, get_method, label, method_of
 from homocal.error_model import horizon_shift
 from homocal.geometry import PinholeCamera, ViewTransformer, apply_homography
 
@@ -504,3 +507,46 @@ class TestFitInputChecks:
         reg = RegressionCorrector().fit(perturbed(HAND_ERROR), CALIB_Q.reshape(-1, 1, 2), CALIB_G, ORIGIN)
         out = reg.transform_points([[640.0, 100.0], [640.0, 600.0]])
         assert np.isnan(out[0]).all() and np.isfinite(out[1]).all()
+
+
+# ---- the method catalogue -------------------------------------------------------------------------------
+class TestCatalogue:
+    def test_study_columns_are_the_kernels_methods(self):
+        from homocal.correctors.catalogue import STUDY_COLUMNS
+        from homocal.study import kernels
+
+        assert STUDY_COLUMNS == kernels.METHODS
+
+    @pytest.mark.parametrize("name", list(METHODS))
+    def test_each_method_round_trips_through_its_json(self, name, tmp_path):
+        """An entry makes its class, the fitted corrector is found again by method_of, also after save/load."""
+        method = METHODS[name]
+        corrector = method.make()
+        assert isinstance(corrector, method.corrector) and method_of(corrector) is method
+        corrector.fit(ViewTransformer(IMAGE + HAND_ERROR, GROUND), CALIB_Q, CALIB_G, ORIGIN)
+        corrector.save(tmp_path / "c.json")
+        loaded = load_corrector(tmp_path / "c.json")
+        assert json.loads((tmp_path / "c.json").read_text())["method"] == method.json_method
+        assert method_of(loaded) is method and label(loaded).split(" ")[0] == name
+
+    @pytest.mark.parametrize("name, settings, message", [
+        ("regression", {"seed": 1}, "seed: not a setting of regression"),
+        ("descent", {"threshold": 50.0}, "threshold: not a setting of descent"),
+        ("least-change", {"click_sigma_px": -1.0}, "click_sigma_px must be a finite number > 0"),
+    ])  # fmt: skip
+    def test_bad_settings(self, name, settings, message):
+        with pytest.raises(ValueError, match=message):
+            METHODS[name].make(**settings)
+
+    @pytest.mark.parametrize("name", ["magic", ["regression"], None, ""])
+    def test_unknown_method_names_the_parameter(self, name):
+        with pytest.raises(ValueError, match="method: expected one of regression, "):
+            get_method(name)
+
+
+def test_ui_and_study_never_import_the_cli_module():
+    """The page and the study call the library, not a command-line module (issue 24)."""
+    root = Path(__file__).resolve().parents[2] / "homocal"
+    offenders = [str(p.relative_to(root)) for folder in ("ui", "study") for p in (root / folder).rglob("*.py")
+                 if re.search(r"homocal\.correctors\.cli|from homocal\.correctors import cli", p.read_text())]
+    assert offenders == []

@@ -4,6 +4,7 @@ from __future__ import annotations
 import errno
 import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -13,8 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from homocal.files import (LOCK_NAME, OutputFolderError, os_message, output_folder, temporaries_of, write_atomic,
-                           write_text_atomic)
+from homocal import files
+from homocal.files import (LOCK_NAME, OutputFolderError, create_temporary, os_message, output_folder, temporaries_of,
+                           write_atomic, write_text_atomic)
 
 TOOL = "demo-tool"
 OURS = json.dumps({"format": TOOL})
@@ -37,7 +39,6 @@ def _make(root: Path, files: dict[str, str] | None) -> Path:
     (None, False, False),                                   # missing folder: created
     (None, True, False),                                    # --resume on a missing folder starts it
     ({}, False, False),                                     # empty folder
-    ({LOCK_NAME: ""}, False, False),                        # only a lock file of ours (a run killed at once)
     ({LOCK_NAME: json.dumps({"pid": 1, "host": "h", "since": "s"})}, False, False),
     ({"manifest.json": OURS}, True, True),                  # ours: resumed
     ({"manifest.json": OURS, "notes.txt": "x"}, True, True),
@@ -59,6 +60,10 @@ def test_accepted(tmp_path, files, resume, resumed):
     ({"manifest.json": "[1, 2]"}, True, "not a demo-tool output folder"),
     ({LOCK_NAME: "a user's file"}, True, "not a demo-tool output folder"),  # a .lock that is not ours counts
     ({LOCK_NAME: "a user's file"}, False, "exists and is not empty"),
+    ({LOCK_NAME: ""}, False, r"exists and is not empty \(its .lock is not a lock of ours: it is neither taken nor"),
+    ({LOCK_NAME: ""}, True, "not a demo-tool output folder"),
+    ({LOCK_NAME: "", "manifest.json": OURS}, True, r"\.lock: not a lock of ours \(its content is not the JSON"),
+    ({LOCK_NAME: "{}", "manifest.json": OURS}, True, r"\.lock: not a lock of ours"),
 ])  # fmt: skip
 def test_refused_untouched(tmp_path, files, resume, message):
     out = _make(tmp_path, files)
@@ -128,6 +133,53 @@ def test_remove_temporaries_only_ours(tmp_path):
         assert temporaries_of(out / "camera.json") == [out / "camera.tmp.json", out / "camera.tmp123.json"]
         folder.remove_temporaries(["camera.json", "_parts/00001.mp4", "_parts/00001.gt.parquet", "missing/x.json"])
         assert sorted(_tree(out)) == sorted(user + [LOCK_NAME])
+
+
+def test_a_lock_that_cannot_be_placed_names_it_and_leaves_no_folder(tmp_path, monkeypatch):
+    """A full disk when the lock file is placed: one OSError naming .lock; the folder made for it is removed."""
+    def full(*args):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(files.os, "link", full)
+    out = tmp_path / "out"
+    with pytest.raises(OSError) as e:
+        with output_folder(out, TOOL, False):
+            pytest.fail("entered")
+    assert os_message(e.value) == f"{out / LOCK_NAME}: No space left on device" and not out.exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_users_lock_symlink_is_not_followed(tmp_path):
+    out = _make(tmp_path, {"manifest.json": OURS})
+    victim = tmp_path / "victim"
+    victim.write_text("the user's")
+    (out / LOCK_NAME).symlink_to(victim)
+    with pytest.raises(OutputFolderError, match="not a lock of ours"):
+        with output_folder(out, TOOL, True):
+            pytest.fail("entered")
+    assert victim.read_text() == "the user's" and (out / LOCK_NAME).is_symlink()
+
+
+def test_temporaries_are_created_exclusively(tmp_path, monkeypatch):
+    """A name taken (here by a planted symlink) is never opened: another random name is drawn; the symlink and its
+    target stay; the file gets the mode a plain create would (umask applied), not mkstemp's 0600."""
+    victim = tmp_path / "victim"
+    victim.write_text("the user's")
+    planted = tmp_path / f"a.tmp{7:012d}.txt"
+    planted.symlink_to(victim)
+    draws = iter([7, 8])
+    monkeypatch.setattr(files.secrets, "randbelow", lambda n: next(draws))
+    write_text_atomic(tmp_path / "a.txt", "ours")
+    assert (tmp_path / "a.txt").read_text() == "ours" and victim.read_text() == "the user's" and planted.is_symlink()
+    (tmp_path / "plain.txt").write_text("x")
+    assert (tmp_path / "a.txt").stat().st_mode == (tmp_path / "plain.txt").stat().st_mode
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["a.txt", planted.name, "plain.txt", "victim"])
+
+
+def test_temporary_names_are_not_predictable(tmp_path):
+    names = {create_temporary(tmp_path / "a.json").name for _ in range(5)}
+    assert len(names) == 5 and all(re.fullmatch(r"a\.tmp\d{12}\.json", n) for n in names)
+    assert temporaries_of(tmp_path / "a.json") == sorted(tmp_path / n for n in names)
 
 
 def test_write_atomic_leaves_nothing_on_failure(tmp_path):

@@ -88,6 +88,42 @@ def test_gauss_newton_step_is_the_regularised_least_squares_solution():
     np.testing.assert_allclose(gauss_newton_step(x, J, r, s), expected, atol=1e-12)
 
 
+def push_through_step(x, J, r, s):
+    """The step as the earlier implementation formed it: J^T (J J^T + s^2 I)^-1 (r + J x), a (2N, 2N) solve."""
+    return J.T @ np.linalg.solve(J @ J.T + s**2 * np.eye(len(r)), r + J @ x)
+
+
+@pytest.mark.parametrize("rows", [6, 10, 40])
+def test_normal_equations_step_equals_the_push_through_step(rows):
+    rng = np.random.default_rng(rows)
+    J, r, x, s = rng.normal(size=(rows, 16)), rng.normal(size=rows), rng.normal(size=16), 0.05
+    np.testing.assert_allclose(gauss_newton_step(x, J, r, s), push_through_step(x, J, r, s), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("g", [LINE_G, SPREAD_G], ids=["line", "spread"])
+def test_fit_equals_the_push_through_fit(monkeypatch, g):
+    """The whole fit with the 16 x 16 normal equations ends where the (2N, 2N) push-through form ended, to 1e-9
+    (the count of accepted steps may differ by the last one, shorter than STEP_TOLERANCE)."""
+    ours = fit(g)
+    monkeypatch.setattr(least_change, "gauss_newton_step", push_through_step)
+    earlier = fit(g)
+    np.testing.assert_allclose(ours.transformer_.source, earlier.transformer_.source, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ours.transformer_.target, earlier.transformer_.target, rtol=0, atol=1e-9)
+    assert ours.objective_final_ == pytest.approx(earlier.objective_final_, rel=1e-9, abs=1e-12)
+
+
+def test_memory_is_linear_in_the_point_count():
+    """20,000 reference points: the step's largest array is the (2N, 16) Jacobian, not a (2N, 2N) matrix."""
+    import tracemalloc
+
+    g = np.column_stack([np.tile(np.linspace(-6, 6, 100), 200), np.repeat(np.linspace(6, 50, 200), 100)])
+    tracemalloc.start()
+    c = fit(g)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert c.iterations_ >= 1 and peak < 200e6  # (2N, 2N) float64 would be 12.8 GB
+
+
 def test_safeguard_halves_then_gives_up():
     x, step = np.zeros(2), np.array([8.0, 0.0])
     accept_below_3 = lambda c: None if c[0] > 3 else 1.0  # full step and half refused, quarter accepted

@@ -2,8 +2,13 @@
 requests, save, load), and the command line's errors."""
 from __future__ import annotations
 
+import http.client
 import json
+import os
 import re
+import socket
+import subprocess
+import sys
 import threading
 import urllib.error
 import urllib.request
@@ -17,7 +22,7 @@ import pytest
 from homocal.cli import main
 from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer
 from homocal.ui import api, overlay
-from homocal.ui.server import UIServer
+from homocal.ui.server import MAX_BODY, MAX_CONCURRENT, MAX_DEPTH, TOKEN_HEADER, UIServer
 from homocal.ui.session import from_files, read_frame
 from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius
 
@@ -54,9 +59,12 @@ def server(session):
     srv.server_close()
 
 
-def post(url: str, body, content_type: str = "application/json", host: str | None = None) -> tuple[int, dict]:
+def post(server: UIServer, path: str, body, content_type: str = "application/json", host: str | None = None,
+         token: str | None = None) -> tuple[int, dict]:
+    """POST body (JSON of an object, or bytes as they are) to the server's path with its token (or ``token``)."""
     data = body if isinstance(body, bytes) else json.dumps(body).encode()
-    request = urllib.request.Request(url, data=data, headers={"Content-Type": content_type})
+    headers = {"Content-Type": content_type, TOKEN_HEADER: server.token if token is None else token}
+    request = urllib.request.Request(server.address + path, data=data, headers=headers)
     if host:
         request.add_header("Host", host)
     try:
@@ -64,6 +72,17 @@ def post(url: str, body, content_type: str = "application/json", host: str | Non
             return response.status, json.loads(response.read())
     except urllib.error.HTTPError as e:
         return e.code, json.loads(e.read())
+
+
+def raw(server: UIServer, head: str, body: bytes = b"") -> tuple[int, dict]:
+    """Send a hand-made request (``head``: its request line and headers, without the Host and token headers) and
+    read the JSON answer."""
+    port = server.server_address[1]
+    with socket.create_connection(("127.0.0.1", port), timeout=30) as conn:
+        conn.sendall(f"{head}\r\nHost: 127.0.0.1:{port}\r\n{TOKEN_HEADER}: {server.token}\r\n\r\n".encode() + body)
+        response = http.client.HTTPResponse(conn)
+        response.begin()
+        return response.status, json.loads(response.read())
 
 
 def request(**fields) -> dict:
@@ -139,7 +158,7 @@ UPSIDE_DOWN = 2 * MAP.mean(axis=0) - MAP  # turned 180 degrees: still clockwise
     (IMAGE[:2], MIRRORED, "map corners: mirrored"),  # refused before the image side is complete
 ])  # fmt: skip
 def test_corner_order_is_refused(server, image, map_px, message):
-    status, answer = post(server.url + "api/view", request(trapezoid={"image": image.tolist(), "map": map_px.tolist()}))
+    status, answer = post(server, "api/view", request(trapezoid={"image": image.tolist(), "map": map_px.tolist()}))
     assert status == 400 and answer["error"].startswith(message)
 
 
@@ -155,7 +174,7 @@ def test_corner_order_is_refused(server, image, map_px, message):
      "trapezoid image: expected a list of at most 4 points"),
     ("api/view", b'{"trapezoid": {"image": [[NaN, 1]], "map": []}, "camera_origin": [0, 0]}', "application/json",
      None, 400, "trapezoid image[0]: expected 2 finite numbers"),
-    ("api/view", request(click_sigma_px=-1), "application/json", None, 400, "click_sigma_px: expected a number >= 0"),
+    ("api/view", request(click_sigma_px=-1), "application/json", None, 400, "click_sigma_px: expected a number in [0, 100], got -1"),
     ("api/view", request(camera_origin=[0]), "application/json", None, 400, "camera_origin[0]: expected 2 finite"),
     ("api/fit", request(points=POINTS[:2]), "application/json", None, 400, "need at least 3 calibration points"),
     ("api/fit", request(method="magic"), "application/json", None, 400, "method: expected one of regression,"),
@@ -168,21 +187,97 @@ def test_corner_order_is_refused(server, image, map_px, message):
     ("api/load", {}, "application/json", None, 400, "trapezoid.json: no such file"),
 ])  # fmt: skip
 def test_bad_requests_get_4xx_and_a_message(server, path, body, kind, host, status, message):
-    got_status, answer = post(server.url + path, body, kind, host)
+    got_status, answer = post(server, path, body, kind, host)
     assert got_status == status and message in answer["error"]
+
+
+NESTED = ("[" * 100_000 + "]" * 100_000).encode()
+
+
+@pytest.mark.parametrize("head, body, status, message", [
+    ("POST /api/view HTTP/1.1\r\nContent-Type: application/json\r\nContent-Length: abc", b"{}", 400,
+     "Content-Length: expected a number of bytes, got 'abc'"),
+    ("POST /api/view HTTP/1.1\r\nContent-Type: application/json\r\nContent-Length: -5", b"{}", 400,
+     "Content-Length: expected a number of bytes, got '-5'"),
+    ("POST /api/view HTTP/1.1\r\nContent-Type: application/json\r\nContent-Length: 99999999999999999999", b"", 400,
+     "Content-Length: expected a number of bytes"),
+    (f"POST /api/view HTTP/1.1\r\nContent-Type: application/json\r\nContent-Length: {MAX_BODY + 1}", b"", 413,
+     f"Content-Length: expected a JSON body of 1 byte to {MAX_BODY} bytes"),
+    ("POST /api/view HTTP/1.1\r\nContent-Type: application/json", b"", 400, "Content-Length: expected a number"),
+])  # fmt: skip
+def test_malformed_http_gets_4xx_json(server, head, body, status, message):
+    got, answer = raw(server, head, body)
+    assert got == status and message in answer["error"]
+    assert post(server, "api/view", request())[0] == 200  # and it keeps serving
+
+
+@pytest.mark.parametrize("body, status, message", [
+    (NESTED, 400, f"body: JSON nested deeper than {MAX_DEPTH} levels"),
+    (b'{"a": ' + b'{"b": ' * 30 + b"1" + b"}" * 31, 400, "nested deeper"),
+    (b'{"seed": ' + b"9" * 5000 + b"}", 400, "body: an integer of 5000 digits (at most 20)"),
+    (b'{"s": "[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[", "trapezoid": 1}', 400, "trapezoid: expected"),  # brackets in a string
+    (json.dumps(request(seed=1e30, method="descent")).encode(), 400, "seed: expected a number in [0, 1.84467e+19]"),
+    (json.dumps(request(seed=2**64, method="descent")).encode(), 400, "seed: expected a number in [0"),
+    (json.dumps(request(seed=-1, method="descent")).encode(), 400, "seed: expected a number in [0"),
+    (json.dumps(request(method=["regression"])).encode(), 400, "method: expected one of regression,"),
+    (json.dumps(request(method={"a": 1})).encode(), 400, "method: expected one of"),
+    (json.dumps(request(method=None)).encode(), 400, "method: expected one of"),
+    (json.dumps(request(click_sigma_px=1e308)).encode(), 400, "click_sigma_px: expected a number in [0, 100]"),
+    (json.dumps(request(point_sigma_px=True)).encode(), 400, "point_sigma_px: expected a finite number, got True"),
+    (json.dumps(request(tolerance_m=1e300)).encode(), 400, "tolerance_m: expected a number in [0, 1e+06]"),
+    (json.dumps(request(threshold=1e9, method="hybrid")).encode(), 400, "threshold: expected a number in [0, 100]"),
+    (b'{"trapezoid": {"image": [[1e999, 1]], "map": []}, "camera_origin": [0, 0]}', 400, "trapezoid image[0]: expected 2"),
+    (json.dumps(request(camera_origin=[1e300, 0])).encode(), 400, "camera_origin[0]: expected 2 finite numbers within"),
+    (json.dumps(request(points=[[1.0, 2.0, 3.0, 4.0]] * 100_001)).encode(), 400, "points: expected a list of at most 100,000"),
+    (json.dumps(request(point=[640.0, 600.0], correction=[1])).encode(), 400, "correction: expected the object"),
+    (json.dumps(request(point=[640.0, 600.0], correction={"format": "homocal.correction", "format_version": 1,
+                                                         "method": [1]})).encode(), 400, "correction: unknown method"),
+    (b'"just a string"', 400, "body: expected a JSON object"),
+    (b'{"trapezoid": "\xff"}', 400, "body: not valid JSON"),
+])  # fmt: skip
+def test_malformed_json_gets_4xx_naming_the_field(server, capsys, body, status, message):
+    path = "api/locate" if b'"point"' in body else "api/fit" if b'"method"' in body else "api/view"
+    got, answer = post(server, path, body)
+    assert got == status and message in answer["error"], answer
+    assert "Traceback" not in capsys.readouterr().err
+    assert post(server, "api/view", request())[0] == 200
+
+
+@pytest.mark.parametrize("token", ["", "wrong", None])
+def test_a_post_without_the_token_is_refused(server, session, token):
+    headers = {"Content-Type": "application/json"} | ({} if token is None else {TOKEN_HEADER: token})
+    req = urllib.request.Request(server.address + "api/save", data=json.dumps(request()).encode(), headers=headers)
+    with pytest.raises(urllib.error.HTTPError) as e:
+        urllib.request.urlopen(req, timeout=30)
+    assert e.value.code == 403 and TOKEN_HEADER in json.loads(e.value.read())["error"]
+    assert list(session.out_dir.iterdir()) == []  # nothing saved
+    assert server.url == f"{server.address}?token={server.token}" and len(server.token) >= 32
+
+
+def test_requests_over_the_concurrency_bound_get_503(server):
+    server.queue_seconds = 0.2
+    for _ in range(MAX_CONCURRENT):  # as if MAX_CONCURRENT requests were being answered
+        server.slots.acquire()
+    try:
+        status, answer = post(server, "api/view", request())
+        assert status == 503 and "busy" in answer["error"]
+    finally:
+        for _ in range(MAX_CONCURRENT):
+            server.slots.release()
+    assert post(server, "api/view", request())[0] == 200
 
 
 def test_pages_are_served(server):
     for path, kind in (("", "text/html"), ("app.js", "text/javascript"), ("frame.png", "image/png"),
                        ("map.png", "image/png"), ("api/session", "application/json")):
-        with urllib.request.urlopen(server.url + path, timeout=10) as response:
+        with urllib.request.urlopen(server.address + path, timeout=10) as response:
             assert response.headers["Content-Type"].startswith(kind)
-    info = json.loads(urllib.request.urlopen(server.url + "api/session", timeout=10).read())
+    info = json.loads(urllib.request.urlopen(server.address + "api/session", timeout=10).read())
     assert info["frame"] == {"width": W, "height": H} and info["map"]["scale_px_per_m"] == 10.0
     assert "regression-signed" in info["methods"] and info["dataset"] is None
     assert info["default_method"] == "least-change" and info["default_method"] in info["methods"]  # fit's default
     with pytest.raises(urllib.error.HTTPError, match="404"):
-        urllib.request.urlopen(server.url + "nothing.html", timeout=10)
+        urllib.request.urlopen(server.address + "nothing.html", timeout=10)
 
 
 def test_locate_maps_a_point_and_corrects_it(session):
@@ -198,19 +293,19 @@ def test_locate_maps_a_point_and_corrects_it(session):
 # ---- save and load ---------------------------------------------------------------------------------------
 @pytest.mark.parametrize("method", ["regression-signed", "regression-intercept", "horizon", "hybrid"])  # hybrid: descent too
 def test_saved_files_give_homocal_fits_correction(server, session, tmp_path, capsys, method):
-    status, answer = post(server.url + "api/save", request(method=method, seed=3, threshold=80.0))
+    status, answer = post(server, "api/save", request(method=method, seed=3, threshold=80.0))
     assert status == 200, answer
     out = session.out_dir
     cli = tmp_path / "cli.json"
     assert main(["fit", "--trapezoid", str(out / "trapezoid.json"), "--points", str(out / "reference_points.csv"),
                  "--method", method, "-o", str(cli), "--seed", "3", "--threshold", "80"]) == 0
     assert json.loads(cli.read_text()) == json.loads((out / "correction.json").read_text())
-    _, fitted = post(server.url + "api/fit", request(method=method, seed=3, threshold=80.0))
+    _, fitted = post(server, "api/fit", request(method=method, seed=3, threshold=80.0))
     assert fitted["correction"] == json.loads(cli.read_text())
     printed = capsys.readouterr().out  # fit's summary and trustworthy range at its default sigmas, as the page's
     assert re.search(r"mean calibration error .*? %\)", printed).group(0) in fitted["summary"]
     assert re.search(r"stays under 0\.5 m out to [\d.]+ m", printed).group(0) in fitted["summary"]
-    status, loaded = post(server.url + "api/load", {})
+    status, loaded = post(server, "api/load", {})
     assert status == 200
     assert loaded["trapezoid"] == TRAP and loaded["points"] == POINTS
     assert loaded["fit"]["method"] == method and loaded["fit"]["camera_origin"] == [0.0, 0.0]
@@ -219,13 +314,36 @@ def test_saved_files_give_homocal_fits_correction(server, session, tmp_path, cap
 def test_save_asks_before_replacing_a_file_it_did_not_write(server, session):
     foreign = session.out_dir / "reference_points.csv"
     foreign.write_text("u,v,x,y\n1,2,3,4\n")
-    status, answer = post(server.url + "api/save", request())
+    status, answer = post(server, "api/save", request())
     assert status == 409 and "reference_points.csv already in" in answer["error"]
     assert foreign.read_text() == "u,v,x,y\n1,2,3,4\n" and sorted(p.name for p in session.out_dir.iterdir()) == [
         "reference_points.csv"]  # nothing written
-    assert post(server.url + "api/save", request(overwrite=True))[0] == 200
+    assert post(server, "api/save", request(overwrite=True))[0] == 200
     assert foreign.read_text().startswith("u,v,x,y\n") and len(foreign.read_text().splitlines()) == 4
-    assert post(server.url + "api/save", request())[0] == 200  # its own files: replaced without asking
+    assert post(server, "api/save", request())[0] == 200  # its own files: replaced without asking
+
+
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_save_never_replaces_a_symlink(server, session, tmp_path, overwrite):
+    assert post(server, "api/save", request())[0] == 200
+    victim = tmp_path / "victim.txt"
+    victim.write_text("the user's")
+    link = session.out_dir / "correction.json"
+    link.unlink()
+    link.symlink_to(victim)
+    status, answer = post(server, "api/save", request(overwrite=overwrite))
+    assert status == 409 and "correction.json in" in answer["error"] and "symbolic link" in answer["error"]
+    assert "exists" not in answer  # the page does not offer to replace it
+    assert link.is_symlink() and victim.read_text() == "the user's"
+
+
+def test_save_asks_before_replacing_a_file_swapped_in_since(server, session):
+    assert post(server, "api/save", request())[0] == 200
+    swapped = session.out_dir / "trapezoid.json"
+    swapped.unlink()
+    swapped.write_text("{}")  # the user's file now, though the name is one the server wrote
+    status, answer = post(server, "api/save", request())
+    assert status == 409 and answer["exists"] is True and swapped.read_text() == "{}"
 
 
 def test_load_converts_a_trapezoid_in_metres_to_map_pixels(session):
@@ -255,8 +373,9 @@ def test_a_video_frame_is_read(tmp_path):
     (["--frame", "f.png", "--site-map", "m.png", "--scale", "nan"], "argument --scale: must be a finite number > 0, got nan"),
     (["--frame", "f.png", "--site-map", "m.png", "--scale", "10", "--port", "70000"], "argument --port: must be an integer in [0, 65535]"),
     (["--frame", "f.png", "--site-map", "m.png", "--scale", "10", "--frame-index", "-1"], "argument --frame-index: must be an integer >= 0"),
-    (["--frame", "f.png", "--site-map", "m.png", "--scale", "10", "--out", "nowhere"],
-     "nowhere: the output folder does not exist"),
+    (["--frame", "f.png", "--site-map", "m.png", "--scale", "10", "--out", "no/where"],
+     "no/where: its parent folder"),
+    (["--frame", "f.png", "--site-map", "m.png", "--scale", "10", "--out", "f.txt"], "f.txt: exists and is not a folder"),
     (["--frame", "f.png", "--site-map", "f.txt", "--scale", "10"], "f.txt: not a readable image"),
     (["NODATA"], "NODATA: not a dataset folder"),
 ])  # fmt: skip
@@ -273,6 +392,32 @@ def test_bad_command_lines(tmp_path, monkeypatch, capsys, args, message):
     assert code == 2
     err = capsys.readouterr().err
     assert err.startswith("homocal: error: ") and message in err and err.count("\n") == 1
+
+
+def test_the_printed_url_carries_the_token_and_out_is_made(tmp_path):
+    """`homocal ui --out NEW` makes the one missing folder; its printed URL's token opens the API."""
+    cv2.imwrite(str(tmp_path / "f.png"), np.zeros((8, 8, 3), np.uint8))
+    out = tmp_path / "calib"
+    proc = subprocess.Popen([sys.executable, "-m", "homocal.cli", "ui", "--frame", str(tmp_path / "f.png"),
+                             "--site-map", str(tmp_path / "f.png"), "--scale", "10", "--out", f"{out}/"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=os.environ)
+    try:
+        line = proc.stdout.readline()
+        match = re.search(r"(http://127\.0\.0\.1:\d+/)\?token=([\w-]+)", line)
+        assert match, line + (proc.stderr.read() if proc.poll() is not None else "")
+        assert out.is_dir() and list(out.iterdir()) == []
+        body = json.dumps({"trapezoid": {"image": [], "map": []}, "camera_origin": [0, 0]}).encode()
+        for token, status in (("", 403), (match.group(2), 200)):
+            req = urllib.request.Request(match.group(1) + "api/view", data=body,
+                                         headers={"Content-Type": "application/json", TOKEN_HEADER: token})
+            try:
+                got = urllib.request.urlopen(req, timeout=30).status
+            except urllib.error.HTTPError as e:
+                got = e.code
+            assert got == status
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
 
 
 # ---- error bars ------------------------------------------------------------------------------------------

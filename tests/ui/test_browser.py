@@ -46,14 +46,14 @@ def browser(tmp_path_factory):
 
 @pytest.fixture
 def server(tiny_dataset, tmp_path):
-    """`homocal ui DATASET` as a user starts it; yields its URL and its --out folder."""
+    """`homocal ui DATASET` as a user starts it; yields the URL it prints (with its token) and its --out folder."""
     out = tmp_path / "out"
     out.mkdir()
     proc = subprocess.Popen([sys.executable, "-m", "homocal.cli", "ui", str(tiny_dataset), "--out", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
     try:
         line = proc.stdout.readline()
-        match = re.search(r"http://127\.0\.0\.1:\d+/", line)
+        match = re.search(r"http://127\.0\.0\.1:\d+/\?token=[\w-]+", line)  # the page's POSTs need the token
         assert match, f"no URL in {line!r}: {proc.stderr.read() if proc.poll() is not None else ''}"
         yield match.group(0), out
     finally:
@@ -165,7 +165,7 @@ def test_click_fit_save_load_in_a_browser(browser, server, tiny_dataset, tmp_pat
     tolerance.clear()
     tolerance.send_keys("-1\t")
     idle(d)
-    assert "tolerance_m: expected a number >= 0" in d.find_element(By.ID, "message").text
+    assert "tolerance_m: expected a number in [0, 1e+06], got -1" in d.find_element(By.ID, "message").text
     tolerance.clear()
     tolerance.send_keys("0.5\t")
     idle(d)

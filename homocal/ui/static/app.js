@@ -24,18 +24,22 @@ const views = { frame: { zoom: 1, panX: 0, panY: 0 }, map: { zoom: 1, panX: 0, p
 
 // ---- server -----------------------------------------------------------------------------------------
 let inFlight = 0;  // requests to the server not yet answered
+// The per-launch token of the URL the server printed (?token=...): every POST sends it.
+const TOKEN = new URLSearchParams(window.location.search).get("token") || "";
 async function api(name, body) {
   inFlight++;
   let response, data;
   try {
     response = await fetch("/api/" + name, {
-      method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body),
+      method: "POST", headers: { "Content-Type": "application/json", "X-Homocal-Token": TOKEN },
+      body: JSON.stringify(body),
     });
     data = await response.json();
   } finally { inFlight--; }
   if (!response.ok) {
     const error = new Error(data.error || response.statusText);
     error.status = response.status;
+    error.exists = data.exists === true;
     throw error;
   }
   return data;
@@ -83,7 +87,8 @@ let dragBusy = false, dragAgain = false;
 function dragView() {  // at most one light request in flight while a corner is dragged
   if (dragBusy) { dragAgain = true; return; }
   dragBusy = true;
-  refreshView(true).finally(() => { dragBusy = false; if (dragAgain) { dragAgain = false; dragView(); } });
+  // Once the corner is let go, the full refresh of onUp shows the final trapezoid: no light request after it.
+  refreshView(true).finally(() => { dragBusy = false; if (dragAgain) { dragAgain = false; if (drag) dragView(); } });
 }
 
 function invalidateFit() {
@@ -450,7 +455,7 @@ async function doSave() {
     let answer;
     try { answer = await api("save", request); }
     catch (e) {
-      if (e.status !== 409 || !window.confirm(e.message + ". Replace?")) throw e;
+      if (!e.exists || !window.confirm(e.message + ". Replace?")) throw e;
       answer = await api("save", { ...request, overwrite: true });
     }
     $("files-summary").textContent = "wrote " + answer.written.join(", ") + "\nsame as: " + answer.command;
