@@ -154,7 +154,10 @@ BAD_FLAGS = [
     (["--fps", "100000"], "argument --fps: must be an integer in [1, 1000], got 100000"),
     (["--workers", "0"], "argument --workers: must be an integer >= 1"),
     (["--quality", "ultra"], "argument --quality: invalid choice"),
-    (["--detectors", "yolo"], "detection.detectors"),
+    (["--detectors", "yolo"], "argument --detectors: expected distinct comma-separated names from segmentation,rgb,hog, got 'yolo'"),
+    (["--detectors", ""], "argument --detectors: expected distinct comma-separated names from segmentation,rgb,hog, got ''"),
+    (["--detectors", "rgb,"], "argument --detectors"),
+    (["--detectors", "rgb,rgb"], "argument --detectors"),
     (["--scheduler", "tcp://127.0.0.1:1"], "--scheduler tcp://127.0.0.1:1: cannot connect"),
 ]  # fmt: skip
 
