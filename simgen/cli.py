@@ -21,7 +21,7 @@ from homocal.arguments import SEED, number as _number
 from homocal.files import OutputFolderError, os_message, output_folder
 from homocal.progress import add_progress_option, show_progress
 from homocal.names import check_name
-from simgen.scene import DETECTORS, MAX_FPS, MAX_SECONDS, QUALITIES
+from simgen.scene import DETECTORS, MAX_FPS, MAX_SECONDS, QUALITIES, detectors_problem
 
 FILE_COMMANDS = ("import-mot", "export-mot")  # their errors name the command (generate's and preview's name the file or field)
 
@@ -104,10 +104,10 @@ def _add_out(parser: argparse.ArgumentParser, help: str, required: bool = True) 
 
 
 def _detectors(text: str) -> list[str]:
-    names = text.split(",")
-    if not text or any(name not in DETECTORS for name in names) or len(set(names)) != len(names):
-        raise argparse.ArgumentTypeError(f"expected distinct comma-separated names from {','.join(DETECTORS)}, got {text!r}")
-    return names
+    problem = detectors_problem(text.split(","))
+    if problem:
+        raise argparse.ArgumentTypeError(problem)
+    return text.split(",")
 
 
 def _detector_name(text: str) -> str:

@@ -267,14 +267,20 @@ def _check_run(s: Scene) -> None:
             raise ConfigError(f"scene.toml: {key}: {v} s is not a whole number of frames at {s.fps} fps")
     if s.quality not in QUALITIES:
         raise ConfigError(f"scene.toml: render.quality: expected one of {', '.join(QUALITIES)}, got {s.quality!r}")
-    unknown = [d for d in s.detectors if d not in DETECTORS]
-    if unknown or not s.detectors or len(set(s.detectors)) != len(s.detectors):
-        raise ConfigError(f"scene.toml: detection.detectors: expected distinct names from {DETECTORS}, got {list(s.detectors)}")
+    if detectors_problem(s.detectors):
+        raise ConfigError(f"scene.toml: detection.detectors: {detectors_problem(s.detectors)}")
     if "hog" in s.detectors:
         from simgen.detection.hog import hog_missing  # noqa: PLC0415  (cv2 only when hog is asked for)
 
         if hog_missing():
             raise ConfigError(f"scene.toml: detection.detectors: hog: {hog_missing()}")
+
+
+def detectors_problem(names: list[str] | tuple[str, ...]) -> str | None:
+    """What is wrong with a list of detector names (None if they are one or more distinct names of DETECTORS)."""
+    if not names or any(name not in DETECTORS for name in names) or len(set(names)) != len(names):
+        return f"expected distinct names from {', '.join(DETECTORS)}, got {list(names)}"
+    return None
 
 
 def in_frame(camera: PinholeCamera, uv: np.ndarray) -> np.ndarray:

@@ -129,7 +129,7 @@ def test_shipped_trapezoids_are_the_derivation(tmp_path, name):
     assert (folder / "scene.toml").read_bytes() == (SCENES / name / "scene.toml").read_bytes()
 
 
-@pytest.mark.parametrize("option, message", [(["--seconds", "0.123"], "run.seconds"), (["--detectors", "yolo"], "detection.detectors")])
+@pytest.mark.parametrize("option, message", [(["--seconds", "0.123"], "run.seconds"), (["--detectors", "yolo"], "argument --detectors")])
 def test_bad_run_option_is_refused(tmp_path, capsys, option, message):
     out = tmp_path / "out"
     code = main(["generate", str(SCENES / "scene1"), "--out", str(out), "--seed", "0", *option])
