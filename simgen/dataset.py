@@ -400,6 +400,8 @@ def generate(scene: Scene, seed: int, out: str | Path, resume: bool = False, pro
     The bytes are the same either way. Raises DatasetError or OutputFolderError (one line) when ``out``
     cannot be used; nothing of a folder that is not a simgen dataset is touched.
     """
+    source_digest()  # the code this run starts with, which its workers must have (a process kept open across a
+    # change of the sources should be restarted: the digest is taken at its first run, not when it imported simgen)
     with _dask_client(scheduler) if scheduler else nullcontext() as client, output_folder(out, FORMAT, resume) as folder:
         m = _check_resumable(scene, seed, folder)
         if m is not None and m.get("complete"):
