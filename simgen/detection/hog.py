@@ -3,8 +3,9 @@
 ``FunctionDetector(name, boxes)`` turns a function ``boxes(rgb) -> (xyxy (N, 4), score (N,))`` (boxes
 in this package's pixel convention, scores in [0, 1]) into a Detector: each box is then associated
 with an agent by IoU with the agents' visible-mask boxes, greedy one-to-one, IoU >= min_iou, else
-agent_id -1, exactly as the rgb detector's blobs (both first put their boxes in ``canonical_order``). Bring your own model this way (a YOLO, say) and
-run it in the generation loop, or offline on a finished dataset's video with ``simgen import-mot``.
+agent_id -1, exactly as the rgb detector's blobs (both first put their boxes in ``canonical_order``).
+Bring your own model this way (a YOLO, say) and run it in the generation loop, or offline on a
+finished dataset's video with ``simgen import-mot``.
 
 ``HogDetector`` ("hog") is OpenCV's HOG + linear SVM people detector (Dalal & Triggs 2005; the
 weights ship inside OpenCV, ``HOGDescriptor_getDefaultPeopleDetector``): a 64x128 window slid over
@@ -51,8 +52,9 @@ def hog_missing() -> str | None:
     """None if this OpenCV has the HOG people detector, else one line saying what to install."""
     if hasattr(cv2, "HOGDescriptor"):
         return None
-    return (f"OpenCV {cv2.__version__} at {cv2.__file__} has no HOGDescriptor (OpenCV 5 keeps it in the contrib build, "
-            "the hog extra): pip install --force-reinstall --no-deps opencv-contrib-python-headless (as scripts/install.sh does)")
+    return (f"OpenCV {cv2.__version__} at {cv2.__file__} has no HOGDescriptor (OpenCV 5 keeps it in the contrib "
+            "build, the hog extra): pip install --force-reinstall --no-deps opencv-contrib-python-headless "
+            "(as scripts/install.sh does)")
 
 
 def _hog() -> "cv2.HOGDescriptor":

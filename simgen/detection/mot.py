@@ -52,9 +52,9 @@ def read_mot(path: str | os.PathLike, frames_total: int | None = None, size: tup
     """Parse a MOTChallenge text file -> frame (N,) int64 1-based, xyxy (N, 4) our pixels, conf (N,) float64.
 
     Blank lines are skipped. ``frames_total`` and ``size`` (width, height), when given, bound the frames
-    and boxes (module docstring). The file is read in lines of at most MAX_LINE_CHARS and MAX_MOT_BYTES in all (a
-    stream such as /dev/zero too): beyond either, ValueError. Raises ValueError naming the file and 1-based line number of the first
-    bad line (or the file, when it is not UTF-8 text or holds no detection).
+    and boxes (module docstring). The file is read in lines of at most MAX_LINE_CHARS and MAX_MOT_BYTES in
+    all (a stream such as /dev/zero too). Raises ValueError naming the file and 1-based line number of the
+    first bad line (or the file, when it is not UTF-8 text, holds no detection or is beyond a bound).
     """
     if os.path.isfile(path) and os.path.getsize(path) > MAX_MOT_BYTES:
         raise _too_large(path)
@@ -185,7 +185,8 @@ def import_into_dataset(dataset_dir: str | os.PathLike, mot_txt_path: str | os.P
     """`simgen import-mot`: import_mot, append_detections, then list `name` last in manifest.json's detectors.
 
     Refuses an incomplete dataset, a name that fails ``homocal.names.check_name`` (export-mot makes it a file
-    name) and the built-in detector names (importing under them would replace the run's own rows). Returns the number of detections imported. ValueError names the problem.
+    name) and the built-in detector names (importing under them would replace the run's own rows). Returns
+    the number of detections imported. ValueError names the problem.
     """
     dataset_dir = Path(dataset_dir)
     manifest_path = dataset_dir / "manifest.json"
