@@ -4,8 +4,8 @@ MuJoCo picks its offscreen backend from ``MUJOCO_GL`` when it is imported: impor
 simgen's default, egl, unless the environment already chose one (osmesa is supported), then imports
 mujoco. Importing mujoco with osmesa but without libosmesa6 fails inside ctypes, and making a renderer
 fails without EGL's libraries; both become ``BackendError`` with a one-line message that names the
-Debian packages to install. Every simgen module takes mujoco from here (``from simgen.backend import mujoco``), so the friendly error does not depend on which
-module is imported first.
+Debian packages to install. Every simgen module takes mujoco from here (``from simgen.backend import
+mujoco``), so the friendly error does not depend on which module is imported first.
 """
 from __future__ import annotations
 
