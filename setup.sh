@@ -10,9 +10,9 @@ for scene in scene1 scene2; do
   if [ -f "out/$scene/manifest.json" ] && grep -q '"complete": true' "out/$scene/manifest.json"; then
     echo "out/$scene is complete; keeping it"
   elif [ -d "out/$scene" ]; then
-    simgen generate "scenes/$scene" --out "out/$scene" --seconds "$SECONDS_PER_SCENE" --seed 0 --resume
+    simgen generate "$scene" --out "out/$scene" --seconds "$SECONDS_PER_SCENE" --seed 0 --resume
   else
-    simgen generate "scenes/$scene" --out "out/$scene" --seconds "$SECONDS_PER_SCENE" --seed 0
+    simgen generate "$scene" --out "out/$scene" --seconds "$SECONDS_PER_SCENE" --seed 0
   fi
 done
 # a quick study (50 variants) twice: with the paper preset's open choices (its base error and site-map scale) and

@@ -1,12 +1,8 @@
 """simgen: MuJoCo synthetic traffic scenes and dataset generator.
 
-Importing simgen makes EGL the default OpenGL backend (``MUJOCO_GL=egl``) unless the environment
-already chose one (``osmesa``, ``glfw``); it must happen before mujoco is imported (simgen.backend
-imports it).
+Importing simgen changes nothing outside it: the OpenGL backend's default (``MUJOCO_GL=egl``) is set by
+simgen.backend when it imports mujoco, the one module that does.
 """
-import os
 from importlib.metadata import version
-
-os.environ.setdefault("MUJOCO_GL", "egl")
 
 __version__ = version("homocal")  # simgen ships in the homocal distribution (pyproject.toml)

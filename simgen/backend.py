@@ -1,18 +1,17 @@
 """The one import of mujoco in simgen, guarded: the OpenGL backend, and one line naming what to install.
 
-MuJoCo picks its offscreen backend from ``MUJOCO_GL`` when it is imported (simgen's default, egl, is
-set by ``import simgen``; osmesa is supported). Importing mujoco with osmesa but without libosmesa6
-fails inside ctypes, and making a renderer fails without EGL's libraries; both become ``BackendError``
-with a one-line message that names the Debian packages to install. Every simgen module takes mujoco
-from here (``from simgen.backend import mujoco``), so the friendly error does not depend on which
-module is imported first.
+MuJoCo picks its offscreen backend from ``MUJOCO_GL`` when it is imported: importing this module sets
+simgen's default, egl, unless the environment already chose one (osmesa is supported), then imports
+mujoco. Importing mujoco with osmesa but without libosmesa6 fails inside ctypes, and making a renderer
+fails without EGL's libraries; both become ``BackendError`` with a one-line message that names the
+Debian packages to install. Every simgen module takes mujoco from here (``from simgen.backend import
+mujoco``), so the friendly error does not depend on which module is imported first.
 """
 from __future__ import annotations
 
 import os
 
-import simgen  # noqa: F401  (sets the MUJOCO_GL default before mujoco is imported)
-
+DEFAULT = "egl"
 PACKAGES = {"egl": "libegl1 libgl1-mesa-dri libopengl0", "osmesa": "libosmesa6"}
 
 
@@ -22,7 +21,7 @@ class BackendError(RuntimeError):
 
 def backend() -> str:
     """The OpenGL backend mujoco renders with (``MUJOCO_GL``; simgen's default egl)."""
-    return os.environ.get("MUJOCO_GL", "egl")
+    return os.environ.get("MUJOCO_GL", DEFAULT)
 
 
 def backend_message(err: BaseException) -> str:
@@ -36,6 +35,7 @@ def backend_message(err: BaseException) -> str:
     return f"cannot render offscreen with MUJOCO_GL={b} ({type(err).__name__}: {reason}); fix: {fix}"
 
 
+os.environ.setdefault("MUJOCO_GL", DEFAULT)  # what mujoco reads when imported, just below
 try:
     import mujoco
 except Exception as e:  # osmesa without libosmesa6 fails here with an AttributeError from ctypes

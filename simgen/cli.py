@@ -1,9 +1,9 @@
-"""The ``simgen`` command: generate a dataset, preview a scene, import an external detector's output, export
-a dataset for MOTChallenge tools.
+"""The ``simgen`` command: generate a dataset, preview a scene, list the shipped scenes, import an external
+detector's output, export a dataset for MOTChallenge tools.
 
 Each subcommand has a handler ``fn(args) -> str`` (``parser.set_defaults(handler=fn)``) that returns its
 one-line summary; ``main`` prints it as ``simgen COMMAND: ...``. Every subcommand that writes takes
-``-o/--out``.
+``-o/--out``. A scene is a folder or the name of a shipped scene (``simgen scenes``).
 
 Every command fails with one line on stderr (``simgen: error: ...``) naming the flag or file at fault, and
 exit code 2 (3 when no OpenGL backend works): bad numbers are refused where they are parsed, file-system
@@ -20,7 +20,8 @@ from pathlib import Path
 from homocal.arguments import SEED, number as _number
 from homocal.files import OutputFolderError, os_message, output_folder
 from homocal.progress import add_progress_option, show_progress
-from simgen.scene import DETECTORS, MAX_FPS, MAX_SECONDS, QUALITIES
+from homocal.names import check_name
+from simgen.scene import DETECTORS, MAX_FPS, MAX_SECONDS, QUALITIES, detectors_problem
 
 FILE_COMMANDS = ("import-mot", "export-mot")  # their errors name the command (generate's and preview's name the file or field)
 
@@ -34,7 +35,8 @@ class _Parser(argparse.ArgumentParser):
     """argparse with its errors on one line (no usage block)."""
 
     def error(self, message: str):
-        sys.exit(_fail(f"{self.prog.removeprefix('simgen ')}: {message}"))
+        command = self.prog.removeprefix("simgen").strip()
+        sys.exit(_fail(f"{command}: {message}" if command else f"{message} (see simgen --help)"))
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -44,12 +46,12 @@ def _parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     g = sub.add_parser("generate", help="render a scene into a dataset folder")
-    g.add_argument("scene_dir", type=Path, help="scene folder (scene.toml, the MJCF and its ground texture)")
+    _add_scene(g)
     _add_out(g, "dataset folder to write (new or empty; with --resume, a killed run's)")
     g.add_argument("--seconds", type=_number(float, 0, MAX_SECONDS, low_open=True), help="simulated duration (default: the scene's run.seconds)")
     g.add_argument("--seed", type=SEED, default=0, help="random seed, an integer >= 0 (default 0)")
     g.add_argument("--fps", type=_number(int, 1, MAX_FPS), help="video frame rate (default: the scene's run.fps)")
-    g.add_argument("--detectors", help=f"comma-separated, from: {','.join(DETECTORS)} (default: the scene's)")
+    g.add_argument("--detectors", type=_detectors, help=f"comma-separated, from: {','.join(DETECTORS)} (default: the scene's)")
     g.add_argument("--quality", choices=QUALITIES, help="render preset (default: the scene's render.quality, else default)")
     g.add_argument("--workers", type=_number(int, 1), default=1, help="render chunks in this many processes (default 1)")
     g.add_argument("--scheduler", metavar="ADDRESS",
@@ -60,17 +62,26 @@ def _parser() -> argparse.ArgumentParser:
     g.set_defaults(handler=handle_generate)
 
     v = sub.add_parser("preview", help="render one annotated frame (boxes, foot points, trapezoid, horizon)")
-    v.add_argument("scene_dir", type=Path, help="scene folder (scene.toml, the MJCF and its ground texture)")
+    _add_scene(v)
     _add_out(v, "PNG to write")
     v.add_argument("--t", type=_number(float, 0, MAX_SECONDS), default=0.0, help="simulated time, seconds (default 0)")
     v.add_argument("--seed", type=SEED, default=0, help="random seed of the walks, an integer >= 0 (default 0)")
     v.add_argument("--quality", choices=QUALITIES, help="render preset (default: the scene's)")
     v.set_defaults(handler=handle_preview)
 
-    m = sub.add_parser("import-mot", help="add an external detector's MOTChallenge file to a dataset")
-    m.add_argument("dataset_dir", type=Path, help="a complete simgen dataset folder (its detections.parquet gains the rows)")
-    m.add_argument("mot_txt", type=Path, help="MOTChallenge det.txt or gt.txt layout (data_schema.md)")
-    m.add_argument("--name", required=True, help="detector name for the detections.parquet rows (not segmentation, rgb or hog)")
+    s = sub.add_parser("scenes", help="list the shipped scenes (a name is a scene for generate and preview)")
+    s.set_defaults(handler=handle_scenes)
+
+    m = sub.add_parser("import-mot", help="add an external detector's MOTChallenge file to a dataset",
+                       usage="simgen import-mot [-h] MOT_TXT --name NAME -o DATASET [--min-iou MIN_IOU]\n"
+                             "       simgen import-mot [-h] DATASET MOT_TXT --name NAME [--min-iou MIN_IOU]")
+    m.add_argument("files", type=Path, nargs="+", metavar="[DATASET] MOT_TXT",
+                   help="the MOTChallenge det.txt or gt.txt to import (data_schema.md); the dataset folder before it "
+                        "when -o/--out is not given")
+    _add_out(m, "the complete simgen dataset folder whose detections.parquet gains the rows", required=False)
+    m.add_argument("--name", required=True, type=_detector_name,
+                   help="detector name for the detections.parquet rows and det/NAME.txt of export-mot: 1-64 letters, "
+                        "digits, '.', '_' or '-', not starting with '.' (not segmentation, rgb or hog)")
     m.add_argument("--min-iou", type=_number(float, 0, 1, low_open=True), default=0.5,
                    help="box IoU in (0, 1] needed to associate a box with an agent (default 0.5)")
     m.set_defaults(handler=handle_import_mot)
@@ -82,9 +93,28 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _add_out(parser: argparse.ArgumentParser, help: str) -> None:
+def _add_scene(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("scene", help="a scene folder (scene.toml, the MJCF and its ground texture) or the name of a "
+                                      "shipped scene (simgen scenes)")
+
+
+def _add_out(parser: argparse.ArgumentParser, help: str, required: bool = True) -> None:
     """-o/--out, the one output flag of every subcommand that writes (a folder or an image: never ``-``)."""
-    parser.add_argument("-o", "--out", type=_output_path, required=True, help=help)
+    parser.add_argument("-o", "--out", type=_output_path, required=required, help=help)
+
+
+def _detectors(text: str) -> list[str]:
+    problem = detectors_problem(text.split(","))
+    if problem:
+        raise argparse.ArgumentTypeError(problem)
+    return text.split(",")
+
+
+def _detector_name(text: str) -> str:
+    try:
+        return check_name(text, "detector name")
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def _output_path(text: str) -> Path:
@@ -95,10 +125,10 @@ def _output_path(text: str) -> Path:
 
 def handle_generate(args: argparse.Namespace) -> str:
     from simgen.dataset import generate
-    from simgen.scene import load_scene
+    from simgen.scene import load_scene, scene_folder
 
-    detectors = args.detectors.split(",") if args.detectors else None
-    scene = load_scene(args.scene_dir).with_run(seconds=args.seconds, fps=args.fps, detectors=detectors, quality=args.quality)
+    scene = load_scene(scene_folder(args.scene)).with_run(seconds=args.seconds, fps=args.fps, detectors=args.detectors,
+                                                         quality=args.quality)
     t0 = time.perf_counter()
     generate(scene, args.seed, args.out, resume=args.resume, progress=show_progress(args), workers=args.workers,
              scheduler=args.scheduler)
@@ -108,20 +138,33 @@ def handle_generate(args: argparse.Namespace) -> str:
 
 def handle_preview(args: argparse.Namespace) -> str:
     from simgen.preview import preview
-    from simgen.scene import load_scene
+    from simgen.scene import load_scene, scene_folder
 
-    scene = load_scene(args.scene_dir).with_run(quality=args.quality)
+    scene = load_scene(scene_folder(args.scene)).with_run(quality=args.quality)
     agents = preview(scene, args.seed, args.t, args.out)
     return f"{args.out}: {scene.name} at t = {args.t:g} s, seed {args.seed}, {agents} agents in view"
+
+
+def handle_scenes(args: argparse.Namespace) -> str:
+    from simgen.scene import SHIPPED, describe, load_scene, scene_folder, shipped_scenes
+
+    names = shipped_scenes()
+    for name in names:
+        print(f"{name}: {describe(load_scene(scene_folder(name)))}")
+    return f"{len(names)} shipped scenes in {SHIPPED.resolve()} (copy one to edit it)"
 
 
 def handle_import_mot(args: argparse.Namespace) -> str:
     from simgen.dataset import FORMAT
     from simgen.detection import import_into_dataset
 
-    with output_folder(args.dataset_dir, FORMAT, resume=True):  # the dataset's lock: one writer at a time
-        n = import_into_dataset(args.dataset_dir, args.mot_txt, args.name, args.min_iou)
-    return f"{n} detections of {args.name!r} added to {args.dataset_dir / 'detections.parquet'}"
+    if len(args.files) != (1 if args.out else 2):
+        raise ValueError("give the dataset folder once: -o/--out DATASET MOT_TXT, or DATASET MOT_TXT")
+    *dataset, mot_txt = args.files
+    out = args.out or dataset[0]
+    with output_folder(out, FORMAT, resume=True):  # the dataset's lock: one writer at a time
+        n = import_into_dataset(out, mot_txt, args.name, args.min_iou)
+    return f"{n} detections of {args.name!r} added to {out / 'detections.parquet'}"
 
 
 def handle_export_mot(args: argparse.Namespace) -> str:

@@ -14,6 +14,7 @@ Stage and rgb detector warmed up as on resume, so the parts are the bytes a seri
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import platform
@@ -71,23 +72,21 @@ def _versions() -> dict:
             "opencv": cv2.__version__, "simgen": simgen.__version__}
 
 
-# The simgen sources (and homocal.geometry, which simgen uses) as they were on disk when this module was
-# imported: a worker process imports them afresh, so if they changed in between (a checkout or merge under a
-# running process, or a Dask worker with another install) its chunks would silently differ from what this
-# process renders.
-# That happened: a test session imported simgen, main merged new pedestrian code mid-session, and the
-# workers' chunks (new code) differed from the session's serial reference (old code) in every frame.
-_SOURCE_DIGEST = hashlib.sha256(b"".join(
-    p.relative_to(Path(simgen.__file__).parents[1]).as_posix().encode() + b"\0" + p.read_bytes()
-    for p in [*sorted(Path(simgen.__file__).parent.rglob("*.py")), *sorted(Path(homocal.geometry.__file__).parent.glob("*.py"))]
-)).hexdigest()  # fmt: skip
+@functools.cache
+def source_digest() -> str:
+    """sha256 of the simgen sources and homocal.geometry (which simgen uses) as they are on disk at the first call
+    (a run's start): a worker process reads them afresh, so if they changed in between (a checkout or merge under a
+    running process, or a Dask worker with another install) its chunks would silently differ from this process's."""
+    root = Path(simgen.__file__).parents[1]
+    files = [*sorted(Path(simgen.__file__).parent.rglob("*.py")), *sorted(Path(homocal.geometry.__file__).parent.glob("*.py"))]
+    return hashlib.sha256(b"".join(p.relative_to(root).as_posix().encode() + b"\0" + p.read_bytes() for p in files)).hexdigest()
 
 
 def build_id() -> dict:
     """What a chunk's bytes depend on besides the scene and seed: library versions, the rendering backend
-    and the digest of the code this process imported. ``render_chunks`` in a worker checks it against the
+    and the digest of the code (``source_digest``). ``render_chunks`` in a worker checks it against the
     run's, so a worker with other code fails with one line instead of writing different bytes."""
-    return {**_versions(), "backend": backend(), "source": _SOURCE_DIGEST}
+    return {**_versions(), "backend": backend(), "source": source_digest()}
 
 
 # ---- the static files ----------------------------------------------------------------------
@@ -401,6 +400,8 @@ def generate(scene: Scene, seed: int, out: str | Path, resume: bool = False, pro
     The bytes are the same either way. Raises DatasetError or OutputFolderError (one line) when ``out``
     cannot be used; nothing of a folder that is not a simgen dataset is touched.
     """
+    source_digest()  # the code this run starts with, which its workers must have (a process kept open across a
+    # change of the sources should be restarted: the digest is taken at its first run, not when it imported simgen)
     with _dask_client(scheduler) if scheduler else nullcontext() as client, output_folder(out, FORMAT, resume) as folder:
         m = _check_resumable(scene, seed, folder)
         if m is not None and m.get("complete"):

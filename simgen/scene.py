@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from homocal.geometry import PinholeCamera, SiteMap
+from homocal.names import check_name
 
 GT_DT = 0.05  # ground-truth period, seconds (paper Section 5.1)
 GT_RATE = 20  # 1 / GT_DT, samples per second, for exact integer time arithmetic
@@ -25,6 +26,8 @@ QUALITIES = ("draft", "default", "high")  # render presets (simgen.render.QUALIT
 MAX_SECONDS = 86400.0  # longest run (and preview time): a day; the agents' walks are planned for the whole run
 MAX_FPS = 1000  # highest video frame rate
 HAND_PLACED_MAX_PX = 2.0  # a hand-placed vertex lies 1 to 2 px from the exact one (data_schema.md)
+SHIPPED = Path(__file__).parent / "scenes"
+"""The scenes that ship with simgen (package data; in a checkout a link to the top-level scenes/, their one source)."""
 
 
 class ConfigError(ValueError):
@@ -264,14 +267,20 @@ def _check_run(s: Scene) -> None:
             raise ConfigError(f"scene.toml: {key}: {v} s is not a whole number of frames at {s.fps} fps")
     if s.quality not in QUALITIES:
         raise ConfigError(f"scene.toml: render.quality: expected one of {', '.join(QUALITIES)}, got {s.quality!r}")
-    unknown = [d for d in s.detectors if d not in DETECTORS]
-    if unknown or not s.detectors or len(set(s.detectors)) != len(s.detectors):
-        raise ConfigError(f"scene.toml: detection.detectors: expected distinct names from {DETECTORS}, got {list(s.detectors)}")
+    if detectors_problem(s.detectors):
+        raise ConfigError(f"scene.toml: detection.detectors: {detectors_problem(s.detectors)}")
     if "hog" in s.detectors:
         from simgen.detection.hog import hog_missing  # noqa: PLC0415  (cv2 only when hog is asked for)
 
         if hog_missing():
             raise ConfigError(f"scene.toml: detection.detectors: hog: {hog_missing()}")
+
+
+def detectors_problem(names: list[str] | tuple[str, ...]) -> str | None:
+    """What is wrong with a list of detector names (None if they are one or more distinct names of DETECTORS)."""
+    if not names or any(name not in DETECTORS for name in names) or len(set(names)) != len(names):
+        return f"expected distinct names from {', '.join(DETECTORS)}, got {list(names)}"
+    return None
 
 
 def in_frame(camera: PinholeCamera, uv: np.ndarray) -> np.ndarray:
@@ -288,8 +297,48 @@ def _visible(camera: PinholeCamera, xy: np.ndarray) -> np.ndarray:
     return in_frame(camera, camera.project_ground(xy))
 
 
+def shipped_scenes() -> list[str]:
+    """The names of the shipped scenes (folders of SHIPPED with a scene.toml), sorted."""
+    return sorted(p.name for p in SHIPPED.iterdir() if (p / "scene.toml").is_file())
+
+
+def scene_folder(scene: str) -> Path:
+    """A scene as the command line gives it: a folder (kept as it is), else the name of a shipped scene.
+
+    ConfigError (one line listing the shipped scenes) when ``scene`` is neither.
+    """
+    if scene and _is_dir(scene):  # not "": Path("") is the current folder
+        return Path(scene)
+    shipped = shipped_scenes()
+    try:
+        if check_name(scene, "scene") in shipped:
+            return SHIPPED / scene
+    except ValueError:
+        pass  # not a name: the message below says what is accepted
+    raise ConfigError(f"scene {scene!r}: no such folder and no shipped scene of that name (shipped: {', '.join(shipped)})")
+
+
+def _is_dir(path: str) -> bool:
+    try:
+        return Path(path).is_dir()
+    except OSError:  # a name too long for the file system, say
+        return False
+
+
+def describe(scene: Scene) -> str:
+    """One line: the title in the first line of the scene's scene.toml (``# Scene 1: TITLE (...``) and its run."""
+    first = (scene.folder / "scene.toml").read_text(encoding="utf-8").splitlines()[0]
+    title = first.lstrip("# ").split(": ", 1)[-1].split(" (")[0].rstrip(",.")
+    return (f"{title}; {scene.camera.width}x{scene.camera.height}, {scene.seconds:g} s at {scene.fps} fps, "
+            f"{scene.agent_count} people, detectors {','.join(scene.detectors)}")
+
+
 def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
-    """Read and validate ``folder/scene.toml`` and the MJCF it names. Raises ConfigError."""
+    """Read and validate ``folder/scene.toml`` and the MJCF it names. Raises ConfigError.
+
+    The scene's name is the folder's name (it keys the random draws and names the scene in the dataset's
+    manifest.json): it must pass ``homocal.names.check_name``.
+    """
     folder = Path(folder)
     path = folder / "scene.toml"
     if not path.is_file():
@@ -353,7 +402,7 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
     calib_xy = np.column_stack([sign * lateral, calib])
 
     scene = Scene(
-        name=folder.resolve().name,
+        name=_scene_name(folder),
         folder=folder,
         model_path=model_path,
         camera=camera,
@@ -404,6 +453,13 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
                 raise ConfigError(f"scene.toml: {key}: a vertex lies outside the {w}x{h} image")
         _check_hand_placed(scene)
     return scene
+
+
+def _scene_name(folder: Path) -> str:
+    try:
+        return check_name(folder.resolve().name, "scene (the scene folder's name)")
+    except ValueError as e:
+        raise ConfigError(str(e)) from None
 
 
 def _check_hand_placed(scene: Scene) -> None:

@@ -7,7 +7,7 @@ Conventions (also in data_schema.md): image pixels with the centre of the top-le
 """
 from simgen.detection.association import associate, box_iou, greedy_assign, match_to_gt, nearest_sample
 from simgen.detection.background import BackgroundSubtractionDetector
-from simgen.detection.batch import DETECTIONS_SCHEMA, DetectionBatch, Detector, detections_table, foot_points
+from simgen.detection.batch import DETECTIONS_SCHEMA, DetectionBatch, Detector, canonical_order, detections_table, foot_points
 from simgen.detection.hog import BoxFunction, FunctionDetector, HogDetector
 from simgen.detection.masks import SegmentationDetector, id_boxes, mask_boxes
 from simgen.detection.mot import append_detections, import_into_dataset, import_mot, read_mot, write_mot_det, write_mot_gt
@@ -24,6 +24,7 @@ __all__ = [
     "append_detections",
     "associate",
     "box_iou",
+    "canonical_order",
     "detections_table",
     "foot_points",
     "greedy_assign",

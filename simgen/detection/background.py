@@ -5,7 +5,7 @@ detection), a 3x3 morphological closing, 8-connected components; components of a
 `min_area` full-resolution pixels become boxes, rescaled to full resolution. A pixel centre x_s
 of the small image is x = (x_s + 0.5) * W / w_s - 0.5 in the full one, so a component spanning
 small columns l..l+w-1 gets x1 = l * W / w_s - 0.5 and x2 = (l + w) * W / w_s - 0.5.
-Only then are the boxes associated with agents: IoU with the agents' mask boxes (from the
+Only then are the boxes, in ``canonical_order``, associated with agents: IoU with the agents' mask boxes (from the
 agent-id map), greedy one-to-one, IoU >= min_iou, else agent_id -1. Score: the fraction of the
 box the component fills.
 
@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from simgen.detection.association import associate
-from simgen.detection.batch import DetectionBatch
+from simgen.detection.batch import DetectionBatch, canonical_order
 from simgen.detection.masks import id_boxes
 
 _CLOSE_KERNEL = np.ones((3, 3), np.uint8)
@@ -105,6 +105,6 @@ class BackgroundSubtractionDetector:
         stats = stats[1:].astype(np.float64)  # row 0 is the background
         left, top, width, height, area = stats[stats[:, cv2.CC_STAT_AREA] * sx * sy >= self.min_area].T
         xyxy = np.column_stack([left * sx, top * sy, (left + width) * sx, (top + height) * sy]) - 0.5
+        xyxy, score = canonical_order(xyxy, area / (width * height))
         ids, mask_xyxy, _ = id_boxes(agent_ids)
-        agent_id = associate(xyxy, ids, mask_xyxy, self.min_iou)
-        return DetectionBatch(self.name, frame, t, xyxy, area / (width * height), agent_id)
+        return DetectionBatch(self.name, frame, t, xyxy, score, associate(xyxy, ids, mask_xyxy, self.min_iou))

@@ -38,6 +38,17 @@ def foot_points(xyxy: np.ndarray) -> np.ndarray:
     return box_bottom_points(np.asarray(xyxy, dtype=np.float64).reshape(-1, 4), convention="homocal")
 
 
+def canonical_order(xyxy: np.ndarray, score: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 4) boxes and (N,) scores sorted by (x1, y1, x2, y2, score).
+
+    A detector's output in this order does not depend on how it was computed (OpenCV's HOG returns the same
+    boxes in an order that varies with its threads), so association, which is greedy and breaks ties by row,
+    and the detections' rows are the same from run to run.
+    """
+    order = np.lexsort((score, xyxy[:, 3], xyxy[:, 2], xyxy[:, 1], xyxy[:, 0]))
+    return xyxy[order], score[order]
+
+
 @dataclass(frozen=True)
 class DetectionBatch:
     """The detections of one detector on one frame.

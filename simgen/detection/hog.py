@@ -3,8 +3,9 @@
 ``FunctionDetector(name, boxes)`` turns a function ``boxes(rgb) -> (xyxy (N, 4), score (N,))`` (boxes
 in this package's pixel convention, scores in [0, 1]) into a Detector: each box is then associated
 with an agent by IoU with the agents' visible-mask boxes, greedy one-to-one, IoU >= min_iou, else
-agent_id -1, exactly as the rgb detector's blobs. Bring your own model this way (a YOLO, say) and
-run it in the generation loop, or offline on a finished dataset's video with ``simgen import-mot``.
+agent_id -1, exactly as the rgb detector's blobs (both first put their boxes in ``canonical_order``).
+Bring your own model this way (a YOLO, say) and run it in the generation loop, or offline on a
+finished dataset's video with ``simgen import-mot``.
 
 ``HogDetector`` ("hog") is OpenCV's HOG + linear SVM people detector (Dalal & Triggs 2005; the
 weights ship inside OpenCV, ``HOGDescriptor_getDefaultPeopleDetector``): a 64x128 window slid over
@@ -24,7 +25,7 @@ import cv2
 import numpy as np
 
 from simgen.detection.association import associate
-from simgen.detection.batch import DetectionBatch
+from simgen.detection.batch import DetectionBatch, canonical_order
 from simgen.detection.masks import id_boxes
 
 BoxFunction = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
@@ -42,7 +43,7 @@ class FunctionDetector:
     def detect(self, frame: int, t: float, rgb: np.ndarray, agent_ids: np.ndarray) -> DetectionBatch:
         """rgb: (H, W, 3) uint8; agent_ids: (H, W) int32, -1 where no agent (used only to associate)."""
         xyxy, score = self.boxes(rgb)
-        xyxy, score = np.asarray(xyxy, np.float64).reshape(-1, 4), np.asarray(score, np.float64).reshape(-1)
+        xyxy, score = canonical_order(np.asarray(xyxy, np.float64).reshape(-1, 4), np.asarray(score, np.float64).reshape(-1))
         ids, mask_xyxy, _ = id_boxes(agent_ids)
         return DetectionBatch(self.name, frame, t, xyxy, score, associate(xyxy, ids, mask_xyxy, self.min_iou))
 
@@ -51,9 +52,9 @@ def hog_missing() -> str | None:
     """None if this OpenCV has the HOG people detector, else one line saying what to install."""
     if hasattr(cv2, "HOGDescriptor"):
         return None
-    return (f"OpenCV {cv2.__version__} at {cv2.__file__} has no HOGDescriptor (OpenCV 5 keeps it in the contrib build): "
-            "pip uninstall opencv-python-headless, then pip install --force-reinstall opencv-contrib-python-headless "
-            "(scripts/install.sh does both)")
+    return (f"OpenCV {cv2.__version__} at {cv2.__file__} has no HOGDescriptor (OpenCV 5 keeps it in the contrib "
+            "build, the hog extra): pip install --force-reinstall --no-deps opencv-contrib-python-headless "
+            "(as scripts/install.sh does)")
 
 
 def _hog() -> "cv2.HOGDescriptor":

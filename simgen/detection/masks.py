@@ -48,7 +48,8 @@ def mask_boxes(agent_ids: np.ndarray) -> dict[int, tuple[float, float, float, fl
 
 
 class SegmentationDetector:
-    """Detector (a): one box per agent id visible in the segmentation render, score 1."""
+    """Detector (a): one box per agent id visible in the segmentation render, score 1, in agent id order (canonical:
+    no association follows)."""
 
     name = "segmentation"
 

@@ -21,6 +21,7 @@ scores such as -0.3 or 2.3), but detections.parquet's score is in [0, 1]: map ra
 """
 from __future__ import annotations
 
+import itertools
 import math
 import os
 from pathlib import Path
@@ -31,6 +32,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from homocal.files import read_json, write_json_atomic, write_text_atomic
+from homocal.names import check_name
 from simgen.detection.association import TIE_TOLERANCE_S, associate, match_to_gt, nearest_sample
 from simgen.detection.batch import DetectionBatch, detections_table
 from simgen.parquet import write_parquet
@@ -38,6 +40,10 @@ from simgen.parquet import write_parquet
 BUILTIN_DETECTORS = ("segmentation", "rgb", "hog")
 
 MOT_COLUMNS = (9, 10)
+MAX_MOT_BYTES = 2**28
+"""The largest MOT file read (256 MiB, some 4 million lines): read_mot refuses more, and streams beyond it."""
+MAX_LINE_CHARS = 1024
+"""The longest line read_mot reads (a MOT line has ten numbers): it reads lines in pieces of this bound."""
 MOT_OFFSET = 1.5
 """bb_left = x1 + MOT_OFFSET, bb_top = y1 + MOT_OFFSET (module docstring)."""
 
@@ -46,12 +52,15 @@ def read_mot(path: str | os.PathLike, frames_total: int | None = None, size: tup
     """Parse a MOTChallenge text file -> frame (N,) int64 1-based, xyxy (N, 4) our pixels, conf (N,) float64.
 
     Blank lines are skipped. ``frames_total`` and ``size`` (width, height), when given, bound the frames
-    and boxes (module docstring). Raises ValueError naming the file and 1-based line number of the first
-    bad line (or the file, when it is not UTF-8 text or holds no detection).
+    and boxes (module docstring). The file is read in lines of at most MAX_LINE_CHARS and MAX_MOT_BYTES in
+    all (a stream such as /dev/zero too). Raises ValueError naming the file and 1-based line number of the
+    first bad line (or the file, when it is not UTF-8 text, holds no detection or is beyond a bound).
     """
+    if os.path.isfile(path) and os.path.getsize(path) > MAX_MOT_BYTES:
+        raise _too_large(path)
     try:
         with open(path, encoding="utf-8-sig") as f:  # tolerates a byte-order mark
-            frames, boxes, confs = _parse_mot(path, f, frames_total, size)
+            frames, boxes, confs = _parse_mot(path, _bounded_lines(path, f), frames_total, size)
     except UnicodeDecodeError as e:
         raise ValueError(f"{path}: not UTF-8 text ({e.reason} at byte {e.start})") from None
     if not frames:
@@ -59,8 +68,28 @@ def read_mot(path: str | os.PathLike, frames_total: int | None = None, size: tup
     return np.array(frames, dtype=np.int64), np.array(boxes, dtype=np.float64).reshape(-1, 4), np.array(confs)
 
 
+def _bounded_lines(path, f):
+    """The lines of the open text file ``f``, read in pieces: ValueError at a line longer than MAX_LINE_CHARS or
+    past MAX_MOT_BYTES characters in all."""
+    total = 0
+    for number in itertools.count(1):
+        line = f.readline(MAX_LINE_CHARS + 1)
+        if not line:
+            return
+        total += len(line)
+        if len(line) > MAX_LINE_CHARS:
+            raise ValueError(f"{path}: line {number}: longer than {MAX_LINE_CHARS} characters; not a MOTChallenge file")
+        if total > MAX_MOT_BYTES:
+            raise _too_large(path)
+        yield line
+
+
+def _too_large(path) -> ValueError:
+    return ValueError(f"{path}: larger than {MAX_MOT_BYTES >> 20} MiB (import-mot's bound); split it by frame")
+
+
 def _parse_mot(path, f, frames_total: int | None, size: tuple[int, int] | None) -> tuple[list, list, list]:
-    """The lines of the open file ``f`` (read_mot) -> lists of frames, boxes (our pixels) and confs."""
+    """The lines ``f`` of a MOT file (read_mot) -> lists of frames, boxes (our pixels) and confs."""
     frames, boxes, confs = [], [], []
     for number, line in enumerate(f, start=1):
         if not line.strip():
@@ -155,8 +184,9 @@ def append_detections(dataset_dir: str | os.PathLike, table: pa.Table) -> None:
 def import_into_dataset(dataset_dir: str | os.PathLike, mot_txt_path: str | os.PathLike, name: str, min_iou: float = 0.5) -> int:
     """`simgen import-mot`: import_mot, append_detections, then list `name` last in manifest.json's detectors.
 
-    Refuses an incomplete dataset and the built-in detector names (importing under them would replace
-    the run's own rows). Returns the number of detections imported. ValueError names the problem.
+    Refuses an incomplete dataset, a name that fails ``homocal.names.check_name`` (export-mot makes it a file
+    name) and the built-in detector names (importing under them would replace the run's own rows). Returns
+    the number of detections imported. ValueError names the problem.
     """
     dataset_dir = Path(dataset_dir)
     manifest_path = dataset_dir / "manifest.json"
@@ -165,8 +195,9 @@ def import_into_dataset(dataset_dir: str | os.PathLike, mot_txt_path: str | os.P
     manifest = read_json(manifest_path)
     if not manifest.get("complete"):
         raise ValueError(f"{dataset_dir}: the run is not complete; finish it with simgen generate --resume first")
-    if name in BUILTIN_DETECTORS or not name.strip():
-        raise ValueError(f"--name {name!r} is reserved or empty; choose another (built-in: {', '.join(BUILTIN_DETECTORS)})")
+    check_name(name, "detector name")
+    if name in BUILTIN_DETECTORS:
+        raise ValueError(f"--name {name!r} is reserved; choose another (built-in: {', '.join(BUILTIN_DETECTORS)})")
     table = import_mot(dataset_dir, mot_txt_path, name, min_iou)
     append_detections(dataset_dir, table)
     manifest["detectors"] = [d for d in manifest["detectors"] if d != name] + [name]

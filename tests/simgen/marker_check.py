@@ -8,7 +8,6 @@ import json
 
 import numpy as np
 
-import simgen  # noqa: F401  (MUJOCO_GL default)
 from simgen.backend import backend, mujoco
 from simgen.render import FrameRenderer
 from simgen.model import add_camera

@@ -21,17 +21,18 @@ def edit_toml(path: Path, section: str, key: str, value: str | None) -> None:
     path.write_text("".join(lines))
 
 
-def copy_scene(tmp_path: Path, name: str = "scene1", small: bool = True) -> Path:
-    """A copy of scenes/<name> in tmp_path; ``small``: 320x180, 8 agents, 0.5 s chunks, 5 warm-up frames."""
+def copy_scene(tmp_path: Path, name: str = "scene1", small: bool = True, shrink: int = 4) -> Path:
+    """A copy of scenes/<name> in tmp_path; ``small``: the image ``shrink`` times smaller (320x180 by default),
+    8 agents, 0.5 s chunks, 5 warm-up frames."""
     folder = tmp_path / name
     shutil.copytree(SCENES / name, folder)
     if small:
         toml = folder / "scene.toml"
         text = toml.read_text()
         image = eval(re.search(r"hand_placed_image = (.*)", text).group(1))  # noqa: S307 (our own file)
-        scaled = [[round((u + 0.5) / 4 - 0.5), round((v + 0.5) / 4 - 0.5)] for u, v in image]
+        scaled = [[round((u + 0.5) / shrink - 0.5), round((v + 0.5) / shrink - 0.5)] for u, v in image]
         for section, key, value in (
-            ("camera", "width", "320"), ("camera", "height", "180"), ("run", "chunk_seconds", "0.5"),
+            ("camera", "width", str(1280 // shrink)), ("camera", "height", str(720 // shrink)), ("run", "chunk_seconds", "0.5"),
             ("agents", "count", "8"), ("detection", "rgb_warmup_frames", "5"),
             ("trapezoid", "hand_placed_image", str(scaled)),
         ):  # fmt: skip

@@ -77,3 +77,23 @@ def test_osmesa_without_its_library(module):
     assert result.stdout.startswith(f"{module} simgen.backend.BackendError cannot render offscreen with MUJOCO_GL=osmesa "
                                     "(AttributeError: "), result.stdout + result.stderr
     assert result.stdout.rstrip().endswith("fix: apt-get install libosmesa6")
+
+
+IMPORTS = """
+import os, sys
+import cv2  # first: its loader sets LD_LIBRARY_PATH, its own doing
+before = dict(os.environ)
+import simgen, simgen.cli, simgen.scene, simgen.detection, simgen.export
+print(dict(os.environ) == before, "mujoco" in sys.modules)
+import simgen.dataset
+print(os.environ.get("MUJOCO_GL"), simgen.dataset.source_digest.cache_info().currsize)
+"""
+
+
+def test_importing_simgen_changes_nothing():
+    """simgen and its modules that need no rendering change no environment variable; simgen.backend (here through
+    simgen.dataset) sets MUJOCO_GL's default only as it imports mujoco; nothing hashes the sources at import."""
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    result = subprocess.run([sys.executable, "-c", IMPORTS], capture_output=True, text=True, timeout=300,
+                            env={**env, "PYTHONPATH": str(ROOT)}, cwd=ROOT)
+    assert result.stdout.splitlines() == ["True False", "egl 0"], result.stdout + result.stderr

@@ -31,7 +31,7 @@ def test_the_folder_reads_with_motmetrics(tiny_dataset, tmp_path, capsys):
     camera = json.loads((tiny_dataset / "camera.json").read_text())
     ini = configparser.ConfigParser()
     ini.read(out / "seqinfo.ini")
-    assert dict(ini["Sequence"]) == {"name": "scene1-seq", "framerate": str(manifest["fps"]),
+    assert dict(ini["Sequence"]) == {"name": manifest["scene"], "framerate": str(manifest["fps"]),
                                      "seqlength": str(manifest["frames_total"]), "imwidth": str(camera["width"]),
                                      "imheight": str(camera["height"])}  # fmt: skip
     assert (out / "gt" / "gt.txt").read_bytes() == (tiny_dataset / "mot" / "gt.txt").read_bytes()
@@ -109,15 +109,20 @@ def test_a_hand_edited_marker_never_gets_a_user_file_removed(tiny_dataset, tmp_p
     assert all(f.read_text() == "mine" for f in user_files)
 
 
-def _incomplete(dataset):
+def _edit_manifest(dataset, **fields):
     manifest = json.loads((dataset / "manifest.json").read_text())
-    (dataset / "manifest.json").write_text(json.dumps({**manifest, "complete": False}))
+    (dataset / "manifest.json").write_text(json.dumps({**manifest, **fields}))
 
 
 BAD = [
     ("a user's folder", lambda d, out: (out.mkdir(), (out / "notes.txt").write_text("mine")), "is not an export-mot folder"),
     ("not a dataset", lambda d, out: (d / "manifest.json").unlink(), "not a complete simgen dataset (no manifest.json)"),
-    ("incomplete", lambda d, out: _incomplete(d), "the run is not complete"),
+    ("incomplete", lambda d, out: _edit_manifest(d, complete=False), "the run is not complete"),
+    *((f"scene {name!r}", lambda d, out, name=name: _edit_manifest(d, scene=name), f"manifest.json: scene {name!r:.30}")
+      for name in ("../../escaped", "a/b", "..", ".hidden", "a\nb", "x" * 65, "", None, 5)),
+    *((f"detector {name!r}", lambda d, out, name=name: _edit_manifest(d, detectors=["segmentation", name]),
+       f"manifest.json: detector {name!r:.30}") for name in ("../x", "det/x", ".", "a\nb", "x" * 300, 1.5)),
+    ("detectors not a list", lambda d, out: _edit_manifest(d, detectors="segmentation"), "detectors: expected a list of names"),
     ("out is a file", lambda d, out: out.write_text("mine"), "exists and is not a folder"),
 ]  # fmt: skip
 

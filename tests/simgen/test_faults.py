@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import json
+import os
+import shutil
 import socket
 import subprocess
 import sys
@@ -129,6 +131,40 @@ def test_full_disk_is_one_line_and_leaves_no_temporary(small_scene, tmp_path, ca
     assert json.loads((out / "manifest.json").read_text())["complete"]
 
 
+def _on_tiny_disk(folder: Path, size_kib: int) -> list[str] | None:
+    """A wrapper that runs a command with ``folder`` a tmpfs of ``size_kib`` KiB in a private mount namespace, then
+    prints the files left in it (needs root and unshare; None where that cannot be done)."""
+    if shutil.which("unshare") is None or os.geteuid() != 0:
+        return None
+    mount = f"mount -t tmpfs -o size={size_kib}k tmpfs {folder}"
+    if subprocess.run(["unshare", "-m", "--propagation", "private", "sh", "-c", mount], capture_output=True).returncode:
+        return None
+    return ["unshare", "-m", "--propagation", "private", "sh", "-c", f'{mount} && "$@"; code=$?; cd {folder} && find . -type f; exit $code', "sh"]
+
+
+def test_a_real_full_disk_is_one_line_even_when_ffmpeg_meets_it(small_scene, tmp_path):
+    """generate into a tmpfs too small for the dataset: whichever write meets the full disk (ffmpeg's trailer
+    among them), one line on stderr, exit 2, no temporary and no partial video segment left."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    messages = []
+    for size_kib in (112, 120, 104, 128, 96):  # at 320x180 the first video segment meets the full disk near 112 KiB
+        wrap = _on_tiny_disk(disk, size_kib)
+        if wrap is None:
+            pytest.skip("cannot mount a tmpfs here (needs root, unshare and mount)")
+        run = subprocess.run([*wrap, sys.executable, "-m", "simgen.cli", "generate", str(small_scene), "-o", str(disk / "out"),
+                              "--seconds", "0.5", "--no-progress"], capture_output=True, text=True, timeout=600)
+        assert run.returncode == 2 and run.stderr.count("\n") == 1 and "No space left on device" in run.stderr, run.stderr
+        left = run.stdout.split()
+        assert left and not [f for f in left if ".tmp" in f or f.endswith(".lock")], left
+        messages.append(run.stderr)
+        if "ffmpeg could not write the video" in run.stderr:
+            assert run.stderr.startswith(f"simgen: error: {disk / 'out' / '_parts' / '00000.mp4'}: "), run.stderr
+            assert "./out/_parts/00000.mp4" not in left
+            return
+    pytest.fail(f"ffmpeg never met the full disk: {messages}")
+
+
 def test_unwritable_parent_is_one_line(small_scene, tmp_path, capsys):
     """A folder where --out cannot be made (its parent is a file): one line naming it."""
     (tmp_path / "file").write_text("user")
@@ -154,7 +190,10 @@ BAD_FLAGS = [
     (["--fps", "100000"], "argument --fps: must be an integer in [1, 1000], got 100000"),
     (["--workers", "0"], "argument --workers: must be an integer >= 1"),
     (["--quality", "ultra"], "argument --quality: invalid choice"),
-    (["--detectors", "yolo"], "detection.detectors"),
+    (["--detectors", "yolo"], "argument --detectors: expected distinct names from segmentation, rgb, hog, got ['yolo']"),
+    (["--detectors", ""], "argument --detectors: expected distinct names from segmentation, rgb, hog, got ['']"),
+    (["--detectors", "rgb,"], "argument --detectors"),
+    (["--detectors", "rgb,rgb"], "argument --detectors"),
     (["--scheduler", "tcp://127.0.0.1:1"], "--scheduler tcp://127.0.0.1:1: cannot connect"),
 ]  # fmt: skip
 

@@ -162,6 +162,12 @@ MOT_LINE = "1,-1,100,60,10,20,0.9,-1,-1,-1\n"  # a valid detection in the 320x18
 MOT_BAD = [
     # (id, file content (bytes) or None for no file, --name, extra flags, message)
     ("reserved name", MOT_LINE.encode(), "rgb", [], "reserved"),
+    *((f"--name {name!r:.20}", MOT_LINE.encode(), name, [], f"argument --name: detector name {name!r:.30}")
+      for name in ("../x", "a/b", ".", "..", ".hidden", "a\nb", "x" * 300, "", "a b", "é")),
+    ("-o and a dataset", MOT_LINE.encode(), "yolo", ["-o", "OUT"], "give the dataset folder once"),
+    ("a line of a megabyte", b"1," * 500_000 + b"\n", "yolo", [], "det.txt: line 1: longer than 1024 characters"),
+    ("/dev/zero", "/dev/zero", "yolo", [], "/dev/zero: line 1: longer than 1024 characters"),
+    ("over 256 MiB", "sparse", "yolo", [], "det.txt: larger than 256 MiB (import-mot's bound)"),
     ("bad line", (MOT_LINE + "2,-1,ten,10,5,20,0.9,-1,-1,-1\n").encode(), "yolo", [], "det.txt: line 2: not a number"),
     ("no file", None, "yolo", [], "missing.txt: No such file"),
     ("empty file", b"", "yolo", [], "det.txt: no detections"),
@@ -190,8 +196,15 @@ def test_import_mot_refuses_bad_input(run, tmp_path, capsys, how, content, name,
     out = tmp_path / "copy"
     shutil.copytree(reference, out)
     mot = tmp_path / ("missing.txt" if content is None else "det.txt")
-    if content is not None:
+    if content == "/dev/zero":
+        mot = Path(content)
+    elif content == "sparse":  # a valid first line, then holes: 300 MiB on disk in no time
+        with open(mot, "wb") as f:
+            f.write(MOT_LINE.encode())
+            f.truncate(300 << 20)
+    elif content is not None:
         mot.write_bytes(content)
+    extra = [str(out) if flag == "OUT" else flag for flag in extra]
     if how == "incomplete":
         manifest = json.loads((out / "manifest.json").read_text())
         (out / "manifest.json").write_text(json.dumps({**manifest, "complete": False}, indent=2) + "\n")
@@ -203,6 +216,17 @@ def test_import_mot_refuses_bad_input(run, tmp_path, capsys, how, content, name,
     err = capsys.readouterr().err
     assert err.startswith("simgen: error: import-mot:") and message in err and len(err.splitlines()) == 1, err
     assert _files(out) == before
+
+
+def test_import_mot_takes_the_dataset_as_out(run, tmp_path):
+    """``import-mot MOT_TXT --name N -o DATASET`` adds what ``import-mot DATASET MOT_TXT --name N`` adds."""
+    _, reference = run
+    given, flagged = tmp_path / "given", tmp_path / "flagged"
+    shutil.copytree(reference, given)
+    shutil.copytree(reference, flagged)
+    assert main(["import-mot", str(given), str(reference / "mot" / "gt.txt"), "--name", "oracle"]) == 0
+    assert main(["import-mot", str(reference / "mot" / "gt.txt"), "--name", "oracle", "--out", str(flagged)]) == 0
+    assert _files(flagged) == _files(given) != _files(reference)
 
 
 def test_import_mot_accepts_the_limits(run, tmp_path):

@@ -26,6 +26,35 @@ def test_function_detector_associates_the_boxes_it_is_given():
     assert len(empty) == 0
 
 
+def test_a_function_detector_s_rows_do_not_depend_on_the_order_it_returns_boxes_in():
+    """As OpenCV's HOG returns the same boxes in an order that varies with its threads: boxes that tie for an agent
+    (the same IoU with its mask box) and equal boxes with other scores must give the same rows whatever the order."""
+    ids = np.full((60, 80), -1, np.int32)
+    ids[10:40, 20:30] = 5  # mask box (19.5, 9.5, 29.5, 39.5)
+    boxes = np.array([[17.5, 9.5, 27.5, 39.5], [21.5, 9.5, 31.5, 39.5], [40.0, 5.0, 50.0, 20.0], [40.0, 5.0, 50.0, 20.0]])
+    scores = np.array([0.6, 0.6, 0.9, 0.4])  # the first two tie for agent 5 (IoU 8 / 12 each)
+    rgb = np.zeros((60, 80, 3), np.uint8)
+    batches = [FunctionDetector("mine", lambda rgb, o=order: (boxes[o], scores[o])).detect(0, 0.0, rgb, ids)
+               for order in ([0, 1, 2, 3], [1, 0, 3, 2], [3, 2, 1, 0])]
+    for batch in batches:
+        np.testing.assert_array_equal(batch.xyxy, boxes[[0, 1, 3, 2]])  # by (x1, y1, x2, y2, score)
+        np.testing.assert_array_equal(batch.score, scores[[0, 1, 3, 2]])
+        assert batch.agent_id.tolist() == [5, -1, -1, -1]
+
+
+def test_every_detector_gives_the_same_bytes_in_two_serial_runs_and_two_workers(tmp_path):
+    """Issue 26's case, short: segmentation, rgb and hog; two serial runs and a --workers 2 run of 1 s."""
+    from simgen.cli import main
+
+    scene = copy_scene(tmp_path)
+    files = []
+    for out, extra in (("a", []), ("b", []), ("w2", ["--workers", "2"])):
+        assert main(["generate", str(scene), "--out", str(tmp_path / out), "--seconds", "1", "--seed", "4", "--no-progress",
+                     "--detectors", "segmentation,rgb,hog", *extra]) == 0
+        files.append({str(p.relative_to(tmp_path / out)): p.read_bytes() for p in sorted((tmp_path / out).rglob("*")) if p.is_file()})
+    assert files[0] == files[1] == files[2]
+
+
 @pytest.mark.parametrize("kwargs", [{"upscale": 0}, {"scale": 1.0}, {"win_stride": 0}])
 def test_hog_refuses_bad_parameters(kwargs):
     with pytest.raises(ValueError, match="HogDetector: need"):

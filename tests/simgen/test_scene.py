@@ -129,10 +129,32 @@ def test_shipped_trapezoids_are_the_derivation(tmp_path, name):
     assert (folder / "scene.toml").read_bytes() == (SCENES / name / "scene.toml").read_bytes()
 
 
-@pytest.mark.parametrize("option, message", [(["--seconds", "0.123"], "run.seconds"), (["--detectors", "yolo"], "detection.detectors")])
+@pytest.mark.parametrize("option, message", [(["--seconds", "0.123"], "run.seconds"), (["--detectors", "yolo"], "argument --detectors")])
 def test_bad_run_option_is_refused(tmp_path, capsys, option, message):
     out = tmp_path / "out"
     code = main(["generate", str(SCENES / "scene1"), "--out", str(out), "--seed", "0", *option])
     err = capsys.readouterr().err
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+@pytest.mark.parametrize("name", ["my scene", "a\nb", "x" * 65, ".hidden", "é"])
+def test_a_scene_folder_whose_name_is_no_safe_name_is_refused(tmp_path, capsys, name):
+    """The folder's name names the scene in manifest.json, which homocal turns into file names: check_name's rule."""
+    folder = tmp_path / name
+    shutil.copytree(SCENES / "scene1", folder)
+    with pytest.raises(ConfigError, match=re.escape(f"scene (the scene folder's name) {name!r:.30}")):
+        load_scene(folder)
+    assert main(["generate", str(folder), "--out", str(tmp_path / "out"), "--seconds", "0.5"]) == 2
+    err = capsys.readouterr().err
+    assert "expected 1-64 letters, digits" in err and len(err.splitlines()) == 1 and not (tmp_path / "out").exists()
+
+
+def test_a_shipped_scene_by_name_is_the_scene_by_path(tmp_path, monkeypatch):
+    from simgen.scene import SHIPPED, scene_folder, shipped_scenes
+
+    monkeypatch.chdir(tmp_path)
+    assert shipped_scenes() == ["scene1", "scene2"]
+    assert scene_folder("scene1") == SHIPPED / "scene1" and (SHIPPED / "scene1").resolve() == (SCENES / "scene1").resolve()
+    (tmp_path / "scene1").mkdir()  # a folder of that name where the user is: the path wins
+    assert scene_folder("scene1") == tmp_path.joinpath("scene1").relative_to(tmp_path)

@@ -10,11 +10,39 @@ import pytest
 from homocal.progress import show_progress
 from simgen.cli import _parser, main
 
-WRITERS = ("generate", "preview", "export-mot")
+WRITERS = ("generate", "preview", "export-mot", "import-mot")
 
 
 def subparsers() -> dict[str, argparse.ArgumentParser]:
     return next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction)).choices
+
+
+def test_no_command_is_one_line_pointing_to_help(capsys):
+    assert main([]) == 2
+    assert capsys.readouterr().err == "simgen: error: the following arguments are required: COMMAND (see simgen --help)\n"
+
+
+def test_scenes_lists_the_shipped_scenes(capsys):
+    assert main(["scenes"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == "scene1: a straight two-lane street; 1280x720, 60 s at 20 fps, 24 people, detectors segmentation,rgb"
+    assert lines[1].startswith("scene2: a four-lane avenue; 1280x720, 60 s at 20 fps, 30 people, ")
+    assert lines[2].startswith("simgen scenes: 2 shipped scenes in ") and len(lines) == 3
+
+
+@pytest.mark.parametrize("scene", ["scene3", "../scene1", "scenes/scene1/", ".", "", "a\nb", "x" * 300])
+def test_a_scene_that_is_neither_a_folder_nor_shipped_is_one_line(scene, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    if scene == ".":  # an existing folder is a scene folder: it has no scene.toml
+        message = "scene.toml: no such scene config"
+    else:
+        message = f"scene {scene!r:.30}"
+    assert main(["generate", scene, "-o", "out", "--seconds", "0.5"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("simgen: error: ") and message in err and len(err.splitlines()) == 1, err
+    if scene != ".":
+        assert err.endswith("(shipped: scene1, scene2)\n"), err
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_version_is_the_installed_distribution_s(capsys):
@@ -34,9 +62,9 @@ def test_the_writers_are_the_subcommands_with_an_output():
 @pytest.mark.parametrize("name", WRITERS)
 def test_every_writer_takes_o_and_out_and_refuses_stdout(name, tmp_path, capsys, monkeypatch):
     options = {s: a for a in subparsers()[name]._actions for s in a.option_strings}
-    assert options["-o"] is options["--out"] and options["-o"].required
+    assert options["-o"] is options["--out"] and options["-o"].required is (name != "import-mot")  # its DATASET may come first
     monkeypatch.chdir(tmp_path)
-    assert main([name, "in", "-o", "-"]) == 2
+    assert main([name, "in", "-o", "-", *(["--name", "yolo"] if name == "import-mot" else [])]) == 2
     err = capsys.readouterr().err
     assert err == f"simgen: error: {name}: argument -o/--out: simgen writes files, not a table to stdout: give a path\n"
     assert list(tmp_path.iterdir()) == []
