@@ -32,6 +32,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from homocal.correctors.catalogue import STUDY_COLUMNS
 from homocal.correctors.descent import within_reach
 from homocal.keyed_rng import packed_order, splitmix64
 from homocal.study import method_kernels as mk
@@ -41,7 +42,7 @@ from homocal.study.rows import (CAL_D, CAL_E_FAITHFUL, CAL_E_SIGNED, CAL_RX, CAL
                                 TEST_GOY, TEST_GX, TEST_GY, TEST_RR, TEST_RU2, TEST_RX, TEST_RY, TEST_S0, TEST_S1, TEST_S2)
 
 
-METHODS = ("regression", "regression_signed", "regression_intercept", "horizon", "least_change", "descent", "hybrid")
+METHODS = STUDY_COLUMNS  # the study's methods, in their shard column order: the catalogue's (homocal.correctors.catalogue)
 # run_variant's output columns, in order (the shard schema is derived from them): method m's calibration and
 # path improvements are columns 1 + 2 m and 2 + 2 m
 OUT_COLUMNS = ("cal_before", *(f"{kind}_{m}" for m in METHODS for kind in ("cal", "path")), "hybrid_regression")
