@@ -48,6 +48,7 @@ camera with the same K and the same optical centre, only rotated); other click e
 """
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -72,6 +73,7 @@ MIN_PEOPLE = 3  # fewer inlier people (tracks) than this is refused
 LINK_GAP = 5  # frames: boxes this many frames apart at most are linked into one track
 BORDER_PX = 1.0  # a box whose edge is within this of the image border is cut by it and not used
 MAX_CAMERA_HEIGHT_M = 100.0
+MODELS = ("camera", "rotation")  # PedestrianCorrector's corrected mappings (its docstring); the first is the default
 GRID = 128  # tilt grid of the median start over its 90 degree range (then bisection)
 
 
@@ -223,26 +225,38 @@ class PedestrianCorrector(Corrector):
     Args:
         height_mean_m, height_sd_m: the prior of the people's heights, metres (default: adults, NCD-RisC 2016,
             DEFAULT_HEIGHT_MEAN_M and DEFAULT_HEIGHT_SD_M).
+        model: the corrected mapping (``transformer_``: the image trapezoid that maps with it onto the clicked
+            map trapezoid, whose site-map frame is kept):
+            "camera" (the default): the camera's own ground mapping (K, the camera height, the fitted tilt,
+                roll 0), placed with its ground point on camera_origin and turned about it (yaw_deg_) so that
+                the clicked corners, turned back by G^-1 (below), fall nearest the map corners: the clicked
+                trapezoid then only gives the map's axes, and none of its other click errors stay; K and the
+                camera height must be right (given, or from a clicked mapping that is a camera).
+            "rotation": H_clicked . G, G = K R_x(delta) K^-1, delta the angle between the clicked mapping's
+                horizon and the fitted one at the principal column: the clicked mapping with only its tilt
+                error undone; its other click errors stay, and where they had compensated the horizon's error
+                the correction breaks that (docs/pedestrians.md has the measurements of both).
 
-    Fit with ``fit(transformer, xyxy, convention=..., ...)``; the corrected mapping is H_clicked . G,
-    G = K R_x(delta) K^-1, delta the angle between the clicked mapping's horizon and the fitted one at the
-    principal column; ``transformer_`` is the trapezoid that maps with it (the clicked image trapezoid moved by
-    G^-1 onto the same map trapezoid), so the site map of the clicked trapezoid is kept.
+    Fit with ``fit(transformer, xyxy, convention=..., ...)``.
 
     Attributes after fit (or load): horizon_row_ (the fitted horizon, px at the principal column),
     clicked_horizon_row_, horizon_sigma_px_ (its 1-sigma uncertainty from the people's spread and number),
     mean_sensitivity_px_per_cm_ (the horizon's move, px, per cm the prior mean is off: not reduced by more
     people), tilt_deg_, rotation_deg_ (delta), focal_px_, principal_point_ (cx, cy), camera_height_m_,
-    focal_source_ and camera_height_source_ ("given" or "clicked mapping"), n_boxes_, n_border_ (cut by the
-    image border, not used), n_outliers_ (beyond OUTLIER_SIGMAS), n_people_ (tracks), n_people_used_,
-    transformer_, m, plus those of ``Corrector`` (error_before_ and error_after_ on check points if fit had
-    them, else NaN).
+    yaw_deg_ (model "camera"; NaN for "rotation"), focal_source_ and camera_height_source_ ("given" or
+    "clicked mapping"), n_boxes_, n_border_ (cut by the image border, not used), n_outliers_ (beyond
+    OUTLIER_SIGMAS), n_people_ (tracks), n_people_used_, transformer_, m, plus those of ``Corrector``
+    (error_before_ and error_after_ on check points if fit had them, else NaN).
     """
 
     method = "pedestrians"
-    param_names = ("height_mean_m", "height_sd_m")
+    param_names = ("height_mean_m", "height_sd_m", "model")
 
-    def __init__(self, height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M) -> None:
+    def __init__(self, height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
+                 model: str = "camera") -> None:
+        if model not in MODELS:
+            raise ValueError(f"model {model!r}: expected one of {', '.join(MODELS)}")
+        self.model = model
         mean, sd = (float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else math.nan
                     for x in (height_mean_m, height_sd_m))
         if not 0.5 <= mean <= 2.5:
@@ -321,6 +335,21 @@ class PedestrianCorrector(Corrector):
         self._check_points(image_points, ground_points)
         return self
 
+    def with_mapping(self, transformer: ViewTransformer) -> PedestrianCorrector:
+        """The same fitted horizon on another clicked mapping of the same camera (a re-clicked trapezoid): a copy
+        whose correction takes that mapping's horizon to the fitted one, with no check points. Only for a fit
+        whose focal length and camera height were given (theirs from the clicked mapping would change with it):
+        ValueError otherwise."""
+        if not isinstance(transformer, ViewTransformer):
+            raise TypeError(f"transformer: expected a homocal.ViewTransformer, got {type(transformer).__name__}")
+        if "clicked mapping" in (self.focal_source_, self.camera_height_source_):
+            raise ValueError("this fit read the focal length or the camera height from its clicked mapping: fit again")
+        other = copy.copy(self)
+        other.base_transformer_ = transformer
+        other._set_transformer()
+        other.error_before_ = other.error_after_ = other.calibration_improvement_ = math.nan
+        return other
+
     @property
     def K(self) -> np.ndarray:
         """(3, 3) the intrinsics the fit used."""
@@ -328,17 +357,28 @@ class PedestrianCorrector(Corrector):
         return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
 
     def _set_transformer(self) -> None:
-        """clicked_horizon_row_, tilt_deg_, rotation_deg_ and transformer_ from the base transformer, K and
-        horizon_row_: delta = the clicked horizon's elevation minus the fitted one's (G = tilt_homography(K,
-        delta) takes the fitted horizon to the clicked one at the principal column)."""
+        """clicked_horizon_row_, tilt_deg_, rotation_deg_, yaw_deg_ and transformer_ from the base transformer, K,
+        the camera height and horizon_row_ (the class docstring's two models): delta = the clicked horizon's
+        elevation minus the fitted one's (G = tilt_homography(K, delta) takes the fitted horizon to the clicked
+        one at the principal column)."""
         f, (cx, cy) = self.focal_px_, self.principal_point_
-        self.clicked_horizon_row_ = float(self.base_transformer_.horizon_row(cx))
+        base = self.base_transformer_
+        self.clicked_horizon_row_ = float(base.horizon_row(cx))
         tilt = math.atan((cy - self.horizon_row_) / f)
         delta = math.atan((cy - self.clicked_horizon_row_) / f) - tilt
         self.tilt_deg_, self.rotation_deg_ = math.degrees(tilt), math.degrees(delta)
-        G_inv = tilt_homography(self.K, -delta)
-        source = np.column_stack([self.base_transformer_.source, np.ones(4)]) @ G_inv.T
-        self.transformer_ = ViewTransformer(source[:, :2] / source[:, 2:], self.base_transformer_.target)
+        source = apply_homography(tilt_homography(self.K, -delta), base.source)  # the clicked corners turned back
+        self.yaw_deg_ = math.nan
+        if self.model == "camera":
+            level = self.K @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, self.camera_height_m_], [0.0, 1.0, 0.0]])
+            camera = np.linalg.inv(level) @ tilt_homography(self.K, -tilt)  # image -> ground, the camera's frame
+            w, t = apply_homography(camera, source), base.target - self.camera_origin_
+            yaw = float(np.angle(np.sum((t[:, 0] + 1j * t[:, 1]) * np.conj(w[:, 0] + 1j * w[:, 1]))))
+            turn = np.array([[math.cos(yaw), -math.sin(yaw), self.camera_origin_[0]],
+                             [math.sin(yaw), math.cos(yaw), self.camera_origin_[1]], [0.0, 0.0, 1.0]])
+            self.yaw_deg_ = math.degrees(yaw)
+            source = apply_homography(np.linalg.inv(turn @ camera), base.target)
+        self.transformer_ = ViewTransformer(source, base.target)
 
     def _check_points(self, image_points, ground_points) -> None:
         """error_before_ / error_after_ / calibration_improvement_ on the check points, NaN without them."""

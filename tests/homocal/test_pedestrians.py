@@ -118,13 +118,14 @@ class TestFitTilt:
 
 
 class TestPedestrianCorrector:
+    @pytest.mark.parametrize("model", ["rotation", "camera"])
     @pytest.mark.parametrize("given", [{"K": CAM.K, "camera_height_m": 4.0}, {"camera_height_m": 4.0}, {"K": CAM.K}, {}])
-    def test_corrects_a_tilt_error(self, given):
+    def test_corrects_a_tilt_error(self, given, model):
         """The exact trapezoid moved 16 px by a tilt error: corrected ground points within 1 % of range at 5-50 m
         (the fitted horizon is within 3 sigma of the true one), where the clicked mapping is 10-40 % off."""
         _, boxes, frames, _ = people(400, seed=6)
         clicked = clicked_mapping(16.0)
-        c = PedestrianCorrector(1.7, 0.07).fit(clicked, boxes, convention="homocal", track_ids=frames, image_size=SIZE, **given)
+        c = PedestrianCorrector(1.7, 0.07, model).fit(clicked, boxes, convention="homocal", track_ids=frames, image_size=SIZE, **given)
         assert abs(c.horizon_row_ - CAM.horizon_row) < 3 * c.horizon_sigma_px_ + 1e-6
         assert c.clicked_horizon_row_ == pytest.approx(CAM.horizon_row - 16.0, abs=1e-6)
         ground = np.column_stack([np.linspace(-6, 6, 50), np.geomspace(5, 50, 50)])
@@ -135,19 +136,37 @@ class TestPedestrianCorrector:
         assert c.n_boxes_ == 400 and c.n_people_used_ > 390 and c.n_border_ <= 2  # one at the side border
         assert c.focal_source_ == ("given" if "K" in given else "clicked mapping")
 
-    def test_keeps_the_site_map_frame(self):
-        """The corrected trapezoid maps onto the clicked map trapezoid: the same target, moved image corners."""
+    def test_camera_model_leaves_no_other_click_error(self):
+        """Click errors beyond the tilt (2 px on the image corners, 0.5 m on the map corners) and a yaw of the map:
+        the "camera" model is within 1 % of range at 5-50 m, "rotation" keeps those errors."""
+        _, boxes, tracks, _ = people(400, seed=16)
+        clicked = clicked_mapping(16.0)
+        rng = np.random.default_rng(2)
+        yaw = math.radians(20.0)
+        turn = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
+        noisy = ViewTransformer(clicked.source + rng.uniform(-2, 2, (4, 2)), GROUND @ turn.T + rng.uniform(-0.5, 0.5, (4, 2)))
+        ground = np.column_stack([np.linspace(-6, 6, 50), np.geomspace(5, 50, 50)])
+        q = CAM.project_ground(ground)
+        kw = dict(convention="homocal", track_ids=tracks, K=CAM.K, camera_height_m=4.0)
+        rel = lambda p: np.abs(np.linalg.norm(p, axis=1) / np.linalg.norm(ground, axis=1) - 1)  # noqa: E731
+        camera = PedestrianCorrector(1.7, 0.07).fit(noisy, boxes, **kw)
+        assert rel(camera.transform_points(q)).max() < 0.01 and abs(camera.yaw_deg_ - 20.0) < 1.0
+        assert rel(PedestrianCorrector(1.7, 0.07, "rotation").fit(noisy, boxes, **kw).transform_points(q)).max() > 0.03
+
+    def test_rotation_keeps_the_clicked_mapping(self):
+        """"rotation": the corrected trapezoid is the clicked one turned back by G^-1 onto the same map trapezoid."""
         _, boxes, frames, _ = people(200, seed=7)
         clicked = clicked_mapping(16.0)
-        c = PedestrianCorrector().fit(clicked, boxes, convention="homocal", track_ids=frames, K=CAM.K, camera_height_m=4.0)
+        c = PedestrianCorrector(model="rotation").fit(clicked, boxes, convention="homocal", track_ids=frames, K=CAM.K, camera_height_m=4.0)
         np.testing.assert_array_equal(c.transformer_.target, clicked.target)
         G = tilt_homography(c.K, math.radians(c.rotation_deg_))
         moved = np.column_stack([c.transformer_.source, np.ones(4)]) @ G.T
         np.testing.assert_allclose(moved[:, :2] / moved[:, 2:], clicked.source, atol=1e-6)
 
-    def test_save_load_round_trip(self, tmp_path):
+    @pytest.mark.parametrize("model", ["rotation", "camera"])
+    def test_save_load_round_trip(self, tmp_path, model):
         _, boxes, frames, _ = people(200, seed=8)
-        c = PedestrianCorrector(1.7, 0.07).fit(clicked_mapping(), boxes, convention="homocal", track_ids=frames,
+        c = PedestrianCorrector(1.7, 0.07, model).fit(clicked_mapping(), boxes, convention="homocal", track_ids=frames,
                                                 K=CAM.K, camera_height_m=4.0, image_size=SIZE)
         c.save(tmp_path / "c.json")
         back = load_corrector(tmp_path / "c.json")
@@ -174,6 +193,7 @@ class TestPedestrianCorrector:
         (lambda d: d["fitted"].update(focal_source="guess"), "focal_source"),
         (lambda d: d.update(error_before=1.0), "both numbers"),
         (lambda d: d["params"].update(height_sd_m=0.0), "height_sd_m"),
+        (lambda d: d["params"].update(model="affine"), "model"),
         (lambda d: d["fitted"].update(horizon_row="x"), "horizon_row"),
     ])
     def test_loader_refuses_what_fit_could_not_write(self, tmp_path, change, message):
@@ -345,3 +365,16 @@ class TestReadBoxes:
         path = write_mot_sequence(tmp_path, ["1,3,101.5,201.5,20,50,1,1,0.5\n"], seqinfo=False)
         frames, xyxy, conf, ids = read_mot(path)
         assert (frames.tolist(), ids.tolist(), conf.tolist()) == ([1], [3.0], [1.0])
+
+
+def test_with_mapping_is_a_fit_on_the_other_mapping():
+    _, boxes, tracks, _ = people(100, seed=15)
+    kw = dict(convention="homocal", track_ids=tracks, K=CAM.K, camera_height_m=4.0)
+    first = PedestrianCorrector().fit(clicked_mapping(16.0), boxes, **kw)
+    other = clicked_mapping(-8.0)
+    q = CAM.project_ground(GROUND)
+    np.testing.assert_allclose(first.with_mapping(other).transform_points(q),
+                               PedestrianCorrector().fit(other, boxes, **kw).transform_points(q), atol=1e-9)
+    estimated = PedestrianCorrector().fit(clicked_mapping(16.0), boxes, convention="homocal", track_ids=tracks, K=CAM.K)
+    with pytest.raises(ValueError, match="fit again"):
+        estimated.with_mapping(other)
