@@ -378,3 +378,12 @@ def test_with_mapping_is_a_fit_on_the_other_mapping():
     estimated = PedestrianCorrector().fit(clicked_mapping(16.0), boxes, convention="homocal", track_ids=tracks, K=CAM.K)
     with pytest.raises(ValueError, match="fit again"):
         estimated.with_mapping(other)
+
+
+def test_same_input_same_bytes(tmp_path):
+    _, boxes, _, _ = people(150, seed=17)
+    frames = np.repeat(np.arange(50), 3)
+    for name in ("a", "b"):
+        PedestrianCorrector().fit(clicked_mapping(), boxes, convention="homocal", frames=frames, K=CAM.K,
+                                  camera_height_m=4.0).save(tmp_path / name)
+    assert (tmp_path / "a").read_bytes() == (tmp_path / "b").read_bytes()
