@@ -2,7 +2,7 @@
 
     python research/pedestrians.py DATASET [DATASET ...] --detectors segmentation,rgb,hog --seconds 10
         [--base fitted|hand-placed] [--variants 100] [--height-mean 1.71 --height-sd 0.09] [--estimate-camera]
-        [--end-to-end exact|hand-placed --det SEQ/det/segmentation.txt]
+        [--end-to-end exact|hand-placed --det SEQ/det/segmentation.txt [--give-k]]
 
 Per dataset and detector, the corrector is fitted once per study variant (homocal.study: the same variants as
 `homocal study` draws with these options, variants 0..--variants) from that detector's boxes of the first
@@ -22,10 +22,11 @@ camera height from each variant's clicked mapping). Printed, per dataset and det
 perturbation read as variant-positive, map perturbations in px of a 1.5 px/m map); hand-placed: the
 hand-placed trapezoid with the default per-coordinate perturbation.
 --end-to-end KIND: instead, the issue's end-to-end check on one dataset: export-mot's det/segmentation.txt
-(--det, written by `simgen export-mot DATASET -o SEQ` beforehand), the KIND ("exact" or "hand-placed") image trapezoid moved as a tilt error moves it so that its
-horizon lies 16 px above the true one, the camera height 4 m given and nothing else (the focal length from
-the clicked mapping, the image size from seqinfo.ini); the median relative range error of the ground-truth
-foot points (gt.parquet, in frame, 5-50 m) mapped with the fitted correction after a save and a load.
+(--det, written by `simgen export-mot DATASET -o SEQ` beforehand), the KIND ("exact" or "hand-placed")
+image trapezoid moved as a tilt error moves it so that its horizon lies 16 px above the true one, the camera
+height 4 m given and nothing else (the focal length from the clicked mapping, the image size from
+seqinfo.ini; --give-k: camera.json's K too); the median relative range error of the ground-truth foot points
+(gt.parquet, in frame, 5-50 m) mapped with the fitted correction after a save and a load.
 """
 from __future__ import annotations
 
@@ -123,7 +124,7 @@ def end_to_end(path: str, kind: str, args) -> dict:
     boxes = read_boxes(args.det)
     corrector = PedestrianCorrector(args.height_mean, args.height_sd, args.model).fit(
         clicked, boxes.xyxy, convention="homocal", frames=boxes.frames, track_ids=boxes.track_ids,
-        camera_height_m=4.0, image_size=boxes.image_size)
+        camera_height_m=4.0, image_size=boxes.image_size, K=K if args.give_k else None)
     out = Path(args.out) / f"end_to_end_{ds.name}_{kind}.json"
     corrector.save(out)
     loaded = load_corrector(out)
@@ -135,7 +136,7 @@ def end_to_end(path: str, kind: str, args) -> dict:
     keep = (r >= RANGE_M[0]) & (r <= RANGE_M[1])
     after = relative_range_errors(loaded.transform_points(feet[keep]), ground[keep], np.zeros(2))
     before = relative_range_errors(clicked.transform_points(feet[keep]), ground[keep], np.zeros(2))
-    return {"dataset": ds.name, "trapezoid": kind, "model": args.model, "prior": [args.height_mean, args.height_sd], "clicked_horizon_above_true_px": true_row - corrector.clicked_horizon_row_,
+    return {"dataset": ds.name, "trapezoid": kind, "model": args.model, "K_given": args.give_k, "prior": [args.height_mean, args.height_sd], "clicked_horizon_above_true_px": true_row - corrector.clicked_horizon_row_,
             "horizon_error_px": corrector.horizon_row_ - true_row, "horizon_sigma_px": corrector.horizon_sigma_px_,
             "focal_px": corrector.focal_px_, "true_focal_px": float(K[1, 1]), "points": int(keep.sum()),
             "median_rel_range_error_before": float(np.median(before) * 100),
@@ -155,6 +156,7 @@ def main() -> None:
     p.add_argument("--estimate-camera", action="store_true")
     p.add_argument("--end-to-end", choices=("exact", "hand-placed"))
     p.add_argument("--det", help="--end-to-end: export-mot's det/segmentation.txt of the dataset")
+    p.add_argument("--give-k", action="store_true", help="--end-to-end: give the fit camera.json's K")
     p.add_argument("--out", default=".", help="folder for the end-to-end correction file")
     args = p.parse_args()
     for path in args.datasets:
