@@ -2,7 +2,7 @@
 
     python research/pedestrians.py DATASET [DATASET ...] --detectors segmentation,rgb,hog --seconds 10
         [--base fitted|hand-placed] [--variants 100] [--height-mean 1.71 --height-sd 0.09] [--estimate-camera]
-        [--end-to-end exact|hand-placed --det SEQ/det/segmentation.txt [--give-k]]
+        [--boxes FILE] [--end-to-end exact|hand-placed --det SEQ/det/segmentation.txt [--give-k]]
 
 Per dataset and detector, the corrector is fitted once per study variant (homocal.study: the same variants as
 `homocal study` draws with these options, variants 0..--variants) from that detector's boxes of the first
@@ -36,7 +36,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-import pyarrow.compute as pc
 
 from homocal.boxes import read_boxes
 from homocal.correctors.base import load_corrector
@@ -58,20 +57,20 @@ def relative_range_errors(mapped: np.ndarray, ground: np.ndarray, origin: np.nda
     return np.abs(np.linalg.norm(mapped - origin, axis=1) - true) / true
 
 
-def detector_boxes(path: str, detector: str, seconds: float):
-    """(xyxy (N, 4) homocal px, frames (N,)) of detector's boxes in the first `seconds` of the dataset's video."""
+def detector_boxes(path: str, detector: str, seconds: float, boxes_file: str | None = None):
+    """(xyxy (N, 4) homocal px, frames (N,)) of detector's boxes (or those of boxes_file, read_boxes) in the
+    first `seconds` of the dataset's video."""
     ds = load_dataset(path)
-    table = ds.table("detections.parquet")
-    table = table.filter(pc.and_(pc.equal(table.column("detector"), detector), pc.less(table.column("t"), seconds)))
-    xyxy = np.column_stack([table.column(c).to_numpy() for c in ("x1", "y1", "x2", "y2")])
-    return xyxy, table.column("frame").to_numpy().astype(np.int64)
+    boxes = read_boxes(boxes_file if boxes_file else Path(path) / "detections.parquet", None if boxes_file else detector)
+    keep = boxes.frames < seconds * float(ds.manifest["fps"])
+    return boxes.xyxy[keep], boxes.frames[keep]
 
 
 def measure(path: str, detector: str, args) -> dict:
     params = StudyParams(n_variants=args.variants, **BASES[args.base])
     scene = StudyScene.from_dataset(path, params)
     ds = load_dataset(path)
-    xyxy, frames = detector_boxes(path, detector, args.seconds)
+    xyxy, frames = detector_boxes(path, detector, args.seconds, args.boxes)
     given = {} if args.estimate_camera else {"K": scene.K, "camera_height_m": float(ds.camera["mount_height_m"])}
     o = scene.origin
     near = (np.linalg.norm(scene.test_ground - o, axis=1) >= RANGE_M[0]) & (np.linalg.norm(scene.test_ground - o, axis=1) <= RANGE_M[1])
@@ -147,6 +146,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("datasets", nargs="+")
     p.add_argument("--detectors", default="segmentation")
+    p.add_argument("--boxes", help="a boxes file (homocal.boxes.read_boxes) instead of the dataset's detections")
     p.add_argument("--seconds", type=float, default=math.inf)
     p.add_argument("--base", choices=BASES, default="fitted")
     p.add_argument("--variants", type=int, default=100)
