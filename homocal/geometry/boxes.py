@@ -1,16 +1,18 @@
-"""Foot points of detector boxes from other tools, in homocal's pixels (data_schema.md, Image and Boxes).
+"""Detector boxes from other tools in homocal's pixels: their edges and foot points (data_schema.md, Image and
+Boxes).
 
 homocal's pixels are OpenCV's: the centre of the pixel in row r, column c is (c, r). A box over mask rows
-r0..r1 and columns c0..c1 has its bottom edge at v = r1 + 0.5, and its foot point is that edge's centre.
-Other tools write the same box in one of three conventions (BOX_CONVENTIONS, the shift to homocal's pixels):
+r0..r1 and columns c0..c1 has its edges half a pixel outside those centres, x1 = c0 - 0.5, y1 = r0 - 0.5,
+x2 = c1 + 0.5, y2 = r1 + 0.5; its foot point is its bottom edge's centre, its head row its top edge.
+Other tools write the same box in one of three conventions (BOX_CONVENTIONS, the shifts (dx1, dy1, dx2, dy2)
+that take a box to homocal's edges):
 
     "corners"  pixel corners at integers, the image spans [0, W] x [0, H] (YOLO/ultralytics, torchvision,
-               COCO, and supervision's Detections of these models): x1 = c0, x2 = c1 + 1, y2 = r1 + 1.
-               Foot point ((x1 + x2) / 2 - 0.5, y2 - 0.5).
-    "indices"  inclusive pixel indices (supervision's mask_to_xyxy): x1 = c0, x2 = c1, y2 = r1.
-               Foot point ((x1 + x2) / 2, y2 + 0.5).
-    "homocal"  box edges in homocal's pixels (simgen's datasets): x1 = c0 - 0.5, x2 = c1 + 0.5, y2 = r1 + 0.5.
-               Foot point ((x1 + x2) / 2, y2).
+               COCO, cv2.boundingRect, and supervision's Detections of these models): x1 = c0, x2 = c1 + 1,
+               y1 = r0, y2 = r1 + 1. Edges: every coordinate - 0.5.
+    "indices"  inclusive pixel indices (supervision's mask_to_xyxy): x1 = c0, x2 = c1, y1 = r0, y2 = r1.
+               Edges: (x1 - 0.5, y1 - 0.5, x2 + 0.5, y2 + 0.5).
+    "homocal"  box edges in homocal's pixels (simgen's datasets). Edges: as they are.
 
 Taking a "corners" y2 for a homocal row puts the foot point 0.5 px low, so nearer the camera: on the paper's
 camera (PinholeCamera()), straight ahead, 0.02 m at 10 m, 0.09 m at 20 m, 0.33 m at 40 m, 0.51 m at 50 m.
@@ -19,18 +21,63 @@ from __future__ import annotations
 
 import numpy as np
 
-BOX_CONVENTIONS = {"corners": (-0.5, -0.5), "indices": (0.0, 0.5), "homocal": (0.0, 0.0)}
+BOX_CONVENTIONS = {"corners": (-0.5, -0.5, -0.5, -0.5), "indices": (-0.5, -0.5, 0.5, 0.5), "homocal": (0.0, 0.0, 0.0, 0.0)}
 
 
-def box_bottom_points(xyxy: np.ndarray, *, convention: str) -> np.ndarray:
-    """Foot points (N, 2) float64, homocal pixels, of boxes xyxy (N, 4) = (x1, y1, x2, y2) in the given
-    convention (a key of BOX_CONVENTIONS: "corners", "indices" or "homocal"): the centre of the box's bottom
-    edge. NaN boxes give NaN points. ValueError for another convention or another shape."""
+def box_edges(xyxy: np.ndarray, *, convention: str) -> np.ndarray:
+    """Boxes xyxy (N, 4) = (x1, y1, x2, y2) in the given convention (a key of BOX_CONVENTIONS: "corners",
+    "indices" or "homocal") as their edges (N, 4) float64 in homocal's pixels. NaN stays NaN. ValueError
+    for another convention or another shape."""
     if convention not in BOX_CONVENTIONS:
         raise ValueError(f"convention {convention!r}: expected one of {', '.join(BOX_CONVENTIONS)}")
     boxes = np.asarray(xyxy)
     if boxes.dtype.kind not in "fiu" or boxes.ndim != 2 or boxes.shape[1] != 4:
         raise ValueError(f"xyxy: expected numbers of shape (N, 4), got {boxes.dtype} of shape {boxes.shape}")
-    du, dv = BOX_CONVENTIONS[convention]
-    boxes = boxes.astype(np.float64)
-    return np.column_stack([(boxes[:, 0] + boxes[:, 2]) / 2.0 + du, boxes[:, 3] + dv])
+    return boxes.astype(np.float64) + BOX_CONVENTIONS[convention]
+
+
+def box_bottom_points(xyxy: np.ndarray, *, convention: str) -> np.ndarray:
+    """Foot points (N, 2) float64, homocal pixels, of boxes xyxy (N, 4) = (x1, y1, x2, y2) in the given
+    convention (see box_edges): the centre of the box's bottom edge. NaN boxes give NaN points. ValueError
+    for another convention or another shape."""
+    edges = box_edges(xyxy, convention=convention)
+    return np.column_stack([(edges[:, 0] + edges[:, 2]) / 2.0, edges[:, 3]])
+
+
+def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Intersection over union (N, M) of boxes a (N, 4) and b (M, 4), edges (x1, y1, x2, y2) in one convention."""
+    w = np.clip(np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0]), 0, None)
+    h = np.clip(np.minimum(a[:, None, 3], b[None, :, 3]) - np.maximum(a[:, None, 1], b[None, :, 1]), 0, None)
+    inter = w * h
+    area = lambda x: (x[:, 2] - x[:, 0]) * (x[:, 3] - x[:, 1])  # noqa: E731
+    return inter / (area(a)[:, None] + area(b)[None, :] - inter)
+
+
+def link_tracks(frames: np.ndarray, xyxy: np.ndarray, min_iou: float = 0.3, max_gap: int = 5) -> np.ndarray:
+    """Track ids (N,) int64, 0, 1, ... in order of first appearance, for boxes xyxy (N, 4) in video frames
+    frames (N,) int: frame by frame in increasing order, each box continues the track whose last box (at most
+    max_gap frames earlier) overlaps it most, greedily (highest IoU first; ties: lower box index, then lower
+    track id), one box per track and frame, IoU >= min_iou; any other box starts a track. A simple linker of
+    detections (no motion model): enough to count people once rather than once per frame."""
+    frames = np.asarray(frames, dtype=np.int64)
+    ids = np.full(len(frames), -1, dtype=np.int64)
+    last_box, last_frame = np.empty((0, 4)), np.empty(0, dtype=np.int64)
+    order = np.argsort(frames, kind="stable")
+    numbers, first = np.unique(frames[order], return_index=True)
+    for frame, rows in zip(numbers, np.split(order, first[1:])):
+        live = np.flatnonzero(frame - last_frame <= max_gap)
+        iou = box_iou(xyxy[rows], last_box[live])
+        taken = set()
+        for flat in np.argsort(-iou, axis=None, kind="stable"):
+            i, j = divmod(int(flat), len(live))
+            if iou[i, j] < min_iou:
+                break
+            if ids[rows[i]] < 0 and live[j] not in taken:
+                ids[rows[i]] = live[j]
+                taken.add(live[j])
+        new = rows[ids[rows] < 0]
+        ids[new] = len(last_frame) + np.arange(len(new))
+        last_box = np.vstack([last_box, np.zeros((len(new), 4))])
+        last_frame = np.concatenate([last_frame, np.zeros(len(new), dtype=np.int64)])
+        last_box[ids[rows]], last_frame[ids[rows]] = xyxy[rows], frame
+    return ids

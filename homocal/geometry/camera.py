@@ -148,3 +148,12 @@ class PinholeCamera:
     def to_dict(self) -> dict:
         """The parameters, for configs and manifests."""
         return asdict(self)
+
+
+def tilt_homography(K: np.ndarray, delta: float) -> np.ndarray:
+    """(3, 3) image homography G = K R_x(delta) K^-1: every viewing ray turned by delta radians about the camera's
+    x-axis (OpenCV camera frame, y down), as tilting the camera down by delta more (tilt_deg + delta) moves the
+    image: a point at elevation alpha above the optical axis (row cy - f tan(alpha)) goes to elevation
+    alpha + delta, the horizon too (delta > 0: up). G maps the principal column onto itself. K (3, 3) intrinsics, fx = fy."""
+    c, s = math.cos(delta), math.sin(delta)
+    return K @ np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]]) @ np.linalg.inv(K)

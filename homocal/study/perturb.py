@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from homocal.geometry.camera import tilt_homography
 from homocal.keyed_rng import seed_from_key
 
 N_COORDS = 16  # 8 image coordinates (TL.u, TL.v, ..., BL.v), then 8 site-map coordinates
@@ -86,9 +87,7 @@ def tilt_shift(image: np.ndarray, K: np.ndarray, horizon_row: float, shift_px: f
     """
     f, cy = K[1, 1], K[1, 2]
     alpha = math.atan((cy - horizon_row) / f)
-    delta = math.atan(math.tan(alpha) + shift_px / f) - alpha
-    c, s = math.cos(delta), math.sin(delta)
-    G = K @ np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]]) @ np.linalg.inv(K)
+    G = tilt_homography(K, math.atan(math.tan(alpha) + shift_px / f) - alpha)
     moved = np.column_stack([image, np.ones(len(image))]) @ G.T
     return moved[:, :2] / moved[:, 2:]
 

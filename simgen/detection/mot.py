@@ -1,27 +1,11 @@
 """MOTChallenge text files: import an external detector's output, export the ground truth and detections.
 
-Lines hold comma-separated values; the first seven are
-``frame, id, bb_left, bb_top, bb_width, bb_height, conf``, followed by either ``x, y, z``
-(10 values: MOT15 files and MOT17 det.txt, as detectors write them) or ``class, visibility``
-(9 values: MOT16/17 gt.txt, as `write_mot_gt` writes them). Reading uses the first seven only.
-frame is 1-based: MOT frame n is our frame n - 1, at time t = (n - 1) / fps.
-MOT pixel coordinates are 1-based: the top-left pixel is (1, 1) and a box covers pixels
-bb_left .. bb_left + bb_width - 1. Ours put that pixel's centre at (0, 0) and a box's edges half a
-pixel outside its outermost pixel centres, so
-    x1 = bb_left - 1.5, y1 = bb_top - 1.5, x2 = x1 + bb_width, y2 = y1 + bb_height,
-and back: bb_left = x1 + 1.5, bb_top = y1 + 1.5, bb_width = x2 - x1, bb_height = y2 - y1.
-(A detector whose boxes have pixel edges at integers, the image's top-left corner at (0, 0), and
-which adds 1 when writing MOT, as MOTChallenge exporters do, lands exactly on our convention.)
-
-What an imported file must satisfy (each violation names the file and line): at least one detection;
-frame n within the video (1 <= n <= frames_total); a finite box with width, height > 0 that overlaps the
-image and whose edges lie within one image width / height of it (no huge boxes); conf in [0, 1].
-MOTChallenge itself does not bound conf ("the detection confidence"; MOT17's DPM files hold raw SVM
-scores such as -0.3 or 2.3), but detections.parquet's score is in [0, 1]: map raw scores into it first.
+The layouts and pixel conventions, and the reader, are homocal's (``homocal.boxes``: read_mot, MOT_OFFSET):
+frame n is our frame n - 1, at time t = (n - 1) / fps; x1 = bb_left - 1.5, y1 = bb_top - 1.5,
+x2 = x1 + bb_width, y2 = y1 + bb_height.
 """
 from __future__ import annotations
 
-import itertools
 import math
 import os
 from pathlib import Path
@@ -31,6 +15,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
+from homocal.boxes import MOT_OFFSET, read_mot
 from homocal.files import read_json, write_json_atomic, write_text_atomic
 from homocal.names import check_name
 from simgen.detection.association import TIE_TOLERANCE_S, associate, match_to_gt, nearest_sample
@@ -38,97 +23,6 @@ from simgen.detection.batch import DetectionBatch, detections_table
 from simgen.parquet import write_parquet
 
 BUILTIN_DETECTORS = ("segmentation", "rgb", "hog")
-
-MOT_COLUMNS = (9, 10)
-MAX_MOT_BYTES = 2**28
-"""The largest MOT file read (256 MiB, some 4 million lines): read_mot refuses more, and streams beyond it."""
-MAX_LINE_CHARS = 1024
-"""The longest line read_mot reads (a MOT line has ten numbers): it reads lines in pieces of this bound."""
-MOT_OFFSET = 1.5
-"""bb_left = x1 + MOT_OFFSET, bb_top = y1 + MOT_OFFSET (module docstring)."""
-
-
-def read_mot(path: str | os.PathLike, frames_total: int | None = None, size: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Parse a MOTChallenge text file -> frame (N,) int64 1-based, xyxy (N, 4) our pixels, conf (N,) float64.
-
-    Blank lines are skipped. ``frames_total`` and ``size`` (width, height), when given, bound the frames
-    and boxes (module docstring). The file is read in lines of at most MAX_LINE_CHARS and MAX_MOT_BYTES in
-    all (a stream such as /dev/zero too). Raises ValueError naming the file and 1-based line number of the
-    first bad line (or the file, when it is not UTF-8 text, holds no detection or is beyond a bound).
-    """
-    if os.path.isfile(path) and os.path.getsize(path) > MAX_MOT_BYTES:
-        raise _too_large(path)
-    try:
-        with open(path, encoding="utf-8-sig") as f:  # tolerates a byte-order mark
-            frames, boxes, confs = _parse_mot(path, _bounded_lines(path, f), frames_total, size)
-    except UnicodeDecodeError as e:
-        raise ValueError(f"{path}: not UTF-8 text ({e.reason} at byte {e.start})") from None
-    if not frames:
-        raise ValueError(f"{path}: no detections in the file")
-    return np.array(frames, dtype=np.int64), np.array(boxes, dtype=np.float64).reshape(-1, 4), np.array(confs)
-
-
-def _bounded_lines(path, f):
-    """The lines of the open text file ``f``, read in pieces: ValueError at a line longer than MAX_LINE_CHARS or
-    past MAX_MOT_BYTES characters in all."""
-    total = 0
-    for number in itertools.count(1):
-        line = f.readline(MAX_LINE_CHARS + 1)
-        if not line:
-            return
-        total += len(line)
-        if len(line) > MAX_LINE_CHARS:
-            raise ValueError(f"{path}: line {number}: longer than {MAX_LINE_CHARS} characters; not a MOTChallenge file")
-        if total > MAX_MOT_BYTES:
-            raise _too_large(path)
-        yield line
-
-
-def _too_large(path) -> ValueError:
-    return ValueError(f"{path}: larger than {MAX_MOT_BYTES >> 20} MiB (import-mot's bound); split it by frame")
-
-
-def _parse_mot(path, f, frames_total: int | None, size: tuple[int, int] | None) -> tuple[list, list, list]:
-    """The lines ``f`` of a MOT file (read_mot) -> lists of frames, boxes (our pixels) and confs."""
-    frames, boxes, confs = [], [], []
-    for number, line in enumerate(f, start=1):
-        if not line.strip():
-            continue
-        fields = line.split(",")
-        if len(fields) not in MOT_COLUMNS:
-            raise ValueError(f"{path}: line {number}: expected 9 or 10 comma-separated values, got {len(fields)}")
-        try:
-            values = [float(v) for v in fields]
-        except ValueError:
-            raise ValueError(f"{path}: line {number}: not a number in {line.strip()!r}") from None
-        frame, _, left, top, width, height, conf = values[:7]
-        if not all(math.isfinite(v) for v in values[:7]):
-            raise ValueError(f"{path}: line {number}: non-finite value in {line.strip()!r}")
-        if frame != int(frame) or frame < 1:
-            raise ValueError(f"{path}: line {number}: frame must be an integer >= 1, got {fields[0].strip()}")
-        if width <= 0 or height <= 0:
-            raise ValueError(f"{path}: line {number}: box width and height must be > 0, got {width}, {height}")
-        if frames_total is not None and frame > frames_total:
-            raise ValueError(f"{path}: line {number}: frame {int(frame)} is beyond the video ({frames_total} frames)")
-        if not 0.0 <= conf <= 1.0:
-            raise ValueError(f"{path}: line {number}: conf must be in [0, 1] (detections.parquet's score), got {fields[6].strip()}")
-        box = (left - MOT_OFFSET, top - MOT_OFFSET, left - MOT_OFFSET + width, top - MOT_OFFSET + height)
-        if size is not None and not _near_image(box, *size):
-            raise ValueError(f"{path}: line {number}: box {','.join(v.strip() for v in fields[2:6])} "
-                             f"does not overlap the {size[0]}x{size[1]} image or reaches more than one image size beyond it")
-        frames.append(int(frame))
-        boxes.append(box)
-        confs.append(conf)
-    return frames, boxes, confs
-
-
-def _near_image(box: tuple[float, float, float, float], width: int, height: int) -> bool:
-    """The box (x1, y1, x2, y2, our pixels) overlaps the image and its edges lie within one image size of it."""
-    x1, y1, x2, y2 = box
-    lo_x, hi_x, lo_y, hi_y = -0.5, width - 0.5, -0.5, height - 0.5
-    overlaps = x1 < hi_x and x2 > lo_x and y1 < hi_y and y2 > lo_y
-    return overlaps and lo_x - width <= x1 and x2 <= hi_x + width and lo_y - height <= y1 and y2 <= hi_y + height
-
 
 def import_mot(dataset_dir: str | os.PathLike, mot_txt_path: str | os.PathLike, name: str, min_iou: float = 0.5) -> pa.Table:
     """An external detector's MOTChallenge output as a matched detections table (detector = name).
@@ -149,7 +43,7 @@ def import_mot(dataset_dir: str | os.PathLike, mot_txt_path: str | os.PathLike, 
     camera = read_json(camera_path) if camera_path.is_file() else None
     gt = pq.read_table(dataset_dir / "gt.parquet")
     size = (int(camera["width"]), int(camera["height"])) if camera else None
-    frames, xyxy, conf = read_mot(mot_txt_path, manifest.get("frames_total"), size)
+    frames, xyxy, conf, _ = read_mot(mot_txt_path, manifest.get("frames_total"), size)
 
     gt_box, gt_agent = _boxes(gt), gt.column("agent_id").to_numpy()
     rows, times, starts, counts = _visible_by_time(gt)

@@ -1,0 +1,535 @@
+"""Beyond the paper: the clicked mapping corrected from the people in view, with no reference point.
+
+The paper's error model (Section 3) says most distance error is the clicked trapezoid's horizon being off, and
+a tilt error of the clicked trapezoid is exactly an image rotation: if its corners are the true ones moved by
+G = K R_x(delta) K^-1 (``homocal.geometry.camera.tilt_homography``), the true mapping is H_clicked . G. The
+people in view fix delta once the camera's height and the people's height distribution are known.
+
+Camera model (``homocal.geometry.camera``: pinhole, square pixels, roll 0, focal length f, principal row cy,
+optical centre h_c above a flat ground, tilted theta below the horizontal). Image row v is the plane through
+the optical centre and the camera's horizontal x-axis, inclined theta + beta(v) below the horizontal,
+beta(v) = atan((v - cy) / f); the horizon is the row v_h = cy - f tan(theta). A person standing at forward
+distance Y (world y) whose box has its bottom edge (the nearest sole) on row v_f and its top edge (the top of
+the head) on row v_t: Y = h_c / tan(theta + beta_f), and the vertical through that ground point meets the
+head's row plane at the implied height
+
+    H(theta) = h_c (1 - tan(theta + beta_t) / tan(theta + beta_f))                       (``implied_heights``)
+
+exactly, in any image column (the vertical vanishing point is accounted for: the naive
+H / h_c = (v_f - v_t) / (v_f - v_h) is 1.3-9.5 % short on a 4 m camera tilted 15 degrees, 7 % at 6-10 m,
+2 % at 20-45 m). H decreases as theta grows (the horizon
+rises) wherever the foot is below the horizon and theta + beta_t + theta + beta_f < 90 degrees.
+
+Fit (``fit_tilt``). With the prior N(mu, sigma^2) of the people's heights, theta is the robust maximum
+likelihood estimate: start where the median implied height of all boxes is mu (bisection); then repeat,
+at most MAX_ROUNDS times, until the set of inlier boxes no longer changes: the inliers are the boxes whose
+implied height is within OUTLIER_SIGMAS sigma of mu (occluded or border-cut boxes, sitting people, children
+and false detections fall outside), each person (track) is one height, the median of its inlier boxes',
+and theta solves the Huber score equation
+
+    sum_j psi((H_j(theta) - mu) / sigma) H_j'(theta) = 0,    psi(r) = max(-k, min(k, r)), k = HUBER_K
+
+(bisection). The weights H_j' make this the likelihood's own score: a relative height error epsilon of a
+person at distance Y moves the horizon by epsilon f h_c / Y, so far people carry more information per
+person and near ones, whose boxes' bottom edge (the nearest sole's edge, up to a quarter stride and half a
+foot nearer than the body's axis) biases their implied heights up (+3.8 % within 8 m, +1.6 % at 8-12 m
+for scene1's segmentation boxes), carry little.
+
+Uncertainty: the sandwich variance of the M-estimate over the people (tracks), sigma_theta^2 =
+sigma^2 sum psi^2 H'^2 / (sum psi' H'^2)^2, as a horizon row sigma f sec^2(theta) sigma_theta (px); and the
+horizon's shift per centimetre of error in the prior mean (dtheta / dmu = sum psi' H' / sum psi' H'^2),
+which no number of people reduces. Without track ids, boxes in frames up to LINK_GAP apart are linked into
+tracks by box overlap (``homocal.geometry.boxes.link_tracks``); without frames either, every box counts as
+an independent person and the uncertainty is understated.
+
+What it takes from the clicked mapping: nothing for theta when K and h_c are given. Without K: the focal
+length from the clicked homography (``focal_from_homography``: principal point at the image centre, square
+pixels, zero skew); without h_c: the camera height from its decomposition with K
+(``camera_height_from_homography``). A pure tilt error leaves both exact (the clicked mapping is then a
+camera with the same K and the same optical centre, only rotated); other click errors do not.
+"""
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+
+from homocal.correctors.base import Corrector, check_calibration, improvement_percent, mean_error
+from homocal.correctors.serialization import float_or_none, integer, number
+from homocal.geometry import ViewTransformer, apply_homography
+from homocal.geometry.boxes import box_edges, link_tracks
+from homocal.geometry.camera import tilt_homography
+from homocal.uncertainty import ground_uncertainty
+
+# Adult heights, metres: NCD-RisC 2016 (eLife 5:e13410, "A century of trends in adult human height"), as
+# summarised by Our World in Data: the global mean of adults born in 1996 is 171 cm for men and 159 cm for
+# women; an equal mix has mean 1.65 m and, with a within-sex sd of about 7 cm (NCD-RisC gives means only),
+# sd sqrt(0.07^2 + 0.06^2) = 0.09 m.
+DEFAULT_HEIGHT_MEAN_M = 1.65
+DEFAULT_HEIGHT_SD_M = 0.09
+OUTLIER_SIGMAS = 3.0  # a box whose implied height is farther than this many prior sds from the mean is an outlier
+HUBER_K = 1.345  # Huber's constant (95 % efficiency at the normal)
+MAX_ROUNDS = 20  # inlier-set rounds of fit_tilt at most
+MIN_PEOPLE = 3  # fewer inlier people (tracks) than this is refused
+LINK_GAP = 5  # frames: boxes this many frames apart at most are linked into one track
+BORDER_PX = 1.0  # a box whose edge is within this of the image border is cut by it and not used
+MAX_CAMERA_HEIGHT_M = 100.0
+MODELS = ("camera", "rotation")  # PedestrianCorrector's corrected mappings (its docstring); the first is the default
+GRID = 128  # tilt grid of the median start over its 90 degree range (then bisection)
+
+
+def implied_heights(foot_rows: np.ndarray, head_rows: np.ndarray, tilt: float, focal_px: float, cy: float,
+                    camera_height_m: float) -> np.ndarray:
+    """Heights (N,) metres of people whose boxes span image rows head_rows (N,) (top edges) to foot_rows (N,)
+    (bottom edges), pixels, for a camera tilted ``tilt`` radians below the horizontal, focal length focal_px,
+    principal row cy (px), at camera_height_m over a flat ground (module docstring):
+    H = h_c (1 - tan(tilt + beta_t) / tan(tilt + beta_f)), beta = atan((v - cy) / f). +inf where the foot row
+    is on or above the horizon (tilt + beta_f <= 0: the person would be infinitely far)."""
+    beta_t, beta_f = (np.arctan((np.asarray(v, float) - cy) / focal_px) for v in (head_rows, foot_rows))
+    return _heights(beta_f, beta_t, tilt, camera_height_m)[0]
+
+
+def _heights(beta_f: np.ndarray, beta_t: np.ndarray, tilt: float, camera_height_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """(H, dH/dtilt) (N,) of implied_heights from the row angles beta_f, beta_t (N,) radians:
+    with a = tilt + beta_t, b = tilt + beta_f, H = h_c (1 - tan a / tan b) and
+    dH/dtilt = -h_c (sec^2 a tan b - tan a sec^2 b) / tan^2 b; (+inf, 0) where b <= 0."""
+    ta, tb = np.tan(tilt + beta_t), np.tan(tilt + beta_f)
+    front = tilt + beta_f > 0
+    tb = np.where(front, tb, 1.0)
+    h = np.where(front, camera_height_m * (1.0 - ta / tb), np.inf)
+    dh = np.where(front, -camera_height_m * ((1.0 + ta * ta) * tb - ta * (1.0 + tb * tb)) / (tb * tb), 0.0)
+    return h, dh
+
+
+def horizon_row(tilt: float, focal_px: float, cy: float) -> float:
+    """The horizon's image row v_h = cy - f tan(tilt), px, of a camera tilted ``tilt`` radians down (roll 0)."""
+    return cy - focal_px * math.tan(tilt)
+
+
+def focal_from_homography(image_to_ground: np.ndarray, principal_point: tuple[float, float]) -> float:
+    """Focal length (px) of the camera a ground homography (3, 3) image -> ground implies, for a principal point
+    (cx, cy) px, square pixels and zero skew: with G = inverse of it = K [r1 r2 t] up to scale and
+    K^-1 g_i = ((g_ix - cx g_iw) / f, (g_iy - cy g_iw) / f, g_iw), the conditions r1 . r2 = 0 and |r1| = |r2|
+    are linear in x = 1 / f^2: (a1 . a2) x = -w1 w2, (|a1|^2 - |a2|^2) x = w2^2 - w1^2 (a_i the first two
+    entries of g_i - (cx, cy) g_iw, w_i = g_iw), solved together by least squares. ValueError if they imply
+    no real focal length."""
+    g = np.linalg.inv(image_to_ground)
+    g = g / np.linalg.norm(g)
+    cx, cy = principal_point
+    a = [g[:2, i] - np.array([cx, cy]) * g[2, i] for i in (0, 1)]
+    w = g[2, :2]
+    coef = np.array([a[0] @ a[1], a[0] @ a[0] - a[1] @ a[1]])
+    rhs = np.array([-w[0] * w[1], w[1] ** 2 - w[0] ** 2])
+    x = float(coef @ rhs / (coef @ coef)) if coef @ coef > 0 else math.nan
+    if not x > 0:
+        raise ValueError("the clicked mapping implies no real focal length for a principal point at the image centre: "
+                         "give the intrinsics K")
+    return 1.0 / math.sqrt(x)
+
+
+def camera_height_from_homography(image_to_ground: np.ndarray, K: np.ndarray) -> float:
+    """Height (the ground homography's target units, metres) of the optical centre above the ground plane, from a
+    ground homography (3, 3) image -> ground and the intrinsics K (3, 3): with B = K^-1 G = lambda [r1 r2 t]
+    (G its inverse), lambda = (|b1| + |b2|) / 2, r3 = r1 x r2 / |r1 x r2|, the height is |r3 . t|, the distance
+    from the optical centre to the plane z = 0."""
+    B = np.linalg.inv(K) @ np.linalg.inv(image_to_ground)
+    lam = 0.5 * (np.linalg.norm(B[:, 0]) + np.linalg.norm(B[:, 1]))
+    r3 = np.cross(B[:, 0], B[:, 1])
+    return float(abs(r3 @ B[:, 2]) / (np.linalg.norm(r3) * lam))
+
+
+def _huber(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(psi(r), psi'(r)) of Huber's function with k = HUBER_K."""
+    return np.clip(r, -HUBER_K, HUBER_K), (np.abs(r) <= HUBER_K).astype(np.float64)
+
+
+def _bisect(g, lo: float, hi: float, steps: int = 50) -> float:
+    """The root of g in [lo, hi] where g(lo) > 0 >= g(hi), by bisection (50 halvings: 1e-15 of a 90 degree range)."""
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if g(mid) > 0 else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def _group_medians(values: np.ndarray, slopes: np.ndarray, labels: np.ndarray, starts: np.ndarray,
+                   counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(median, its slope) (G,) per group of values (M,) with dense labels (M,) 0..G-1, groups starting at
+    starts (G,) with counts (G,) in label order: the middle value (mean of the two middle ones for an even count)
+    and the same combination of slopes."""
+    order = np.lexsort((values, labels))
+    lo, hi = order[starts + (counts - 1) // 2], order[starts + counts // 2]
+    return 0.5 * (values[lo] + values[hi]), 0.5 * (slopes[lo] + slopes[hi])
+
+
+def fit_tilt(foot_rows: np.ndarray, head_rows: np.ndarray, tracks: np.ndarray, focal_px: float, cy: float,
+             camera_height_m: float, mean_m: float, sd_m: float) -> dict:
+    """The camera's tilt from people's boxes (module docstring, Fit and Uncertainty).
+
+    Args:
+        foot_rows, head_rows: (N,) bottom and top edge rows of the boxes, px (homocal's pixels).
+        tracks: (N,) int person (track) of each box.
+        focal_px, cy: the focal length and principal row, px. camera_height_m: metres.
+        mean_m, sd_m: the prior of the people's heights, metres.
+    Returns a dict: tilt (radians), tilt_sigma (radians), mean_sensitivity (dtilt / dmu, radians per metre),
+    inlier_boxes (N,) bool, n_people (tracks with an inlier box), rounds.
+    ValueError if no tilt makes the median implied height mu or fewer than MIN_PEOPLE people are inliers.
+    """
+    beta_f, beta_t = np.arctan((foot_rows - cy) / focal_px), np.arctan((head_rows - cy) / focal_px)
+    lo, hi = -beta_f.max(), math.pi / 2 - beta_f.max()  # every foot on or above the horizon .. the lowest straight down
+
+    def median_excess(tilt: float) -> float:
+        return float(np.median(_heights(beta_f, beta_t, tilt, camera_height_m)[0])) - mean_m
+
+    grid = lo + (hi - lo) * np.arange(1, GRID) / GRID
+    below = np.flatnonzero(np.array([median_excess(t) for t in grid]) <= 0)
+    if below.size == 0 or below[0] == 0:
+        raise ValueError(f"no tilt makes the median implied height {mean_m:g} m (camera height {camera_height_m:g} m): "
+                         "are these boxes of standing people, and is the camera height right?")
+    tilt = _bisect(median_excess, grid[below[0] - 1], grid[below[0]])
+
+    inliers = None
+    for rounds in range(1, MAX_ROUNDS + 1):
+        new = np.abs(_heights(beta_f, beta_t, tilt, camera_height_m)[0] - mean_m) <= OUTLIER_SIGMAS * sd_m
+        if inliers is not None and np.array_equal(new, inliers):
+            break
+        inliers = new
+        people, labels, counts = np.unique(tracks[inliers], return_inverse=True, return_counts=True)
+        if len(people) < MIN_PEOPLE:
+            raise ValueError(f"only {len(people)} people (tracks) have a box whose implied height is within "
+                             f"{OUTLIER_SIGMAS:g} sd of {mean_m:g} m: need at least {MIN_PEOPLE}")
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        bf, bt = beta_f[inliers], beta_t[inliers]
+
+        def people_heights(t: float) -> tuple[np.ndarray, np.ndarray]:
+            return _group_medians(*_heights(bf, bt, t, camera_height_m), labels, starts, counts)
+
+        def score(t: float) -> float:
+            h, dh = people_heights(t)
+            return float(np.sum(_huber((h - mean_m) / sd_m)[0] * -dh))
+
+        width = math.radians(0.5)
+        while not (score(tilt - width) > 0 >= score(tilt + width)) and width < math.radians(20):
+            width *= 2
+        if score(tilt - width) > 0 >= score(tilt + width):
+            tilt = _bisect(score, tilt - width, tilt + width)
+    h, d = people_heights(tilt)
+    psi, dpsi = _huber((h - mean_m) / sd_m)
+    curvature = float(np.sum(dpsi * d * d))
+    tilt_sigma = sd_m * math.sqrt(float(np.sum(psi * psi * d * d))) / curvature if curvature > 0 else math.inf
+    sensitivity = float(np.sum(dpsi * d)) / curvature if curvature > 0 else math.nan
+    return {"tilt": tilt, "tilt_sigma": tilt_sigma, "mean_sensitivity": sensitivity, "inlier_boxes": inliers,
+            "n_people": len(people), "rounds": rounds}
+
+class PedestrianCorrector(Corrector):
+    """The clicked mapping corrected from people's boxes, with no reference point (module docstring).
+
+    Args:
+        height_mean_m, height_sd_m: the prior of the people's heights, metres (default: adults, NCD-RisC 2016,
+            DEFAULT_HEIGHT_MEAN_M and DEFAULT_HEIGHT_SD_M).
+        model: the corrected mapping (``transformer_``: the image trapezoid that maps with it onto the clicked
+            map trapezoid, whose site-map frame is kept):
+            "camera" (the default): the camera's own ground mapping (K, the camera height, the fitted tilt,
+                roll 0), placed with its ground point on camera_origin and turned about it (yaw_deg_) so that
+                the clicked corners, turned back by G^-1 (below), fall nearest the map corners: the clicked
+                trapezoid then only gives the map's axes, and none of its other click errors stay; K and the
+                camera height must be right (given, or from a clicked mapping that is a camera).
+            "rotation": H_clicked . G, G = K R_x(delta) K^-1, delta the angle between the clicked mapping's
+                horizon and the fitted one at the principal column: the clicked mapping with only its tilt
+                error undone; its other click errors stay, and where they had compensated the horizon's error
+                the correction breaks that (docs/pedestrians.md has the measurements of both).
+
+    Fit with ``fit(transformer, xyxy, convention=..., ...)``.
+
+    Attributes after fit (or load): horizon_row_ (the fitted horizon, px at the principal column),
+    clicked_horizon_row_, horizon_sigma_px_ (its 1-sigma uncertainty from the people's spread and number),
+    mean_sensitivity_px_per_cm_ (the horizon's move, px, per cm the prior mean is off: not reduced by more
+    people), tilt_deg_, rotation_deg_ (delta), focal_px_, principal_point_ (cx, cy), camera_height_m_,
+    yaw_deg_ (model "camera"; NaN for "rotation"), focal_source_ and camera_height_source_ ("given" or
+    "clicked mapping"), n_boxes_, n_border_ (cut by the image border, not used), n_outliers_ (beyond
+    OUTLIER_SIGMAS), n_people_ (tracks), n_people_used_, transformer_, m, plus those of ``Corrector``
+    (error_before_ and error_after_ on check points if fit had them, else NaN).
+    """
+
+    method = "pedestrians"
+    param_names = ("height_mean_m", "height_sd_m", "model")
+
+    def __init__(self, height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
+                 model: str = "camera") -> None:
+        if model not in MODELS:
+            raise ValueError(f"model {model!r}: expected one of {', '.join(MODELS)}")
+        self.model = model
+        mean, sd = (float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else math.nan
+                    for x in (height_mean_m, height_sd_m))
+        if not 0.5 <= mean <= 2.5:
+            raise ValueError(f"height_mean_m must be a number of metres in [0.5, 2.5], got {height_mean_m!r}")
+        if not 0.01 <= sd <= mean / 4:
+            raise ValueError(f"height_sd_m must be in [0.01, height_mean_m / 4] m (people's heights spread), got "
+                             f"{height_sd_m!r}")
+        self.height_mean_m, self.height_sd_m = mean, sd
+
+    def fit(self, transformer: ViewTransformer, xyxy: np.ndarray, *, convention: str, frames: np.ndarray | None = None,
+            track_ids: np.ndarray | None = None, camera_height_m: float | None = None, K: np.ndarray | None = None,
+            image_size: tuple[int, int] | None = None, image_points: np.ndarray | None = None,
+            ground_points: np.ndarray | None = None, camera_origin=(0.0, 0.0)) -> PedestrianCorrector:
+        """Fit from people's boxes.
+
+        Args:
+            transformer: the clicked image-to-ground ViewTransformer (target in metres).
+            xyxy: (N, 4) boxes (x1, y1, x2, y2) of people, pixels, in ``convention`` (homocal.geometry.boxes:
+                "corners" for supervision's Detections.xyxy of YOLO-like models, "homocal" for simgen's).
+                The bottom edge y2 is the foot row, the top edge y1 the head row.
+            frames: (N,) int video frame of each box (to link boxes into tracks); None: each box is a person.
+            track_ids: (N,) int person of each box (one height per person); None: linked from frames.
+            camera_height_m: the optical centre's height over the ground; None: from the clicked mapping with K.
+            K: (3, 3) intrinsics (fx = fy, roll 0); None: principal point at the centre of image_size, focal
+                length from the clicked mapping.
+            image_size: (width, height) px; boxes within BORDER_PX of its border are not used.
+            image_points, ground_points, camera_origin: optional check points (N, 2) px, (N, 2) m, (2,) m: not
+                used by the fit, their mean errors before and after are error_before_ and error_after_.
+        Returns self. ValueError naming the argument for bad input.
+        """
+        if not isinstance(transformer, ViewTransformer):
+            raise TypeError(f"transformer: expected a homocal.ViewTransformer, got {type(transformer).__name__}")
+        edges = _check_boxes(xyxy, convention)
+        n = len(edges)
+        frames = _check_labels(frames, n, "frames")
+        tracks = _check_labels(track_ids, n, "track_ids")
+        size = _check_image_size(image_size)
+        if K is None:
+            if size is None:
+                raise ValueError("K and image_size are both None: give the intrinsics K or the image size")
+            principal = (size[0] / 2.0 - 0.5, size[1] / 2.0 - 0.5)
+            focal, self.focal_source_ = focal_from_homography(transformer.m, principal), "clicked mapping"
+        else:
+            K = np.asarray(K, dtype=np.float64)
+            if K.shape != (3, 3) or not np.isfinite(K).all() or not K[0, 0] > 0 or abs(K[0, 0] - K[1, 1]) > 1e-6 * K[0, 0]:
+                raise ValueError(f"K: expected finite (3, 3) intrinsics with fx = fy > 0, got {K.tolist()}")
+            principal, focal, self.focal_source_ = (float(K[0, 2]), float(K[1, 2])), float(K[1, 1]), "given"
+        self.focal_px_, self.principal_point_ = focal, principal
+        if camera_height_m is None:
+            camera_height_m, self.camera_height_source_ = camera_height_from_homography(transformer.m, self.K), "clicked mapping"
+        else:
+            self.camera_height_source_ = "given"
+        self.camera_height_m_ = _check_camera_height(camera_height_m)
+        clicked_row = float(transformer.horizon_row(principal[0]))
+        if not (edges[:, 3] > transformer.horizon_row((edges[:, 0] + edges[:, 2]) / 2)).any():
+            raise ValueError(f"xyxy: all {n} boxes have their bottom edge on or above the clicked mapping's horizon "
+                             f"(row {clicked_row:.1f} at the principal column): none stands on its ground")
+        border = np.zeros(n, bool) if size is None else _on_border(edges, size)
+        if border.all():
+            raise ValueError(f"xyxy: all {n} boxes touch the {size[0]}x{size[1]} image's border (cut by it)")
+        if tracks is None:
+            tracks = np.arange(n) if frames is None else link_tracks(frames, edges, max_gap=LINK_GAP)
+        used = ~border
+        fit = fit_tilt(edges[used, 3], edges[used, 1], tracks[used], focal, principal[1], self.camera_height_m_,
+                       self.height_mean_m, self.height_sd_m)
+        self.base_transformer_ = transformer
+        self.camera_origin_ = _check_origin(camera_origin)
+        self.horizon_row_ = horizon_row(fit["tilt"], focal, principal[1])
+        secant2 = 1.0 + math.tan(fit["tilt"]) ** 2
+        self.horizon_sigma_px_ = focal * secant2 * fit["tilt_sigma"]
+        self.mean_sensitivity_px_per_cm_ = abs(focal * secant2 * fit["mean_sensitivity"]) / 100.0
+        self.n_boxes_, self.n_border_ = n, int(border.sum())
+        self.n_outliers_ = int(used.sum() - fit["inlier_boxes"].sum())
+        self.n_people_, self.n_people_used_ = len(np.unique(tracks[used])), fit["n_people"]
+        self._set_transformer()
+        self._check_points(image_points, ground_points)
+        return self
+
+    def with_mapping(self, transformer: ViewTransformer) -> PedestrianCorrector:
+        """The same fitted horizon on another clicked mapping of the same camera (a re-clicked trapezoid): a copy
+        whose correction takes that mapping's horizon to the fitted one, with no check points. Only for a fit
+        whose focal length and camera height were given (theirs from the clicked mapping would change with it):
+        ValueError otherwise."""
+        if not isinstance(transformer, ViewTransformer):
+            raise TypeError(f"transformer: expected a homocal.ViewTransformer, got {type(transformer).__name__}")
+        if "clicked mapping" in (self.focal_source_, self.camera_height_source_):
+            raise ValueError("this fit read the focal length or the camera height from its clicked mapping: fit again")
+        other = copy.copy(self)
+        other.base_transformer_ = transformer
+        other._set_transformer()
+        other.error_before_ = other.error_after_ = other.calibration_improvement_ = math.nan
+        return other
+
+    @property
+    def K(self) -> np.ndarray:
+        """(3, 3) the intrinsics the fit used."""
+        f, (cx, cy) = self.focal_px_, self.principal_point_
+        return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+
+    def _set_transformer(self) -> None:
+        """clicked_horizon_row_, tilt_deg_, rotation_deg_, yaw_deg_ and transformer_ from the base transformer, K,
+        the camera height and horizon_row_ (the class docstring's two models): delta = the clicked horizon's
+        elevation minus the fitted one's (G = tilt_homography(K, delta) takes the fitted horizon to the clicked
+        one at the principal column)."""
+        f, (cx, cy) = self.focal_px_, self.principal_point_
+        base = self.base_transformer_
+        self.clicked_horizon_row_ = float(base.horizon_row(cx))
+        tilt = math.atan((cy - self.horizon_row_) / f)
+        delta = math.atan((cy - self.clicked_horizon_row_) / f) - tilt
+        self.tilt_deg_, self.rotation_deg_ = math.degrees(tilt), math.degrees(delta)
+        source = apply_homography(tilt_homography(self.K, -delta), base.source)  # the clicked corners turned back
+        self.yaw_deg_ = math.nan
+        if self.model == "camera":
+            level = self.K @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, self.camera_height_m_], [0.0, 1.0, 0.0]])
+            camera = np.linalg.inv(level) @ tilt_homography(self.K, -tilt)  # image -> ground, the camera's frame
+            w, t = apply_homography(camera, source), base.target - self.camera_origin_
+            yaw = float(np.angle(np.sum((t[:, 0] + 1j * t[:, 1]) * np.conj(w[:, 0] + 1j * w[:, 1]))))
+            turn = np.array([[math.cos(yaw), -math.sin(yaw), self.camera_origin_[0]],
+                             [math.sin(yaw), math.cos(yaw), self.camera_origin_[1]], [0.0, 0.0, 1.0]])
+            self.yaw_deg_ = math.degrees(yaw)
+            source = apply_homography(np.linalg.inv(turn @ camera), base.target)
+        self.transformer_ = ViewTransformer(source, base.target)
+
+    def _check_points(self, image_points, ground_points) -> None:
+        """error_before_ / error_after_ / calibration_improvement_ on the check points, NaN without them."""
+        if image_points is None and ground_points is None:
+            self.error_before_ = self.error_after_ = self.calibration_improvement_ = math.nan
+            return
+        q, p, g, _ = check_calibration(self.base_transformer_, image_points, ground_points, self.camera_origin_)
+        self.error_before_, self.error_after_ = mean_error(p, g), mean_error(self._transform(q), g)
+        self.calibration_improvement_ = improvement_percent(self.error_before_, self.error_after_)
+
+    @property
+    def m(self) -> np.ndarray:
+        """(3, 3) corrected image-to-ground homography (unit Frobenius norm, w > 0 on the ground side)."""
+        return self.transformer_.m
+
+    def _transform(self, q: np.ndarray) -> np.ndarray:
+        return self.transformer_.transform_points(q)
+
+    def ground_uncertainty(self, image_points: np.ndarray, click_sigma_px: float = 0.0,
+                           point_sigma_px: float = 1.0) -> np.ndarray:
+        """First-order covariance (N, 2, 2), metres, of the corrected ground points of image points (N, 2) px:
+        the fitted horizon's uncertainty (horizon_sigma_px_, as a tilt) plus homocal.ground_uncertainty of
+        transformer_ (click_sigma_px on each corrected trapezoid corner coordinate, point_sigma_px on the
+        point; the horizon part of the clicking error is what the people fixed, hence 0 by default)."""
+        q = np.asarray(image_points, dtype=np.float64).reshape(-1, 2)
+        cov = ground_uncertainty(self.transformer_, q, click_sigma_px, point_sigma_px)
+        f, cy = self.focal_px_, self.principal_point_[1]
+        tilt = math.atan((cy - self.horizon_row_) / f)
+        step = 1e-6
+        moved = []
+        for sign in (1.0, -1.0):  # the tilt moved by +-step: the corrected mapping's rotation by -+step
+            G = tilt_homography(self.K, -sign * step)
+            moved.append(apply_homography(self.m @ G, q))
+        J = (moved[0] - moved[1]) / (2 * step)
+        tilt_sigma = self.horizon_sigma_px_ / (f * (1.0 + math.tan(tilt) ** 2))
+        return cov + tilt_sigma**2 * J[:, :, None] * J[:, None, :]
+
+    # ---- JSON ----------------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        """As Corrector.to_dict; error_before, error_after (null without check points)."""
+        data = super().to_dict()
+        data["error_before"], data["error_after"] = float_or_none(self.error_before_), float_or_none(self.error_after_)
+        return data
+
+    @classmethod
+    def _from_fields(cls, data: dict) -> PedestrianCorrector:
+        """Corrector._from_fields, with error_before and error_after both null (no check points) or both numbers."""
+        missing = [data.get(k) is None for k in ("error_before", "error_after")]
+        if any(missing) and not all(missing):
+            raise ValueError("fields error_before and error_after: both numbers (check points) or both null")
+        obj = super()._from_fields({**data, **({"error_before": 0.0, "error_after": 0.0} if all(missing) else {})})
+        if all(missing):
+            obj.error_before_ = obj.error_after_ = math.nan
+        return obj
+
+    def _fitted_state(self) -> dict:
+        sigma = self.horizon_sigma_px_
+        return {"horizon_row": self.horizon_row_, "horizon_sigma_px": sigma if math.isfinite(sigma) else None,
+                "mean_sensitivity_px_per_cm": float_or_none(self.mean_sensitivity_px_per_cm_),
+                "focal_px": self.focal_px_, "principal_point": list(self.principal_point_),
+                "focal_source": self.focal_source_, "camera_height_m": self.camera_height_m_,
+                "camera_height_source": self.camera_height_source_, "n_boxes": self.n_boxes_,
+                "n_border": self.n_border_, "n_outliers": self.n_outliers_, "n_people": self.n_people_,
+                "n_people_used": self.n_people_used_}
+
+    def _set_fitted_state(self, state: dict) -> None:
+        """Check what fit could have produced: finite numbers, a focal length > 0, a camera height in bounds,
+        counts that add up, a source fit names; then rebuild transformer_ (a quad ViewTransformer accepts)."""
+        self.focal_px_ = number(state["focal_px"], "fitted.focal_px")
+        if not self.focal_px_ > 0:
+            raise ValueError(f"field fitted.focal_px: must be > 0, got {self.focal_px_}")
+        pp = state["principal_point"]
+        if not (isinstance(pp, list) and len(pp) == 2):
+            raise ValueError(f"field fitted.principal_point: expected [cx, cy], got {pp!r}")
+        self.principal_point_ = tuple(number(x, "fitted.principal_point") for x in pp)
+        self.horizon_row_ = number(state["horizon_row"], "fitted.horizon_row")
+        sigma = state["horizon_sigma_px"]
+        self.horizon_sigma_px_ = math.inf if sigma is None else number(sigma, "fitted.horizon_sigma_px", minimum=0)
+        sens = state["mean_sensitivity_px_per_cm"]
+        self.mean_sensitivity_px_per_cm_ = math.nan if sens is None else number(sens, "fitted.mean_sensitivity_px_per_cm", minimum=0)
+        for key in ("focal_source", "camera_height_source"):
+            if state[key] not in ("given", "clicked mapping"):
+                raise ValueError(f"field fitted.{key}: expected 'given' or 'clicked mapping', got {state[key]!r}")
+        self.focal_source_, self.camera_height_source_ = state["focal_source"], state["camera_height_source"]
+        try:
+            self.camera_height_m_ = _check_camera_height(state["camera_height_m"])
+        except ValueError as e:
+            raise ValueError(f"field fitted.camera_height_m: {e}") from None
+        self.n_boxes_ = integer(state["n_boxes"], "fitted.n_boxes", 1, 2**62)
+        self.n_border_ = integer(state["n_border"], "fitted.n_border", 0, self.n_boxes_ - 1)
+        self.n_outliers_ = integer(state["n_outliers"], "fitted.n_outliers", 0, self.n_boxes_ - self.n_border_)
+        self.n_people_ = integer(state["n_people"], "fitted.n_people", 1, self.n_boxes_ - self.n_border_)
+        self.n_people_used_ = integer(state["n_people_used"], "fitted.n_people_used", MIN_PEOPLE, self.n_people_)
+        try:
+            self._set_transformer()
+        except ValueError as e:
+            raise ValueError(f"field fitted.horizon_row: {e}") from None
+
+
+def _check_boxes(xyxy, convention: str) -> np.ndarray:
+    """Box edges (N, 4) homocal px of xyxy; ValueError for no boxes, a non-finite or huge coordinate, or a box
+    upside down or empty (y2 <= y1 or x2 <= x1), naming the first."""
+    edges = box_edges(xyxy, convention=convention)
+    if len(edges) == 0:
+        raise ValueError("xyxy: no boxes")
+    bad = np.flatnonzero(~(np.abs(edges) <= 1e9).all(axis=1))
+    if bad.size:
+        raise ValueError(f"xyxy[{bad[0]}] = {np.asarray(xyxy)[bad[0]].tolist()} is not finite (or beyond 1e9 px)")
+    bad = np.flatnonzero(~((edges[:, 3] > edges[:, 1]) & (edges[:, 2] > edges[:, 0])))
+    if bad.size:
+        raise ValueError(f"xyxy[{bad[0]}] = {np.asarray(xyxy)[bad[0]].tolist()} is upside down or empty (needs "
+                         "x1 < x2 and y1 < y2: y1 the top edge, y2 the bottom edge, image rows counted down)")
+    return edges
+
+
+def _check_labels(labels, n: int, name: str) -> np.ndarray | None:
+    """labels (N,) as int64 (None stays None); ValueError for another length or non-integers."""
+    if labels is None:
+        return None
+    arr = np.asarray(labels)
+    if arr.shape != (n,) or arr.dtype.kind not in "iu":
+        raise ValueError(f"{name}: expected ({n},) integers, one per box, got {arr.dtype} of shape {arr.shape}")
+    return arr.astype(np.int64)
+
+
+def _check_image_size(image_size) -> tuple[int, int] | None:
+    if image_size is None:
+        return None
+    if not (len(image_size) == 2 and all(isinstance(x, (int, np.integer)) and 0 < x <= 100_000 for x in image_size)):
+        raise ValueError(f"image_size: expected (width, height), two integers in [1, 100000] px, got {image_size!r}")
+    return int(image_size[0]), int(image_size[1])
+
+
+def _check_camera_height(value) -> float:
+    h = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else math.nan
+    if not 0 < h <= MAX_CAMERA_HEIGHT_M:
+        raise ValueError(f"camera_height_m must be in (0, {MAX_CAMERA_HEIGHT_M:g}] m, got {value!r}")
+    return h
+
+
+def _check_origin(camera_origin) -> np.ndarray:
+    o = np.asarray(camera_origin, dtype=np.float64)
+    if o.shape != (2,) or not np.isfinite(o).all():
+        raise ValueError(f"camera_origin: expected 2 finite numbers, got {camera_origin!r}")
+    return o
+
+
+def _on_border(edges: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """(N,) bool: the box edge lies within BORDER_PX of the image's border (-0.5 .. size - 0.5)."""
+    w, h = size
+    return ((edges[:, 0] <= -0.5 + BORDER_PX) | (edges[:, 1] <= -0.5 + BORDER_PX)
+            | (edges[:, 2] >= w - 0.5 - BORDER_PX) | (edges[:, 3] >= h - 0.5 - BORDER_PX))

@@ -1,0 +1,389 @@
+"""PedestrianCorrector and its parts: implied heights against the pinhole camera's own projection, the tilt fit
+on synthetic people (with outliers), the corrected mapping against the true one, the file round trip, the box
+readers, and the bad inputs."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from homocal.boxes import read_boxes, read_mot
+from homocal.correctors.base import load_corrector
+from homocal.correctors.pedestrians import (
+    PedestrianCorrector,
+    camera_height_from_homography,
+    fit_tilt,
+    focal_from_homography,
+    horizon_row,
+    implied_heights,
+)
+from homocal.geometry import PinholeCamera, ViewTransformer
+from homocal.geometry.boxes import box_edges, link_tracks
+from homocal.geometry.camera import tilt_homography
+from homocal.study.perturb import tilt_shift
+
+CAM = PinholeCamera()  # 1280x720, 95 deg, 4 m, 15 deg down
+GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])  # TL, TR, BR, BL on the road, metres
+SIZE = (CAM.width, CAM.height)
+
+
+def people(n: int, seed: int = 0, sd: float = 0.07, mean: float = 1.7, cam: PinholeCamera = CAM):
+    """Synthetic standing people: heights (n,), boxes (n, 4) homocal edges (foot and head rows by cam.project,
+    columns +-0.2 m about the person), frames (n,) one person a frame, ground points (n, 2)."""
+    rng = np.random.default_rng(seed)
+    xy = np.column_stack([rng.uniform(-8, 8, n), rng.uniform(6, 45, n)])
+    h = rng.normal(mean, sd, n)
+    foot = cam.project(np.column_stack([xy, np.zeros(n)]))
+    head = cam.project(np.column_stack([xy, h]))
+    half = cam.focal_px * 0.2 / xy[:, 1]
+    boxes = np.column_stack([foot[:, 0] - half, head[:, 1], foot[:, 0] + half, foot[:, 1]])
+    return h, boxes, np.arange(n), xy
+
+
+def clicked_mapping(shift_px: float = 16.0, cam: PinholeCamera = CAM) -> ViewTransformer:
+    """The exact trapezoid moved as a tilt error moves it, its horizon shift_px above the true one."""
+    image = cam.project_ground(GROUND)
+    return ViewTransformer(tilt_shift(image, cam.K, cam.horizon_row, shift_px), GROUND)
+
+
+class TestImpliedHeights:
+    @pytest.mark.parametrize("tilt_deg", [5.0, 15.0, 30.0])
+    def test_exact_against_the_projection(self, tilt_deg):
+        """A vertical person of height H at any column: the implied height at the camera's tilt is H."""
+        cam = PinholeCamera(tilt_deg=tilt_deg)
+        h, boxes, _, _ = people(200, seed=1, cam=cam)
+        got = implied_heights(boxes[:, 3], boxes[:, 1], math.radians(tilt_deg), cam.focal_px, cam.K[1, 2], 4.0)
+        np.testing.assert_allclose(got, h, rtol=1e-9)
+
+    def test_the_naive_ratio_is_off_at_15_degrees(self):
+        """H / h_c = (v_f - v_t) / (v_f - v_h) ignores the vertical vanishing point: several % off here."""
+        h, boxes, _, _ = people(200, seed=2)
+        naive = 4.0 * (boxes[:, 3] - boxes[:, 1]) / (boxes[:, 3] - CAM.horizon_row)
+        assert np.max(np.abs(naive / h - 1)) > 0.05
+
+    def test_foot_above_the_horizon_is_infinitely_tall(self):
+        assert implied_heights(np.array([100.0]), np.array([50.0]), math.radians(15), CAM.focal_px, 359.5, 4.0)[0] == np.inf
+
+    def test_horizon_row(self):
+        assert horizon_row(math.radians(15), CAM.focal_px, CAM.K[1, 2]) == pytest.approx(CAM.horizon_row, abs=1e-9)
+
+
+class TestCameraFromTheMapping:
+    @pytest.mark.parametrize("shift", [0.0, 16.0, -10.0])
+    def test_focal_and_height_survive_a_tilt_error(self, shift):
+        """A tilt error is a rotation about the optical centre: the focal length and the height stay exact."""
+        m = clicked_mapping(shift).m
+        assert focal_from_homography(m, (CAM.K[0, 2], CAM.K[1, 2])) == pytest.approx(CAM.focal_px, rel=1e-9)
+        assert camera_height_from_homography(m, CAM.K) == pytest.approx(4.0, rel=1e-9)
+
+    def test_tilt_homography_is_the_camera_tilted(self):
+        ground = np.array([[3.0, 10.0], [-5.0, 30.0], [0.0, 6.0]])
+        G = tilt_homography(CAM.K, math.radians(1.0))
+        moved = np.column_stack([CAM.project_ground(ground), np.ones(3)]) @ G.T
+        np.testing.assert_allclose(moved[:, :2] / moved[:, 2:], PinholeCamera(tilt_deg=16.0).project_ground(ground), atol=1e-9)
+
+
+class TestFitTilt:
+    def test_recovers_the_tilt_within_its_uncertainty(self):
+        h, boxes, tracks, _ = people(400, seed=3)
+        fit = fit_tilt(boxes[:, 3], boxes[:, 1], tracks, CAM.focal_px, CAM.K[1, 2], 4.0, 1.7, 0.07)
+        sigma_px = CAM.focal_px * fit["tilt_sigma"] / math.cos(fit["tilt"]) ** 2
+        error_px = horizon_row(fit["tilt"], CAM.focal_px, CAM.K[1, 2]) - CAM.horizon_row
+        assert 0.05 < sigma_px < 1.0 and abs(error_px) < 3 * sigma_px
+        assert fit["n_people"] >= 395  # a normal sample has a few beyond 3 sd
+
+    def test_outliers_do_not_move_it(self):
+        """A quarter of the boxes cut to half their height (sitting, occluded) or doubled (two people merged)."""
+        h, boxes, tracks, _ = people(400, seed=4)
+        bad = boxes.copy()
+        bad[:100, 1] = (boxes[:100, 1] + boxes[:100, 3]) / 2
+        bad[100:120, 1] -= boxes[100:120, 3] - boxes[100:120, 1]
+        clean = fit_tilt(boxes[:, 3], boxes[:, 1], tracks, CAM.focal_px, CAM.K[1, 2], 4.0, 1.7, 0.07)
+        dirty = fit_tilt(bad[:, 3], bad[:, 1], tracks, CAM.focal_px, CAM.K[1, 2], 4.0, 1.7, 0.07)
+        row = lambda f: horizon_row(f["tilt"], CAM.focal_px, CAM.K[1, 2])  # noqa: E731
+        assert abs(row(dirty) - CAM.horizon_row) < 1.0 and abs(row(dirty) - row(clean)) < 1.0
+        assert 270 <= dirty["n_people"] <= 310  # the cut ones are out
+
+    def test_one_height_per_track(self):
+        """Ten boxes of each person count as one person: the same tilt, a larger uncertainty than 10x the people."""
+        h, boxes, _, _ = people(60, seed=5)
+        many = np.repeat(boxes, 10, axis=0) + np.random.default_rng(0).normal(0, 0.3, (600, 4))
+        tracked = fit_tilt(many[:, 3], many[:, 1], np.repeat(np.arange(60), 10), CAM.focal_px, CAM.K[1, 2], 4.0, 1.7, 0.07)
+        untracked = fit_tilt(many[:, 3], many[:, 1], np.arange(600), CAM.focal_px, CAM.K[1, 2], 4.0, 1.7, 0.07)
+        assert tracked["n_people"] == 60 and tracked["tilt_sigma"] > 2.5 * untracked["tilt_sigma"]
+
+
+class TestPedestrianCorrector:
+    @pytest.mark.parametrize("model", ["rotation", "camera"])
+    @pytest.mark.parametrize("given", [{"K": CAM.K, "camera_height_m": 4.0}, {"camera_height_m": 4.0}, {"K": CAM.K}, {}])
+    def test_corrects_a_tilt_error(self, given, model):
+        """The exact trapezoid moved 16 px by a tilt error: corrected ground points within 1 % of range at 5-50 m
+        (the fitted horizon is within 3 sigma of the true one), where the clicked mapping is 10-40 % off."""
+        _, boxes, frames, _ = people(400, seed=6)
+        clicked = clicked_mapping(16.0)
+        c = PedestrianCorrector(1.7, 0.07, model).fit(clicked, boxes, convention="homocal", track_ids=frames, image_size=SIZE, **given)
+        assert abs(c.horizon_row_ - CAM.horizon_row) < 3 * c.horizon_sigma_px_ + 1e-6
+        assert c.clicked_horizon_row_ == pytest.approx(CAM.horizon_row - 16.0, abs=1e-6)
+        ground = np.column_stack([np.linspace(-6, 6, 50), np.geomspace(5, 50, 50)])
+        q = CAM.project_ground(ground)
+        rel = lambda p: np.abs(np.linalg.norm(p, axis=1) / np.linalg.norm(ground, axis=1) - 1)  # noqa: E731
+        assert rel(clicked.transform_points(q)).max() > 0.1
+        assert rel(c.transform_points(q)).max() < 0.01
+        assert c.n_boxes_ == 400 and c.n_people_used_ > 390 and c.n_border_ <= 2  # one at the side border
+        assert c.focal_source_ == ("given" if "K" in given else "clicked mapping")
+
+    def test_camera_model_leaves_no_other_click_error(self):
+        """Click errors beyond the tilt (2 px on the image corners, 0.5 m on the map corners) and a yaw of the map:
+        the "camera" model is within 1 % of range at 5-50 m, "rotation" keeps those errors."""
+        _, boxes, tracks, _ = people(400, seed=16)
+        clicked = clicked_mapping(16.0)
+        rng = np.random.default_rng(2)
+        yaw = math.radians(20.0)
+        turn = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
+        noisy = ViewTransformer(clicked.source + rng.uniform(-2, 2, (4, 2)), GROUND @ turn.T + rng.uniform(-0.5, 0.5, (4, 2)))
+        ground = np.column_stack([np.linspace(-6, 6, 50), np.geomspace(5, 50, 50)])
+        q = CAM.project_ground(ground)
+        kw = dict(convention="homocal", track_ids=tracks, K=CAM.K, camera_height_m=4.0)
+        rel = lambda p: np.abs(np.linalg.norm(p, axis=1) / np.linalg.norm(ground, axis=1) - 1)  # noqa: E731
+        camera = PedestrianCorrector(1.7, 0.07).fit(noisy, boxes, **kw)
+        assert rel(camera.transform_points(q)).max() < 0.01 and abs(camera.yaw_deg_ - 20.0) < 1.0
+        assert rel(PedestrianCorrector(1.7, 0.07, "rotation").fit(noisy, boxes, **kw).transform_points(q)).max() > 0.03
+
+    def test_rotation_keeps_the_clicked_mapping(self):
+        """"rotation": the corrected trapezoid is the clicked one turned back by G^-1 onto the same map trapezoid."""
+        _, boxes, frames, _ = people(200, seed=7)
+        clicked = clicked_mapping(16.0)
+        c = PedestrianCorrector(model="rotation").fit(clicked, boxes, convention="homocal", track_ids=frames, K=CAM.K, camera_height_m=4.0)
+        np.testing.assert_array_equal(c.transformer_.target, clicked.target)
+        G = tilt_homography(c.K, math.radians(c.rotation_deg_))
+        moved = np.column_stack([c.transformer_.source, np.ones(4)]) @ G.T
+        np.testing.assert_allclose(moved[:, :2] / moved[:, 2:], clicked.source, atol=1e-6)
+
+    @pytest.mark.parametrize("model", ["rotation", "camera"])
+    def test_save_load_round_trip(self, tmp_path, model):
+        _, boxes, frames, _ = people(200, seed=8)
+        c = PedestrianCorrector(1.7, 0.07, model).fit(clicked_mapping(), boxes, convention="homocal", track_ids=frames,
+                                                K=CAM.K, camera_height_m=4.0, image_size=SIZE)
+        c.save(tmp_path / "c.json")
+        back = load_corrector(tmp_path / "c.json")
+        q = CAM.project_ground(GROUND)
+        np.testing.assert_array_equal(back.transform_points(q), c.transform_points(q))
+        assert (back.horizon_row_, back.n_people_used_, back.get_params()) == (c.horizon_row_, c.n_people_used_, c.get_params())
+        data = json.loads((tmp_path / "c.json").read_text())
+        assert data["method"] == "pedestrians" and data["error_before"] is None
+
+    def test_check_points_are_reported_not_fitted(self):
+        _, boxes, frames, _ = people(200, seed=9)
+        g = np.array([[0.0, 10.0], [2.0, 20.0], [-2.0, 35.0]])
+        clicked = clicked_mapping()
+        kw = dict(convention="homocal", track_ids=frames, K=CAM.K, camera_height_m=4.0)
+        c = PedestrianCorrector(1.7, 0.07).fit(clicked, boxes, image_points=CAM.project_ground(g), ground_points=g, **kw)
+        plain = PedestrianCorrector(1.7, 0.07).fit(clicked, boxes, **kw)
+        assert c.horizon_row_ == plain.horizon_row_ and c.error_after_ < 0.1 * c.error_before_
+        assert math.isnan(plain.error_before_)
+
+    @pytest.mark.parametrize("change,message", [
+        (lambda d: d["fitted"].update(n_people_used=2), "n_people_used"),
+        (lambda d: d["fitted"].update(focal_px=-5.0), "focal_px"),
+        (lambda d: d["fitted"].update(camera_height_m=0), "camera_height_m"),
+        (lambda d: d["fitted"].update(focal_source="guess"), "focal_source"),
+        (lambda d: d.update(error_before=1.0), "both numbers"),
+        (lambda d: d["params"].update(height_sd_m=0.0), "height_sd_m"),
+        (lambda d: d["params"].update(model="affine"), "model"),
+        (lambda d: d["fitted"].update(horizon_row="x"), "horizon_row"),
+    ])
+    def test_loader_refuses_what_fit_could_not_write(self, tmp_path, change, message):
+        _, boxes, frames, _ = people(100, seed=10)
+        c = PedestrianCorrector().fit(clicked_mapping(), boxes, convention="homocal", track_ids=frames, K=CAM.K, camera_height_m=4.0)
+        data = c.to_dict()
+        change(data)
+        (tmp_path / "c.json").write_text(json.dumps(data))
+        with pytest.raises(ValueError, match=message):
+            load_corrector(tmp_path / "c.json")
+
+    def test_ground_uncertainty_matches_monte_carlo(self):
+        """The horizon term: the corrected points' spread when the fitted horizon row moves by its sigma."""
+        _, boxes, frames, _ = people(100, seed=11)
+        c = PedestrianCorrector(1.7, 0.07).fit(clicked_mapping(), boxes, convention="homocal", track_ids=frames,
+                                                K=CAM.K, camera_height_m=4.0)
+        q = CAM.project_ground([[0.0, 40.0]])
+        cov = c.ground_uncertainty(q, click_sigma_px=0.0, point_sigma_px=0.0)
+        rows = c.horizon_row_ + np.random.default_rng(1).normal(0, c.horizon_sigma_px_, 400)
+        ys = []
+        for row in rows:
+            c.horizon_row_ = row
+            c._set_transformer()
+            ys.append(c.transform_points(q)[0, 1])
+        assert math.sqrt(cov[0, 1, 1]) == pytest.approx(np.std(ys), rel=0.15)
+        assert math.sqrt(cov[0, 1, 1]) > 0.05
+
+
+def _fit(**kw):
+    _, boxes, frames, _ = people(50, seed=12)
+    args = dict(transformer=clicked_mapping(), xyxy=boxes, convention="homocal", track_ids=frames, K=CAM.K, camera_height_m=4.0)
+    args.update(kw)
+    return PedestrianCorrector().fit(**args)
+
+
+@pytest.mark.parametrize("kw,message", [
+    (dict(xyxy=np.empty((0, 4)), track_ids=None), "no boxes"),
+    (dict(xyxy=np.array([[10.0, 50.0, 20.0, 100.0]] * 5), track_ids=None), "above the clicked mapping.s horizon"),
+    (dict(xyxy=np.array([[600.0, np.nan, 620.0, 500.0]]), track_ids=None), r"xyxy\[0\].*not finite"),
+    (dict(xyxy=np.array([[600.0, 500.0, 620.0, 400.0]]), track_ids=None), "upside down"),
+    (dict(xyxy=np.array([[600.0, 400.0, 620.0, 1e12]]), track_ids=None), "not finite"),
+    (dict(camera_height_m=0.0), "camera_height_m"),
+    (dict(camera_height_m=1e6), "camera_height_m"),
+    (dict(camera_height_m=float("nan")), "camera_height_m"),
+    (dict(K=None), "K and image_size"),
+    (dict(K=np.eye(2)), "K: expected"),
+    (dict(convention="yolo"), "convention"),
+    (dict(track_ids=np.arange(3)), "track_ids"),
+    (dict(image_size=(0, 720)), "image_size"),
+    (dict(camera_height_m=40.0), "no tilt makes the median"),
+    (dict(transformer="T"), "ViewTransformer"),
+])
+def test_bad_fit_input(kw, message):
+    with pytest.raises((ValueError, TypeError), match=message):
+        _fit(**kw)
+
+
+@pytest.mark.parametrize("mean,sd,message", [
+    (1.7, 0.0, "height_sd_m"), (1.7, -0.1, "height_sd_m"), (1.7, float("nan"), "height_sd_m"),
+    (0.0, 0.1, "height_mean_m"), (1e6, 0.1, "height_mean_m"), (True, 0.1, "height_mean_m"),
+])
+def test_bad_height_prior(mean, sd, message):
+    with pytest.raises(ValueError, match=message):
+        PedestrianCorrector(mean, sd)
+
+
+def test_too_few_people():
+    _, boxes, frames, _ = people(2, seed=13)
+    with pytest.raises(ValueError, match="need at least 3"):
+        _fit(xyxy=boxes, track_ids=frames)
+
+
+def test_border_boxes_are_not_used():
+    _, boxes, frames, _ = people(60, seed=14)
+    boxes[:10, 3] = CAM.height - 0.5  # cut by the bottom border
+    c = _fit(xyxy=boxes, track_ids=frames, image_size=SIZE)
+    assert c.n_border_ == 10 and c.n_people_ == 50
+
+
+class TestBoxes:
+    @pytest.mark.parametrize("convention,expected", [
+        ("corners", [9.5, 19.5, 29.5, 39.5]), ("indices", [9.5, 19.5, 30.5, 40.5]), ("homocal", [10, 20, 30, 40])])
+    def test_edges(self, convention, expected):
+        np.testing.assert_array_equal(box_edges([[10, 20, 30, 40]], convention=convention), [expected])
+
+    def test_link_tracks(self):
+        """Two people walking apart and one appearing after a gap of 3 frames, another after 9 frames."""
+        a = [[100 + 2 * f, 100, 120 + 2 * f, 160] for f in range(5)]
+        b = [[300 - 2 * f, 100, 320 - 2 * f, 160] for f in range(5)]
+        boxes = np.array(a + b + [[110, 100, 130, 160], [110, 100, 130, 160]], float)
+        frames = np.array(list(range(5)) * 2 + [7, 17])
+        ids = link_tracks(frames, boxes)
+        assert len(set(ids[:5])) == 1 and len(set(ids[5:10])) == 1 and ids[0] != ids[5]
+        assert ids[10] == ids[0] and ids[11] not in ids[:11]
+
+
+def write_mot_sequence(root, lines, seqinfo=True):
+    (root / "det").mkdir(parents=True)
+    (root / "det" / "x.txt").write_text("".join(lines))
+    if seqinfo:
+        (root / "seqinfo.ini").write_text("[Sequence]\nname=s\nframeRate=20\nseqLength=10\nimWidth=1280\nimHeight=720\n")
+    return root / "det" / "x.txt"
+
+
+class TestReadBoxes:
+    def test_mot_det(self, tmp_path):
+        path = write_mot_sequence(tmp_path, ["1,-1,101.5,201.5,20,50,1,-1,-1,-1\n", "3,-1,11.5,21.5,5,9,0.5,-1,-1,-1\n"])
+        b = read_boxes(path)
+        np.testing.assert_array_equal(b.frames, [0, 2])
+        np.testing.assert_array_equal(b.xyxy, [[100, 200, 120, 250], [10, 20, 15, 29]])
+        assert b.track_ids is None and b.image_size == (1280, 720) and b.K is None
+
+    def test_mot_gt_ids_are_tracks(self, tmp_path):
+        path = write_mot_sequence(tmp_path, ["1,4,101.5,201.5,20,50,1,1,0.9\n", "2,4,103.5,201.5,20,50,1,1,0.9\n"])
+        np.testing.assert_array_equal(read_boxes(path).track_ids, [4, 4])
+
+    def test_csv_corners(self, tmp_path):
+        path = tmp_path / "b.csv"
+        path.write_text("frame,x1,y1,x2,y2,track_id,score\n0,100,200,120,250,7,0.9\n1,101,200,121,250,7,0.8\n")
+        b = read_boxes(path)
+        np.testing.assert_array_equal(b.xyxy[0], [99.5, 199.5, 119.5, 249.5])
+        np.testing.assert_array_equal(b.track_ids, [7, 7])
+
+    def test_detections_parquet(self, tmp_path):
+        table = pa.table({"detector": ["segmentation", "rgb", "segmentation"], "frame": pa.array([0, 0, 1], pa.int32()),
+                          "x1": [1.0, 2.0, 3.0], "y1": [10.0, 10.0, 10.0], "x2": [5.0, 6.0, 7.0], "y2": [40.0, 41.0, 42.0]})
+        pq.write_table(table, tmp_path / "detections.parquet")
+        (tmp_path / "camera.json").write_text(json.dumps({"width": 1280, "height": 720, "K": CAM.K.tolist()}))
+        b = read_boxes(tmp_path / "detections.parquet")
+        np.testing.assert_array_equal(b.frames, [0, 1])
+        assert b.image_size == (1280, 720) and np.array_equal(b.K, CAM.K)
+        assert read_boxes(tmp_path / "detections.parquet", "rgb").xyxy.tolist() == [[2.0, 10.0, 6.0, 41.0]]
+
+    @pytest.mark.parametrize("name,content,detector,message", [
+        ("missing.csv", None, None, "no such file"),
+        ("b.json", "{}", None, "expected a MOTChallenge"),
+        ("b.csv", "frame,x1,y1,x2,y2\n", None, "no boxes"),
+        ("b.csv", "frame,x1,y1,x2\n0,1,2,3\n", None, "missing column"),
+        ("b.csv", "frame,x1,y1,x2,y2\n0,1,nan,3,4\n", None, "line 2: column y1"),
+        ("b.csv", "frame,x1,y1,x2,y2\n0,1,50,3,4\n", None, "line 2: the box is upside down"),
+        ("b.csv", "frame,x1,y1,x2,y2\n0.5,1,2,3,4\n", None, "line 2: column frame"),
+        ("b.csv", b"frame,x1,y1,x2,y2\n0,1,2,3,\xff\n", None, "not UTF-8"),
+        ("b.csv", "frame,x1,y1,x2,y2\n0,1,2,3,4\n", "rgb", "detector name is for"),
+        ("b.txt", "", None, "no detections"),
+        ("b.txt", "1,-1,1,1,0,5,1,-1,-1,-1\n", None, "line 1: box width and height"),
+        ("b.parquet", "not parquet", None, "not a detections.parquet"),
+    ])
+    def test_bad_files(self, tmp_path, name, content, detector, message):
+        path = tmp_path / name
+        if isinstance(content, bytes):
+            path.write_bytes(content)
+        elif content is not None:
+            path.write_text(content)
+        with pytest.raises(ValueError, match=message):
+            read_boxes(path, detector)
+
+    def test_unknown_detector(self, tmp_path):
+        pq.write_table(pa.table({"detector": ["segmentation"], "frame": [0], "x1": [1.0], "y1": [1.0], "x2": [2.0],
+                                 "y2": [3.0]}), tmp_path / "d.parquet")
+        with pytest.raises(ValueError, match="no boxes of detector 'hog' .has: segmentation"):
+            read_boxes(tmp_path / "d.parquet", "hog")
+
+    def test_seqinfo_bounds_the_frames(self, tmp_path):
+        path = write_mot_sequence(tmp_path, ["11,-1,101.5,201.5,20,50,1,-1,-1,-1\n"])
+        with pytest.raises(ValueError, match="beyond the video"):
+            read_boxes(path)
+
+    def test_read_mot_returns_ids(self, tmp_path):
+        path = write_mot_sequence(tmp_path, ["1,3,101.5,201.5,20,50,1,1,0.5\n"], seqinfo=False)
+        frames, xyxy, conf, ids = read_mot(path)
+        assert (frames.tolist(), ids.tolist(), conf.tolist()) == ([1], [3.0], [1.0])
+
+
+def test_with_mapping_is_a_fit_on_the_other_mapping():
+    _, boxes, tracks, _ = people(100, seed=15)
+    kw = dict(convention="homocal", track_ids=tracks, K=CAM.K, camera_height_m=4.0)
+    first = PedestrianCorrector().fit(clicked_mapping(16.0), boxes, **kw)
+    other = clicked_mapping(-8.0)
+    q = CAM.project_ground(GROUND)
+    np.testing.assert_allclose(first.with_mapping(other).transform_points(q),
+                               PedestrianCorrector().fit(other, boxes, **kw).transform_points(q), atol=1e-9)
+    estimated = PedestrianCorrector().fit(clicked_mapping(16.0), boxes, convention="homocal", track_ids=tracks, K=CAM.K)
+    with pytest.raises(ValueError, match="fit again"):
+        estimated.with_mapping(other)
+
+
+def test_same_input_same_bytes(tmp_path):
+    _, boxes, _, _ = people(150, seed=17)
+    frames = np.repeat(np.arange(50), 3)
+    for name in ("a", "b"):
+        PedestrianCorrector().fit(clicked_mapping(), boxes, convention="homocal", frames=frames, K=CAM.K,
+                                  camera_height_m=4.0).save(tmp_path / name)
+    assert (tmp_path / "a").read_bytes() == (tmp_path / "b").read_bytes()
