@@ -106,9 +106,13 @@ def _complete_transformer(session: Session, req: dict) -> ViewTransformer:
 
 
 def method_request(req: dict) -> tuple[Method, dict]:
-    """The request's method (the catalogue's name) and the settings the page gives it: seed (an integer in
-    [0, 2**64)) and threshold (percent, [0, 100]), homocal fit's defaults if absent."""
+    """The request's method (the catalogue's name; one fitted from reference points) and the settings the page
+    gives it: seed (an integer in [0, 2**64)) and threshold (percent, [0, 100]), homocal fit's defaults if
+    absent."""
     method = get_method(req.get("method"))
+    if method.evidence != "points":
+        raise ValueError(f"method: {method.name} fits from people's boxes, which this page does not load: use "
+                         f"homocal fit --method {method.name} --boxes FILE")
     seed = _number(req, "seed", 0, 0, MAX_SEED)
     if seed != int(seed):
         raise ValueError(f"seed: expected an integer, got {req.get('seed')!r}")

@@ -89,6 +89,11 @@ def request(**fields) -> dict:
     return {"trapezoid": TRAP, "camera_origin": [0.0, 0.0], "points": POINTS, "method": "regression-signed", **fields}
 
 
+def test_a_boxes_method_is_refused_in_one_line(server):
+    status, answer = post(server, "api/fit", request(method="pedestrians"))
+    assert status == 400 and answer["error"].startswith("method: pedestrians fits from people's boxes")
+
+
 # ---- overlays against the camera they should show ----------------------------------------------------
 def test_horizon_is_the_cameras(session):
     view = api.view(session, request())
@@ -275,6 +280,7 @@ def test_pages_are_served(server):
     info = json.loads(urllib.request.urlopen(server.address + "api/session", timeout=10).read())
     assert info["frame"] == {"width": W, "height": H} and info["map"]["scale_px_per_m"] == 10.0
     assert "regression-signed" in info["methods"] and info["dataset"] is None
+    assert "pedestrians" not in info["methods"]  # fitted from boxes, which the page does not load
     assert info["default_method"] == "least-change" and info["default_method"] in info["methods"]  # fit's default
     with pytest.raises(urllib.error.HTTPError, match="404"):
         urllib.request.urlopen(server.address + "nothing.html", timeout=10)
