@@ -49,14 +49,19 @@ def session(tmp_path: Path):
     return from_files(frame, site_map, SITE, (0.0, 0.0), out)
 
 
-@pytest.fixture
-def server(session):
+def serving(session):
+    """A UIServer of the session, serving in a thread until the generator is closed."""
     srv = UIServer(session)
     thread = threading.Thread(target=srv.serve_forever, kwargs={"poll_interval": 0.02}, daemon=True)
     thread.start()
     yield srv
     srv.shutdown()
     srv.server_close()
+
+
+@pytest.fixture
+def server(session):
+    yield from serving(session)
 
 
 def post(server: UIServer, path: str, body, content_type: str = "application/json", host: str | None = None,
@@ -113,12 +118,7 @@ def standing_people_csv(path: Path, n: int = 80, seed: int = 0) -> Path:
 @pytest.fixture
 def boxes_server(session, tmp_path):
     session.boxes = standing_people_csv(tmp_path / "boxes.csv").resolve()
-    with_boxes = UIServer(session)
-    thread = threading.Thread(target=with_boxes.serve_forever, kwargs={"poll_interval": 0.02}, daemon=True)
-    thread.start()
-    yield with_boxes
-    with_boxes.shutdown()
-    with_boxes.server_close()
+    yield from serving(session)
 
 
 def tilted_trapezoid(shift_px: float = 16.0) -> dict:
