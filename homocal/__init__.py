@@ -1,7 +1,7 @@
 """homocal: homography ground-plane mapping, its error model and corrections (Szulc & Iwanowski).
 
 The flat public API (supervision's style): geometry, the Section 3 error model, the Section 4
-correctors and the dataset loader. The study lives in homocal.study.
+correctors (and the pedestrian correction with its box reader) and the dataset loader. The study lives in homocal.study.
 """
 from homocal.correctors import (
     Corrector,
@@ -9,9 +9,11 @@ from homocal.correctors import (
     HorizonCorrector,
     HybridCorrector,
     LeastChangeCorrector,
+    PedestrianCorrector,
     RegressionCorrector,
     load_corrector,
 )
+from homocal.boxes import PersonBoxes, read_boxes
 from homocal.dataset import Dataset, load_dataset
 from homocal.error_model import ColumnModel, column_model, first_order_error, horizon_shift, quadratic_error
 from homocal.geometry import (
@@ -32,6 +34,8 @@ __all__ = [
     "HorizonCorrector",
     "HybridCorrector",
     "LeastChangeCorrector",
+    "PedestrianCorrector",
+    "PersonBoxes",
     "PinholeCamera",
     "RegressionCorrector",
     "SiteMap",
@@ -46,6 +50,7 @@ __all__ = [
     "load_dataset",
     "max_trustworthy_range",
     "quadratic_error",
+    "read_boxes",
     "sigma_radius",
     "validate_quad",
 ]

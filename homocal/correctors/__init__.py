@@ -1,11 +1,12 @@
 """The paper's correction methods (Section 4), the hybrid of Section 7, and beyond the paper the horizon
-correction (Section 3's model fitted), regression with an intercept and the least-change trapezoid
-correction; with JSON save/load, and their catalogue (each method's names, class and settings, once)."""
+correction (Section 3's model fitted), regression with an intercept, the least-change trapezoid
+correction and the pedestrian correction (no reference point: the camera's tilt from people's boxes); with JSON save/load, and their catalogue (each method's names, class and settings, once)."""
 from homocal.correctors.base import MAX_REFERENCE_POINTS, Corrector, load_corrector
 from homocal.correctors.descent import DescentCorrector, calibration_loss
 from homocal.correctors.horizon import HorizonCorrector, fit_horizon_shift
 from homocal.correctors.hybrid import HybridCorrector
 from homocal.correctors.least_change import LeastChangeCorrector
+from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.correctors.regression import (
     RegressionCorrector,
     fit_quadratic_error,
@@ -24,6 +25,7 @@ __all__ = [
     "HybridCorrector",
     "LeastChangeCorrector",
     "Method",
+    "PedestrianCorrector",
     "RegressionCorrector",
     "calibration_loss",
     "fit_horizon_shift",

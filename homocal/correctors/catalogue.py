@@ -5,8 +5,9 @@ An entry names the method everywhere it appears: ``name`` (``homocal fit --metho
 --method``, the page's method list), ``column`` (the study's kernel and shard columns ``cal_<column>``,
 ``path_<column>``; None for a method the study's triple kernels do not run), the JSON "method" key (the
 class's ``Corrector.method``; several entries may share one class, told apart by ``fixed``), the class,
-the constructor arguments a user may set (``settings``: fit's flags, the page's fields), a one-line
-description and the note fit prints after its summary. To add a method: write its Corrector subclass and add
+the constructor arguments a user may set (``settings``: fit's flags, the page's fields), what it is fitted
+from (``evidence``: "points", reference points u,v,x,y; "boxes", people's boxes), a one-line description and
+the note fit prints after its summary. To add a method: write its Corrector subclass and add
 one ``Method`` to ``CATALOGUE``.
 
 >>> METHODS["regression-signed"].make()
@@ -16,6 +17,7 @@ RegressionCorrector(signed=True, intercept=False)
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -24,6 +26,7 @@ from homocal.correctors.descent import DescentCorrector
 from homocal.correctors.horizon import HorizonCorrector
 from homocal.correctors.hybrid import HybridCorrector
 from homocal.correctors.least_change import LeastChangeCorrector
+from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.correctors.regression import RegressionCorrector
 from homocal.geometry import ViewTransformer
 
@@ -56,13 +59,22 @@ def _hybrid_note(c: HybridCorrector) -> str:
             f"{relation} threshold {c.threshold:g} %.")
 
 
+def _pedestrians_note(c: PedestrianCorrector) -> str:
+    return (f" Boxes: {c.n_boxes_} read, {c.n_border_} cut by the image border, {c.n_outliers_} outliers; people "
+            f"(tracks): {c.n_people_used_} of {c.n_people_} used. Horizon row {c.horizon_row_:.2f} +- "
+            f"{c.horizon_sigma_px_:.2f} px (1 sigma; clicked {c.clicked_horizon_row_:.2f}), and "
+            f"{c.mean_sensitivity_px_per_cm_:.2f} px more per cm the prior mean height is off.")
+
+
 @dataclass(frozen=True)
 class Method:
     """One correction method (see the module docstring).
 
     name: fit's, advise's and the page's name. column: the study's column suffix, or None. corrector: the
     class. fixed: constructor arguments that make this method of the class. settings: constructor arguments
-    a user may set. description: one line. note: corrector -> the sentence fit prints after its summary.
+    a user may set. evidence: "points" (fit(transformer, image_points, ground_points, camera_origin)) or
+    "boxes" (fit(transformer, xyxy, ...): PedestrianCorrector.fit). description: one line. note: corrector ->
+    the sentence fit prints after its summary.
     """
 
     name: str
@@ -71,6 +83,7 @@ class Method:
     description: str
     fixed: dict = field(default_factory=dict)
     settings: tuple[str, ...] = ()
+    evidence: str = "points"
     note: Callable[[Corrector], str] = lambda corrector: ""
 
     @property
@@ -93,7 +106,7 @@ class Method:
 
 
 LEAST_CHANGE_PRIORS = ("click_sigma_px", "map_sigma_m", "point_sigma_m")
-CATALOGUE = (  # in the study's column order
+CATALOGUE = (  # the study's columns in its order, then the methods it does not run
     Method("regression", "regression", RegressionCorrector, "the paper's regression (Section 4.1): unsigned "
            "errors, a d^2 + b d clamped to a, b >= 0", {"signed": False, "intercept": False}, note=_regression_note),
     Method("regression-signed", "regression_signed", RegressionCorrector, "regression of the signed range error "
@@ -108,6 +121,9 @@ CATALOGUE = (  # in the study's column order
            "(Section 4.2)", settings=("seed",), note=_descent_note),
     Method("hybrid", "hybrid", HybridCorrector, "regression if its calibration improvement reaches the threshold, "
            "descent otherwise (Section 7)", settings=("threshold", "seed"), note=_hybrid_note),
+    Method("pedestrians", None, PedestrianCorrector, "beyond the paper: the camera's tilt from people's boxes and "
+           "their height distribution, with no reference point (docs/pedestrians.md)",
+           settings=("height_mean_m", "height_sd_m"), evidence="boxes", note=_pedestrians_note),
 )
 METHODS: dict[str, Method] = {m.name: m for m in CATALOGUE}
 DEFAULT_METHOD = "least-change"  # fit's, advise's and the page's default: near the best in every study setting
@@ -136,9 +152,13 @@ def label(corrector: Corrector) -> str:
 
 
 def quality(corrector: Corrector) -> str:
-    """The fitted corrector's calibration errors before and after, one phrase (metres, percent)."""
+    """The fitted corrector's calibration errors before and after, one phrase (metres, percent); for a method
+    fitted from boxes, on its check points (or that it had none)."""
+    check = " on the check points, which the fit did not use" if method_of(corrector).evidence == "boxes" else ""
+    if math.isnan(corrector.error_before_):
+        return "no check points (no calibration error measured)"
     return (f"mean calibration error {corrector.error_before_:.3f} m before, {corrector.error_after_:.3f} m after "
-            f"(improvement {corrector.calibration_improvement_:.1f} %)")
+            f"(improvement {corrector.calibration_improvement_:.1f} %){check}")
 
 
 def fit_note(corrector: Corrector) -> str:

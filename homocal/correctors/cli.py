@@ -1,4 +1,5 @@
-"""``homocal fit`` and ``homocal apply``: fit a correction from reference points, apply it to foot points.
+"""``homocal fit`` and ``homocal apply``: fit a correction from reference points (or, with --method pedestrians,
+from people's boxes), apply it to foot points.
 
 The input formats are in the --help texts below (FIT_FORMATS, APPLY_FORMATS).
 """
@@ -8,6 +9,7 @@ import argparse
 import csv
 import io
 import math
+import re
 import sys
 import warnings
 from pathlib import Path
@@ -15,19 +17,25 @@ from pathlib import Path
 import numpy as np
 
 from homocal.arguments import SEED, number, xy_pair
+from homocal.boxes import DEFAULT_DETECTOR, read_boxes
 from homocal.correctors.base import MAX_REFERENCE_POINTS, load_corrector
 from homocal.correctors.catalogue import (DEFAULT_METHOD, LEAST_CHANGE_PRIORS, METHODS, fit_note, label, mapping_of,
                                           quality)
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.least_change import LeastChangeCorrector
+from homocal.correctors.pedestrians import DEFAULT_HEIGHT_MEAN_M, DEFAULT_HEIGHT_SD_M
 from homocal.correctors.serialization import FORMAT
-from homocal.files import check_output_file, csv_header, json_format, read_points_csv, write_text_atomic
+from homocal.files import check_output_file, csv_header, json_format, read_json, read_points_csv, write_text_atomic
 from homocal.geometry import MAX_COORDINATE, ViewTransformer
 from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius, straight_ahead_column
 
 LEAST_CHANGE = {k: LeastChangeCorrector().get_params()[k] for k in LEAST_CHANGE_PRIORS}  # fit's prior flags, defaults
 TRUST_TOLERANCE_M = 0.5  # homocal fit reports how far the 1-sigma error stays under this
 APPLIED = ("x", "y", "sigma_m", "status")  # the columns homocal apply adds (last in its output)
+BOX_FLAGS = {"boxes": "--boxes", "detector": "--detector", "camera_height": "--camera-height",
+             "height_mean": "--height-mean", "height_sd": "--height-sd", "camera_json": "--camera-json"}
+LIBRARY_FLAGS = {"camera_height_m": "--camera-height", "height_mean_m": "--height-mean", "height_sd_m": "--height-sd",
+                 "image_size": "--camera-json's width, height", "K": "--camera-json's K"}  # PedestrianCorrector's parameters
 
 FIT_FORMATS = """\
 TRAP.json, the trapezoid (vertices in the order TL, TR, BR, BL as seen in the image):
@@ -48,7 +56,19 @@ The camera origin (--camera-origin, metres, default 0,0) is the ground point und
 a negative value as --camera-origin=-1.5,0.
 The correction JSON holds everything needed to apply it later (homocal apply). The last line printed is
 the range straight ahead out to which the 1-sigma error of a mapped point (1.5 px clicking error on each
-trapezoid corner, 1 px on the foot point: homocal.max_trustworthy_range) stays under 0.5 m."""
+trapezoid corner, 1 px on the foot point: homocal.max_trustworthy_range) stays under 0.5 m.
+
+--method pedestrians fits from people's boxes instead (--boxes), with no reference point: the camera's
+tilt from the boxes' implied heights (docs/pedestrians.md). BOXES is a MOTChallenge .txt (simgen export-mot's
+SEQ/det/<detector>.txt; seqinfo.ini beside SEQ/det gives the image size), a simgen dataset's
+detections.parquet (--detector, default segmentation; its camera.json gives K and the image size) or a
+.csv with columns frame,x1,y1,x2,y2 (optional track_id; pixel corners at integers, as supervision's
+Detections.xyxy). CAMERA.json: {"width": W, "height": H, "K": [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]} (a
+dataset's camera.json; K optional): without K the focal length is read from the clicked trapezoid
+(principal point at the image centre), without --camera-height the height too; give both when you can.
+--points is then optional: the reference points do not enter the fit, they check it (independent
+evidence: their mean error before and after is printed and stored). The fit is refused when more than half
+of the boxes, or of the people (tracks), are outliers: the robust fit can follow them there."""
 
 APPLY_FORMATS = """\
 FEET.csv: a header line then one row per point; columns u, v (image foot point, pixels) are required,
@@ -71,8 +91,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         description="Fit a correction of a trapezoid homography from three or more reference points.",
     )
     fit.add_argument("--trapezoid", required=True, type=Path, metavar="TRAP.json", help="the trapezoid (see below)")
-    fit.add_argument("--points", required=True, type=Path, metavar="REF.csv",
-                     help=f"reference points u,v,x,y (at most {MAX_REFERENCE_POINTS:,})")
+    fit.add_argument("--points", type=Path, metavar="REF.csv",
+                     help=f"reference points u,v,x,y (at most {MAX_REFERENCE_POINTS:,}); required, except with "
+                          "--method pedestrians, where they only check the fit")
     fit.add_argument("--method", default=DEFAULT_METHOD, choices=METHODS, help="; ".join(
                      f"{m.name}: {m.description}" for m in METHODS.values()) + f" (default {DEFAULT_METHOD})")
     fit.add_argument("-o", "--out", required=True, type=Path, metavar="CORRECTION.json", help="the correction to write")
@@ -87,6 +108,18 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         fit.add_argument("--" + name.replace("_", "-"), type=number(float, 0, 1e6, low_open=low_open), default=None,
                          metavar=name.rsplit("_", 1)[1].upper(),
                          help=f"least-change only: prior sigma, {what} (default {LEAST_CHANGE[name]:g})")
+    fit.add_argument("--boxes", type=Path, metavar="BOXES", help="pedestrians: people's boxes, a MOT .txt, a "
+                     "detections.parquet or a .csv (see below)")
+    fit.add_argument("--detector", metavar="NAME", help=f"pedestrians: the detector's rows of a detections.parquet "
+                     f"(default {DEFAULT_DETECTOR})")
+    fit.add_argument("--camera-height", type=float, metavar="M", help="pedestrians: the camera's height over the "
+                     "ground, metres (default: from the clicked trapezoid with K)")
+    fit.add_argument("--height-mean", type=float, metavar="M", help="pedestrians: the people's mean height, metres "
+                     f"(default {DEFAULT_HEIGHT_MEAN_M:g}, adults: docs/pedestrians.md)")
+    fit.add_argument("--height-sd", type=float, metavar="M", help="pedestrians: the people's height spread, metres "
+                     f"(default {DEFAULT_HEIGHT_SD_M:g})")
+    fit.add_argument("--camera-json", type=Path, metavar="CAMERA.json", help="pedestrians: the image size and "
+                     "intrinsics K (see below; default: those beside the boxes file)")
     fit.set_defaults(handler=handle_fit)
 
     apply = subparsers.add_parser(
@@ -106,27 +139,33 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def handle_fit(args: argparse.Namespace) -> int:
     transformer = ViewTransformer.from_trapezoid_file(args.trapezoid)
-    _, _, cols, _ = read_points_csv(args.points, ("u", "v", "x", "y"), finite=True, most=MAX_REFERENCE_POINTS)
+    method = METHODS[args.method]
+    boxes_flags = [flag for key, flag in BOX_FLAGS.items() if getattr(args, key) is not None]
+    if method.evidence == "boxes" and args.boxes is None:
+        raise ValueError(f"--boxes: required with --method {args.method}")
+    if method.evidence == "points" and args.points is None:
+        raise ValueError(f"--points: required with --method {args.method}")
+    if method.evidence == "points" and boxes_flags:
+        raise ValueError(f"{', '.join(boxes_flags)}: for --method pedestrians, not {args.method}")
+    points = None
+    if args.points is not None:
+        _, _, cols, _ = read_points_csv(args.points, ("u", "v", "x", "y"), finite=True, most=MAX_REFERENCE_POINTS)
+        points = np.column_stack([cols[c] for c in ("u", "v", "x", "y")])
     if str(args.out) == "-":
         raise ValueError("-o -: the correction is a JSON file, not a table: give its file name")
     check_output_file(args.out, lambda p: json_format(p) == FORMAT, "homocal correction (JSON with format "
                       f"{FORMAT!r})")
-    method = METHODS[args.method]
     given = [f"--{k.replace('_', '-')}" for k in LEAST_CHANGE if getattr(args, k) is not None]
     if given and args.method != "least-change":
         raise ValueError(f"{', '.join(given)}: the priors of --method least-change, not of {args.method}")
-    corrector = method.make(**{k: getattr(args, k) for k in method.settings})
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            corrector.fit(transformer, np.column_stack([cols["u"], cols["v"]]),
-                          np.column_stack([cols["x"], cols["y"]]), args.camera_origin)
-    except ValueError as e:
-        raise ValueError(f"{args.points}: {e}") from None
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fit_from = _fit_from_boxes if method.evidence == "boxes" else _fit_from_points
+        corrector, source = fit_from(args, method, transformer, points)
     for w in caught:
-        print(f"homocal: warning: {args.points}: {w.message}", file=sys.stderr)
+        print(f"homocal: warning: {args.points or args.boxes}: {w.message}", file=sys.stderr)
     corrector.save(args.out)
-    print(f"homocal fit: {args.method} correction from {len(cols['u'])} reference points written to {args.out}: "
+    print(f"homocal fit: {args.method} correction from {source} written to {args.out}: "
           f"{quality(corrector)}.{fit_note(corrector)}")
     mapping = mapping_of(corrector)
     trust = max_trustworthy_range(mapping, TRUST_TOLERANCE_M, camera_origin=args.camera_origin)
@@ -134,6 +173,65 @@ def handle_fit(args: argparse.Namespace) -> int:
           f"stays under {TRUST_TOLERANCE_M:g} m out to {trust:.1f} m straight ahead (image column "
           f"{straight_ahead_column(mapping):.0f}).")
     return 0
+
+
+def _fit_from_points(args: argparse.Namespace, method, transformer: ViewTransformer, points: np.ndarray):
+    """The fitted corrector of a points method and a phrase naming its evidence; ValueError naming --points."""
+    corrector = method.make(**{k: getattr(args, k) for k in method.settings})
+    try:
+        corrector.fit(transformer, points[:, :2], points[:, 2:], args.camera_origin)
+    except ValueError as e:
+        raise ValueError(f"{args.points}: {e}") from None
+    return corrector, f"{len(points)} reference points"
+
+
+def _fit_from_boxes(args: argparse.Namespace, method, transformer: ViewTransformer, points: np.ndarray | None):
+    """The fitted PedestrianCorrector of fit's flags and a phrase naming its evidence; ValueError (a library
+    parameter's name replaced by its flag, see LIBRARY_FLAGS) for bad input or an untrustworthy fit."""
+    try:
+        corrector = method.make(height_mean_m=args.height_mean, height_sd_m=args.height_sd)
+    except ValueError as e:
+        raise ValueError(_flag_message(str(e))) from None
+    boxes = read_boxes(args.boxes, args.detector)
+    size, K = boxes.image_size, boxes.K
+    if args.camera_json is not None:
+        size, K = _camera_json(args.camera_json)
+    check = {} if points is None else {"image_points": points[:, :2], "ground_points": points[:, 2:]}
+    try:
+        corrector.fit(transformer, boxes.xyxy, convention="homocal", frames=boxes.frames, track_ids=boxes.track_ids,
+                      camera_height_m=args.camera_height, K=K, image_size=size, camera_origin=args.camera_origin,
+                      **check)
+    except ValueError as e:
+        if str(e).startswith("K and image_size"):
+            raise ValueError(f"--camera-json: needed ({args.boxes} gives neither the image size nor K)") from None
+        message = _flag_message(str(e))
+        if re.search(r"\b(image_points|ground_points)\b", message):  # the check points'
+            raise ValueError(f"{args.points}: {message}") from None
+        raise ValueError(message if message.startswith("--") else f"{args.boxes}: {message}") from None
+    checked = "" if points is None else f", checked on {len(points)} reference points"
+    return corrector, f"{corrector.n_boxes_} boxes of {args.boxes}{checked}"
+
+
+def _flag_message(message: str) -> str:
+    """A PedestrianCorrector error with each library parameter named by its flag (LIBRARY_FLAGS); xyxy[i] is
+    box i of --boxes (counted from 0)."""
+    message = re.sub(r"\bxyxy\[(\d+)\]", r"box \1 (from 0)", message)
+    message = re.sub(r"^xyxy: ", "", message)
+    return re.sub(r"\b(" + "|".join(sorted(LIBRARY_FLAGS, key=len, reverse=True)) + r")\b",
+                  lambda m: LIBRARY_FLAGS[m.group(1)], message)
+
+
+def _camera_json(path: Path) -> tuple[tuple[int, int], np.ndarray | None]:
+    """(width, height) and K (3, 3) or None of --camera-json; ValueError naming the flag and file."""
+    data = read_json(path)
+    try:
+        size = (data["width"], data["height"])
+        K = None if data.get("K") is None else np.asarray(data["K"], dtype=np.float64)
+    except (KeyError, TypeError, ValueError) as e:
+        raise ValueError(f"--camera-json {path}: needs width, height and optionally K ({e})") from None
+    if K is not None and K.shape != (3, 3):
+        raise ValueError(f"--camera-json {path}: K must be a 3x3 matrix, got shape {K.shape}")
+    return size, K
 
 
 def handle_apply(args: argparse.Namespace) -> int:

@@ -72,6 +72,7 @@ OUTLIER_SIGMAS = 3.0  # a box whose implied height is farther than this many pri
 HUBER_K = 1.345  # Huber's constant (95 % efficiency at the normal)
 MAX_ROUNDS = 20  # inlier-set rounds of fit_tilt at most
 MIN_PEOPLE = 3  # fewer inlier people (tracks) than this is refused
+MAX_OUTLIER_SHARE = 0.5  # more outlier boxes, or people, than this share of those used is refused (PedestrianCorrector.fit)
 LINK_GAP = 5  # frames: boxes this many frames apart at most are linked into one track
 BORDER_PX = 1.0  # a box whose edge is within this of the image border is cut by it and not used
 MAX_CAMERA_HEIGHT_M = 100.0
@@ -287,7 +288,12 @@ class PedestrianCorrector(Corrector):
             image_size: (width, height) px; boxes within BORDER_PX of its border are not used.
             image_points, ground_points, camera_origin: optional check points (N, 2) px, (N, 2) m, (2,) m: not
                 used by the fit, their mean errors before and after are error_before_ and error_after_.
-        Returns self. ValueError naming the argument for bad input.
+        Returns self. ValueError naming the argument for bad input, and for a fit that cannot be trusted: fewer
+        than MIN_PEOPLE inlier people, or more than MAX_OUTLIER_SHARE of the used boxes or of the people
+        outliers (the median start and the inlier rounds break down there: HOG boxes gave a horizon 82 px off
+        on scene2 with 61 of 102 people rejected, 7 px off on scene1 with 61 % of the boxes outliers; 60 s of
+        segmentation boxes have 3-5 % outlier boxes and 27-29 % rejected people, the rgb detector's 25-37 %
+        and 22-36 %, docs/pedestrians.md).
         """
         if not isinstance(transformer, ViewTransformer):
             raise TypeError(f"transformer: expected a homocal.ViewTransformer, got {type(transformer).__name__}")
@@ -333,6 +339,14 @@ class PedestrianCorrector(Corrector):
         self.n_boxes_, self.n_border_ = n, int(border.sum())
         self.n_outliers_ = int(used.sum() - fit["inlier_boxes"].sum())
         self.n_people_, self.n_people_used_ = len(np.unique(tracks[used])), fit["n_people"]
+        rejected = {"boxes": (self.n_outliers_, int(used.sum())),
+                    "people (tracks)": (self.n_people_ - self.n_people_used_, self.n_people_)}
+        for what, (out, of) in rejected.items():
+            if out > MAX_OUTLIER_SHARE * of:
+                raise ValueError(f"xyxy: {out} of the {of} {what} are outliers (implied height beyond "
+                                 f"{OUTLIER_SIGMAS:g} sd of {self.height_mean_m:g} m at the fitted tilt): more than "
+                                 f"{MAX_OUTLIER_SHARE:.0%}, where the robust fit can follow the outliers; use boxes "
+                                 "that reach from the top of the head to the lowest sole, or check the camera height")
         self._set_transformer()
         self._check_points(image_points, ground_points)
         return self

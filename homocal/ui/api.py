@@ -5,7 +5,8 @@ FileExistsError (409, the page asks before replacing) or ``Refused`` (409, never
 computation goes through the library: the trapezoid's ViewTransformer is built as ``homocal fit`` builds it
 from the saved trapezoid.json, and the correction is made from the method catalogue as ``homocal fit`` does.
 Bounds: at most MAX_REFERENCE_POINTS points, coordinates within +/-MAX_COORDINATE, sigmas up to MAX_SIGMA_PX,
-seeds in [0, 2**64), the hybrid's threshold in [0, 100] percent.
+seeds in [0, 2**64), the hybrid's threshold in [0, 100] percent. A method fitted from people's boxes reads the
+session's boxes file (named at launch: a request names only one of its detectors, never a path).
 """
 from __future__ import annotations
 
@@ -17,9 +18,11 @@ import warnings
 
 import numpy as np
 
+from homocal.boxes import read_boxes
 from homocal.correctors.base import MAX_REFERENCE_POINTS, Corrector, load_corrector
 from homocal.correctors.catalogue import Method, fit_note, get_method, mapping_of, method_of, quality
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
+from homocal.correctors.serialization import float_or_none
 from homocal.files import read_json, read_points_csv, write_json_atomic, write_text_atomic
 from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, signed_area, validate_quad
 from homocal.ui import overlay
@@ -107,26 +110,55 @@ def _complete_transformer(session: Session, req: dict) -> ViewTransformer:
 
 def method_request(req: dict) -> tuple[Method, dict]:
     """The request's method (the catalogue's name) and the settings the page gives it: seed (an integer in
-    [0, 2**64)) and threshold (percent, [0, 100]), homocal fit's defaults if absent."""
+    [0, 2**64)), threshold (percent, [0, 100]), height_mean_m and height_sd_m (metres: the constructor checks
+    them), homocal fit's defaults if absent."""
     method = get_method(req.get("method"))
     seed = _number(req, "seed", 0, 0, MAX_SEED)
     if seed != int(seed):
         raise ValueError(f"seed: expected an integer, got {req.get('seed')!r}")
-    page = {"seed": int(req.get("seed", 0)), "threshold": _number(req, "threshold", DEFAULT_THRESHOLD, 0, 100)}
+    page = {"seed": int(req.get("seed", 0)), "threshold": _number(req, "threshold", DEFAULT_THRESHOLD, 0, 100),
+            **{k: _number(req, k, 1.0, 0, 10) for k in ("height_mean_m", "height_sd_m") if req.get(k) is not None}}
     return method, {k: v for k, v in page.items() if k in method.settings}
 
 
 def _fitted(session: Session, req: dict) -> tuple[Corrector, ViewTransformer, np.ndarray, list]:
     """Fit the request's method as ``homocal fit`` does; return it with the transformer, the points (N, 4) u,v,x,y
-    and the library's warnings (texts)."""
+    (from reference points: at least 3; from boxes: any, they only check the fit) and the library's warnings."""
     transformer = _complete_transformer(session, req)
     points = _points(req.get("points"), "points", 4, MAX_REFERENCE_POINTS)
     method, settings = method_request(req)
     corrector = method.make(**settings)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        corrector.fit(transformer, points[:, :2], points[:, 2:], _camera_origin(req))
+        if method.evidence == "boxes":
+            _fit_boxes(session, req, corrector, transformer, points)
+        else:
+            corrector.fit(transformer, points[:, :2], points[:, 2:], _camera_origin(req))
     return corrector, transformer, points, [str(w.message) for w in caught]
+
+
+def _fit_boxes(session: Session, req: dict, corrector, transformer: ViewTransformer, points: np.ndarray) -> None:
+    """Fit a PedestrianCorrector on the session's boxes: the request's "detector" (one of the session's
+    detectors; default the first, segmentation if it has one) and "camera_height_m" (None: from the clicked
+    mapping); the image size is the boxes file's, else the frame's; K the boxes file's, else from the mapping."""
+    if session.boxes is None:
+        raise ValueError("method: pedestrians fits from people's boxes: start homocal ui with --boxes FILE (or a "
+                         "dataset folder)")
+    detector = req.get("detector")
+    if session.detectors:
+        default = "segmentation" if "segmentation" in session.detectors else session.detectors[0]
+        detector = default if detector is None else detector
+        if detector not in session.detectors:
+            raise ValueError(f"detector: expected one of {', '.join(session.detectors)}, got {detector!r}")
+    elif detector is not None:
+        raise ValueError(f"detector: {session.boxes.name} has no detectors to choose from")
+    height = req.get("camera_height_m")
+    height = None if height is None else _number(req, "camera_height_m", 0, -math.inf, math.inf)
+    boxes = read_boxes(session.boxes, detector)
+    check = {"image_points": points[:, :2], "ground_points": points[:, 2:]} if len(points) else {}
+    corrector.fit(transformer, boxes.xyxy, convention="homocal", frames=boxes.frames, track_ids=boxes.track_ids,
+                  camera_height_m=height, K=boxes.K, image_size=boxes.image_size or session.frame_size,
+                  camera_origin=_camera_origin(req), **check)
 
 
 def _sigmas(req: dict) -> dict:
@@ -163,8 +195,9 @@ def view(session: Session, req: dict) -> dict:
 
 
 def fit(session: Session, req: dict) -> dict:
-    """Fit the chosen method on the reference points; errors before/after, per-point residuals, the
-    corrected grid and the correction's JSON (what Save writes)."""
+    """Fit the chosen method on the reference points (or the session's boxes); errors before/after, per-point
+    residuals, the corrected grid, the horizon of the mapping the correction maps with (mapping_of: the
+    clicked one for the regressions) and the correction's JSON (what Save writes)."""
     corrector, transformer, points, caught = _fitted(session, req)
     mapped = transformer.transform_points(points[:, :2])
     corrected = corrector.transform_points(points[:, :2])
@@ -177,14 +210,15 @@ def fit(session: Session, req: dict) -> dict:
     return {
         "summary": f"{method_of(corrector).name}: {quality(corrector)}.{fit_note(corrector)}{trust_note}",
         "warnings": caught,
-        "error_before": corrector.error_before_,
-        "error_after": corrector.error_after_,
+        "error_before": float_or_none(corrector.error_before_),  # None: no check points (pedestrians)
+        "error_after": float_or_none(corrector.error_after_),
         "mapped": mapped.tolist(),
         "corrected": corrected.tolist(),
         "residual_before": np.hypot(*(mapped - points[:, 2:]).T).tolist(),
         "residual_after": np.hypot(*(corrected - points[:, 2:]).T).tolist(),
         "corrected_grid": overlay.ground_grid(overlay.sample_mapping(corrector.transform_points, transformer, w, h),
                                               _camera_origin(req)),
+        "horizon": overlay.horizon_segment(mapping_of(corrector), w, h),
         "correction": corrector.to_dict(),
     }
 
@@ -236,10 +270,16 @@ def save(session: Session, req: dict) -> dict:
     corrector.save(paths[2])
     session.written.update({p: _identity(p) for p in paths})
     params = corrector.get_params()
+    flags = [f"--{k} {params[k]!r}" for k in ("seed", "threshold") if k in method.settings]
+    if method.evidence == "boxes":
+        given = {"--detector": req.get("detector"), "--camera-height": req.get("camera_height_m")}
+        flags = [f"--boxes {session.boxes}", *(f"{k} {v}" for k, v in given.items() if v is not None),
+                 f"--height-mean {params['height_mean_m']!r}", f"--height-sd {params['height_sd_m']!r}"]
+    points_flag = f" --points {paths[1]}" if len(points) else ""
     return {"written": [str(p) for p in paths], "method": method.name,
-            "command": f"homocal fit --trapezoid {paths[0]} --points {paths[1]} --method {method.name} "
+            "command": f"homocal fit --trapezoid {paths[0]}{points_flag} --method {method.name} "
                        f"-o CORRECTION.json --camera-origin={','.join(repr(float(x)) for x in corrector.camera_origin_)}"
-                       + "".join(f" --{k} {params[k]!r}" for k in ("seed", "threshold") if k in method.settings)}
+                       + "".join(" " + f for f in flags)}
 
 
 def _identity(path) -> tuple[int, int, int, int] | None:
@@ -278,7 +318,8 @@ def load(session: Session, req: dict) -> dict:
         out["fit"] = {"method": method_of(corrector).name,
                       "camera_origin": corrector.camera_origin_.tolist(),
                       "seed": params.get("seed", 0), "threshold": params.get("threshold", DEFAULT_THRESHOLD),
-                      "error_before": corrector.error_before_, "error_after": corrector.error_after_}
+                      "error_before": float_or_none(corrector.error_before_),
+                      "error_after": float_or_none(corrector.error_after_)}
         out["loaded"].append(CORRECTION_FILE)
     return out
 

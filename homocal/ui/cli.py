@@ -14,6 +14,9 @@ With DATASET (a simgen dataset folder) the frame is video.mp4's, the site map si
 origin of site_map.json; the page can also take its hand-placed trapezoid and its calibration objects.
 Otherwise give --frame, --site-map and --scale. The site map must have map up = forward (away from the
 camera); a mirrored or upside-down map is refused when its corners are clicked.
+With --boxes FILE (a MOTChallenge .txt, a detections.parquet or a .csv of frame,x1,y1,x2,y2, as homocal fit
+--boxes reads them; a dataset's detections.parquet by default) the page also fits --method pedestrians from
+those people's boxes, and draws the fitted horizon beside the clicked one.
 Save writes trapezoid.json, reference_points.csv and correction.json into --out, in the formats of
 homocal fit and homocal apply; it asks before replacing a file it did not write. Load reads them back."""
 
@@ -35,6 +38,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     help="site map pixel of the ground origin (default 0,0: the top-left pixel)")
     ui.add_argument("--camera-origin", type=xy_pair, default=(0.0, 0.0), metavar="X,Y",
                     help="ground point under the camera, metres (default 0,0; the page can change it)")
+    ui.add_argument("--boxes", type=Path, metavar="BOXES", help="people's boxes for --method pedestrians (default: "
+                    "DATASET's detections.parquet)")
     ui.add_argument("-o", "--out", type=Path, default=Path("."), metavar="DIR",
                     help="folder Save writes to (default .); made if missing, inside an existing folder")
     ui.add_argument("--port", type=number(int, 0, 65535), default=0, help="port on 127.0.0.1 (default 0: a free one)")
@@ -46,14 +51,14 @@ def handle_ui(args: argparse.Namespace) -> int:
         extra = [f for f, v in (("--frame", args.frame), ("--site-map", args.site_map), ("--scale", args.scale)) if v]
         if extra:
             raise ValueError(f"give either DATASET or --frame/--site-map/--scale, not both ({', '.join(extra)})")
-        session = sessions.from_dataset(args.dataset, args.out, args.frame_index)
+        session = sessions.from_dataset(args.dataset, args.out, args.frame_index, args.boxes)
     else:
         missing = [f for f, v in (("--frame", args.frame), ("--site-map", args.site_map), ("--scale", args.scale))
                    if v is None]
         if missing:
             raise ValueError(f"give a DATASET folder, or --frame, --site-map and --scale (missing {', '.join(missing)})")
         session = sessions.from_files(args.frame, args.site_map, SiteMap(args.scale, args.origin), args.camera_origin,
-                                      args.out, args.frame_index)
+                                      args.out, args.frame_index, args.boxes)
     server = UIServer(session, args.port)
     try:
         session.out_dir.mkdir(exist_ok=True)

@@ -1,5 +1,6 @@
 """What ``homocal ui`` serves: the camera frame, the site map with its scale and origin, the camera's ground
-point, the folder Save writes to and, for a simgen dataset, its hand-placed trapezoid and calibration objects."""
+point, the folder Save writes to, the people's boxes the pedestrian correction fits from (a file named at launch,
+never one a request names) and, for a simgen dataset, its hand-placed trapezoid and calibration objects."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -7,6 +8,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
 
 from homocal.correctors.catalogue import DEFAULT_METHOD, METHODS
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
@@ -29,6 +32,9 @@ class Session:
     out_dir: Path
     title: str
     dataset: dict | None = None  # {"hand_placed": {"image", "map"}, "calibration": [[u, v, x, y], ...]}
+    boxes: Path | None = None  # the boxes file of --boxes (or a dataset's detections.parquet), resolved
+    detectors: tuple[str, ...] = ()  # the detectors of a detections.parquet boxes file (the page picks one)
+    camera_height_m: float | None = None  # the page's default camera height (a dataset's mount height)
     written: dict[Path, tuple] = field(default_factory=dict)  # the identity (api._identity) of each file this
     # server wrote: Save replaces those without asking while they are still what it wrote
 
@@ -42,27 +48,50 @@ class Session:
             "camera_origin": self.camera_origin.tolist(),
             "out_dir": str(self.out_dir),
             "dataset": self.dataset,
-            "methods": list(METHODS),
+            "methods": [name for name, m in METHODS.items() if self.boxes is not None or m.evidence == "points"],
+            "box_methods": [name for name, m in METHODS.items() if m.evidence == "boxes"],  # fitted from boxes
+            "boxes": None if self.boxes is None else {"file": str(self.boxes), "detectors": list(self.detectors),
+                                                      "camera_height_m": self.camera_height_m},
             "default_method": DEFAULT_METHOD,
             "threshold": DEFAULT_THRESHOLD,
         }
 
 
 def from_files(frame: Path, site_map_image: Path, site_map: SiteMap, camera_origin, out_dir: Path,
-               frame_index: int = 0) -> Session:
-    """A session from a frame (an image, or a video's frame ``frame_index``) and a site-map image."""
+               frame_index: int = 0, boxes: Path | None = None) -> Session:
+    """A session from a frame (an image, or a video's frame ``frame_index``) and a site-map image, with the
+    boxes file ``boxes`` (homocal.read_boxes's three kinds) when given."""
     frame_png, frame_size = read_frame(frame, frame_index)
     map_png, map_size = _png(cv2.imread(str(site_map_image), cv2.IMREAD_COLOR), site_map_image)
-    return Session(frame_png, frame_size, map_png, map_size, site_map, np.asarray(camera_origin, float),
-                   _folder(out_dir), f"{frame.name} on {site_map_image.name}")
+    session = Session(frame_png, frame_size, map_png, map_size, site_map, np.asarray(camera_origin, float),
+                      _folder(out_dir), f"{frame.name} on {site_map_image.name}")
+    if boxes is not None:
+        session.boxes, session.detectors = _boxes_file(boxes)
+    return session
 
 
-def from_dataset(path: Path, out_dir: Path, frame_index: int = 0) -> Session:
+def _boxes_file(path: Path) -> tuple[Path, tuple[str, ...]]:
+    """The resolved boxes file and its detectors (a detections.parquet's, sorted; () otherwise); ValueError for a
+    missing file or a Parquet file without a detector column."""
+    if not path.is_file():
+        raise ValueError(f"{path}: no such file")
+    if path.suffix.lower() != ".parquet":
+        return path.resolve(), ()
+    try:
+        names = pq.read_table(path, columns=["detector"]).column("detector").unique().to_pylist()
+    except (pa.ArrowException, OSError) as e:
+        raise ValueError(f"{path}: not a detections.parquet ({(str(e).splitlines() or [type(e).__name__])[0]})") from None
+    return path.resolve(), tuple(sorted(names))
+
+
+def from_dataset(path: Path, out_dir: Path, frame_index: int = 0, boxes: Path | None = None) -> Session:
     """A session from a simgen dataset folder (data_schema.md): video.mp4, site_map.png / .json,
-    trapezoids.json (hand_placed) and calibration.parquet (the detected foot points of the calibration objects)."""
+    trapezoids.json (hand_placed), calibration.parquet (the detected foot points of the calibration objects),
+    the boxes of detections.parquet (or of ``boxes``) and the camera's mount height."""
     ds = load_dataset(path)
     session = from_files(path / "video.mp4", path / "site_map.png", ds.site_map, ds.camera_origin, out_dir,
-                         frame_index)
+                         frame_index, path / "detections.parquet" if boxes is None else boxes)
+    session.camera_height_m = float(ds.camera["mount_height_m"])
     image, ground, _ = ds.calibration_points(source="segmentation")
     session.title = f"{ds.name} ({path})"
     session.dataset = {

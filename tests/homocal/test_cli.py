@@ -295,3 +295,142 @@ def test_least_change_priors_from_the_command_line(work, capsys, monkeypatch):
                         ("--point-sigma-m", "0"), ("--map-sigma-m", "1e7"), ("--click-sigma-px", "one"), ("--map-sigma-m", "")):
         bad = run("--method", "least-change", flag, value)
         assert bad.returncode == 2 and flag in bad.stderr
+
+
+# ---- --method pedestrians: fitted from people's boxes ----------------------------------------------------
+@pytest.fixture(scope="module")
+def boxes_work(tiny_dataset, tmp_path_factory) -> Path:
+    """tiny_dataset's boxes as export-mot writes them (mot/det/segmentation.txt), its hand-placed trapezoid,
+    reference points from its calibration objects and foot points from its ground truth."""
+    import pyarrow.parquet as pq
+
+    work = tmp_path_factory.mktemp("boxes")
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    subprocess.run([sys.executable, "-m", "simgen.cli", "export-mot", str(tiny_dataset), "-o", str(work / "mot")],
+                   check=True, env=env, capture_output=True, timeout=120)
+    cal = pq.read_table(tiny_dataset / "calibration.parquet").to_pydict()
+    write_csv(work / "ref.csv", ["u", "v", "x", "y"], zip(cal["u"], cal["v"], cal["x"], cal["y"]))
+    gt = pq.read_table(tiny_dataset / "gt.parquet").to_pydict()
+    feet = [(u, v) for u, v, inside in zip(gt["u"], gt["v"], gt["in_frame"]) if inside][::10]
+    write_csv(work / "feet.csv", ["u", "v"], feet)
+    return work
+
+
+@pytest.mark.parametrize("boxes,flags", [("mot/det/segmentation.txt", []), ("{dataset}/detections.parquet", []),
+                                         ("{dataset}/detections.parquet", ["--detector", "segmentation"])])
+def test_pedestrians_fit_then_apply(boxes_work, tiny_dataset, boxes, flags):
+    """fit's JSON is the library's fit on read_boxes of the same file; apply maps with it; the fitted horizon is
+    nearer the camera's true one than the hand-placed trapezoid's."""
+    from homocal import PedestrianCorrector, read_boxes
+
+    boxes = boxes.format(dataset=tiny_dataset)
+    trap = str(tiny_dataset / "trapezoids.json")
+    fit = homocal("fit", "--trapezoid", trap, "--method", "pedestrians", "--boxes", boxes, "--camera-height", "4",
+                  *flags, "-o", "c.json", cwd=boxes_work)
+    assert fit.returncode == 0, fit.stderr
+    read = read_boxes(boxes_work / boxes, "segmentation" if flags else None)
+    assert f"from {len(read.xyxy)} boxes of {boxes}" in fit.stdout and "no check points" in fit.stdout
+    assert "people (tracks):" in fit.stdout and " +- " in fit.stdout
+    reference = PedestrianCorrector().fit(ViewTransformer.from_trapezoid_file(trap), read.xyxy, convention="homocal",
+                                          frames=read.frames, track_ids=read.track_ids, camera_height_m=4.0, K=read.K,
+                                          image_size=read.image_size)
+    assert json.loads((boxes_work / "c.json").read_text()) == json.loads(json.dumps(reference.to_dict()))
+    true_row = json.loads((tiny_dataset / "camera.json").read_text())["horizon_row"]
+    assert abs(reference.horizon_row_ - true_row) < abs(reference.clicked_horizon_row_ - true_row)
+    (boxes_work / "out.csv").unlink(missing_ok=True)
+    applied = homocal("apply", "c.json", "--points", "feet.csv", "-o", "out.csv", cwd=boxes_work)
+    assert applied.returncode == 0, applied.stderr
+    with open(boxes_work / "out.csv") as f:
+        rows = list(csv.DictReader(f))
+    q = np.array([[float(r["u"]), float(r["v"])] for r in rows])
+    np.testing.assert_allclose([[float(r["x"]), float(r["y"])] for r in rows], reference.transform_points(q), atol=1e-9)
+    (boxes_work / "c.json").unlink()
+
+
+def test_pedestrians_points_check_the_fit(boxes_work, tiny_dataset, capsys, monkeypatch):
+    """--points with pedestrians: the same fit, its errors on the points reported and stored."""
+    trap = str(tiny_dataset / "trapezoids.json")
+    args = ["fit", "--trapezoid", trap, "--method", "pedestrians", "--boxes", "mot/det/segmentation.txt",
+            "--camera-height", "4"]
+    plain = homocal_main(*args, "-o", "a.json", cwd=boxes_work, capsys=capsys, monkeypatch=monkeypatch)
+    checked = homocal_main(*args, "--points", "ref.csv", "-o", "b.json", cwd=boxes_work, capsys=capsys,
+                           monkeypatch=monkeypatch)
+    assert plain.returncode == checked.returncode == 0, checked.stderr
+    a, b = (load_corrector(boxes_work / name) for name in ("a.json", "b.json"))
+    assert a.horizon_row_ == b.horizon_row_ and np.array_equal(a.m, b.m)  # the points do not enter the fit
+    assert np.isnan(a.error_before_) and b.error_before_ > 0 and b.error_after_ >= 0
+    assert f"checked on " in checked.stdout and f"{b.error_before_:.3f} m before, {b.error_after_:.3f} m after" in checked.stdout
+    assert "on the check points, which the fit did not use" in checked.stdout
+    for name in ("a.json", "b.json"):
+        (boxes_work / name).unlink()
+
+
+def _bad_pedestrian_inputs():
+    """(name, files to write {name: text}, args after --trapezoid trap.json -o c.json, expected message)."""
+    head = "frame,x1,y1,x2,y2\n"
+    rows = "".join(f"{i},{x - 8},{top},{x + 8},{foot}\n" for i, (x, top, foot) in
+                   enumerate([(500, 300, 400), (600, 310, 420), (700, 290, 395), (640, 320, 430)]))
+    camera = json.dumps({"width": CAM.width, "height": CAM.height, "K": CAM.K.tolist()})
+    ped = ["--method", "pedestrians", "--camera-json", "cam.json", "--camera-height", "4"]
+    return [
+        ("no boxes flag", {}, ["--method", "pedestrians"], "--boxes: required with --method pedestrians"),
+        ("no boxes file", {}, [*ped, "--boxes", "none.csv"], "none.csv: no such file"),
+        ("empty boxes file", {"b.csv": head}, [*ped, "--boxes", "b.csv"], "b.csv: no boxes"),
+        ("empty MOT file", {"b.txt": ""}, [*ped, "--boxes", "b.txt"], "b.txt: no detections"),
+        ("NaN box", {"b.csv": head + rows + "5,600,nan,620,500\n"}, [*ped, "--boxes", "b.csv"], "b.csv, line 6: column y1"),
+        ("box upside down", {"b.csv": head + rows + "5,600,500,620,400\n"}, [*ped, "--boxes", "b.csv"], "upside down"),
+        ("camera height 0", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--camera-height", "0"],
+         "--camera-height must be in (0, 100] m, got 0.0"),
+        ("camera height 1e6", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--camera-height", "1e6"],
+         "--camera-height must be in (0, 100] m, got 1000000.0"),
+        ("height sd 0", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--height-sd", "0"], "--height-sd must be in"),
+        ("height mean nan", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--height-mean", "nan"],
+         "--height-mean must be"),
+        ("no image size", {"b.csv": head + rows}, ["--method", "pedestrians", "--boxes", "b.csv"], "--camera-json: needed"),
+        ("camera json without width", {"b.csv": head + rows, "cam.json": json.dumps({"height": 720})}, [*ped, "--boxes", "b.csv"],
+         "--camera-json cam.json: needs width"),
+        ("detector of a CSV", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--detector", "hog"],
+         "a detector name is for a dataset's detections.parquet"),
+        ("all above the horizon", {"b.csv": head + "".join(f"{i},600,10,620,50\n" for i in range(5))},
+         [*ped, "--boxes", "b.csv"], "on or above the clicked mapping's horizon"),
+        ("boxes flag with a points method", {}, ["--points", "ref.csv", "--method", "descent", "--boxes", "b.csv"],
+         "--boxes: for --method pedestrians, not descent"),
+        ("no points for a points method", {}, ["--method", "horizon"], "--points: required with --method horizon"),
+    ], camera
+
+
+_PEDESTRIAN_CASES, _CAMERA_JSON = _bad_pedestrian_inputs()
+
+
+@pytest.mark.parametrize("name,files,extra,message", _PEDESTRIAN_CASES, ids=[c[0] for c in _PEDESTRIAN_CASES])
+def test_bad_pedestrian_input(work, name, files, extra, message, capsys, monkeypatch):
+    (work / "cam.json").write_text(_CAMERA_JSON)
+    for file, text in files.items():
+        (work / file).write_text(text)
+    before = sorted(p.name for p in work.rglob("*"))
+    result = homocal_main("fit", "--trapezoid", "trap.json", "-o", "c.json", *extra, cwd=work, capsys=capsys,
+                          monkeypatch=monkeypatch)
+    assert result.returncode == 2
+    assert result.stderr.startswith("homocal: error:") and result.stderr.count("\n") == 1, result.stderr
+    assert message in result.stderr
+    assert sorted(p.name for p in work.rglob("*")) == before
+
+
+def test_pedestrians_refuse_a_majority_of_outliers(work, capsys, monkeypatch):
+    """Most boxes cut to half height (a detector whose boxes miss the legs): refused, not a horizon far off."""
+    from homocal.correctors.pedestrians import MAX_OUTLIER_SHARE
+
+    rng = np.random.default_rng(0)
+    xy = np.column_stack([rng.uniform(-4, 4, 60), rng.uniform(8, 40, 60)])
+    foot = CAM.project_ground(xy)
+    head = CAM.project(np.column_stack([xy, rng.normal(1.65, 0.07, 60)]))
+    top = np.where(np.arange(60) < 40, (head[:, 1] + foot[:, 1]) / 2, head[:, 1])  # 2/3 cut
+    write_csv(work / "b.csv", ["frame", "x1", "y1", "x2", "y2"],
+              [(i * 20, u - 5, t, u + 5, v) for i, ((u, v), t) in enumerate(zip(foot, top))])
+    (work / "cam.json").write_text(_CAMERA_JSON)
+    result = homocal_main("fit", "--trapezoid", "trap.json", "-o", "c.json", "--method", "pedestrians", "--boxes",
+                          "b.csv", "--camera-json", "cam.json", "--camera-height", "4", cwd=work, capsys=capsys,
+                          monkeypatch=monkeypatch)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+    assert "are outliers" in result.stderr and f"more than {MAX_OUTLIER_SHARE:.0%}" in result.stderr
+    assert not (work / "c.json").exists()

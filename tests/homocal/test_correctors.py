@@ -510,6 +510,15 @@ class TestFitInputChecks:
 
 
 # ---- the method catalogue -------------------------------------------------------------------------------
+def standing_people(n: int = 40) -> np.ndarray:
+    """Boxes (n, 4) homocal px of people 1.5-1.8 m tall standing 8-40 m ahead of CAM (columns +-0.2 m)."""
+    y = np.linspace(8.0, 40.0, n)
+    feet = np.column_stack([np.linspace(-3.0, 3.0, n), y])
+    foot, head = CAM.project_ground(feet), CAM.project(np.column_stack([feet, np.linspace(1.5, 1.8, n)]))
+    half = CAM.focal_px * 0.2 / y
+    return np.column_stack([foot[:, 0] - half, head[:, 1], foot[:, 0] + half, foot[:, 1]])
+
+
 class TestCatalogue:
     def test_study_columns_are_the_shards_columns(self):
         """The shards' column names are a data format (data_schema.md): the catalogue's order is theirs."""
@@ -521,11 +530,16 @@ class TestCatalogue:
 
     @pytest.mark.parametrize("name", list(METHODS))
     def test_each_method_round_trips_through_its_json(self, name, tmp_path):
-        """An entry makes its class, the fitted corrector is found again by method_of, also after save/load."""
+        """An entry makes its class, the fitted corrector (from reference points or from people's boxes, as its
+        evidence says) is found again by method_of, also after save/load."""
         method = METHODS[name]
         corrector = method.make()
         assert isinstance(corrector, method.corrector) and method_of(corrector) is method
-        corrector.fit(ViewTransformer(IMAGE + HAND_ERROR, GROUND), CALIB_Q, CALIB_G, ORIGIN)
+        clicked = ViewTransformer(IMAGE + HAND_ERROR, GROUND)
+        if method.evidence == "boxes":
+            corrector.fit(clicked, standing_people(), convention="homocal", K=CAM.K, camera_height_m=4.0)
+        else:
+            corrector.fit(clicked, CALIB_Q, CALIB_G, ORIGIN)
         corrector.save(tmp_path / "c.json")
         loaded = load_corrector(tmp_path / "c.json")
         assert json.loads((tmp_path / "c.json").read_text())["method"] == method.json_method

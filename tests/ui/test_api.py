@@ -49,14 +49,19 @@ def session(tmp_path: Path):
     return from_files(frame, site_map, SITE, (0.0, 0.0), out)
 
 
-@pytest.fixture
-def server(session):
+def serving(session):
+    """A UIServer of the session, serving in a thread until the generator is closed."""
     srv = UIServer(session)
     thread = threading.Thread(target=srv.serve_forever, kwargs={"poll_interval": 0.02}, daemon=True)
     thread.start()
     yield srv
     srv.shutdown()
     srv.server_close()
+
+
+@pytest.fixture
+def server(session):
+    yield from serving(session)
 
 
 def post(server: UIServer, path: str, body, content_type: str = "application/json", host: str | None = None,
@@ -87,6 +92,111 @@ def raw(server: UIServer, head: str, body: bytes = b"") -> tuple[int, dict]:
 
 def request(**fields) -> dict:
     return {"trapezoid": TRAP, "camera_origin": [0.0, 0.0], "points": POINTS, "method": "regression-signed", **fields}
+
+
+def test_a_boxes_method_needs_a_boxes_file_at_launch(server):
+    status, answer = post(server, "api/fit", request(method="pedestrians"))
+    assert status == 400 and answer["error"].startswith("method: pedestrians fits from people's boxes: start homocal "
+                                                        "ui with --boxes FILE")
+
+
+# ---- the pedestrian correction from the launch's boxes file ----------------------------------------------------
+def standing_people_csv(path: Path, n: int = 80, seed: int = 0) -> Path:
+    """A boxes CSV (frame,x1,y1,x2,y2, corners convention: homocal's edges + 0.5) of n people 1.65 +- 0.07 m tall
+    standing 6-45 m ahead of CAM, one a frame 30 frames apart (each its own track)."""
+    rng = np.random.default_rng(seed)
+    xy = np.column_stack([rng.uniform(-6, 6, n), rng.uniform(6, 45, n)])
+    foot = CAM.project_ground(xy)
+    head = CAM.project(np.column_stack([xy, rng.normal(1.65, 0.07, n)]))
+    half = CAM.focal_px * 0.2 / xy[:, 1]
+    rows = [f"{30 * i},{u - h + 0.5},{t + 0.5},{u + h + 0.5},{v + 0.5}\n"
+            for i, ((u, v), t, h) in enumerate(zip(foot, head[:, 1], half))]
+    path.write_text("frame,x1,y1,x2,y2\n" + "".join(rows))
+    return path
+
+
+@pytest.fixture
+def boxes_server(session, tmp_path):
+    session.boxes = standing_people_csv(tmp_path / "boxes.csv").resolve()
+    yield from serving(session)
+
+
+def tilted_trapezoid(shift_px: float = 16.0) -> dict:
+    """TRAP's image corners moved as a tilt error moves them: the clicked horizon shift_px above the camera's."""
+    from homocal.study.perturb import tilt_shift
+
+    return {"image": tilt_shift(IMAGE, CAM.K, CAM.horizon_row, shift_px).tolist(), "map": MAP.tolist()}
+
+
+def test_pedestrians_fit_from_the_launch_boxes(boxes_server):
+    """The page's fit is the library's on read_boxes of the launch's file (image size: the frame's); the fitted
+    horizon it draws is the camera's, the clicked one 16 px above it; the points only check the fit."""
+    from homocal import PedestrianCorrector, read_boxes
+
+    info = json.loads(urllib.request.urlopen(boxes_server.address + "api/session", timeout=10).read())
+    assert "pedestrians" in info["methods"] and info["box_methods"] == ["pedestrians"]
+    assert info["boxes"] == {"file": str(boxes_server.session.boxes), "detectors": [], "camera_height_m": None}
+    trap = tilted_trapezoid()
+    status, fit = post(boxes_server, "api/fit", request(trapezoid=trap, method="pedestrians", points=[],
+                                                        camera_height_m=4.0))
+    assert status == 200, fit
+    clicked = ViewTransformer(np.array(trap["image"]), SITE.to_metres(MAP))
+    boxes = read_boxes(boxes_server.session.boxes)
+    reference = PedestrianCorrector().fit(clicked, boxes.xyxy, convention="homocal", frames=boxes.frames,
+                                          camera_height_m=4.0, image_size=(W, H))
+    assert fit["correction"] == json.loads(json.dumps(reference.to_dict()))
+    (u0, v0), (u1, v1) = fit["horizon"]
+    at_cx = v0 + (v1 - v0) * (CAM.K[0, 2] - u0) / (u1 - u0)
+    assert at_cx == pytest.approx(reference.horizon_row_, abs=1e-6) and abs(at_cx - CAM.horizon_row) < 2.0
+    assert clicked.horizon_row(CAM.K[0, 2]) == pytest.approx(CAM.horizon_row - 16.0, abs=0.1)
+    assert "people (tracks): " in fit["summary"] and "no check points" in fit["summary"]
+    status, checked = post(boxes_server, "api/fit", request(trapezoid=trap, method="pedestrians", camera_height_m=4.0))
+    assert status == 200 and checked["correction"]["fitted"] == fit["correction"]["fitted"]
+    assert checked["error_after"] < checked["error_before"] and "check points" in checked["summary"]
+
+
+@pytest.mark.parametrize("fields,message", [
+    ({"detector": "segmentation"}, "detector: boxes.csv has no detectors to choose from"),
+    ({"camera_height_m": 0}, "camera_height_m must be in (0, 100] m"),
+    ({"camera_height_m": 1e6}, "camera_height_m must be in (0, 100] m"),
+    ({"camera_height_m": "4"}, "camera_height_m: expected a finite number"),
+    ({"height_sd_m": 0}, "height_sd_m must be in [0.01"),
+    ({"boxes": "/etc/passwd", "camera_height_m": 40.0}, "no tilt makes the median"),  # a path in a request is not read
+])  # fmt: skip
+def test_pedestrians_bad_requests(boxes_server, fields, message):
+    status, answer = post(boxes_server, "api/fit", request(trapezoid=tilted_trapezoid(), method="pedestrians",
+                                                           points=[], **fields))
+    assert status == 400 and message in answer["error"], answer
+
+
+def test_pedestrians_detector_of_a_dataset_parquet(session, tmp_path):
+    """A detections.parquet: the page picks one of its detectors by name, and no other."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from homocal.ui.session import _boxes_file
+
+    table = np.loadtxt(standing_people_csv(tmp_path / "b.csv"), delimiter=",", skiprows=1)
+    n = len(table)
+    pq.write_table(pa.table({"detector": ["rgb"] * n, "frame": table[:, 0].astype(np.int32),
+                             **{c: table[:, i + 1] - 0.5 for i, c in enumerate(("x1", "y1", "x2", "y2"))}}),
+                   tmp_path / "detections.parquet")
+    session.boxes, session.detectors = _boxes_file(tmp_path / "detections.parquet")
+    assert session.detectors == ("rgb",)
+    req = request(trapezoid=tilted_trapezoid(), method="pedestrians", points=[], camera_height_m=4.0)
+    assert abs(api.fit(session, req)["correction"]["fitted"]["horizon_row"] - CAM.horizon_row) < 2.0
+    with pytest.raises(ValueError, match="detector: expected one of rgb, got '../x'"):
+        api.fit(session, {**req, "detector": "../x"})
+
+
+def test_pedestrians_save_names_the_boxes(boxes_server):
+    status, saved = post(boxes_server, "api/save", request(trapezoid=tilted_trapezoid(), method="pedestrians",
+                                                           camera_height_m=4.0))
+    assert status == 200, saved
+    assert f"--method pedestrians" in saved["command"] and f"--boxes {boxes_server.session.boxes}" in saved["command"]
+    assert "--camera-height 4.0" in saved["command"] and "--points " in saved["command"]
+    status, loaded = post(boxes_server, "api/load", {})
+    assert status == 200 and loaded["fit"]["method"] == "pedestrians"
 
 
 # ---- overlays against the camera they should show ----------------------------------------------------
@@ -275,6 +385,7 @@ def test_pages_are_served(server):
     info = json.loads(urllib.request.urlopen(server.address + "api/session", timeout=10).read())
     assert info["frame"] == {"width": W, "height": H} and info["map"]["scale_px_per_m"] == 10.0
     assert "regression-signed" in info["methods"] and info["dataset"] is None
+    assert "pedestrians" not in info["methods"]  # fitted from boxes, which the page does not load
     assert info["default_method"] == "least-change" and info["default_method"] in info["methods"]  # fit's default
     with pytest.raises(urllib.error.HTTPError, match="404"):
         urllib.request.urlopen(server.address + "nothing.html", timeout=10)

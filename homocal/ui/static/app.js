@@ -55,9 +55,16 @@ function viewRequest() {
   };
 }
 
+function fromBoxes(method) { return S.info.box_methods.includes(method); }
+
 function fitRequest() {
-  return { ...viewRequest(), points: S.points.map((p) => [p.u, p.v, p.x, p.y]), method: $("method").value,
-           seed: number("seed"), threshold: number("threshold") };
+  const req = { ...viewRequest(), points: S.points.map((p) => [p.u, p.v, p.x, p.y]), method: $("method").value,
+                seed: number("seed"), threshold: number("threshold") };
+  if (fromBoxes(req.method)) {  // the session's boxes file: the page names a detector of it, never a path
+    if (S.info.boxes.detectors.length) req.detector = $("detector").value;
+    if ($("camera-height").value !== "") req.camera_height_m = number("camera-height");
+  }
+  return req;
 }
 
 function say(text, kind) {
@@ -199,6 +206,10 @@ function renderFrame() {
     if (view.horizon) {
       const [[u0, v0], [u1, v1]] = view.horizon, u = 0, v = v0 + (v1 - v0) * (u - u0) / (u1 - u0);
       style(ctx, "#ff5050", 2, [10, 6]); polyline(ctx, "frame", view.horizon); label(ctx, "frame", [u, v], "horizon", "#ff5050", 4, -6);
+    }
+    if (S.fit && S.fit.horizon && $("show-corrected").checked) {  // the horizon of the mapping the correction maps with
+      const [[u0, v0], [u1, v1]] = S.fit.horizon, u = 0, v = v0 + (v1 - v0) * (u - u0) / (u1 - u0);
+      style(ctx, "#ff9d2e", 2, [4, 4]); polyline(ctx, "frame", S.fit.horizon); label(ctx, "frame", [u, v], "fitted horizon", "#ff9d2e", 4, 14);
     }
     if (view.errorbars) {
       drawEllipses(ctx, "frame", view.errorbars, "image", view.errorbars.image_points);
@@ -475,7 +486,7 @@ async function doLoad() {
       $("camera-x").value = S.camera[0]; $("camera-y").value = S.camera[1];
     }
     await refreshView();
-    if (answer.fit && S.points.length >= 3) await doFit();
+    if (answer.fit && (S.points.length >= 3 || fromBoxes(answer.fit.method))) await doFit();
     $("files-summary").textContent = "loaded " + answer.loaded.join(", ");
   } catch (e) { say(e.message, "error"); }
 }
@@ -512,7 +523,8 @@ function bind() {
   for (const id of ["click-sigma", "point-sigma", "map-sigma", "tolerance"]) $(id).addEventListener("change", () => refreshView());
   $("ellipse-scale").addEventListener("change", render);
   $("show-corrected").addEventListener("change", render);
-  $("method").addEventListener("change", () => { invalidateFit(); render(); });
+  $("method").addEventListener("change", () => { $("boxes-fields").hidden = !fromBoxes($("method").value); invalidateFit(); render(); });
+  for (const id of ["detector", "camera-height"]) $(id).addEventListener("change", () => { invalidateFit(); render(); });
   $("use-hand-placed").onclick = () => { S.trap = JSON.parse(JSON.stringify(S.info.dataset.hand_placed)); changeTrapezoid(null); };
   $("use-calibration").onclick = () => {
     S.points = S.info.dataset.calibration.map((p) => ({ u: p[0], v: p[1], x: p[2], y: p[3] }));
@@ -540,6 +552,13 @@ async function start() {
   $("method").value = S.info.default_method;
   $("threshold").value = S.info.threshold;
   if (S.info.dataset) { $("use-hand-placed").hidden = false; $("use-calibration").hidden = false; }
+  if (S.info.boxes) {
+    $("detector").innerHTML = S.info.boxes.detectors.map((d) => `<option>${d}</option>`).join("");
+    if (S.info.boxes.detectors.includes("segmentation")) $("detector").value = "segmentation";
+    $("detector").hidden = !S.info.boxes.detectors.length;
+    if (S.info.boxes.camera_height_m !== null) $("camera-height").value = S.info.boxes.camera_height_m;
+    $("boxes-file").textContent = S.info.boxes.file;
+  }
   await Promise.all(["frame", "map"].map((name) => new Promise((resolve, reject) => {
     images[name].onload = resolve; images[name].onerror = () => reject(new Error(`cannot load /${name}.png`));
     images[name].src = `/${name}.png`;
