@@ -19,9 +19,9 @@ camera height from each variant's clicked mapping). Printed, per dataset and det
     camera's ground point), here over the study's test points at 5-50 m; mean and median over the variants
     of each variant's mean, before and after. A correction that puts a test point beyond its horizon has an
     infinite error there: it counts as not positive and below every percentile.
---base fitted: the base error of today's `homocal study --preset paper` (horizon 16 px above the true one, the
-perturbation read as variant-positive, map perturbations in px of a 1.5 px/m map); hand-placed: the
-hand-placed trapezoid with the default per-coordinate perturbation.
+--base fitted: the variants of `homocal study --preset table1-fit` (horizon 16 px above the true one, the
+perturbation read as variant-positive, map perturbations in px of a 1.5 px/m map); hand-placed: those of
+`--preset paper` (the hand-placed trapezoid, the per-coordinate perturbation).
 --end-to-end KIND: instead, the issue's end-to-end check on one dataset: export-mot's det/segmentation.txt
 (--det, written by `simgen export-mot DATASET -o SEQ` beforehand), the KIND ("exact" or "hand-placed")
 image trapezoid moved as a tilt error moves it so that its horizon lies 16 px above the true one, the camera
@@ -43,12 +43,11 @@ from homocal.correctors.base import load_corrector
 from homocal.correctors.pedestrians import DEFAULT_HEIGHT_MEAN_M, DEFAULT_HEIGHT_SD_M, MODELS, PedestrianCorrector
 from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer
-from homocal.study.inputs import StudyParams, StudyScene
+from homocal.study.inputs import StudyScene, preset_params
 from homocal.study.perturb import base_quad
 from homocal.study.shards import prepare_variant
 
-BASES = {"fitted": dict(horizon_shift="16", perturbation="variant-positive", map_scale=1.5, metric="range"),
-         "hand-placed": dict(metric="range")}
+BASES = {"fitted": "table1-fit", "hand-placed": "paper"}  # --base: the study preset whose base error it takes
 RANGE_M = (5.0, 50.0)
 
 
@@ -68,7 +67,7 @@ def detector_boxes(path: str, detector: str, seconds: float, boxes_file: str | N
 
 
 def measure(path: str, detector: str, args) -> dict:
-    params = StudyParams(n_variants=args.variants, **BASES[args.base])
+    params = preset_params(BASES[args.base], n_variants=args.variants)
     scene = StudyScene.from_dataset(path, params)
     ds = load_dataset(path)
     xyxy, frames = detector_boxes(path, detector, args.seconds, args.boxes)
