@@ -39,9 +39,10 @@ from pathlib import Path
 import numpy as np
 
 from homocal.boxes import read_boxes
-from homocal.correctors.base import load_corrector
+from homocal.correctors.base import FORMAT, load_corrector
 from homocal.correctors.pedestrians import DEFAULT_HEIGHT_MEAN_M, DEFAULT_HEIGHT_SD_M, MODELS, PedestrianCorrector
 from homocal.dataset import load_dataset
+from homocal.files import check_output_file, json_format
 from homocal.geometry import ViewTransformer
 from homocal.study.inputs import StudyScene, preset_params
 from homocal.study.perturb import base_quad
@@ -121,12 +122,14 @@ def end_to_end(path: str, kind: str, args) -> dict:
     target = ds.site_map.to_metres(np.asarray(quads["map"], float))
     image = np.asarray(quads["image"], float)
     row = float(ViewTransformer(image, target).horizon_row(K[0, 2]))
-    clicked = ViewTransformer(base_quad(image, K, row, true_row, 16.0, np.zeros(8)), target)
+    shift = preset_params(BASES["fitted"]).horizon_shift.a  # the fitted base error (a fixed shift, px)
+    clicked = ViewTransformer(base_quad(image, K, row, true_row, shift, np.zeros(8)), target)
+    out = Path(args.out) / f"end_to_end_{ds.name}_{kind}.json"
+    check_output_file(out, lambda p: json_format(p) == FORMAT, "homocal correction")  # never a file it did not write
     boxes = read_boxes(args.det)
     corrector = PedestrianCorrector(args.height_mean, args.height_sd, args.model).fit(
         clicked, boxes.xyxy, convention="homocal", frames=boxes.frames, track_ids=boxes.track_ids,
-        camera_height_m=4.0, image_size=boxes.image_size, K=K if args.give_k else None)
-    out = Path(args.out) / f"end_to_end_{ds.name}_{kind}.json"
+        camera_height_m=float(ds.camera["mount_height_m"]), image_size=boxes.image_size, K=K if args.give_k else None)
     corrector.save(out)
     loaded = load_corrector(out)
     gt = ds.table("gt.parquet")
