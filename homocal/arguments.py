@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import numbers
 
 
 def number(kind: type, low: float, high: float = math.inf, low_open: bool = False):
@@ -21,8 +22,9 @@ def number(kind: type, low: float, high: float = math.inf, low_open: bool = Fals
 
 
 def within(value: float, low: float, high: float = math.inf, low_open: bool = False) -> bool:
-    """Whether value is finite and in [low, high] ((low, high] if low_open)."""
-    return math.isfinite(value) and (value > low if low_open else value >= low) and value <= high
+    """Whether value is finite and in [low, high] ((low, high] if low_open); an integer of any size (math.isfinite
+    would overflow on one beyond a float's range)."""
+    return (isinstance(value, numbers.Integral) or math.isfinite(value)) and (value > low if low_open else value >= low) and value <= high
 
 
 def range_text(low: float, high: float = math.inf, low_open: bool = False) -> str:
