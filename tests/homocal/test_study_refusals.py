@@ -1,11 +1,13 @@
 """Refusals that change nothing: names read from manifests and study.json never become paths unchecked, a report
-that would fail writes nothing, a site map's numbers are numbers."""
+that would fail writes nothing, a site map's numbers are numbers, a point is two finite numbers."""
+import argparse
 import json
 import shutil
 from pathlib import Path
 
 import pytest
 
+from homocal.arguments import xy_pair
 from homocal.cli import main
 from homocal.dataset import load_dataset
 from homocal.geometry import SiteMap
@@ -109,3 +111,16 @@ def test_site_map_numbers_are_numbers(dataset, tmp_path, site):
 
 def test_a_good_site_map_still_reads():
     assert SiteMap.from_dict({"scale_px_per_m": 10, "origin_px": [200.5, 600]}) == SiteMap(10.0, (200.5, 600.0))
+
+
+@pytest.mark.parametrize("text", ["", "1", "1,2,3", "1;2", "x,1", "nan,1", "1,inf", "-inf,0", "1e400,0", ",", "1,,2"])
+def test_a_bad_point_is_one_argparse_line(text):
+    """homocal.arguments.xy_pair (advise's --camera-origin, fit's): anything but two finite numbers X,Y is refused
+    as argparse's one line."""
+    with pytest.raises(argparse.ArgumentTypeError, match="X,Y"):
+        xy_pair(text)
+
+
+@pytest.mark.parametrize("text, point", [("1,2", (1.0, 2.0)), (" -0.5 , 3e1 ", (-0.5, 30.0))])
+def test_a_point_is_two_numbers(text, point):
+    assert xy_pair(text) == point
