@@ -11,6 +11,7 @@ from homocal.arguments import xy_pair
 from homocal.cli import main
 from homocal.dataset import load_dataset
 from homocal.geometry import SiteMap
+from homocal.study.inputs import MAX_SEED
 from synthetic_dataset import write_dataset
 
 BAD_NAMES = ["../../../../escaped", "../../../../../victim", "a/b", ".", "..", ".hidden", "x\ny", "x" * 300, "", 5, None]
@@ -124,3 +125,14 @@ def test_a_bad_point_is_one_argparse_line(text):
 @pytest.mark.parametrize("text, point", [("1,2", (1.0, 2.0)), (" -0.5 , 3e1 ", (-0.5, 30.0))])
 def test_a_point_is_two_numbers(text, point):
     assert xy_pair(text) == point
+
+
+@pytest.mark.parametrize("text", ["-1", str(MAX_SEED + 1), "1" + "0" * 400, "1.5", "nan", "", "x"])
+def test_advise_refuses_a_seed_as_the_study_does(tmp_path, capsys, text):
+    """homocal advise --seed takes the study's seeds (inputs.MAX_SEED): anything else is argparse's one line naming
+    the flag, and nothing is written."""
+    with pytest.raises(SystemExit) as raised:
+        main(["advise", "--trapezoid", str(tmp_path / "t.json"), "--distances", "10,20,30", "--seed", text,
+              "-o", str(tmp_path / "a.csv")])
+    assert raised.value.code == 2 and "argument --seed" in one_error_line(capsys)
+    assert not any(tmp_path.iterdir())
