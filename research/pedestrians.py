@@ -74,7 +74,8 @@ def measure(path: str, detector: str, args) -> dict:
     xyxy, frames = detector_boxes(path, detector, args.seconds, args.boxes)
     given = {} if args.estimate_camera else {"K": scene.K, "camera_height_m": float(ds.camera["mount_height_m"])}
     o = scene.origin
-    near = (np.linalg.norm(scene.test_ground - o, axis=1) >= RANGE_M[0]) & (np.linalg.norm(scene.test_ground - o, axis=1) <= RANGE_M[1])
+    true_range = np.linalg.norm(scene.test_ground - o, axis=1)
+    near = (true_range >= RANGE_M[0]) & (true_range <= RANGE_M[1])
     rows, once = [], None
     for v in range(args.variants + 1):
         tables = prepare_variant(scene, params, v)
@@ -89,7 +90,6 @@ def measure(path: str, detector: str, args) -> dict:
         else:
             corrector = once.with_mapping(clicked)
         after_points = corrector.transform_points(scene.test_image)
-        true_range = np.linalg.norm(scene.test_ground - o, axis=1)
         after = float(np.mean(np.abs(true_range - np.linalg.norm(after_points - o, axis=1))))
         if math.isnan(after):  # a test point beyond the corrected horizon: a failed correction, error infinite
             after = math.inf
