@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import numbers
 
 
 def number(kind: type, low: float, high: float = math.inf, low_open: bool = False):
@@ -13,13 +14,24 @@ def number(kind: type, low: float, high: float = math.inf, low_open: bool = Fals
             value = kind(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected {'an integer' if kind is int else 'a number'}, got {text!r}") from None
-        if not (math.isfinite(value) and (value > low if low_open else value >= low) and value <= high):
+        if not within(value, low, high, low_open):
             what = "an integer" if kind is int else "a finite number"
-            bounds = (f"in {'(' if low_open else '['}{bound_text(low)}, {bound_text(high)}]" if math.isfinite(high)
-                      else f"{'>' if low_open else '>='} {bound_text(low)}")
-            raise argparse.ArgumentTypeError(f"must be {what} {bounds}, got {text}")
+            raise argparse.ArgumentTypeError(f"must be {what} {range_text(low, high, low_open)}, got {text}")
         return value
     return parse
+
+
+def within(value: float, low: float, high: float = math.inf, low_open: bool = False) -> bool:
+    """Whether value is finite and in [low, high] ((low, high] if low_open); an integer of any size (math.isfinite
+    would overflow on one beyond a float's range)."""
+    return (isinstance(value, numbers.Integral) or math.isfinite(value)) and (value > low if low_open else value >= low) and value <= high
+
+
+def range_text(low: float, high: float = math.inf, low_open: bool = False) -> str:
+    """[low, high] as an error message says it: "in [0, 100]", "in (0, 1000]", ">= 1", "> 0"."""
+    if math.isfinite(high):
+        return f"in {'(' if low_open else '['}{bound_text(low)}, {bound_text(high)}]"
+    return f"{'>' if low_open else '>='} {bound_text(low)}"
 
 
 def bound_text(bound: float) -> str:

@@ -39,9 +39,10 @@ from pathlib import Path
 import numpy as np
 
 from homocal.boxes import read_boxes
-from homocal.correctors.base import load_corrector
+from homocal.correctors.base import FORMAT, load_corrector
 from homocal.correctors.pedestrians import DEFAULT_HEIGHT_MEAN_M, DEFAULT_HEIGHT_SD_M, MODELS, PedestrianCorrector
 from homocal.dataset import load_dataset
+from homocal.files import check_output_file, json_format
 from homocal.geometry import ViewTransformer
 from homocal.study.inputs import StudyScene, preset_params
 from homocal.study.perturb import base_quad
@@ -73,7 +74,8 @@ def measure(path: str, detector: str, args) -> dict:
     xyxy, frames = detector_boxes(path, detector, args.seconds, args.boxes)
     given = {} if args.estimate_camera else {"K": scene.K, "camera_height_m": float(ds.camera["mount_height_m"])}
     o = scene.origin
-    near = (np.linalg.norm(scene.test_ground - o, axis=1) >= RANGE_M[0]) & (np.linalg.norm(scene.test_ground - o, axis=1) <= RANGE_M[1])
+    true_range = np.linalg.norm(scene.test_ground - o, axis=1)
+    near = (true_range >= RANGE_M[0]) & (true_range <= RANGE_M[1])
     rows, once = [], None
     for v in range(args.variants + 1):
         tables = prepare_variant(scene, params, v)
@@ -88,7 +90,6 @@ def measure(path: str, detector: str, args) -> dict:
         else:
             corrector = once.with_mapping(clicked)
         after_points = corrector.transform_points(scene.test_image)
-        true_range = np.linalg.norm(scene.test_ground - o, axis=1)
         after = float(np.mean(np.abs(true_range - np.linalg.norm(after_points - o, axis=1))))
         if math.isnan(after):  # a test point beyond the corrected horizon: a failed correction, error infinite
             after = math.inf
@@ -121,12 +122,14 @@ def end_to_end(path: str, kind: str, args) -> dict:
     target = ds.site_map.to_metres(np.asarray(quads["map"], float))
     image = np.asarray(quads["image"], float)
     row = float(ViewTransformer(image, target).horizon_row(K[0, 2]))
-    clicked = ViewTransformer(base_quad(image, K, row, true_row, 16.0, np.zeros(8)), target)
+    shift = preset_params(BASES["fitted"]).horizon_shift.a  # the fitted base error (a fixed shift, px)
+    clicked = ViewTransformer(base_quad(image, K, row, true_row, shift, np.zeros(8)), target)
+    out = Path(args.out) / f"end_to_end_{ds.name}_{kind}.json"
+    check_output_file(out, lambda p: json_format(p) == FORMAT, "homocal correction")  # never a file it did not write
     boxes = read_boxes(args.det)
     corrector = PedestrianCorrector(args.height_mean, args.height_sd, args.model).fit(
         clicked, boxes.xyxy, convention="homocal", frames=boxes.frames, track_ids=boxes.track_ids,
-        camera_height_m=4.0, image_size=boxes.image_size, K=K if args.give_k else None)
-    out = Path(args.out) / f"end_to_end_{ds.name}_{kind}.json"
+        camera_height_m=float(ds.camera["mount_height_m"]), image_size=boxes.image_size, K=K if args.give_k else None)
     corrector.save(out)
     loaded = load_corrector(out)
     gt = ds.table("gt.parquet")

@@ -22,8 +22,9 @@ import pyarrow.parquet as pq
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from homocal.dataset import load_dataset  # noqa: E402
+from homocal.study.inputs import StudyParams  # noqa: E402
 
-N_TEST, SEED, MAX_DISTANCE = 2000, 0, 50.0  # the study's defaults (homocal.study.options)
+STUDY = StudyParams()  # the study's defaults: its n_test, seed and max_test_distance
 
 
 def prefix(dataset: Path, seconds: float, folder: Path) -> Path:
@@ -41,7 +42,7 @@ def prefix(dataset: Path, seconds: float, folder: Path) -> Path:
 def draw(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """(distance (N,) m, lateral offset |x - o_x| (N,) m) of the study's test points of a dataset."""
     ds = load_dataset(path)
-    _, ground = ds.test_points(n=N_TEST, seed=SEED, max_distance=MAX_DISTANCE)
+    _, ground = ds.test_points(n=STUDY.n_test, seed=STUDY.seed, max_distance=STUDY.max_test_distance)
     offset = ground - ds.camera_origin
     return np.hypot(*offset.T), np.abs(offset[:, 0])
 

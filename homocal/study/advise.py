@@ -24,14 +24,14 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from homocal.arguments import xy_pair
+from homocal.arguments import number, xy_pair
 from homocal.correctors.base import MAX_REFERENCE_POINTS
 from homocal.correctors.catalogue import DEFAULT_METHOD, METHODS as CATALOGUE_METHODS
 from homocal.files import check_output_file, csv_header, read_points_csv, write_text_atomic
 from homocal.geometry import SiteMap, ViewTransformer, read_trapezoid_file
 from homocal.keyed_rng import seed_from_key
 from homocal.study import kernels
-from homocal.study.inputs import StudyParams, StudyScene
+from homocal.study.inputs import MAX_SEED, StudyParams, StudyScene
 from homocal.study.shards import prepare_variant, run_tables
 from homocal.study.sweep import expand_values
 from homocal.study.triples import triples
@@ -198,7 +198,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--map-scale", type=float, metavar="PX_PER_M",
                    help="site-map scale the 0-3 px map perturbations are in (default: the trapezoid file's; "
                         f"{DEFAULT_MAP_SCALE:g} for a map in metres)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the perturbations and test points (default 0)")
+    p.add_argument("--seed", type=number(int, 0, MAX_SEED), default=0, help="seed of the perturbations and test points (default 0)")
     p.add_argument("--top", type=int, default=5, help="triples to print (default 5)")
     p.add_argument("-o", "--out", type=Path, metavar="ADVICE.csv", help="write every triple, ranked")
     p.set_defaults(handler=handle_advise)
@@ -241,8 +241,6 @@ def handle_advise(args: argparse.Namespace) -> int:
         raise ValueError(f"--samples and --top must be >= 1, got {args.samples} and {args.top}")
     if args.map_scale is not None and not (math.isfinite(args.map_scale) and args.map_scale > 0):
         raise ValueError(f"--map-scale must be a finite number > 0, got {args.map_scale}")
-    if not 0 <= args.seed < 2**63:
-        raise ValueError(f"--seed must be in [0, 2**63), got {args.seed}")
     positions = candidate_positions(distances, laterals, args.camera_origin)
     if len(positions) > MAX_REFERENCE_POINTS:
         raise ValueError(f"--distances x --lateral: {len(positions):,} reference positions, at most "

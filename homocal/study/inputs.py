@@ -22,6 +22,7 @@ MAX_N_TEST = 1_000_000  # test points per scene
 MAX_MAP_SCALE = 1000.0  # px per metre: a 1 mm map pixel
 MAX_IMAGE_WIDTH = 100_000.0  # px: 78x our datasets' 1280
 MAX_DELTA_MAX = 100.0  # px: descent's largest move
+MAX_SEED = 2**63 - 1  # a study's and advise's run seed
 
 
 def descent_settings(delta_max: float) -> dict:
@@ -44,7 +45,7 @@ class StudyParams:
     option (its declaration: flag, bounds, unit, help, presets; homocal.study.options) or internal; a bad value
     is a ValueError naming the field (options.OptionError)."""
 
-    seed: int = option(0, flag="--seed", kind=Number(0, 2**63 - 1, integer=True), sweep=True,
+    seed: int = option(0, flag="--seed", kind=Number(0, MAX_SEED, integer=True), sweep=True,
                        help="run seed (variants, base errors, descent orders, test subsample)")
     n_variants: int = option(1000, flag="--variants", kind=Number(0, MAX_VARIANTS, integer=True), metavar="N",
                              presets={"quick": "50", "paper": "1000", "table1-fit": "1000"},

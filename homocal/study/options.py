@@ -17,7 +17,7 @@ import numbers
 from dataclasses import MISSING, dataclass, field, fields
 from typing import Any, Callable
 
-from homocal.arguments import bound_text
+from homocal.arguments import range_text, within
 
 @dataclass(frozen=True)
 class Preset:
@@ -70,14 +70,11 @@ class Number:
     integer: bool = False
 
     def describe(self) -> str:
-        what = "an integer" if self.integer else "a number"
-        if math.isinf(self.high):
-            return f"{what} {'>' if self.low_open else '>='} {bound_text(self.low)}"
-        return f"{what} in {'(' if self.low_open else '['}{bound_text(self.low)}, {bound_text(self.high)}]"
+        return f"{'an integer' if self.integer else 'a number'} {range_text(self.low, self.high, self.low_open)}"
 
     def check(self, value: Any) -> Any:
-        if not (_is_number(value) and (isinstance(value, numbers.Integral) or not self.integer) and math.isfinite(value)
-                and value <= self.high and (value > self.low if self.low_open else value >= self.low)):
+        if not (_is_number(value) and (isinstance(value, numbers.Integral) or not self.integer)
+                and within(value, self.low, self.high, self.low_open)):
             raise ValueError
         return int(value) if self.integer else value if isinstance(value, (int, float)) else float(value)
 

@@ -1,14 +1,17 @@
 """Refusals that change nothing: names read from manifests and study.json never become paths unchecked, a report
-that would fail writes nothing, a site map's numbers are numbers."""
+that would fail writes nothing, a site map's numbers are numbers, a point is two finite numbers."""
+import argparse
 import json
 import shutil
 from pathlib import Path
 
 import pytest
 
+from homocal.arguments import xy_pair
 from homocal.cli import main
 from homocal.dataset import load_dataset
 from homocal.geometry import SiteMap
+from homocal.study.inputs import MAX_SEED
 from synthetic_dataset import write_dataset
 
 BAD_NAMES = ["../../../../escaped", "../../../../../victim", "a/b", ".", "..", ".hidden", "x\ny", "x" * 300, "", 5, None]
@@ -109,3 +112,27 @@ def test_site_map_numbers_are_numbers(dataset, tmp_path, site):
 
 def test_a_good_site_map_still_reads():
     assert SiteMap.from_dict({"scale_px_per_m": 10, "origin_px": [200.5, 600]}) == SiteMap(10.0, (200.5, 600.0))
+
+
+@pytest.mark.parametrize("text", ["", "1", "1,2,3", "1;2", "x,1", "nan,1", "1,inf", "-inf,0", "1e400,0", ",", "1,,2"])
+def test_a_bad_point_is_one_argparse_line(text):
+    """homocal.arguments.xy_pair (advise's --camera-origin, fit's): anything but two finite numbers X,Y is refused
+    as argparse's one line."""
+    with pytest.raises(argparse.ArgumentTypeError, match="X,Y"):
+        xy_pair(text)
+
+
+@pytest.mark.parametrize("text, point", [("1,2", (1.0, 2.0)), (" -0.5 , 3e1 ", (-0.5, 30.0))])
+def test_a_point_is_two_numbers(text, point):
+    assert xy_pair(text) == point
+
+
+@pytest.mark.parametrize("text", ["-1", str(MAX_SEED + 1), "1" + "0" * 400, "1.5", "nan", "", "x"])
+def test_advise_refuses_a_seed_as_the_study_does(tmp_path, capsys, text):
+    """homocal advise --seed takes the study's seeds (inputs.MAX_SEED): anything else is argparse's one line naming
+    the flag, and nothing is written."""
+    with pytest.raises(SystemExit) as raised:
+        main(["advise", "--trapezoid", str(tmp_path / "t.json"), "--distances", "10,20,30", "--seed", text,
+              "-o", str(tmp_path / "a.csv")])
+    assert raised.value.code == 2 and "argument --seed" in one_error_line(capsys)
+    assert not any(tmp_path.iterdir())

@@ -30,7 +30,7 @@ def test_a_prefix_keeps_the_rows_before_its_time_and_the_study_reads_it(tiny_dat
     whole = pq.read_table(tiny_dataset / "gt.parquet").column("t").to_numpy()
     assert len(t) == int(np.sum(whole < 1.0)) > 0 and t.max() < 1.0
     distance, lateral = script.draw(out)
-    assert len(distance) == len(lateral) > 0 and np.all(distance <= script.MAX_DISTANCE)
+    assert len(distance) == len(lateral) > 0 and np.all(distance <= script.STUDY.max_test_distance)
 
 
 @pytest.mark.parametrize("args, message", [
