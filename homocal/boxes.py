@@ -230,9 +230,7 @@ def _read_detections(path: Path, detector: str) -> PersonBoxes:
 
 
 def _read_csv_boxes(path: Path) -> PersonBoxes:
-    header = read_points_csv(path, CSV_COLUMNS, finite=True)[0]
-    required = CSV_COLUMNS + (("track_id",) if "track_id" in header else ())
-    _, _, cols, lines = read_points_csv(path, required, finite=True)
+    _, _, cols, lines = read_points_csv(path, CSV_COLUMNS, finite=True, optional=("track_id",))
     if not lines:
         raise ValueError(f"{path}: no boxes (a header line, then one row per box: {','.join(CSV_COLUMNS)})")
     for name in ("frame", "track_id"):
