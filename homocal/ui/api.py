@@ -18,7 +18,6 @@ import warnings
 
 import numpy as np
 
-from homocal.boxes import read_boxes
 from homocal.correctors.base import MAX_REFERENCE_POINTS, Corrector, load_corrector
 from homocal.correctors.catalogue import Method, fit_note, get_method, mapping_of, method_of, quality
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
@@ -154,7 +153,7 @@ def _fit_boxes(session: Session, req: dict, corrector, transformer: ViewTransfor
         raise ValueError(f"detector: {session.boxes.name} has no detectors to choose from")
     height = req.get("camera_height_m")
     height = None if height is None else _number(req, "camera_height_m", 0, -math.inf, math.inf)
-    boxes = read_boxes(session.boxes, detector)
+    boxes = session.person_boxes(detector)
     check = {"image_points": points[:, :2], "ground_points": points[:, 2:]} if len(points) else {}
     corrector.fit(transformer, boxes.xyxy, convention="homocal", frames=boxes.frames, track_ids=boxes.track_ids,
                   camera_height_m=height, K=boxes.K, image_size=boxes.image_size or session.frame_size,
