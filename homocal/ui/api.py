@@ -116,7 +116,7 @@ def method_request(req: dict) -> tuple[Method, dict]:
     if seed != int(seed):
         raise ValueError(f"seed: expected an integer, got {req.get('seed')!r}")
     page = {"seed": int(req.get("seed", 0)), "threshold": _number(req, "threshold", DEFAULT_THRESHOLD, 0, 100),
-            **{k: _number(req, k, 1.0, 0, 10) for k in ("height_mean_m", "height_sd_m") if req.get(k) is not None}}
+            **{k: _number(req, k, 1.0, -math.inf, math.inf) for k in ("height_mean_m", "height_sd_m") if req.get(k) is not None}}
     return method, {k: v for k, v in page.items() if k in method.settings}
 
 
