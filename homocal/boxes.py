@@ -205,11 +205,16 @@ def _read_mot_boxes(path: Path) -> PersonBoxes:
     return PersonBoxes(frames - 1, xyxy, tracks, size)
 
 
-def _read_detections(path: Path, detector: str) -> PersonBoxes:
+def read_detections_table(path: str | os.PathLike, columns: list[str]) -> pa.Table:
+    """The ``columns`` of a detections.parquet; ValueError naming the file when it is not one."""
     try:
-        table = pq.read_table(path, columns=["detector", "frame", "x1", "y1", "x2", "y2"])
+        return pq.read_table(path, columns=columns)
     except (pa.ArrowException, OSError) as e:
         raise ValueError(f"{path}: not a detections.parquet ({(str(e).splitlines() or [type(e).__name__])[0]})") from None
+
+
+def _read_detections(path: Path, detector: str) -> PersonBoxes:
+    table = read_detections_table(path, ["detector", "frame", "x1", "y1", "x2", "y2"])
     names = sorted(set(table.column("detector").to_pylist()))
     table = table.filter(pc.equal(table.column("detector"), detector))
     if table.num_rows == 0:

@@ -8,10 +8,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
-from homocal.boxes import PersonBoxes, read_boxes
+from homocal.boxes import PersonBoxes, read_boxes, read_detections_table
 from homocal.correctors.catalogue import DEFAULT_METHOD, METHODS
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.dataset import load_dataset
@@ -86,10 +84,7 @@ def _boxes_file(path: Path) -> tuple[Path, tuple[str, ...]]:
         raise ValueError(f"{path}: no such file")
     if path.suffix.lower() != ".parquet":
         return path.resolve(), ()
-    try:
-        names = pq.read_table(path, columns=["detector"]).column("detector").unique().to_pylist()
-    except (pa.ArrowException, OSError) as e:
-        raise ValueError(f"{path}: not a detections.parquet ({(str(e).splitlines() or [type(e).__name__])[0]})") from None
+    names = read_detections_table(path, ["detector"]).column("detector").unique().to_pylist()
     return path.resolve(), tuple(sorted(names))
 
 
