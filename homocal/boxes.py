@@ -205,11 +205,16 @@ def _read_mot_boxes(path: Path) -> PersonBoxes:
     return PersonBoxes(frames - 1, xyxy, tracks, size)
 
 
-def _read_detections(path: Path, detector: str) -> PersonBoxes:
+def read_detections_table(path: str | os.PathLike, columns: list[str]) -> pa.Table:
+    """The ``columns`` of a detections.parquet; ValueError naming the file when it is not one."""
     try:
-        table = pq.read_table(path, columns=["detector", "frame", "x1", "y1", "x2", "y2"])
+        return pq.read_table(path, columns=columns)
     except (pa.ArrowException, OSError) as e:
         raise ValueError(f"{path}: not a detections.parquet ({(str(e).splitlines() or [type(e).__name__])[0]})") from None
+
+
+def _read_detections(path: Path, detector: str) -> PersonBoxes:
+    table = read_detections_table(path, ["detector", "frame", "x1", "y1", "x2", "y2"])
     names = sorted(set(table.column("detector").to_pylist()))
     table = table.filter(pc.equal(table.column("detector"), detector))
     if table.num_rows == 0:
@@ -230,9 +235,7 @@ def _read_detections(path: Path, detector: str) -> PersonBoxes:
 
 
 def _read_csv_boxes(path: Path) -> PersonBoxes:
-    header = read_points_csv(path, CSV_COLUMNS, finite=True)[0]
-    required = CSV_COLUMNS + (("track_id",) if "track_id" in header else ())
-    _, _, cols, lines = read_points_csv(path, required, finite=True)
+    _, _, cols, lines = read_points_csv(path, CSV_COLUMNS, finite=True, optional=("track_id",))
     if not lines:
         raise ValueError(f"{path}: no boxes (a header line, then one row per box: {','.join(CSV_COLUMNS)})")
     for name in ("frame", "track_id"):

@@ -304,10 +304,11 @@ def _lock(lock: Path, create: bool) -> int | None:
 
 # ---- input tables ---------------------------------------------------------------------------
 def read_points_csv(
-    path: str | Path, required: tuple[str, ...], finite: bool, most: int | None = None
+    path: str | Path, required: tuple[str, ...], finite: bool, most: int | None = None, optional: tuple[str, ...] = ()
 ) -> tuple[list[str], list[dict[str, str]], dict[str, np.ndarray], list[int]]:
     """Read a CSV of points with a header line (``homocal fit``'s REF.csv, ``apply``'s FEET.csv); return (column
-    names, rows as dicts of text, the ``required`` columns as (N,) float64, the line number of each row).
+    names, rows as dicts of text, the ``required`` columns and those of ``optional`` the header has as (N,)
+    float64, the line number of each row).
 
     ValueError naming the file (and line) for: a missing file or column, a column name given twice, text that
     is not UTF-8, a row of the wrong length, a value that is not a number (or not finite, if ``finite``), more
@@ -318,12 +319,13 @@ def read_points_csv(
         raise ValueError(f"{path}: no such file")
     try:
         with path.open(newline="", encoding="utf-8-sig") as f:
-            return _read_points(csv.reader(f), path, required, finite, most)
+            return _read_points(csv.reader(f), path, required, finite, most, optional)
     except UnicodeDecodeError as e:
         raise ValueError(f"{path}: not UTF-8 text ({e})") from None
 
 
-def _read_points(reader, path: Path, required: tuple[str, ...], finite: bool, most: int | None):
+def _read_points(reader, path: Path, required: tuple[str, ...], finite: bool, most: int | None,
+                 optional: tuple[str, ...]):
     header = [name.strip() for name in next(reader, [])]
     twice = sorted({name for name in header if header.count(name) > 1})
     if twice:
@@ -332,6 +334,7 @@ def _read_points(reader, path: Path, required: tuple[str, ...], finite: bool, mo
     if missing:
         raise ValueError(f"{path}: missing column(s) {', '.join(missing)} in the header line "
                          f"(found: {', '.join(header) or 'nothing'}; expected {','.join(required)})")
+    required = required + tuple(c for c in optional if c in header)
     rows, values, lines = [], {c: [] for c in required}, []
     for fields in reader:
         if not fields:

@@ -39,6 +39,14 @@ def improvement_percent(error_before: float, error_after: float) -> float:
     return math.nan if error_before == 0 else 100.0 * (error_before - error_after) / error_before
 
 
+def check_camera_origin(camera_origin) -> np.ndarray:
+    """The ground point under the camera as (2,) float64; ValueError for another shape or a non-finite value."""
+    o = np.asarray(camera_origin, dtype=np.float64)
+    if o.shape != (2,) or not np.isfinite(o).all():
+        raise ValueError(f"camera_origin: expected 2 finite numbers, got {np.asarray(camera_origin).tolist()}")
+    return o
+
+
 def check_calibration(
     transformer: ViewTransformer, image_points: np.ndarray, ground_points: np.ndarray, camera_origin: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -54,17 +62,13 @@ def check_calibration(
         raise TypeError(f"transformer: expected a homocal.ViewTransformer, got {type(transformer).__name__}")
     q = as_points(image_points, "image_points")
     g = as_points(ground_points, "ground_points")
-    o = np.asarray(camera_origin, dtype=np.float64)
+    o = check_camera_origin(camera_origin)
     if len(q) != len(g):
         raise ValueError(f"image_points has {len(q)} points but ground_points has {len(g)}")
     if len(q) < 3:
         raise ValueError(f"need at least 3 calibration points, got {len(q)}")
     if len(q) > MAX_REFERENCE_POINTS:
         raise ValueError(f"image_points: at most {MAX_REFERENCE_POINTS:,} calibration points, got {len(q):,}")
-    if o.shape != (2,):
-        raise ValueError(f"camera_origin: expected shape (2,), got {o.shape}")
-    if not np.isfinite(o).all():
-        raise ValueError(f"camera_origin is not finite: {o.tolist()}")
     for name, arr in (("image_points", q), ("ground_points", g)):
         bad = np.flatnonzero(~np.isfinite(arr).all(axis=1))
         if bad.size:

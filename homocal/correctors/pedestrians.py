@@ -55,7 +55,7 @@ import math
 
 import numpy as np
 
-from homocal.correctors.base import Corrector, check_calibration, improvement_percent, mean_error
+from homocal.correctors.base import Corrector, check_calibration, check_camera_origin, improvement_percent, mean_error
 from homocal.correctors.serialization import float_or_none, integer, number
 from homocal.geometry import ViewTransformer, apply_homography
 from homocal.geometry.boxes import box_edges, link_tracks
@@ -331,7 +331,7 @@ class PedestrianCorrector(Corrector):
         fit = fit_tilt(edges[used, 3], edges[used, 1], tracks[used], focal, principal[1], self.camera_height_m_,
                        self.height_mean_m, self.height_sd_m)
         self.base_transformer_ = transformer
-        self.camera_origin_ = _check_origin(camera_origin)
+        self.camera_origin_ = check_camera_origin(camera_origin)
         self.horizon_row_ = horizon_row(fit["tilt"], focal, principal[1])
         secant2 = 1.0 + math.tan(fit["tilt"]) ** 2
         self.horizon_sigma_px_ = focal * secant2 * fit["tilt_sigma"]
@@ -533,13 +533,6 @@ def _check_camera_height(value) -> float:
     if not 0 < h <= MAX_CAMERA_HEIGHT_M:
         raise ValueError(f"camera_height_m must be in (0, {MAX_CAMERA_HEIGHT_M:g}] m, got {value!r}")
     return h
-
-
-def _check_origin(camera_origin) -> np.ndarray:
-    o = np.asarray(camera_origin, dtype=np.float64)
-    if o.shape != (2,) or not np.isfinite(o).all():
-        raise ValueError(f"camera_origin: expected 2 finite numbers, got {camera_origin!r}")
-    return o
 
 
 def _on_border(edges: np.ndarray, size: tuple[int, int]) -> np.ndarray:

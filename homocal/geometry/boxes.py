@@ -61,11 +61,12 @@ def link_tracks(frames: np.ndarray, xyxy: np.ndarray, min_iou: float = 0.3, max_
     detections (no motion model): enough to count people once rather than once per frame."""
     frames = np.asarray(frames, dtype=np.int64)
     ids = np.full(len(frames), -1, dtype=np.int64)
-    last_box, last_frame = np.empty((0, 4)), np.empty(0, dtype=np.int64)
+    last_box, last_frame = np.empty((len(frames), 4)), np.empty(len(frames), dtype=np.int64)  # per track id
+    tracks = 0  # track ids so far
     order = np.argsort(frames, kind="stable")
     numbers, first = np.unique(frames[order], return_index=True)
     for frame, rows in zip(numbers, np.split(order, first[1:])):
-        live = np.flatnonzero(frame - last_frame <= max_gap)
+        live = np.flatnonzero(frame - last_frame[:tracks] <= max_gap)
         iou = box_iou(xyxy[rows], last_box[live])
         taken = set()
         for flat in np.argsort(-iou, axis=None, kind="stable"):
@@ -76,8 +77,7 @@ def link_tracks(frames: np.ndarray, xyxy: np.ndarray, min_iou: float = 0.3, max_
                 ids[rows[i]] = live[j]
                 taken.add(live[j])
         new = rows[ids[rows] < 0]
-        ids[new] = len(last_frame) + np.arange(len(new))
-        last_box = np.vstack([last_box, np.zeros((len(new), 4))])
-        last_frame = np.concatenate([last_frame, np.zeros(len(new), dtype=np.int64)])
+        ids[new] = tracks + np.arange(len(new))
+        tracks += len(new)
         last_box[ids[rows]], last_frame[ids[rows]] = xyxy[rows], frame
     return ids

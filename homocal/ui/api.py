@@ -18,7 +18,6 @@ import warnings
 
 import numpy as np
 
-from homocal.boxes import read_boxes
 from homocal.correctors.base import MAX_REFERENCE_POINTS, Corrector, load_corrector
 from homocal.correctors.catalogue import Method, fit_note, get_method, mapping_of, method_of, quality
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
@@ -117,7 +116,7 @@ def method_request(req: dict) -> tuple[Method, dict]:
     if seed != int(seed):
         raise ValueError(f"seed: expected an integer, got {req.get('seed')!r}")
     page = {"seed": int(req.get("seed", 0)), "threshold": _number(req, "threshold", DEFAULT_THRESHOLD, 0, 100),
-            **{k: _number(req, k, 1.0, 0, 10) for k in ("height_mean_m", "height_sd_m") if req.get(k) is not None}}
+            **{k: _number(req, k, 1.0, -math.inf, math.inf) for k in ("height_mean_m", "height_sd_m") if req.get(k) is not None}}
     return method, {k: v for k, v in page.items() if k in method.settings}
 
 
@@ -154,7 +153,7 @@ def _fit_boxes(session: Session, req: dict, corrector, transformer: ViewTransfor
         raise ValueError(f"detector: {session.boxes.name} has no detectors to choose from")
     height = req.get("camera_height_m")
     height = None if height is None else _number(req, "camera_height_m", 0, -math.inf, math.inf)
-    boxes = read_boxes(session.boxes, detector)
+    boxes = session.person_boxes(detector)
     check = {"image_points": points[:, :2], "ground_points": points[:, 2:]} if len(points) else {}
     corrector.fit(transformer, boxes.xyxy, convention="homocal", frames=boxes.frames, track_ids=boxes.track_ids,
                   camera_height_m=height, K=boxes.K, image_size=boxes.image_size or session.frame_size,

@@ -8,9 +8,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
+from homocal.boxes import PersonBoxes, read_boxes, read_detections_table
 from homocal.correctors.catalogue import DEFAULT_METHOD, METHODS
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.dataset import load_dataset
@@ -37,6 +36,14 @@ class Session:
     camera_height_m: float | None = None  # the page's default camera height (a dataset's mount height)
     written: dict[Path, tuple] = field(default_factory=dict)  # the identity (api._identity) of each file this
     # server wrote: Save replaces those without asking while they are still what it wrote
+    boxes_read: dict[str | None, PersonBoxes] = field(default_factory=dict, repr=False)  # person_boxes' reads
+
+    def person_boxes(self, detector: str | None) -> PersonBoxes:
+        """The boxes of ``boxes`` (of ``detector`` for a detections.parquet), read once per session (read_boxes):
+        every fit and save of the page fits from them."""
+        if detector not in self.boxes_read:
+            self.boxes_read[detector] = read_boxes(self.boxes, detector)
+        return self.boxes_read[detector]
 
     def info(self) -> dict:
         """The JSON the page starts from."""
@@ -77,10 +84,7 @@ def _boxes_file(path: Path) -> tuple[Path, tuple[str, ...]]:
         raise ValueError(f"{path}: no such file")
     if path.suffix.lower() != ".parquet":
         return path.resolve(), ()
-    try:
-        names = pq.read_table(path, columns=["detector"]).column("detector").unique().to_pylist()
-    except (pa.ArrowException, OSError) as e:
-        raise ValueError(f"{path}: not a detections.parquet ({(str(e).splitlines() or [type(e).__name__])[0]})") from None
+    names = read_detections_table(path, ["detector"]).column("detector").unique().to_pylist()
     return path.resolve(), tuple(sorted(names))
 
 

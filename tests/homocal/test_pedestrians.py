@@ -245,6 +245,9 @@ def _fit(**kw):
     (dict(image_size=(0, 720)), "image_size"),
     (dict(camera_height_m=40.0), "no tilt makes the median"),
     (dict(transformer="T"), "ViewTransformer"),
+    (dict(camera_origin=(0.0, np.nan)), "camera_origin: expected 2 finite numbers"),
+    (dict(camera_origin=(0.0, np.inf)), "camera_origin: expected 2 finite numbers"),
+    (dict(camera_origin=(0.0, 0.0, 0.0)), "camera_origin: expected 2 finite numbers"),
 ])
 def test_bad_fit_input(kw, message):
     with pytest.raises((ValueError, TypeError), match=message):
@@ -335,6 +338,14 @@ class TestReadBoxes:
         ("b.csv", "frame,x1,y1,x2,y2\n0,1,nan,3,4\n", None, "line 2: column y1"),
         ("b.csv", "frame,x1,y1,x2,y2\n0,1,50,3,4\n", None, "line 2: the box is upside down"),
         ("b.csv", "frame,x1,y1,x2,y2\n0.5,1,2,3,4\n", None, "line 2: column frame"),
+        ("b.csv", "frame,x1,y1,x2,y2\n-1,1,2,3,4\n", None, "line 2: column frame: -1 is not an integer"),
+        ("b.csv", "frame,x1,y1,x2,y2\n1e300,1,2,3,4\n", None, "line 2: column frame: 1e\\+300 is not an integer"),
+        ("b.csv", "frame,x1,y1,x2,y2\n0,1,inf,3,4\n", None, "line 2: column y1: 'inf' is not a finite"),
+        ("b.csv", "frame,x1,y1,x2,y2,track_id\n0,1,2,3,4,-2\n", None, "line 2: column track_id: -2 is not an integer"),
+        ("b.csv", "frame,x1,y1,x2,y2,track_id\n0,1,2,3,4,1.5\n", None, "line 2: column track_id: 1.5 is not an integer"),
+        ("b.csv", "frame,x1,y1,x2,y2,track_id\n0,1,2,3,4,nan\n", None, "line 2: column track_id: 'nan' is not a finite"),
+        ("b.csv", "frame,x1,y1,x2,y2,x1\n0,1,2,3,4,5\n", None, "'x1' appear more than once"),
+        ("b.csv", "x1,y1,x2,y2,frame\n", None, "no boxes"),
         ("b.csv", b"frame,x1,y1,x2,y2\n0,1,2,3,\xff\n", None, "not UTF-8"),
         ("b.csv", "frame,x1,y1,x2,y2\n0,1,2,3,4\n", "rgb", "detector name is for"),
         ("b.txt", "", None, "no detections"),

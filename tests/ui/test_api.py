@@ -161,6 +161,15 @@ def test_pedestrians_fit_from_the_launch_boxes(boxes_server):
     ({"camera_height_m": 1e6}, "camera_height_m must be in (0, 100] m"),
     ({"camera_height_m": "4"}, "camera_height_m: expected a finite number"),
     ({"height_sd_m": 0}, "height_sd_m must be in [0.01"),
+    ({"height_sd_m": 1.0}, "height_sd_m must be in [0.01"),
+    ({"height_sd_m": "0.1"}, "height_sd_m: expected a finite number"),
+    ({"height_mean_m": 20}, "height_mean_m must be a number of metres in [0.5, 2.5]"),
+    ({"height_mean_m": True}, "height_mean_m: expected a finite number"),
+    ({"height_mean_m": float("nan")}, "height_mean_m: expected a finite number"),
+    ({"camera_height_m": float("inf")}, "camera_height_m: expected a finite number"),
+    ({"height_mean_m": [1.7]}, "height_mean_m: expected a finite number"),
+    ({"camera_height_m": True}, "camera_height_m: expected a finite number"),
+    ({"detector": 3}, "detector: boxes.csv has no detectors to choose from"),
     ({"boxes": "/etc/passwd", "camera_height_m": 40.0}, "no tilt makes the median"),  # a path in a request is not read
 ])  # fmt: skip
 def test_pedestrians_bad_requests(boxes_server, fields, message):
