@@ -104,10 +104,10 @@ def _add_out(parser: argparse.ArgumentParser, help: str, required: bool = True) 
 
 
 def _detectors(text: str) -> list[str]:
-    problem = detectors_problem(text.split(","))
-    if problem:
+    names = text.split(",")
+    if problem := detectors_problem(names):
         raise argparse.ArgumentTypeError(problem)
-    return text.split(",")
+    return names
 
 
 def _detector_name(text: str) -> str:
@@ -146,11 +146,11 @@ def handle_preview(args: argparse.Namespace) -> str:
 
 
 def handle_scenes(args: argparse.Namespace) -> str:
-    from simgen.scene import SHIPPED, describe, load_scene, scene_folder, shipped_scenes
+    from simgen.scene import SHIPPED, describe, load_scene, shipped_scenes
 
     names = shipped_scenes()
     for name in names:
-        print(f"{name}: {describe(load_scene(scene_folder(name)))}")
+        print(f"{name}: {describe(load_scene(SHIPPED / name))}")
     return f"{len(names)} shipped scenes in {SHIPPED.resolve()} (copy one to edit it)"
 
 

@@ -267,8 +267,8 @@ def _check_run(s: Scene) -> None:
             raise ConfigError(f"scene.toml: {key}: {v} s is not a whole number of frames at {s.fps} fps")
     if s.quality not in QUALITIES:
         raise ConfigError(f"scene.toml: render.quality: expected one of {', '.join(QUALITIES)}, got {s.quality!r}")
-    if detectors_problem(s.detectors):
-        raise ConfigError(f"scene.toml: detection.detectors: {detectors_problem(s.detectors)}")
+    if problem := detectors_problem(s.detectors):
+        raise ConfigError(f"scene.toml: detection.detectors: {problem}")
     if "hog" in s.detectors:
         from simgen.detection.hog import hog_missing  # noqa: PLC0415  (cv2 only when hog is asked for)
 
@@ -310,11 +310,8 @@ def scene_folder(scene: str) -> Path:
     if scene and _is_dir(scene):  # not "": Path("") is the current folder
         return Path(scene)
     shipped = shipped_scenes()
-    try:
-        if check_name(scene, "scene") in shipped:
-            return SHIPPED / scene
-    except ValueError:
-        pass  # not a name: the message below says what is accepted
+    if scene in shipped:  # a listed folder name: no path reaches outside SHIPPED
+        return SHIPPED / scene
     raise ConfigError(f"scene {scene!r}: no such folder and no shipped scene of that name (shipped: {', '.join(shipped)})")
 
 

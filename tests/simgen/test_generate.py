@@ -218,6 +218,16 @@ def test_import_mot_refuses_bad_input(run, tmp_path, capsys, how, content, name,
     assert _files(out) == before
 
 
+@pytest.mark.parametrize("files", [["det.txt"], ["data", "data", "det.txt"], ["data", "det.txt", "det.txt"]])
+def test_import_mot_needs_the_dataset_once(tmp_path, capsys, monkeypatch, files):
+    """No dataset, or a third file: refused before any file is read."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "det.txt").write_text(MOT_LINE)
+    assert main(["import-mot", *files, "--name", "yolo"]) == 2
+    assert capsys.readouterr().err == "simgen: error: import-mot: give the dataset folder once: -o/--out DATASET MOT_TXT, or DATASET MOT_TXT\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["det.txt"]
+
+
 def test_import_mot_takes_the_dataset_as_out(run, tmp_path):
     """``import-mot MOT_TXT --name N -o DATASET`` adds what ``import-mot DATASET MOT_TXT --name N`` adds."""
     _, reference = run
