@@ -131,8 +131,8 @@ class LeastChangeCorrector(Corrector):
     clicked in site-map pixels: divide its clicking error by scale_px_per_m).
 
     Defaults. Only the ratios of the three sigmas change the result (scaling all of them scales Phi). Of the
-    eight priors tried on both study scenes, hand-placed and with a 6 px horizon shift (README, "Least change";
-    research/compare_least_change.py --sweep), 1 px / 0.2 m / 0.05 m had the best sum of median and 1st
+    eight priors tried on both study scenes, hand-placed and with a 6 px horizon shift (research/compare_least_change.py
+    --sweep; docs/camera.md), 1 px / 0.2 m / 0.05 m had the best sum of median and 1st
     percentile path improvement over the four settings.
 
     Args:

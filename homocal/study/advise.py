@@ -185,7 +185,7 @@ def add_parser(subparsers) -> None:
                    help="the correction to advise for (default %(default)s, homocal fit's)")
     p.add_argument("--samples", type=int, default=100, metavar="N",
                    help="perturbed trapezoids (default 100; 1000 orders triples that differ by tenths of a point as "
-                        "the study does, about 3 min for least-change: README)")
+                        "the study does, about 3 min for least-change: docs/measurements.md)")
     p.add_argument("--camera-origin", type=xy_pair, default=(0.0, 0.0), metavar="X,Y",
                    help="ground point under the camera, metres (default 0,0)")
     p.add_argument("--test-range", default="5:50", metavar="MIN:MAX",

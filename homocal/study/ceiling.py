@@ -1,4 +1,4 @@
-"""The best a radial correction can do on a study's test points (README, "Reproducing Table 1").
+"""The best a radial correction can do on a study's test points (docs/reproduction.md).
 
 The paper's regression moves each mapped point p along its bearing from the camera origin o by
 c(d) = a d^2 + b d, d = ||p - o|| (eqs. (23)-(24)); the signed and intercept forms use the same family (a, b

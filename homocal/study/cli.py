@@ -67,7 +67,7 @@ def add_parser(subparsers) -> None:
         "study", help="run the correction study (every trapezoid variant x every calibration triple)",
         description="Per scene: the clicked base trapezoid and N perturbed variants, every combination of three "
                     "calibration points, the seven corrections (the paper's two, their hybrid and four more: "
-                    "README); per-sample results as Parquet shards in --out. --preset paper runs the paper's protocol "
+                    "docs/study.md); per-sample results as Parquet shards in --out. --preset paper runs the paper's protocol "
                     "as the paper states it, --preset table1-fit the configuration fitted to its Table 1.")
     p.add_argument("datasets", nargs="+", metavar="DATASET", help="simgen dataset folders (one per scene)")
     p.add_argument("-o", "--out", required=True, help="results directory")

@@ -251,8 +251,8 @@ def reproduction_html(studies: list[tuple[Path, dict, Table]], sweep: tuple[Path
     if far:
         counts = [sum(f.endswith(f"(study {i + 1})") for f in far) for i in range(len(studies))]
         parts.append(f"<p class='warn'>Numbers more than 10 pp from the paper's: "
-                     f"{', '.join(f'{n} of 14 in study {i + 1}' for i, n in enumerate(counts))}. The README's 'Reproducing "
-                     "Table 1' section gives the measured reason for each.</p>")
+                     f"{', '.join(f'{n} of 14 in study {i + 1}' for i, n in enumerate(counts))}. docs/reproduction.md gives the "
+                     "measured reason for each.</p>")
     parts += ["<p>Measured on the studies' datasets: what the paper leaves open and drives the gap.</p><ul>"]
     parts += [f"<li>{e(line)}</li>" for _, st, _ in studies[:1] for line in gap_facts(st)]
     parts += [f"<li>Study {i + 1}: {e(line)}</li>" for i, (_, st, table) in enumerate(studies)
