@@ -2,8 +2,9 @@
 
 The convention (docs/camera.md says it where it first uses it):
 - a ```console block is a sequence of `$ command` lines, each followed by the output it prints (stdout and
-  stderr, compared line by line, exactly); the commands run in bash, in order, in a fresh folder holding a
-  link to the repository's examples/, with this checkout's homocal;
+  stderr, compared line by line, exactly, except that a number shown with FULL_PRECISION or more significant
+  digits, a float written in full, may differ in its last digits: relative 1e-9); the commands run in bash,
+  in order, in a fresh folder holding a link to the repository's examples/, with this checkout's homocal;
 - every ```python block of a page runs, in the page's order, in one namespace per page, in a fresh folder
   holding examples/; an expression statement whose last line ends in `# -> VALUE` (a number or a list of them)
   must give VALUE to the decimals shown.
@@ -32,6 +33,8 @@ FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.S | re.M)
 EXPECTED = re.compile(r"#\s*->\s*(\[[-0-9.,\s\[\]]*\]|-?[0-9]+(?:\.[0-9]+)?)")
 LINK = re.compile(r"\]\(([^)#\s]+)")
 README_MAX_LINES = 250
+NUMBER = re.compile(r"-?[0-9]+\.[0-9]+(?:e[-+]?[0-9]+)?")
+FULL_PRECISION = 12  # significant digits from which a shown number is a float written in full
 HISTORY = re.compile(r"sessions?\s+[0-9]", re.I)  # a session and its number: history lives in git and CHANGELOG.md
 
 
@@ -41,6 +44,28 @@ def name(page: Path) -> str:
 
 def blocks(page: Path, language: str) -> list[str]:
     return [body for lang, body in FENCE.findall(page.read_text(encoding="utf-8")) if lang == language]
+
+
+def significant_digits(number: str) -> int:
+    return len(number.split("e")[0].lstrip("-").replace(".", "").lstrip("0"))
+
+
+def same_output(got: str, shown: str) -> bool:
+    """Whether a command's output is the one a page shows (module docstring: full-precision floats to 1e-9)."""
+    if NUMBER.sub("#", got) != NUMBER.sub("#", shown):
+        return False
+    pairs = zip(NUMBER.findall(got), NUMBER.findall(shown))
+    return all(a == b or (significant_digits(b) >= FULL_PRECISION and np.isclose(float(a), float(b), rtol=1e-9, atol=0))
+               for a, b in pairs)
+
+
+def test_same_output_lets_only_full_precision_floats_move():
+    shown = "0,384.0,-5.346877664924247,0.18018507631087466,ok (96.8 %)"
+    assert same_output("0,384.0,-5.346877664924241,0.18018507631087469,ok (96.8 %)", shown)
+    assert not same_output("0,384.0,-5.346877664924247,0.18018507631087466,ok (96.9 %)", shown)  # a rounded figure
+    assert not same_output("0,384.0,-5.346877,0.18018507631087466,ok (96.8 %)", shown)  # fewer digits
+    assert not same_output("0,384.0,-5.346877694924247,0.18018507631087466,ok (96.8 %)", shown)  # beyond 1e-9
+    assert not same_output("0,384.0,-5.346877664924247,0.18018507631087466,no (96.8 %)", shown)  # the text
 
 
 def commands(block: str) -> list[tuple[str, str]]:
@@ -71,7 +96,8 @@ def test_console_block(page, block, folder):
     for command, expected in commands(block):
         done = subprocess.run(["bash", "-c", command], cwd=folder, env=env, capture_output=True, text=True, timeout=300)
         assert done.returncode == 0, f"{name(page)}: {command}\n{done.stderr}"
-        assert (done.stdout + done.stderr).splitlines() == expected.splitlines(), f"{name(page)}: {command}"
+        got, shown = (done.stdout + done.stderr).splitlines(), expected.splitlines()
+        assert len(got) == len(shown) and all(map(same_output, got, shown)), f"{name(page)}: {command}\n{done.stdout}{done.stderr}"
 
 
 @pytest.mark.parametrize("page", PYTHON, ids=name)
