@@ -82,20 +82,23 @@ def make_figures(results_dir: Path, study: dict, shards: dict[str, list[Path]], 
 
 class ColumnHistogram:
     """Counts per bin (edges (B + 1,), the last bin closed), below the first and above the last edge, and the
-    median of the finite values of a float32 column, over batches seen twice (add every batch, second_pass(),
-    add every batch again)."""
+    median of a float32 column, over batches seen twice (add every batch, second_pass(), add every batch again).
+    A value that is not finite is a failed correction, as in the table (homocal.study.metrics): counted
+    (``failures``), below the first edge and below every percentile."""
 
     def __init__(self, edges: np.ndarray):
         self.edges, self.counts, self.below, self.above = edges, np.zeros(len(edges) - 1, np.int64), 0, 0
-        self.median, self.first = Quantiles((50,)), True
+        self.failures, self.median, self.first = 0, Quantiles((50,)), True
 
     def add(self, values: np.ndarray) -> None:
-        values = values[np.isfinite(values)]
+        failed = ~np.isfinite(values)
+        values = np.where(failed, np.float32(-np.inf), values)
         self.median.add(values)
         if self.first:
-            self.counts += np.histogram(values, self.edges)[0]
+            self.counts += np.histogram(values[~failed], self.edges)[0]
             self.below += np.count_nonzero(values < self.edges[0])
             self.above += np.count_nonzero(values > self.edges[-1])
+            self.failures += np.count_nonzero(failed)
 
     def second_pass(self) -> None:
         self.first = False
@@ -125,7 +128,8 @@ def improvement_histograms(shards: dict[str, list[Path]], out: Path, lo: float =
             ax.axvline(0, color="k", lw=0.8)
             below, above = 100 * h.below / n, 100 * h.above / n
             median = h.median.values()[0]
-            ax.text(0.02, 0.95, f"median {median:.1f} %\nbelow {lo:g} %: {below:.2f} % (not shown)"
+            failed = f", {100 * h.failures / n:.2f} % failed" if h.failures else ""
+            ax.text(0.02, 0.95, f"median {median:.1f} %\nbelow {lo:g} %: {below:.2f} % (not shown{failed})"
                     + (f"\nabove {hi:g} %: {above:.2f} %" if above else ""),
                     transform=ax.transAxes, va="top", fontsize=8)
             ax.set_title(f"{method}: {kind} improvement", fontsize=10)
@@ -135,15 +139,16 @@ def improvement_histograms(shards: dict[str, list[Path]], out: Path, lo: float =
     save(fig, out)
     return (f"The improvement distributions of the paper's Section 6 (its text gives their medians, spreads and 1st "
             f"percentiles). Share of samples per {width:g} percentage-point bin, all scenes pooled; the display is clipped to "
-            f"[{lo:g}, {hi:g}] % and each panel gives the share of samples outside it.")
+            f"[{lo:g}, {hi:g}] % and each panel gives the share of samples outside it; failed corrections (path error "
+            f"infinite) count below it and in the median, as in the table.")
 
 
 def heatmap_means(shards: dict[str, list[Path]], bins: int = 24, progress: bool = False
-                  ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ma.MaskedArray]]:
+                  ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ma.MaskedArray], dict[str, int]]:
     """x edges (bins + 1,) over the triples' distance sum (m), y edges (bins + 1,) over their spread (max - min,
     m), and per method the mean path improvement (percent) per cell, (bins, bins) indexed [y, x], empty cells
     masked; all scenes pooled, read in two passes one shard at a time (aggregate.scan): the ranges, then the
-    cells' counts and sums."""
+    cells' counts and sums; and per method the failed corrections (path error infinite) left out of the means."""
     located = ["d_sum", "d_spread"]
     lows, highs = [np.inf, np.inf], [-np.inf, -np.inf]
     for _, batch in scan(shards, located, "heatmaps, pass 1 of 2", progress):
@@ -154,28 +159,33 @@ def heatmap_means(shards: dict[str, list[Path]], bins: int = 24, progress: bool 
     x_edges, y_edges = (np.linspace(*_range(lo, hi), bins + 1) for lo, hi in zip(lows, highs))
     counts = {m: np.zeros(bins * bins, np.int64) for m in METHODS}
     sums = {m: np.zeros(bins * bins) for m in METHODS}
+    failures = dict.fromkeys(METHODS, 0)
     for _, batch in scan(shards, [*located, *(f"path_{m}" for m in METHODS)], "heatmaps, pass 2 of 2", progress):
         cell = _bin(batch["d_sum"], x_edges) * bins + _bin(batch["d_spread"], y_edges)
         inside = np.isfinite(batch["d_sum"]) & np.isfinite(batch["d_spread"])
         for method in METHODS:
             path = batch[f"path_{method}"]
             ok = inside & np.isfinite(path)
+            failures[method] += int(np.count_nonzero(inside & ~np.isfinite(path)))
             counts[method] += np.bincount(cell[ok], minlength=bins * bins)
             sums[method] += np.bincount(cell[ok], weights=path[ok], minlength=bins * bins)
     with np.errstate(invalid="ignore", divide="ignore"):
         means = {m: np.ma.masked_invalid(sums[m] / counts[m]).reshape(bins, bins).T for m in METHODS}
-    return x_edges, y_edges, means
+    return x_edges, y_edges, means, failures
 
 
 def path_heatmaps(shards: dict[str, list[Path]], out: Path, bins: int = 24, vmin_floor: float = -100.0,
                   progress: bool = False) -> str:
     """Mean path improvement (percent) per bin of the sum (m) and the spread (max - min, m) of the three
     calibration distances, per method, all scenes pooled (paper Fig. 4; heatmap_means). Returns the caption."""
-    fig, vmin, clipped = heatmap_figure(*heatmap_means(shards, bins, progress), vmin_floor)
+    x_edges, y_edges, means, failures = heatmap_means(shards, bins, progress)
+    fig, vmin, clipped = heatmap_figure(x_edges, y_edges, means, vmin_floor)
     save(fig, out)
     return (f"Counterpart of the paper's Fig. 4 (a: regression, b: descent). Mean path improvement per cell of {bins} x {bins} bins of the calibration triple's distance sum and "
             f"spread (max - min), all scenes and variants pooled; empty cells are blank"
-            + (f"; cell means below {vmin:g} % share the lowest colour." if clipped else "."))
+            + (f"; cell means below {vmin:g} % share the lowest colour" if clipped else "")
+            + (f"; failed corrections (path error infinite) are left out of the means: "
+               f"{', '.join(f'{m} {n:,}' for m, n in failures.items() if n)}." if any(failures.values()) else "."))
 
 
 def heatmap_figure(x_edges: np.ndarray, y_edges: np.ndarray, means: dict, vmin_floor: float = -100.0):

@@ -123,16 +123,18 @@ def test_histogram_equals_numpy_in_memory(shards):
         if first:
             hist.second_pass()
     values = np.concatenate([columns[s]["path_descent"] for s in files])
-    values = values[np.isfinite(values)]
-    np.testing.assert_array_equal(hist.counts, np.histogram(values, edges)[0])
-    assert (hist.below, hist.above) == (np.count_nonzero(values < -200), np.count_nonzero(values > 100))
-    assert hist.median.values() == [np.median(values.astype(np.float64))]
+    failed = ~np.isfinite(values)
+    finite = values[~failed]
+    np.testing.assert_array_equal(hist.counts, np.histogram(finite, edges)[0])
+    assert hist.failures == np.count_nonzero(failed) > 0
+    assert (hist.below, hist.above) == (np.count_nonzero(finite < -200) + hist.failures, np.count_nonzero(finite > 100))
+    assert hist.median.values() == percentiles_with_failures(values, [50])  # as the table's median
 
 
 def test_heatmap_means_equal_numpy_in_memory(shards):
     files, columns = shards
     bins = 7
-    x_edges, y_edges, means = figures.heatmap_means(files, bins)
+    x_edges, y_edges, means, failures = figures.heatmap_means(files, bins)
     col = lambda name: np.concatenate([columns[s][name] for s in files])  # noqa: E731
     d_sum, d_spread = col("d_sum"), col("d_spread")
     np.testing.assert_array_equal(x_edges, np.linspace(float(d_sum.min()), float(d_sum.max()), bins + 1))
@@ -140,6 +142,7 @@ def test_heatmap_means_equal_numpy_in_memory(shards):
     for m in set(metrics.METHODS) - {"descent"}:  # descent's awkward +/-3e38 make cell sums depend on the order
         path = col(f"path_{m}")
         ok = np.isfinite(path)
+        assert failures[m] == np.count_nonzero(~ok) > 0
         total, _, _ = np.histogram2d(d_spread[ok], d_sum[ok], [y_edges, x_edges], weights=path[ok].astype(np.float64))
         count, _, _ = np.histogram2d(d_spread[ok], d_sum[ok], [y_edges, x_edges])
         np.testing.assert_array_equal(means[m].mask, count == 0)
@@ -151,5 +154,5 @@ def test_heatmap_figure_has_a_panel_for_every_method(shards):
     """One panel per method, titled with its name, in METHODS order (a fixed 2 x 2 grid once showed only the first
     four of six methods, descent not among them)."""
     files, _ = shards
-    fig, _, _ = figures.heatmap_figure(*figures.heatmap_means(files, 5))
+    fig, _, _ = figures.heatmap_figure(*figures.heatmap_means(files, 5)[:3])
     assert [ax.get_title() for ax in fig.axes if ax.get_title()] == list(metrics.METHODS)
