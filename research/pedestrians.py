@@ -342,7 +342,7 @@ def report_markdown(study: dict, table, rows: list[tuple[str, str, float, dict]]
             if scene != scope:
                 continue
             name = f"pedestrians, {detector}, {seconds:g} s" + (f" (refused: {f['refusal']})" if f["refused"] else "")
-            counts = ["" if f[k] is None else str(f[k]) for k in COUNTS]
+            counts = ["" if f[k] is None else f"{f[k]:,}" for k in COUNTS]
             out.append(markdown_row([name, format_metric("n", f["variants"]), *(format_metric(k, f[k]) for k in TAILS),
                                 f"{f['horizon_rms_px']:.2f} / {f['horizon_max_px']:.2f}", f"{f['horizon_sigma_px']:.2f}",
                                 f"{f['rel_range_before_mean']:.2f} -> {f['rel_range_after_mean']:.2f}",

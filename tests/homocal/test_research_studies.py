@@ -22,9 +22,17 @@ from homocal.study.metrics import METHODS, METRICS, format_metric
 
 RESEARCH = Path(__file__).resolve().parents[2] / "research"
 PEDESTRIANS, REPRODUCTION = RESEARCH / "pedestrians.py", RESEARCH / "reproduction_tables.py"
-spec = importlib.util.spec_from_file_location("pedestrians", PEDESTRIANS)
-script = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(script)
+
+
+def load(path: Path):
+    """The research script at path as a module."""
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+script, reproduction = load(PEDESTRIANS), load(REPRODUCTION)
 TINY = ["--preset", "table1-fit", "--variants", "2", "--n-test", "50", "--no-progress"]
 
 
@@ -63,6 +71,16 @@ def report(studies, tmp_path_factory) -> Path:
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == (out / "pedestrians.md").read_text().strip()
     return out
+
+
+def call(module, args, capsys) -> tuple[int, str, str]:
+    """(exit code, stdout, stderr) of the script's main(args) run here (argparse's refusals exit by SystemExit)."""
+    try:
+        code = module.main([str(a) for a in args])
+    except SystemExit as e:
+        code = e.code
+    out, err = capsys.readouterr()
+    return code, out, err
 
 
 def csv_rows(path: Path) -> list[dict]:
@@ -150,8 +168,16 @@ def test_a_refused_fit_is_a_row_of_failures(studies, datasets, tmp_path):
     assert done.returncode == 0 and line["refused"] and line["failures"] == 2 and line["pos_path"] == 0.0
 
 
-def test_dataset_mode_still_measures(datasets):
-    """DATASET mode: one JSON line per detector and seconds value, on the variants it draws."""
+def test_dataset_mode_still_measures(datasets, tmp_path):
+    """DATASET mode: one JSON line per detector and seconds value, on the variants it draws; --end-to-end writes
+    its correction file to -o and prints its line."""
+    subprocess.run([sys.executable, "-m", "simgen.cli", "export-mot", str(datasets[0]), "-o", str(tmp_path / "mot")],
+                   check=True, capture_output=True, timeout=300)
+    done = run(PEDESTRIANS, datasets[0], "--end-to-end", "exact", "--det", tmp_path / "mot" / "det" / "segmentation.txt",
+               "-o", tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["clicked_horizon_above_true_px"] == pytest.approx(16.0)
+    assert (tmp_path / "end_to_end_scene1_exact.json").is_file()
     done = run(PEDESTRIANS, datasets[0], "--variants", "1", "--detectors", "segmentation,rgb", "--seconds", "1,1.5")
     lines = [json.loads(line) for line in done.stdout.splitlines()]
     assert done.returncode == 0, done.stderr
@@ -177,7 +203,7 @@ def test_dataset_mode_still_measures(datasets):
     ("dataset flag", ["--study", "{s0}", "--variants", "3"], 2, "--variants: not with --study"),
     ("prior", ["--study", "{s0}", "--height-sd", "0"], 2, "argument --height-mean/--height-sd: height_sd_m must be"),
 ])
-def test_pedestrians_bad_input_is_one_line(case, args, code, message, studies, tiny_dataset, tmp_path):
+def test_pedestrians_bad_input_is_one_line(case, args, code, message, studies, tiny_dataset, tmp_path, capsys):
     """Each bad input: its exit code, the last stderr line naming it, nothing on stdout, no report folder made
     (and a folder that is not ours left as it was)."""
     (tmp_path / "foreign").mkdir()
@@ -188,13 +214,13 @@ def test_pedestrians_bad_input_is_one_line(case, args, code, message, studies, t
         args += ["-o", str(tmp_path / "out")]
     elif "" in args:
         args = args[:args.index("-o")]
-    done = run(PEDESTRIANS, *args)
-    last = done.stderr.strip().splitlines()[-1]
-    assert done.returncode == code and last.startswith("pedestrians.py: error: ") and message in last, done.stderr
-    assert done.stdout == "" and not (tmp_path / "out").exists()
+    returned, out, err = call(script, args, capsys)
+    last = err.strip().splitlines()[-1]
+    assert returned == code and last.startswith("pedestrians.py: error: ") and message in last, err
+    assert out == "" and not (tmp_path / "out").exists()
     assert [p.name for p in (tmp_path / "foreign").iterdir()] == ["notes.txt"]
     if code == 1:
-        assert len(done.stderr.strip().splitlines()) == 1
+        assert len(err.strip().splitlines()) == 1
 
 
 def test_reproduction_tables_of_two_seeds(studies):
@@ -211,11 +237,11 @@ def test_reproduction_tables_of_two_seeds(studies):
     ("same seed twice", ["{s0}", "{s0}"], "the same seed (0) as {s0}"),
     ("incomplete", ["{cut}"], "{cut}: the study is not complete (1 shard(s) missing)"),
 ])
-def test_reproduction_tables_bad_input_is_one_line(case, folders, message, studies, tiny_dataset, tmp_path):
+def test_reproduction_tables_bad_input_is_one_line(case, folders, message, studies, tiny_dataset, tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     (tmp_path / "empty" / "study.json").write_text(json.dumps({"format": "homocal-study", "datasets": []}))
     places = {"absent": tmp_path / "absent", "dataset": tiny_dataset, "empty": tmp_path / "empty", **studies}
-    done = run(REPRODUCTION, *(f.format(**places) for f in folders))
-    lines = done.stderr.strip().splitlines()
-    assert done.returncode == 1 and len(lines) == 1 and message.format(**places) in lines[0], done.stderr
-    assert lines[0].startswith("reproduction_tables.py: error: ") and done.stdout == ""
+    code, out, err = call(reproduction, [f.format(**places) for f in folders], capsys)
+    lines = err.strip().splitlines()
+    assert code == 1 and len(lines) == 1 and message.format(**places) in lines[0], err
+    assert lines[0].startswith("reproduction_tables.py: error: ") and out == ""
