@@ -311,7 +311,8 @@ def report_csv(rows: list[tuple[str, str, float, dict]], args) -> str:
     setting = fit_setting(args)
     writer.writerow(["scene", "detector", "seconds", *setting, *FIGURES])
     for scene, detector, seconds, figures in rows:
-        cells = [v if isinstance(v, str) else "" if v is None else csv_number(v) for v in (*setting.values(), *figures.values())]
+        values = [*setting.values(), *(figures[k] for k in FIGURES)]
+        cells = [v if isinstance(v, str) else "" if v is None else csv_number(v) for v in values]
         writer.writerow([scene, detector, csv_number(seconds), *cells])
     return buf.getvalue()
 
