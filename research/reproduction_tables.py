@@ -18,8 +18,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from homocal.study.kernels import METHODS  # noqa: E402
-from homocal.study.metrics import (D_KEYS, D_METHODS, METRICS, OVERALL, PAPER, build_table, load_study,  # noqa: E402
-                                   paper_distance, verified_shard_files)
+from homocal.study.metrics import (D_KEYS, D_METHODS, METRICS, OVERALL, PAPER, build_table, complete_shard_files,  # noqa: E402
+                                   load_study, paper_distance)
 from homocal.study.report import check_replicates  # noqa: E402
 
 TAILS = ("pos_path", "median_path", "p1_path", "p0.1_path", "below_minus100", "failures")
@@ -39,12 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         studies = [(path, load_study(path)) for path in args.studies]
         check_replicates(studies)
-        tables = []
-        for path, study in studies:
-            shards, missing = verified_shard_files(path, study)
-            if missing:
-                raise ValueError(f"{path}: {missing} shard(s) missing; finish it with homocal study ... --resume")
-            tables.append(build_table(shards))
+        tables = [build_table(complete_shard_files(path, study)) for path, study in studies]
     except ValueError as e:
         print(f"reproduction_tables.py: error: {e}", file=sys.stderr)
         return 1

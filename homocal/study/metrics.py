@@ -89,8 +89,9 @@ def load_study(results_dir: str | Path) -> dict:
     if not results_dir.is_dir():
         raise ValueError(f"{results_dir}: not a results directory")
     study = read_json(results_dir / "study.json")
-    if not isinstance(study.get("datasets"), list) or not all(isinstance(d, dict) and "scene" in d for d in study["datasets"]):
-        raise ValueError(f"{results_dir / 'study.json'}: needs a 'datasets' list of {{scene, path, config_hash}}")
+    if (not isinstance(study.get("datasets"), list) or not study["datasets"]
+            or not all(isinstance(d, dict) and "scene" in d for d in study["datasets"])):
+        raise ValueError(f"{results_dir / 'study.json'}: needs a non-empty 'datasets' list of {{scene, path, config_hash}}")
     for i, d in enumerate(study["datasets"]):  # scene names become paths (shards/<scene>, figures)
         check_name(d["scene"], f"{results_dir / 'study.json'}: datasets[{i}].scene")
     return study
@@ -120,6 +121,15 @@ def verified_shard_files(results_dir: str | Path, study: dict) -> tuple[dict[str
             check_shard(path, d["scene"], int(path.stem.split("_")[1]), key, rows)
     expected = len(study["datasets"]) * (int(study.get("n_variants", 0)) + 1)
     return shards, expected - sum(len(files) for files in shards.values())
+
+
+def complete_shard_files(results_dir: str | Path, study: dict) -> dict[str, list[Path]]:
+    """verified_shard_files of a complete study: ValueError (one line naming the folder) if a shard is missing."""
+    shards, missing = verified_shard_files(results_dir, study)
+    if missing:
+        raise ValueError(f"{results_dir}: the study is not complete ({missing} shard(s) missing); finish it with "
+                         "homocal study ... --resume")
+    return shards
 
 
 def method_columns(method: str) -> list[str]:
@@ -274,7 +284,7 @@ def table_cells(table: Table) -> list[tuple[str, list[str], list[list[str]]]]:
         paper = method in with_paper
         header = ["metric", *table.scopes] + (["paper"] if paper else [])
         lines = [
-            [METRICS[r.metric][0], *(_fmt(r.metric, v) for v in r.values)] + ([_fmt(r.metric, r.paper)] if paper else [])
+            [METRICS[r.metric][0], *(format_metric(r.metric, v) for v in r.values)] + ([format_metric(r.metric, r.paper)] if paper else [])
             for r in table.rows
             if r.method == method
         ]
@@ -299,8 +309,8 @@ def to_markdown(table: Table) -> str:
     """Markdown of the table: one section and one pipe table per method."""
     out = []
     for method, header, lines in table_cells(table):
-        out += [f"### {method}", "", _md_row(header), _md_row(["---"] + ["---:"] * (len(header) - 1))]
-        out += [_md_row(line) for line in lines] + [""]
+        out += [f"### {method}", "", markdown_row(header), markdown_row(["---"] + ["---:"] * (len(header) - 1))]
+        out += [markdown_row(line) for line in lines] + [""]
     return "\n".join(out)
 
 
@@ -310,21 +320,24 @@ def to_csv(table: Table) -> str:
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(["method", "metric", *table.scopes, "paper"])
     for r in table.rows:
-        writer.writerow([r.method, r.metric, *(_num(v) for v in r.values), "" if r.paper is None else _num(r.paper)])
+        writer.writerow([r.method, r.metric, *(csv_number(v) for v in r.values), "" if r.paper is None else csv_number(r.paper)])
     return buf.getvalue()
 
 
-def _fmt(metric: str, value: float | None) -> str:
+def format_metric(metric: str, value: float | None) -> str:
+    """A value of a METRICS key as the table shows it ("n/a" for NaN, "" for None)."""
     if value is None:
         return ""
     return "n/a" if math.isnan(value) else METRICS[metric][1].format(value)
 
 
-def _num(value: float) -> str:
+def csv_number(value: float) -> str:
+    """A number as table.csv writes it: integers as they are, floats at full precision (repr), NaN empty."""
     if isinstance(value, (int, np.integer)):
         return str(value)
     return "" if math.isnan(value) else repr(float(value))
 
 
-def _md_row(cells: Sequence[str]) -> str:
+def markdown_row(cells: Sequence[str]) -> str:
+    """One row of a Markdown pipe table."""
     return "| " + " | ".join(cells) + " |"

@@ -29,8 +29,8 @@ from homocal.geometry import ViewTransformer
 from homocal.study.ceiling import QUADRATIC, variant_ceilings, weighted_median
 from homocal.study.inputs import OPTIONS, StudyParams, StudyScene, changed_options, option_text
 from homocal.study.law import horizon_shift_law, perturbation_law
-from homocal.study.metrics import (D_KEYS, D_METHODS, METRICS, PAPER, Table, build_table, load_study, paper_distance,
-                                   table_cells, to_csv, to_markdown, to_text, verified_shard_files)
+from homocal.study.metrics import (D_KEYS, D_METHODS, METRICS, PAPER, Table, build_table, complete_shard_files, load_study,
+                                   paper_distance, table_cells, to_csv, to_markdown, to_text, verified_shard_files)
 from homocal.study.perturb import MAX_PIXELS
 
 STYLE = """body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em;color:#222}
@@ -94,10 +94,7 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None, com
     check_replicates([(results_dir, study), *replicate_studies])
     replicate_tables = []
     for path, replicate in replicate_studies:
-        replicate_shards, replicate_missing = verified_shard_files(path, replicate)
-        if replicate_missing or not any(replicate_shards.values()):
-            raise ValueError(f"{path}: the study is not complete ({replicate_missing} shard(s) missing)")
-        replicate_tables.append(build_table(replicate_shards, progress))
+        replicate_tables.append(build_table(complete_shard_files(path, replicate), progress))
     others = []
     for other in compare:
         other_study = load_study(other)

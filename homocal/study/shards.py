@@ -44,6 +44,15 @@ def variant_mapping(scene: StudyScene, params: StudyParams, variant: int):
     return v0, target.ravel(), Bt, H0, p, pt
 
 
+def path_errors(mapped: np.ndarray, ground: np.ndarray, origin: np.ndarray, metric: str) -> np.ndarray:
+    """The study's error (N,) m of each mapped test point (N, 2) m against its true ground point (N, 2) m:
+    | ||g - o|| - ||p - o|| | with metric "range" (o the camera origin (2,) m), ||p - g|| otherwise; NaN where
+    a point was mapped beyond the horizon (NaN)."""
+    if metric == "range":
+        return np.abs(np.linalg.norm(ground - origin, axis=1) - np.linalg.norm(mapped - origin, axis=1))
+    return np.linalg.norm(mapped - ground, axis=1)
+
+
 def prepare_variant(scene: StudyScene, params: StudyParams, variant: int) -> kernels.Variant | str:
     """The variant's kernels.Variant, or the reason (str) it is degenerate (see variant_mapping)."""
     mapping = variant_mapping(scene, params, variant)
@@ -52,8 +61,7 @@ def prepare_variant(scene: StudyScene, params: StudyParams, variant: int) -> ker
     v0, t0, Bt, H0, p, pt = mapping
     o, g, gt = scene.origin, scene.cal_ground, scene.test_ground
     F = kernels.ground_frames(Bt, g)
-    before = (np.abs(np.linalg.norm(gt - o, axis=1) - np.linalg.norm(pt - o, axis=1)) if params.metric == "range"
-              else np.linalg.norm(pt - gt, axis=1))
+    before = path_errors(pt, gt, o, params.metric)
     return kernels.Variant(v0, np.ascontiguousarray(t0), Bt, H0, F, np.ascontiguousarray(scene.cal_image),
                            np.ascontiguousarray(g), o, make_cal_table(p, g, o), make_test_table(scene.test_image, H0, pt, gt, o),
                            float(before.mean()))
