@@ -3,7 +3,7 @@
 For the studies given (the same options, different seeds; as `homocal report STUDY [STUDY ...]` checks), it
 prints in Markdown: Table 1's 14 numbers and D per scope (each scene, both pooled) as mean and range (min..max)
 over the studies, beside the paper's; then, pooled, the seven corrections' positive path share, median, 1st
-and 0.1th percentiles, share below -100 % and failures, as the mean over the studies. The numbers are those of
+and 0.1th percentiles, share below -100 % and failures, as mean and range too. The numbers are those of
 the report's table.csv (homocal.study.metrics.build_table over each study's verified shards).
 
     python research/reproduction_tables.py OUT/paper-0 OUT/paper-1 OUT/paper-2
@@ -54,12 +54,12 @@ def main(argv: list[str] | None = None) -> int:
             cells = [spread([t.value(method, key, s) for t in tables], digits) for s in scopes]
             print(f"| {method} | {METRICS[key][0]} | {PAPER[method][key]:g} | " + " | ".join(cells) + " |")
     print("| | **D** (pp) | 0 | " + " | ".join(spread([paper_distance(t, s) for t in tables], 1) for s in scopes) + " |")
-    print(f"\nThe seven corrections, both scenes pooled, mean over seeds {seeds}\n")
+    print(f"\nThe seven corrections, both scenes pooled, seeds {seeds}: mean (min..max)\n")
     print("| metric | " + " | ".join(METHODS) + " |")
     print("|---|" + "---:|" * len(METHODS))
     for key in TAILS:
         digits = 0 if key == "failures" else 3 if key == "below_minus100" else 1
-        cells = [f"{np.mean([t.value(m, key, OVERALL) for t in tables]):.{digits}f}" for m in METHODS]
+        cells = [spread([t.value(m, key, OVERALL) for t in tables], digits) for m in METHODS]
         print(f"| {METRICS[key][0]} | " + " | ".join(cells) + " |")
     return 0
 

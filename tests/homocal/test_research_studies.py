@@ -18,7 +18,7 @@ from homocal.cli import main
 from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.geometry import ViewTransformer
 from homocal.study.inputs import StudyParams, StudyScene
-from homocal.study.metrics import METHODS, METRICS, format_metric
+from homocal.study.metrics import METHODS, METRICS, OVERALL, build_table, complete_shard_files, format_metric, load_study
 
 RESEARCH = Path(__file__).resolve().parents[2] / "research"
 PEDESTRIANS, REPRODUCTION = RESEARCH / "pedestrians.py", RESEARCH / "reproduction_tables.py"
@@ -227,6 +227,11 @@ def test_reproduction_tables_of_two_seeds(studies):
     done = run(REPRODUCTION, studies["s0"], studies["s1"])
     assert done.returncode == 0, done.stderr
     assert "Table 1, seeds 0, 1" in done.stdout
+    tables = [build_table(complete_shard_files(studies[s], load_study(studies[s]))) for s in ("s0", "s1")]
+    values = [t.value("least_change", "median_path", OVERALL) for t in tables]
+    row = next(line for line in done.stdout.splitlines() if line.startswith(f"| {METRICS['median_path'][0]} |"))
+    cell = row.split(" | ")[1 + list(METHODS).index("least_change")]
+    assert cell == f"{np.mean(values):.1f} ({min(values):.1f}..{max(values):.1f})" and values[0] != values[1]
 
 
 @pytest.mark.parametrize("case, folders, message", [
