@@ -19,7 +19,7 @@ import warnings
 import numpy as np
 
 from homocal.correctors.base import MAX_REFERENCE_POINTS, Corrector, load_corrector
-from homocal.correctors.catalogue import Method, fit_note, get_method, mapping_of, method_of, quality
+from homocal.correctors.catalogue import Method, fit_note, get_method, method_of, quality
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.serialization import float_or_none
 from homocal.files import read_json, read_points_csv, write_json_atomic, write_text_atomic
@@ -195,15 +195,16 @@ def view(session: Session, req: dict) -> dict:
 
 def fit(session: Session, req: dict) -> dict:
     """Fit the chosen method on the reference points (or the session's boxes); errors before/after, per-point
-    residuals, the corrected grid, the horizon of the mapping the correction maps with (mapping_of: the
-    clicked one for the regressions) and the correction's JSON (what Save writes)."""
+    residuals, the corrected grid, the horizon of the mapping the correction maps with (Corrector.mapping: the
+    clicked one for the regressions), the trustworthy range of the correction's own error model
+    (Corrector.ground_uncertainty) and the correction's JSON (what Save writes)."""
     corrector, transformer, points, caught = _fitted(session, req)
     mapped = transformer.transform_points(points[:, :2])
     corrected = corrector.transform_points(points[:, :2])
     w, h = session.frame_size
     tolerance = _tolerance(req)
-    trust = error_bars(session, mapping_of(corrector), np.zeros((0, 2)), _camera_origin(req), tolerance,
-                       **_sigmas(req))["trustworthy_range_m"]
+    trust = error_bars(session, corrector.mapping, np.zeros((0, 2)), _camera_origin(req), tolerance, **_sigmas(req),
+                       uncertainty=corrector.ground_uncertainty)["trustworthy_range_m"]
     trust_note = (f" With its mapping the 1-sigma error stays under {tolerance:g} m out to "
                   + ("any range" if trust is None else f"{trust:.1f} m") + " straight ahead.")
     return {
@@ -217,7 +218,7 @@ def fit(session: Session, req: dict) -> dict:
         "residual_after": np.hypot(*(corrected - points[:, 2:]).T).tolist(),
         "corrected_grid": overlay.ground_grid(overlay.sample_mapping(corrector.transform_points, transformer, w, h),
                                               _camera_origin(req)),
-        "horizon": overlay.horizon_segment(mapping_of(corrector), w, h),
+        "horizon": overlay.horizon_segment(corrector.mapping, w, h),
         "correction": corrector.to_dict(),
     }
 

@@ -150,6 +150,8 @@ def test_pedestrians_fit_from_the_launch_boxes(boxes_server):
     assert at_cx == pytest.approx(reference.horizon_row_, abs=1e-6) and abs(at_cx - CAM.horizon_row) < 2.0
     assert clicked.horizon_row(CAM.K[0, 2]) == pytest.approx(CAM.horizon_row - 16.0, abs=0.1)
     assert "people (tracks): " in fit["summary"] and "no check points" in fit["summary"]
+    trust = max_trustworthy_range(reference.mapping, 0.5, uncertainty=reference.ground_uncertainty)  # its own errors
+    assert f"out to {trust:.1f} m straight ahead" in fit["summary"] and trust < max_trustworthy_range(reference.mapping, 0.5)
     status, checked = post(boxes_server, "api/fit", request(trapezoid=trap, method="pedestrians", camera_height_m=4.0))
     assert status == 200 and checked["correction"]["fitted"] == fit["correction"]["fitted"]
     assert checked["error_after"] < checked["error_before"] and "check points" in checked["summary"]
