@@ -14,6 +14,7 @@ import csv
 import io
 import math
 import os
+import shlex
 import warnings
 
 import numpy as np
@@ -29,6 +30,7 @@ from homocal.ui.errorbars import error_bars
 from homocal.ui.session import Session
 
 TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE = "trapezoid.json", "reference_points.csv", "correction.json"
+CAMERA_FILE = "camera_intrinsics.json"  # Save's --camera-json of a fit from boxes (not camera.json: a dataset's)
 MAX_SIGMA_PX = 100.0  # the error bars' sigmas (pixels): a clicking error beyond this is no click
 MAX_TOLERANCE_M = 1e6
 MAX_SEED = 2**64 - 1
@@ -136,10 +138,12 @@ def _fitted(session: Session, req: dict) -> tuple[Corrector, ViewTransformer, np
     return corrector, transformer, points, [str(w.message) for w in caught]
 
 
-def _fit_boxes(session: Session, req: dict, corrector, transformer: ViewTransformer, points: np.ndarray) -> None:
-    """Fit a PedestrianCorrector on the session's boxes: the request's "detector" (one of the session's
-    detectors; default the first, segmentation if it has one) and "camera_height_m" (None: from the clicked
-    mapping); the image size is the boxes file's, else the frame's; K the boxes file's, else from the mapping."""
+def _box_settings(session: Session, req: dict) -> dict:
+    """What a fit from the session's boxes uses besides the trapezoid and the height prior: "detector" (the
+    request's, one of the session's detectors; default segmentation if it has one, else the first; None for a
+    file without detectors), "camera_height_m" (the request's; None: from the clicked mapping), "boxes" (the
+    PersonBoxes read), "image_size" (the boxes file's, else the frame's) and "K" (the boxes file's, else None:
+    from the mapping)."""
     if session.boxes is None:
         raise ValueError("method: pedestrians fits from people's boxes: start homocal ui with --boxes FILE (or a "
                          "dataset folder)")
@@ -154,9 +158,17 @@ def _fit_boxes(session: Session, req: dict, corrector, transformer: ViewTransfor
     height = req.get("camera_height_m")
     height = None if height is None else _number(req, "camera_height_m", 0, -math.inf, math.inf)
     boxes = session.person_boxes(detector)
+    return {"detector": detector, "camera_height_m": height, "boxes": boxes,
+            "image_size": boxes.image_size or session.frame_size, "K": boxes.K}
+
+
+def _fit_boxes(session: Session, req: dict, corrector, transformer: ViewTransformer, points: np.ndarray) -> None:
+    """Fit a PedestrianCorrector on the session's boxes with _box_settings; the points, if any, check it."""
+    settings = _box_settings(session, req)
+    boxes = settings["boxes"]
     check = {"image_points": points[:, :2], "ground_points": points[:, 2:]} if len(points) else {}
     corrector.fit(transformer, boxes.xyxy, convention="homocal", frames=boxes.frames, track_ids=boxes.track_ids,
-                  camera_height_m=height, K=boxes.K, image_size=boxes.image_size or session.frame_size,
+                  camera_height_m=settings["camera_height_m"], K=settings["K"], image_size=settings["image_size"],
                   camera_origin=_camera_origin(req), **check)
 
 
@@ -244,14 +256,17 @@ def locate(session: Session, req: dict) -> dict:
 
 
 def save(session: Session, req: dict) -> dict:
-    """Write trapezoid.json, reference_points.csv and correction.json (the formats of ``homocal fit --help``)
-    to the session's folder. A file this server did not write (or that was replaced since) is overwritten only
-    with "overwrite": true (the page asks first; otherwise FileExistsError); a symbolic link is never replaced
+    """Write trapezoid.json, reference_points.csv and correction.json (the formats of ``homocal fit --help``) to
+    the session's folder, and for a fit from boxes camera_intrinsics.json (CAMERA_FILE: the image size and K the
+    fit used, as --camera-json); answer the files and the ``homocal fit`` command that gives the same correction
+    from them. A file this server did not write (or that was replaced since) is overwritten only with
+    "overwrite": true (the page asks first; otherwise FileExistsError); a symbolic link is never replaced
     (``Refused``)."""
     corrector, _, points, _ = _fitted(session, req)
     method = method_of(corrector)
     image, map_px = trapezoid(req)
-    paths = [session.out_dir / name for name in (TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE)]
+    names = (TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE) + ((CAMERA_FILE,) if method.evidence == "boxes" else ())
+    paths = [session.out_dir / name for name in names]
     links = [p.name for p in paths if p.is_symlink()]
     if links:
         raise Refused(f"{', '.join(links)} in {session.out_dir}: a symbolic link, which Save never replaces "
@@ -268,16 +283,22 @@ def save(session: Session, req: dict) -> dict:
     write_json_atomic(paths[0], {"image": image.tolist(), "map": map_px.tolist(), "site_map": site})
     write_text_atomic(paths[1], buffer.getvalue())
     corrector.save(paths[2])
-    session.written.update({p: _identity(p) for p in paths})
     params = corrector.get_params()
     flags = [f"--{k} {params[k]!r}" for k in ("seed", "threshold") if k in method.settings]
     if method.evidence == "boxes":
-        given = {"--detector": req.get("detector"), "--camera-height": req.get("camera_height_m")}
-        flags = [f"--boxes {session.boxes}", *(f"{k} {v}" for k, v in given.items() if v is not None),
-                 f"--height-mean {params['height_mean_m']!r}", f"--height-sd {params['height_sd_m']!r}"]
-    points_flag = f" --points {paths[1]}" if len(points) else ""
+        settings = _box_settings(session, req)
+        (width, height), K = settings["image_size"], settings["K"]
+        write_json_atomic(paths[3], {"width": width, "height": height, **({} if K is None else {"K": K.tolist()})})
+        detector, camera_height = settings["detector"], settings["camera_height_m"]
+        given = {"--detector": None if detector is None else shlex.quote(detector),
+                 "--camera-height": None if camera_height is None else repr(camera_height)}
+        flags = [f"--boxes {shlex.quote(str(session.boxes))}", *(f"{k} {v}" for k, v in given.items() if v is not None),
+                 f"--camera-json {shlex.quote(str(paths[3]))}", f"--height-mean {params['height_mean_m']!r}",
+                 f"--height-sd {params['height_sd_m']!r}"]
+    session.written.update({p: _identity(p) for p in paths})
+    points_flag = f" --points {shlex.quote(str(paths[1]))}" if len(points) else ""
     return {"written": [str(p) for p in paths], "method": method.name,
-            "command": f"homocal fit --trapezoid {paths[0]}{points_flag} --method {method.name} "
+            "command": f"homocal fit --trapezoid {shlex.quote(str(paths[0]))}{points_flag} --method {method.name} "
                        f"-o CORRECTION.json --camera-origin={','.join(repr(float(x)) for x in corrector.camera_origin_)}"
                        + "".join(" " + f for f in flags)}
 

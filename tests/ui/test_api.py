@@ -6,6 +6,7 @@ import http.client
 import json
 import os
 import re
+import shlex
 import socket
 import subprocess
 import sys
@@ -180,8 +181,9 @@ def test_pedestrians_bad_requests(boxes_server, fields, message):
     assert status == 400 and message in answer["error"], answer
 
 
-def test_pedestrians_detector_of_a_dataset_parquet(session, tmp_path):
-    """A detections.parquet: the page picks one of its detectors by name, and no other."""
+def _parquet_boxes(session, tmp_path: Path, K: np.ndarray | None = None) -> tuple[Path, tuple[str, ...]]:
+    """standing_people_csv's boxes as an "rgb" detector's rows of a detections.parquet (with a camera.json of
+    the frame's size and K beside it when K is given); the session's boxes file and detectors of it."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -192,7 +194,14 @@ def test_pedestrians_detector_of_a_dataset_parquet(session, tmp_path):
     pq.write_table(pa.table({"detector": ["rgb"] * n, "frame": table[:, 0].astype(np.int32),
                              **{c: table[:, i + 1] - 0.5 for i, c in enumerate(("x1", "y1", "x2", "y2"))}}),
                    tmp_path / "detections.parquet")
-    session.boxes, session.detectors = _boxes_file(tmp_path / "detections.parquet")
+    if K is not None:
+        (tmp_path / "camera.json").write_text(json.dumps({"width": W, "height": H, "K": K.tolist()}))
+    return _boxes_file(tmp_path / "detections.parquet")
+
+
+def test_pedestrians_detector_of_a_dataset_parquet(session, tmp_path):
+    """A detections.parquet: the page picks one of its detectors by name, and no other."""
+    session.boxes, session.detectors = _parquet_boxes(session, tmp_path)
     assert session.detectors == ("rgb",)
     req = request(trapezoid=tilted_trapezoid(), method="pedestrians", points=[], camera_height_m=4.0)
     assert abs(api.fit(session, req)["correction"]["fitted"]["horizon_row"] - CAM.horizon_row) < 2.0
@@ -200,14 +209,44 @@ def test_pedestrians_detector_of_a_dataset_parquet(session, tmp_path):
         api.fit(session, {**req, "detector": "../x"})
 
 
-def test_pedestrians_save_names_the_boxes(boxes_server):
+def run_printed_command(command: str, out: Path) -> dict:
+    """Run the ``homocal fit`` command Save printed (in process), writing to ``out``; its correction's JSON."""
+    args = shlex.split(command)
+    assert args[:2] == ["homocal", "fit"] and args.count("CORRECTION.json") == 1
+    assert main([str(out) if a == "CORRECTION.json" else a for a in args[1:]]) == 0
+    return json.loads(out.read_text())
+
+
+@pytest.mark.parametrize("fields", [{"camera_height_m": 4.0}, {}, {"camera_height_m": 4.0, "height_mean_m": 1.7,
+                                                                   "height_sd_m": 0.08}])
+def test_pedestrians_save_prints_the_command_that_reproduces_it(boxes_server, tmp_path, fields):
+    """A boxes CSV has no image size or K: Save writes the frame's size to camera_intrinsics.json and names it in
+    the command with every other setting of the page's fit, and the command's correction is the saved one."""
     status, saved = post(boxes_server, "api/save", request(trapezoid=tilted_trapezoid(), method="pedestrians",
-                                                           camera_height_m=4.0))
+                                                           **fields))
     assert status == 200, saved
-    assert f"--method pedestrians" in saved["command"] and f"--boxes {boxes_server.session.boxes}" in saved["command"]
-    assert "--camera-height 4.0" in saved["command"] and "--points " in saved["command"]
+    out = boxes_server.session.out_dir
+    assert saved["written"][-1] == str(out / api.CAMERA_FILE)
+    assert json.loads((out / api.CAMERA_FILE).read_text()) == {"width": W, "height": H}
+    command = saved["command"]
+    assert f"--boxes {boxes_server.session.boxes}" in command and f"--camera-json {out / api.CAMERA_FILE}" in command
+    assert ("--camera-height 4.0" in command) == ("camera_height_m" in fields) and "--points " in command
+    correction = json.loads((out / "correction.json").read_text())
+    assert run_printed_command(command, tmp_path / "cli.json") == correction
     status, loaded = post(boxes_server, "api/load", {})
     assert status == 200 and loaded["fit"]["method"] == "pedestrians"
+
+
+def test_pedestrians_save_names_the_pages_detector(session, tmp_path):
+    """A detections.parquet without segmentation rows: the page fits its first detector, and so does the command
+    (homocal fit's default would be segmentation); its camera.json's K and size go to camera_intrinsics.json."""
+    session.boxes, session.detectors = _parquet_boxes(session, tmp_path, K=CAM.K)
+    saved = api.save(session, request(trapezoid=tilted_trapezoid(), method="pedestrians", points=[]))
+    assert "--detector rgb" in saved["command"] and "--points" not in saved["command"]
+    assert json.loads((session.out_dir / api.CAMERA_FILE).read_text()) == {"width": W, "height": H, "K": CAM.K.tolist()}
+    correction = json.loads((session.out_dir / "correction.json").read_text())
+    assert correction["fitted"]["focal_source"] == "given"
+    assert run_printed_command(saved["command"], tmp_path / "cli.json") == correction
 
 
 # ---- overlays against the camera they should show ----------------------------------------------------
