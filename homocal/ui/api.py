@@ -236,21 +236,27 @@ def fit(session: Session, req: dict) -> dict:
 
 
 def locate(session: Session, req: dict) -> dict:
-    """The ground position of one image point (plain and, given a fitted "correction", corrected) with its
-    1-sigma error ellipse."""
+    """The ground position of one image point with its 1-sigma error ellipse ("errorbars", the clicked
+    trapezoid's) and, given a fitted "correction", its corrected position with the correction's own error
+    ellipse ("corrected_errorbars": Corrector.ground_uncertainty; None beyond the corrected horizon)."""
     transformer = _complete_transformer(session, req)
     point = _points([req.get("point")], "point", 2)
     ground = transformer.transform_points(point)[0]
     if not np.isfinite(ground).all():
         raise ValueError(f"the point {point[0].tolist()} is on or above the horizon: it has no ground position")
     origin = _camera_origin(req)
-    out = {"ground": ground.tolist(), "distance": float(np.hypot(*(ground - origin))), "corrected": None}
+    out = {"ground": ground.tolist(), "distance": float(np.hypot(*(ground - origin))), "corrected": None,
+           "corrected_errorbars": None}
     if req.get("correction") is not None:
         if not isinstance(req["correction"], dict):
             raise ValueError("correction: expected the object /api/fit answered with")
         corrector = Corrector.from_dict(req["correction"], "correction")
         corrected = corrector.transform_points(point)[0]
-        out["corrected"] = corrected.tolist() if np.isfinite(corrected).all() else None
+        if np.isfinite(corrected).all():
+            out["corrected"] = corrected.tolist()
+            out["corrected_errorbars"] = error_bars(session, corrector.mapping, point, origin, None, **_sigmas(req),
+                                                    uncertainty=corrector.ground_uncertainty,
+                                                    transform=corrector.transform_points)
     out["errorbars"] = error_bars(session, transformer, point, origin, None, **_sigmas(req))
     return out
 

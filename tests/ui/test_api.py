@@ -209,6 +209,28 @@ def test_pedestrians_detector_of_a_dataset_parquet(session, tmp_path):
         api.fit(session, {**req, "detector": "../x"})
 
 
+def test_pedestrians_probe_has_the_corrections_own_error_bar(session, tmp_path):
+    """locate with a pedestrians correction: the corrected position's ellipse is the correction's own error model
+    (its fitted horizon's uncertainty on top of the corrected trapezoid's), at the request's sigmas."""
+    from homocal import load_corrector
+
+    session.boxes = standing_people_csv(tmp_path / "boxes.csv").resolve()
+    req = request(trapezoid=tilted_trapezoid(), method="pedestrians", points=[], camera_height_m=4.0,
+                  click_sigma_px=0.5, point_sigma_px=0.8)
+    correction = api.fit(session, req)["correction"]
+    (tmp_path / "c.json").write_text(json.dumps(correction))
+    corrector = load_corrector(tmp_path / "c.json")
+    q = CAM.project_ground([[2.0, 30.0]])
+    answer = api.locate(session, {**req, "point": q[0].tolist(), "correction": correction})
+    own = answer["corrected_errorbars"]
+    np.testing.assert_array_equal(own["points"], corrector.transform_points(q))
+    assert own["points"][0] == answer["corrected"]
+    cov = corrector.ground_uncertainty(q, 0.5, 0.8)[0]
+    np.testing.assert_allclose(own["sigma"][0], np.sqrt(np.linalg.eigvalsh(cov))[::-1], rtol=1e-9)
+    assert own["sigma"][0][0] > sigma_radius(ground_uncertainty(corrector.mapping, q, 0.5, 0.8))[0]
+    assert api.locate(session, {**req, "point": q[0].tolist()})["corrected_errorbars"] is None
+
+
 def run_printed_command(command: str, out: Path) -> dict:
     """Run the ``homocal fit`` command Save printed (in process), writing to ``out``; its correction's JSON."""
     args = shlex.split(command)

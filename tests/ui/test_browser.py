@@ -296,6 +296,13 @@ def test_pedestrians_fit_save_apply_in_a_browser(browser, server, tiny_dataset, 
     assert drawn_share(d, [[u, v + 40] for u, v in fit["horizon"]], (0xFF, 0x9D, 0x2E)) < 0.5
     assert drawn_share(d, clicked, (0xFF, 0x50, 0x50)) > 0.5
 
+    d.find_element(By.ID, "mode-probe").click()
+    click(d, "frame", (700.0, 400.0))
+    wait_for(d, f"{S}.probe !== null")
+    own = js(d, f"{S}.probe.answer.corrected_errorbars")  # the correction's own error bar
+    assert own is not None and len(own["sigma"]) == 1
+    assert "; corrected 1-sigma ellipse" in d.find_element(By.ID, "probe-summary").text
+
     d.find_element(By.ID, "save").click()
     wait_for(d, "document.getElementById('files-summary').textContent.startsWith('wrote')")
     saved = json.loads((out / "correction.json").read_text())
