@@ -286,21 +286,23 @@ def save(session: Session, req: dict) -> dict:
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(["u", "v", "x", "y"])
     writer.writerows([[repr(float(x)) for x in row] for row in points])
-    write_json_atomic(paths[0], {"image": image.tolist(), "map": map_px.tolist(), "site_map": site})
-    write_text_atomic(paths[1], buffer.getvalue())
-    corrector.save(paths[2])
     params = corrector.get_params()
     flags = [f"--{k} {params[k]!r}" for k in ("seed", "threshold") if k in method.settings]
     if method.evidence == "boxes":
         settings = _box_settings(session, req)
         (width, height), K = settings["image_size"], settings["K"]
-        write_json_atomic(paths[3], {"width": width, "height": height, **({} if K is None else {"K": K.tolist()})})
+        camera = {"width": width, "height": height, **({} if K is None else {"K": K.tolist()})}
         detector, camera_height = settings["detector"], settings["camera_height_m"]
         given = {"--detector": None if detector is None else shlex.quote(detector),
                  "--camera-height": None if camera_height is None else repr(camera_height)}
         flags = [f"--boxes {shlex.quote(str(session.boxes))}", *(f"{k} {v}" for k, v in given.items() if v is not None),
                  f"--camera-json {shlex.quote(str(paths[3]))}", f"--height-mean {params['height_mean_m']!r}",
                  f"--height-sd {params['height_sd_m']!r}"]
+    write_json_atomic(paths[0], {"image": image.tolist(), "map": map_px.tolist(), "site_map": site})
+    write_text_atomic(paths[1], buffer.getvalue())
+    corrector.save(paths[2])
+    if method.evidence == "boxes":
+        write_json_atomic(paths[3], camera)
     session.written.update({p: _identity(p) for p in paths})
     points_flag = f" --points {shlex.quote(str(paths[1]))}" if len(points) else ""
     return {"written": [str(p) for p in paths], "method": method.name,

@@ -259,6 +259,17 @@ def test_pedestrians_save_prints_the_command_that_reproduces_it(boxes_server, tm
     assert status == 200 and loaded["fit"]["method"] == "pedestrians"
 
 
+def test_pedestrians_save_asks_before_replacing_a_camera_file_it_did_not_write(boxes_server):
+    foreign = boxes_server.session.out_dir / api.CAMERA_FILE
+    foreign.write_text('{"width": 1, "height": 1}')
+    req = request(trapezoid=tilted_trapezoid(), method="pedestrians", camera_height_m=4.0)
+    status, answer = post(boxes_server, "api/save", req)
+    assert status == 409 and f"{api.CAMERA_FILE} already in" in answer["error"]
+    assert [p.name for p in boxes_server.session.out_dir.iterdir()] == [api.CAMERA_FILE]  # nothing written
+    assert post(boxes_server, "api/save", {**req, "overwrite": True})[0] == 200
+    assert json.loads(foreign.read_text()) == {"width": W, "height": H}
+
+
 def test_pedestrians_save_names_the_pages_detector(session, tmp_path):
     """A detections.parquet without segmentation rows: the page fits its first detector, and so does the command
     (homocal fit's default would be segmentation); its camera.json's K and size go to camera_intrinsics.json."""
