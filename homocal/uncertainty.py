@@ -8,7 +8,9 @@ homography that is almost exactly the range direction, the error the paper studi
 """
 from __future__ import annotations
 
+import functools
 import math
+from typing import Callable
 
 import numpy as np
 
@@ -110,9 +112,10 @@ def max_trustworthy_range(
     point_sigma_px: float = 1.0,
     camera_origin=(0.0, 0.0),
     map_sigma_px: float = 0.0,
+    uncertainty: Callable[..., np.ndarray] | None = None,
 ) -> float | np.ndarray:
     """The farthest range (target units, metres) along image column(s) u at which the 1-sigma radius
-    (``sigma_radius`` of ``ground_uncertainty``) stays at or under tolerance_m.
+    (``sigma_radius`` of ``ground_uncertainty``, or of ``uncertainty``) stays at or under tolerance_m.
 
     Along a column the search starts at the row of the trapezoid's lowest vertex and walks towards the horizon
     (rows v_h + D 2^(-k/16), D = start row - v_h, down to 1e-3 px from it; then 40 bisections in log(v - v_h) at
@@ -122,6 +125,10 @@ def max_trustworthy_range(
     Args:
         columns: image columns u, pixels; None: the straight-ahead column (``straight_ahead_column``).
         camera_origin: (2,) ground point under the camera, target units.
+        uncertainty: the error model, called as uncertainty(image_points (N, 2), click_sigma_px=,
+            point_sigma_px=, map_sigma_px=) -> covariances (N, 2, 2): a fitted correction's own
+            (``Corrector.ground_uncertainty``, whose ``mapping`` is transformer); None: ground_uncertainty of
+            transformer.
     Returns a float if columns is None, else an array of the columns' shape.
     """
     tol = float(tolerance_m)
@@ -135,10 +142,12 @@ def max_trustworthy_range(
         raise ValueError(f"columns must be finite numbers, got {u_all.tolist()}")
     v_start = float(transformer.source[:, 1].max())
     kw = dict(click_sigma_px=click_sigma_px, point_sigma_px=point_sigma_px, map_sigma_px=map_sigma_px)
+    if uncertainty is None:
+        uncertainty = functools.partial(ground_uncertainty, transformer)
 
     def radius(u: float, log_dv: np.ndarray) -> np.ndarray:
         q = np.column_stack([np.full(len(log_dv), u), transformer.horizon_row(u) + np.exp(log_dv)])
-        return sigma_radius(ground_uncertainty(transformer, q, **kw))
+        return sigma_radius(uncertainty(q, **kw))
 
     out = np.empty(len(u_all))
     for n, u in enumerate(u_all):

@@ -26,6 +26,7 @@ from homocal.correctors.serialization import (
 )
 from homocal.files import read_json, write_text_atomic
 from homocal.geometry import ViewTransformer, as_points, check_magnitude
+from homocal.uncertainty import ground_uncertainty
 
 MAX_REFERENCE_POINTS = 100_000  # calibration pairs a fit takes (fit, advise and the page refuse more)
 
@@ -142,6 +143,22 @@ class Corrector:
         if not hasattr(self, "calibration_improvement_"):
             raise RuntimeError(f"{type(self).__name__} is not fitted: call fit() or load() first")
         return self._transform(as_points(image_points, "image_points"))
+
+    @property
+    def mapping(self) -> ViewTransformer:
+        """The trapezoid mapping the fitted correction maps with: its own ``transformer_`` (descent, horizon,
+        least change, pedestrians), the clicked one otherwise (the regressions, whose radial correction is
+        applied after it)."""
+        return getattr(self, "transformer_", self.base_transformer_)
+
+    def ground_uncertainty(self, image_points: np.ndarray, click_sigma_px: float = 1.5, point_sigma_px: float = 1.0,
+                           map_sigma_px: float = 0.0) -> np.ndarray:
+        """First-order covariance (N, 2, 2), target units squared (metres^2), of the corrected ground positions of
+        image points (N, 2) px: the correction's own error model. Here ``homocal.ground_uncertainty`` of
+        ``mapping`` (the paper's eq. (1): click_sigma_px on each of its image corner coordinates, map_sigma_px on
+        each map corner coordinate in target units, point_sigma_px on the point); a method that knows more of
+        its own error (PedestrianCorrector: its fitted horizon's) adds it. NaN on or above the horizon."""
+        return ground_uncertainty(self.mapping, image_points, click_sigma_px, point_sigma_px, map_sigma_px)
 
     def _fit(self, q: np.ndarray, p: np.ndarray, g: np.ndarray) -> None:
         """Fit from validated image points q, their mapping p and ground truth g, all (N, 2)."""

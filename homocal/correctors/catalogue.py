@@ -28,7 +28,6 @@ from homocal.correctors.hybrid import HybridCorrector
 from homocal.correctors.least_change import LeastChangeCorrector
 from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.correctors.regression import RegressionCorrector
-from homocal.geometry import ViewTransformer
 
 
 def _regression_note(c: RegressionCorrector) -> str:
@@ -165,11 +164,3 @@ def fit_note(corrector: Corrector) -> str:
     """The sentence fit prints after ``quality``: the method's own fitted numbers ("" if it has none)."""
     return method_of(corrector).note(corrector)
 
-
-def mapping_of(corrector: Corrector) -> ViewTransformer:
-    """The trapezoid mapping a fitted correction maps with (its error bars are this mapping's): descent's,
-    horizon's and least-change's own (``transformer_``), the hybrid's chosen one's, the clicked one otherwise
-    (the regressions: their radial correction is not in the error bars)."""
-    if isinstance(corrector, HybridCorrector):
-        return mapping_of(corrector.regression_ if corrector.chosen_ == "regression" else corrector.descent_)
-    return getattr(corrector, "transformer_", corrector.base_transformer_)

@@ -19,15 +19,14 @@ import numpy as np
 from homocal.arguments import SEED, number, xy_pair
 from homocal.boxes import DEFAULT_DETECTOR, read_boxes
 from homocal.correctors.base import MAX_REFERENCE_POINTS, load_corrector
-from homocal.correctors.catalogue import (DEFAULT_METHOD, LEAST_CHANGE_PRIORS, METHODS, fit_note, label, mapping_of,
-                                          quality)
+from homocal.correctors.catalogue import DEFAULT_METHOD, LEAST_CHANGE_PRIORS, METHODS, fit_note, label, quality
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.least_change import LeastChangeCorrector
 from homocal.correctors.pedestrians import DEFAULT_HEIGHT_MEAN_M, DEFAULT_HEIGHT_SD_M
 from homocal.correctors.serialization import FORMAT
 from homocal.files import check_output_file, csv_header, json_format, read_json, read_points_csv, write_text_atomic
 from homocal.geometry import MAX_COORDINATE, ViewTransformer
-from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius, straight_ahead_column
+from homocal.uncertainty import max_trustworthy_range, sigma_radius, straight_ahead_column
 
 LEAST_CHANGE = {k: LeastChangeCorrector().get_params()[k] for k in LEAST_CHANGE_PRIORS}  # fit's prior flags, defaults
 TRUST_TOLERANCE_M = 0.5  # homocal fit reports how far the 1-sigma error stays under this
@@ -55,8 +54,9 @@ seen in the image): a mirrored or upside-down map is refused.
 The camera origin (--camera-origin, metres, default 0,0) is the ground point under the camera; write
 a negative value as --camera-origin=-1.5,0.
 The correction JSON holds everything needed to apply it later (homocal apply). The last line printed is
-the range straight ahead out to which the 1-sigma error of a mapped point (1.5 px clicking error on each
-trapezoid corner, 1 px on the foot point: homocal.max_trustworthy_range) stays under 0.5 m.
+the range straight ahead out to which the 1-sigma error of a corrected point (the correction's error model,
+as homocal apply's sigma_m, at 1.5 px clicking error on each trapezoid corner and 1 px on the foot point:
+homocal.max_trustworthy_range) stays under 0.5 m.
 
 --method pedestrians fits from people's boxes instead (--boxes), with no reference point: the camera's
 tilt from the boxes' implied heights (docs/pedestrians.md). BOXES is a MOTChallenge .txt (simgen export-mot's
@@ -74,10 +74,12 @@ APPLY_FORMATS = """\
 FEET.csv: a header line then one row per point; columns u, v (image foot point, pixels) are required,
 other columns are carried through to the output. The output has the same rows and columns plus
   x, y      the corrected ground position in metres (replacing any x, y of the input);
-  sigma_m   its 1-sigma radius in metres (sqrt of the largest eigenvalue of the first-order covariance,
-            homocal.ground_uncertainty) for a clicking error of --click-sigma-px on each trapezoid corner
-            and --point-sigma-px on the foot point; of the trapezoid the correction maps with (descent's,
-            horizon's and least-change's own, the clicked one for the regressions);
+  sigma_m   its 1-sigma radius in metres (sqrt of the largest eigenvalue of the first-order covariance
+            of the correction's error model, Corrector.ground_uncertainty): homocal.ground_uncertainty
+            for a clicking error of --click-sigma-px on each corner of the trapezoid the correction maps
+            with (descent's, horizon's, least-change's and pedestrians' own, the clicked one for the
+            regressions) and --point-sigma-px on the foot point; for pedestrians plus the fitted
+            horizon's own uncertainty (its horizon_sigma_px as a tilt error);
   status    ok; beyond_horizon (on or above the horizon: x, y, sigma_m = nan); bad_input (u or v is
             nan, inf or beyond +/-1e9 in the input: x, y, sigma_m = nan).
 Rows are never dropped; the summary line names the lines of the non-finite rows."""
@@ -167,8 +169,9 @@ def handle_fit(args: argparse.Namespace) -> int:
     corrector.save(args.out)
     print(f"homocal fit: {args.method} correction from {source} written to {args.out}: "
           f"{quality(corrector)}.{fit_note(corrector)}")
-    mapping = mapping_of(corrector)
-    trust = max_trustworthy_range(mapping, TRUST_TOLERANCE_M, camera_origin=args.camera_origin)
+    mapping = corrector.mapping
+    trust = max_trustworthy_range(mapping, TRUST_TOLERANCE_M, camera_origin=args.camera_origin,
+                                  uncertainty=corrector.ground_uncertainty)
     print(f"Error bars (1.5 px clicking error on each trapezoid corner, 1 px on a foot point): the 1-sigma error "
           f"stays under {TRUST_TOLERANCE_M:g} m out to {trust:.1f} m straight ahead (image column "
           f"{straight_ahead_column(mapping):.0f}).")
@@ -245,7 +248,7 @@ def handle_apply(args: argparse.Namespace) -> int:
     bad_input = ~(np.abs(q) <= MAX_COORDINATE).all(axis=1)  # nan, inf, or an overflow
     q[bad_input] = np.nan
     xy = corrector.transform_points(q)
-    sigma = sigma_radius(ground_uncertainty(mapping_of(corrector), q, args.click_sigma_px, args.point_sigma_px))
+    sigma = sigma_radius(corrector.ground_uncertainty(q, args.click_sigma_px, args.point_sigma_px))
     status = np.where(bad_input, "bad_input", np.where(np.isnan(xy).any(axis=1), "beyond_horizon", "ok"))
     out_fields = [f for f in fields if f not in APPLIED] + list(APPLIED)
     buffer = io.StringIO()

@@ -7,6 +7,7 @@ import numpy as np
 from homocal.correctors.base import Corrector
 from homocal.correctors.descent import DescentCorrector
 from homocal.correctors.regression import RegressionCorrector
+from homocal.geometry import ViewTransformer
 
 DEFAULT_THRESHOLD = 75.0  # percent: the paper's (Section 7)
 
@@ -41,8 +42,18 @@ class HybridCorrector(Corrector):
         self.descent_ = DescentCorrector(**descent_params).fit(*calibration)
         self.chosen_ = "regression" if self.regression_.calibration_improvement_ >= self.threshold else "descent"
 
+    @property
+    def chosen(self) -> Corrector:
+        """The fitted corrector the threshold chose (regression_ or descent_)."""
+        return self.regression_ if self.chosen_ == "regression" else self.descent_
+
+    @property
+    def mapping(self) -> ViewTransformer:
+        """The chosen corrector's mapping."""
+        return self.chosen.mapping
+
     def _transform(self, q: np.ndarray) -> np.ndarray:
-        return (self.regression_ if self.chosen_ == "regression" else self.descent_).transform_points(q)
+        return self.chosen.transform_points(q)
 
     def _fitted_state(self) -> dict:
         return {"chosen": self.chosen_, "regression": self.regression_.to_dict(), "descent": self.descent_.to_dict()}

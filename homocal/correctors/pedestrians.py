@@ -57,10 +57,9 @@ import numpy as np
 
 from homocal.correctors.base import Corrector, check_calibration, check_camera_origin, improvement_percent, mean_error
 from homocal.correctors.serialization import float_or_none, integer, number
-from homocal.geometry import ViewTransformer, apply_homography
+from homocal.geometry import ViewTransformer, apply_homography, as_points
 from homocal.geometry.boxes import box_edges, link_tracks
 from homocal.geometry.camera import tilt_homography
-from homocal.uncertainty import ground_uncertainty
 
 # Adult heights, metres: NCD-RisC 2016 (eLife 5:e13410, "A century of trends in adult human height"), as
 # summarised by Our World in Data: the global mean of adults born in 1996 is 171 cm for men and 159 cm for
@@ -413,14 +412,17 @@ class PedestrianCorrector(Corrector):
     def _transform(self, q: np.ndarray) -> np.ndarray:
         return self.transformer_.transform_points(q)
 
-    def ground_uncertainty(self, image_points: np.ndarray, click_sigma_px: float = 0.0,
-                           point_sigma_px: float = 1.0) -> np.ndarray:
-        """First-order covariance (N, 2, 2), metres, of the corrected ground points of image points (N, 2) px:
-        the fitted horizon's uncertainty (horizon_sigma_px_, as a tilt) plus homocal.ground_uncertainty of
-        transformer_ (click_sigma_px on each corrected trapezoid corner coordinate, point_sigma_px on the
-        point; the horizon part of the clicking error is what the people fixed, hence 0 by default)."""
-        q = np.asarray(image_points, dtype=np.float64).reshape(-1, 2)
-        cov = ground_uncertainty(self.transformer_, q, click_sigma_px, point_sigma_px)
+    def ground_uncertainty(self, image_points: np.ndarray, click_sigma_px: float = 1.5, point_sigma_px: float = 1.0,
+                           map_sigma_px: float = 0.0) -> np.ndarray:
+        """First-order covariance (N, 2, 2), metres^2, of the corrected ground points of image points (N, 2) px:
+        ``Corrector.ground_uncertainty`` (homocal.ground_uncertainty of transformer_: click_sigma_px on each
+        corrected trapezoid corner coordinate, map_sigma_px on each map corner coordinate, point_sigma_px on the
+        point) plus the fitted horizon's own uncertainty, horizon_sigma_px_ as a tilt sigma
+        sigma_theta = horizon_sigma_px_ / (f sec^2(theta)) (the module docstring's Uncertainty), J J^T
+        sigma_theta^2 with J the derivative of the corrected point along the tilt (central differences of
+        transformer_ turned by tilt_homography(K, -+1e-6))."""
+        q = as_points(image_points, "image_points")
+        cov = super().ground_uncertainty(q, click_sigma_px, point_sigma_px, map_sigma_px)
         f, cy = self.focal_px_, self.principal_point_[1]
         tilt = math.atan((cy - self.horizon_row_) / f)
         step = 1e-6

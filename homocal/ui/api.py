@@ -14,12 +14,13 @@ import csv
 import io
 import math
 import os
+import shlex
 import warnings
 
 import numpy as np
 
 from homocal.correctors.base import MAX_REFERENCE_POINTS, Corrector, load_corrector
-from homocal.correctors.catalogue import Method, fit_note, get_method, mapping_of, method_of, quality
+from homocal.correctors.catalogue import Method, fit_note, get_method, method_of, quality
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.serialization import float_or_none
 from homocal.files import read_json, read_points_csv, write_json_atomic, write_text_atomic
@@ -29,6 +30,7 @@ from homocal.ui.errorbars import error_bars
 from homocal.ui.session import Session
 
 TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE = "trapezoid.json", "reference_points.csv", "correction.json"
+CAMERA_FILE = "camera_intrinsics.json"  # Save's --camera-json of a fit from boxes (not camera.json: a dataset's)
 MAX_SIGMA_PX = 100.0  # the error bars' sigmas (pixels): a clicking error beyond this is no click
 MAX_TOLERANCE_M = 1e6
 MAX_SEED = 2**64 - 1
@@ -136,10 +138,12 @@ def _fitted(session: Session, req: dict) -> tuple[Corrector, ViewTransformer, np
     return corrector, transformer, points, [str(w.message) for w in caught]
 
 
-def _fit_boxes(session: Session, req: dict, corrector, transformer: ViewTransformer, points: np.ndarray) -> None:
-    """Fit a PedestrianCorrector on the session's boxes: the request's "detector" (one of the session's
-    detectors; default the first, segmentation if it has one) and "camera_height_m" (None: from the clicked
-    mapping); the image size is the boxes file's, else the frame's; K the boxes file's, else from the mapping."""
+def _box_settings(session: Session, req: dict) -> dict:
+    """What a fit from the session's boxes uses besides the trapezoid and the height prior: "detector" (the
+    request's, one of the session's detectors; default segmentation if it has one, else the first; None for a
+    file without detectors), "camera_height_m" (the request's; None: from the clicked mapping), "boxes" (the
+    PersonBoxes read), "image_size" (the boxes file's, else the frame's) and "K" (the boxes file's, else None:
+    from the mapping)."""
     if session.boxes is None:
         raise ValueError("method: pedestrians fits from people's boxes: start homocal ui with --boxes FILE (or a "
                          "dataset folder)")
@@ -154,9 +158,17 @@ def _fit_boxes(session: Session, req: dict, corrector, transformer: ViewTransfor
     height = req.get("camera_height_m")
     height = None if height is None else _number(req, "camera_height_m", 0, -math.inf, math.inf)
     boxes = session.person_boxes(detector)
+    return {"detector": detector, "camera_height_m": height, "boxes": boxes,
+            "image_size": boxes.image_size or session.frame_size, "K": boxes.K}
+
+
+def _fit_boxes(session: Session, req: dict, corrector, transformer: ViewTransformer, points: np.ndarray) -> None:
+    """Fit a PedestrianCorrector on the session's boxes with _box_settings; the points, if any, check it."""
+    settings = _box_settings(session, req)
+    boxes = settings["boxes"]
     check = {"image_points": points[:, :2], "ground_points": points[:, 2:]} if len(points) else {}
     corrector.fit(transformer, boxes.xyxy, convention="homocal", frames=boxes.frames, track_ids=boxes.track_ids,
-                  camera_height_m=height, K=boxes.K, image_size=boxes.image_size or session.frame_size,
+                  camera_height_m=settings["camera_height_m"], K=settings["K"], image_size=settings["image_size"],
                   camera_origin=_camera_origin(req), **check)
 
 
@@ -195,15 +207,16 @@ def view(session: Session, req: dict) -> dict:
 
 def fit(session: Session, req: dict) -> dict:
     """Fit the chosen method on the reference points (or the session's boxes); errors before/after, per-point
-    residuals, the corrected grid, the horizon of the mapping the correction maps with (mapping_of: the
-    clicked one for the regressions) and the correction's JSON (what Save writes)."""
+    residuals, the corrected grid, the horizon of the mapping the correction maps with (Corrector.mapping: the
+    clicked one for the regressions), the trustworthy range of the correction's own error model
+    (Corrector.ground_uncertainty) and the correction's JSON (what Save writes)."""
     corrector, transformer, points, caught = _fitted(session, req)
     mapped = transformer.transform_points(points[:, :2])
     corrected = corrector.transform_points(points[:, :2])
     w, h = session.frame_size
     tolerance = _tolerance(req)
-    trust = error_bars(session, mapping_of(corrector), np.zeros((0, 2)), _camera_origin(req), tolerance,
-                       **_sigmas(req))["trustworthy_range_m"]
+    trust = error_bars(session, corrector.mapping, np.zeros((0, 2)), _camera_origin(req), tolerance, **_sigmas(req),
+                       uncertainty=corrector.ground_uncertainty)["trustworthy_range_m"]
     trust_note = (f" With its mapping the 1-sigma error stays under {tolerance:g} m out to "
                   + ("any range" if trust is None else f"{trust:.1f} m") + " straight ahead.")
     return {
@@ -217,40 +230,49 @@ def fit(session: Session, req: dict) -> dict:
         "residual_after": np.hypot(*(corrected - points[:, 2:]).T).tolist(),
         "corrected_grid": overlay.ground_grid(overlay.sample_mapping(corrector.transform_points, transformer, w, h),
                                               _camera_origin(req)),
-        "horizon": overlay.horizon_segment(mapping_of(corrector), w, h),
+        "horizon": overlay.horizon_segment(corrector.mapping, w, h),
         "correction": corrector.to_dict(),
     }
 
 
 def locate(session: Session, req: dict) -> dict:
-    """The ground position of one image point (plain and, given a fitted "correction", corrected) with its
-    1-sigma error ellipse."""
+    """The ground position of one image point with its 1-sigma error ellipse ("errorbars", the clicked
+    trapezoid's) and, given a fitted "correction", its corrected position with the correction's own error
+    ellipse ("corrected_errorbars": Corrector.ground_uncertainty; None beyond the corrected horizon)."""
     transformer = _complete_transformer(session, req)
     point = _points([req.get("point")], "point", 2)
     ground = transformer.transform_points(point)[0]
     if not np.isfinite(ground).all():
         raise ValueError(f"the point {point[0].tolist()} is on or above the horizon: it has no ground position")
     origin = _camera_origin(req)
-    out = {"ground": ground.tolist(), "distance": float(np.hypot(*(ground - origin))), "corrected": None}
+    out = {"ground": ground.tolist(), "distance": float(np.hypot(*(ground - origin))), "corrected": None,
+           "corrected_errorbars": None}
     if req.get("correction") is not None:
         if not isinstance(req["correction"], dict):
             raise ValueError("correction: expected the object /api/fit answered with")
         corrector = Corrector.from_dict(req["correction"], "correction")
         corrected = corrector.transform_points(point)[0]
-        out["corrected"] = corrected.tolist() if np.isfinite(corrected).all() else None
+        if np.isfinite(corrected).all():
+            out["corrected"] = corrected.tolist()
+            out["corrected_errorbars"] = error_bars(session, corrector.mapping, point, origin, None, **_sigmas(req),
+                                                    uncertainty=corrector.ground_uncertainty,
+                                                    transform=corrector.transform_points)
     out["errorbars"] = error_bars(session, transformer, point, origin, None, **_sigmas(req))
     return out
 
 
 def save(session: Session, req: dict) -> dict:
-    """Write trapezoid.json, reference_points.csv and correction.json (the formats of ``homocal fit --help``)
-    to the session's folder. A file this server did not write (or that was replaced since) is overwritten only
-    with "overwrite": true (the page asks first; otherwise FileExistsError); a symbolic link is never replaced
+    """Write trapezoid.json, reference_points.csv and correction.json (the formats of ``homocal fit --help``) to
+    the session's folder, and for a fit from boxes camera_intrinsics.json (CAMERA_FILE: the image size and K the
+    fit used, as --camera-json); answer the files and the ``homocal fit`` command that gives the same correction
+    from them. A file this server did not write (or that was replaced since) is overwritten only with
+    "overwrite": true (the page asks first; otherwise FileExistsError); a symbolic link is never replaced
     (``Refused``)."""
     corrector, _, points, _ = _fitted(session, req)
     method = method_of(corrector)
     image, map_px = trapezoid(req)
-    paths = [session.out_dir / name for name in (TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE)]
+    names = (TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE) + ((CAMERA_FILE,) if method.evidence == "boxes" else ())
+    paths = [session.out_dir / name for name in names]
     links = [p.name for p in paths if p.is_symlink()]
     if links:
         raise Refused(f"{', '.join(links)} in {session.out_dir}: a symbolic link, which Save never replaces "
@@ -264,19 +286,27 @@ def save(session: Session, req: dict) -> dict:
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(["u", "v", "x", "y"])
     writer.writerows([[repr(float(x)) for x in row] for row in points])
-    write_json_atomic(paths[0], {"image": image.tolist(), "map": map_px.tolist(), "site_map": site})
-    write_text_atomic(paths[1], buffer.getvalue())
-    corrector.save(paths[2])
-    session.written.update({p: _identity(p) for p in paths})
     params = corrector.get_params()
     flags = [f"--{k} {params[k]!r}" for k in ("seed", "threshold") if k in method.settings]
     if method.evidence == "boxes":
-        given = {"--detector": req.get("detector"), "--camera-height": req.get("camera_height_m")}
-        flags = [f"--boxes {session.boxes}", *(f"{k} {v}" for k, v in given.items() if v is not None),
-                 f"--height-mean {params['height_mean_m']!r}", f"--height-sd {params['height_sd_m']!r}"]
-    points_flag = f" --points {paths[1]}" if len(points) else ""
+        settings = _box_settings(session, req)
+        (width, height), K = settings["image_size"], settings["K"]
+        camera = {"width": width, "height": height, **({} if K is None else {"K": K.tolist()})}
+        detector, camera_height = settings["detector"], settings["camera_height_m"]
+        given = {"--detector": None if detector is None else shlex.quote(detector),
+                 "--camera-height": None if camera_height is None else repr(camera_height)}
+        flags = [f"--boxes {shlex.quote(str(session.boxes))}", *(f"{k} {v}" for k, v in given.items() if v is not None),
+                 f"--camera-json {shlex.quote(str(paths[3]))}", f"--height-mean {params['height_mean_m']!r}",
+                 f"--height-sd {params['height_sd_m']!r}"]
+    write_json_atomic(paths[0], {"image": image.tolist(), "map": map_px.tolist(), "site_map": site})
+    write_text_atomic(paths[1], buffer.getvalue())
+    corrector.save(paths[2])
+    if method.evidence == "boxes":
+        write_json_atomic(paths[3], camera)
+    session.written.update({p: _identity(p) for p in paths})
+    points_flag = f" --points {shlex.quote(str(paths[1]))}" if len(points) else ""
     return {"written": [str(p) for p in paths], "method": method.name,
-            "command": f"homocal fit --trapezoid {paths[0]}{points_flag} --method {method.name} "
+            "command": f"homocal fit --trapezoid {shlex.quote(str(paths[0]))}{points_flag} --method {method.name} "
                        f"-o CORRECTION.json --camera-origin={','.join(repr(float(x)) for x in corrector.camera_origin_)}"
                        + "".join(" " + f for f in flags)}
 

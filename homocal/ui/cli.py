@@ -18,7 +18,9 @@ With --boxes FILE (a MOTChallenge .txt, a detections.parquet or a .csv of frame,
 --boxes reads them; a dataset's detections.parquet by default) the page also fits --method pedestrians from
 those people's boxes, and draws the fitted horizon beside the clicked one.
 Save writes trapezoid.json, reference_points.csv and correction.json into --out, in the formats of
-homocal fit and homocal apply; it asks before replacing a file it did not write. Load reads them back."""
+homocal fit and homocal apply (for a fit from boxes also camera_intrinsics.json, the image size and K it
+used, as --camera-json), and shows the homocal fit command that writes the same correction from them; it
+asks before replacing a file it did not write. Load reads them back."""
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

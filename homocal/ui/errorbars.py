@@ -2,6 +2,9 @@
 ``ground_uncertainty`` and ``max_trustworthy_range`` (homocal/uncertainty.py)."""
 from __future__ import annotations
 
+import functools
+from typing import Callable
+
 import numpy as np
 
 from homocal.geometry import ViewTransformer
@@ -13,11 +16,16 @@ ELLIPSE_VERTICES = 32
 
 
 def error_bars(session: Session, transformer: ViewTransformer, image_points: np.ndarray, camera_origin: np.ndarray,
-               tolerance_m: float | None, click_sigma_px: float, point_sigma_px: float, map_sigma_px: float) -> dict:
+               tolerance_m: float | None, click_sigma_px: float, point_sigma_px: float, map_sigma_px: float,
+               uncertainty: Callable[..., np.ndarray] | None = None,
+               transform: Callable[[np.ndarray], np.ndarray] | None = None) -> dict:
     """1-sigma error ellipses of the ground positions of image points (K, 2) px, and the trustworthy range.
 
-    The sigmas are those of ``ground_uncertainty``: image clicks and the point itself in image px, the map
-    clicks in site-map px (converted here to the transformer's metres). Points whose covariance is NaN (at the
+    The error model is ``uncertainty`` (a fitted correction's own ``Corrector.ground_uncertainty``, whose
+    mapping is transformer), or ``ground_uncertainty`` of transformer if None. The sigmas are theirs: image
+    clicks and the point itself in image px, the map clicks in site-map px (converted here to the
+    transformer's metres). The ellipses are centred on ``transform`` of the points (a fitted correction's
+    transform_points), or on transformer's mapping of them if None. Points whose covariance is NaN (at the
     horizon) are left out. Returns {"image_points": (K', 2) px, "points": (K', 2) ground m, "sigma": [[major,
     minor] m, ...], "image": ellipses as image polylines, "map": ellipses in map px, "trustworthy_range_m":
     the straight-ahead range whose 1-sigma radius is <= tolerance_m (None if unbounded or tolerance_m is None),
@@ -26,14 +34,16 @@ def error_bars(session: Session, transformer: ViewTransformer, image_points: np.
     """
     sigmas = {"click_sigma_px": click_sigma_px, "point_sigma_px": point_sigma_px,
               "map_sigma_px": map_sigma_px / session.site_map.scale_px_per_m}
-    cov = ground_uncertainty(transformer, image_points, **sigmas)
+    uncertainty = functools.partial(ground_uncertainty, transformer) if uncertainty is None else uncertainty
+    cov = uncertainty(image_points, **sigmas)
     valid = np.isfinite(cov).all(axis=(1, 2))
     image_points, cov = image_points[valid], cov[valid]
     trustworthy = None
     if tolerance_m is not None:
-        trustworthy = float(max_trustworthy_range(transformer, tolerance_m, camera_origin=camera_origin, **sigmas))
+        trustworthy = float(max_trustworthy_range(transformer, tolerance_m, camera_origin=camera_origin,
+                                                 uncertainty=uncertainty, **sigmas))
         trustworthy = trustworthy if np.isfinite(trustworthy) else None
-    centres = transformer.transform_points(image_points)
+    centres = (transformer.transform_points if transform is None else transform)(image_points)
     eigval, eigvec = np.linalg.eigh(cov)  # ascending: minor, major; columns of eigvec are the axes
     angle = np.linspace(0, 2 * np.pi, ELLIPSE_VERTICES)
     unit = np.stack([np.cos(angle), np.sin(angle)])  # (2, V)

@@ -72,7 +72,7 @@ def test_fit_and_apply_match_the_library(work, method, expected):
     assert fit.returncode == 0, fit.stderr
     reference = expected().fit(ViewTransformer(IMAGE, GROUND), REF_Q, REF_G, (0.0, 0.0))
     assert f"{reference.calibration_improvement_:.1f} %" in fit.stdout and method in fit.stdout
-    mapping = getattr(reference, "transformer_", reference.base_transformer_)
+    mapping = getattr(reference, "transformer_", reference.base_transformer_)  # the points methods' error model
     assert f"under 0.5 m out to {max_trustworthy_range(mapping, 0.5):.1f} m straight ahead" in fit.stdout
     app = homocal("apply", "c.json", "--points", "feet.csv", "-o", "out.csv", "--click-sigma-px", "2",
                   "--point-sigma-px", "0.5", cwd=work)
@@ -344,6 +344,14 @@ def test_pedestrians_fit_then_apply(boxes_work, tiny_dataset, boxes, flags):
         rows = list(csv.DictReader(f))
     q = np.array([[float(r["u"]), float(r["v"])] for r in rows])
     np.testing.assert_allclose([[float(r["x"]), float(r["y"])] for r in rows], reference.transform_points(q), atol=1e-9)
+    # sigma_m and the Error bars line are the correction's own error model: the fitted horizon's uncertainty
+    # on top of the corrected trapezoid's clicking and foot-point errors
+    sigma = np.array([float(r["sigma_m"]) for r in rows])
+    np.testing.assert_allclose(sigma, sigma_radius(reference.ground_uncertainty(q, 1.5, 1.0)), rtol=1e-12)
+    assert (sigma > sigma_radius(ground_uncertainty(reference.transformer_, q, 1.5, 1.0))).all()
+    trust = max_trustworthy_range(reference.mapping, 0.5, uncertainty=reference.ground_uncertainty)
+    assert f"under 0.5 m out to {trust:.1f} m straight ahead" in fit.stdout
+    assert trust < max_trustworthy_range(reference.mapping, 0.5)
     (boxes_work / "c.json").unlink()
 
 

@@ -3,6 +3,7 @@ on synthetic people (with outliers), the corrected mapping against the true one,
 readers, and the bad inputs."""
 from __future__ import annotations
 
+import copy
 import json
 import math
 
@@ -14,6 +15,7 @@ import pytest
 from homocal.boxes import read_boxes, read_mot
 from homocal.correctors.base import load_corrector
 from homocal.correctors.pedestrians import (
+    MODELS,
     PedestrianCorrector,
     camera_height_from_homography,
     fit_tilt,
@@ -25,6 +27,7 @@ from homocal.geometry import PinholeCamera, ViewTransformer
 from homocal.geometry.boxes import box_edges, link_tracks
 from homocal.geometry.camera import tilt_homography
 from homocal.study.perturb import tilt_shift
+from homocal.uncertainty import ground_uncertainty
 
 CAM = PinholeCamera()  # 1280x720, 95 deg, 4 m, 15 deg down
 GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])  # TL, TR, BR, BL on the road, metres
@@ -220,6 +223,29 @@ class TestPedestrianCorrector:
             ys.append(c.transform_points(q)[0, 1])
         assert math.sqrt(cov[0, 1, 1]) == pytest.approx(np.std(ys), rel=0.15)
         assert math.sqrt(cov[0, 1, 1]) > 0.05
+
+
+    @pytest.mark.parametrize("model", MODELS)
+    def test_ground_uncertainty_is_the_horizons_plus_the_trapezoids(self, model):
+        """The corrector's own error model against an independent computation: the fitted horizon moved by hand
+        to +-1 sigma (the mapping rebuilt from it), the corrected points' half-difference d gives the horizon
+        term d d^T; added to homocal.ground_uncertainty of the corrected trapezoid, it is the whole covariance."""
+        _, boxes, frames, _ = people(100, seed=11)
+        c = PedestrianCorrector(1.7, 0.07, model=model).fit(clicked_mapping(), boxes, convention="homocal",
+                                                             track_ids=frames, K=CAM.K, camera_height_m=4.0)
+        q = CAM.project_ground([[0.0, 10.0], [3.0, 25.0], [-4.0, 40.0], [1.0, 50.0]])
+        trapezoid = ground_uncertainty(c.transformer_, q, 0.3, 0.2, 0.02)
+        moved = copy.copy(c)
+        ends = []
+        for sign in (1.0, -1.0):
+            moved.horizon_row_ = c.horizon_row_ + sign * c.horizon_sigma_px_
+            moved._set_transformer()
+            ends.append(moved.transform_points(q))
+        d = (ends[0] - ends[1]) / 2
+        expected = trapezoid + d[:, :, None] * d[:, None, :]
+        np.testing.assert_allclose(c.ground_uncertainty(q, 0.3, 0.2, 0.02), expected, rtol=2e-3, atol=1e-9)
+        assert (np.linalg.norm(d, axis=1) > 0.01).all()  # the horizon's part is not negligible
+        assert np.isnan(c.ground_uncertainty([[640.0, 10.0]])).all()  # above the horizon
 
 
 def _fit(**kw):

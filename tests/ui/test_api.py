@@ -6,6 +6,7 @@ import http.client
 import json
 import os
 import re
+import shlex
 import socket
 import subprocess
 import sys
@@ -150,6 +151,8 @@ def test_pedestrians_fit_from_the_launch_boxes(boxes_server):
     assert at_cx == pytest.approx(reference.horizon_row_, abs=1e-6) and abs(at_cx - CAM.horizon_row) < 2.0
     assert clicked.horizon_row(CAM.K[0, 2]) == pytest.approx(CAM.horizon_row - 16.0, abs=0.1)
     assert "people (tracks): " in fit["summary"] and "no check points" in fit["summary"]
+    trust = max_trustworthy_range(reference.mapping, 0.5, uncertainty=reference.ground_uncertainty)  # its own errors
+    assert f"out to {trust:.1f} m straight ahead" in fit["summary"] and trust < max_trustworthy_range(reference.mapping, 0.5)
     status, checked = post(boxes_server, "api/fit", request(trapezoid=trap, method="pedestrians", camera_height_m=4.0))
     assert status == 200 and checked["correction"]["fitted"] == fit["correction"]["fitted"]
     assert checked["error_after"] < checked["error_before"] and "check points" in checked["summary"]
@@ -178,8 +181,9 @@ def test_pedestrians_bad_requests(boxes_server, fields, message):
     assert status == 400 and message in answer["error"], answer
 
 
-def test_pedestrians_detector_of_a_dataset_parquet(session, tmp_path):
-    """A detections.parquet: the page picks one of its detectors by name, and no other."""
+def _parquet_boxes(session, tmp_path: Path, K: np.ndarray | None = None) -> tuple[Path, tuple[str, ...]]:
+    """standing_people_csv's boxes as an "rgb" detector's rows of a detections.parquet (with a camera.json of
+    the frame's size and K beside it when K is given); the session's boxes file and detectors of it."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -190,7 +194,14 @@ def test_pedestrians_detector_of_a_dataset_parquet(session, tmp_path):
     pq.write_table(pa.table({"detector": ["rgb"] * n, "frame": table[:, 0].astype(np.int32),
                              **{c: table[:, i + 1] - 0.5 for i, c in enumerate(("x1", "y1", "x2", "y2"))}}),
                    tmp_path / "detections.parquet")
-    session.boxes, session.detectors = _boxes_file(tmp_path / "detections.parquet")
+    if K is not None:
+        (tmp_path / "camera.json").write_text(json.dumps({"width": W, "height": H, "K": K.tolist()}))
+    return _boxes_file(tmp_path / "detections.parquet")
+
+
+def test_pedestrians_detector_of_a_dataset_parquet(session, tmp_path):
+    """A detections.parquet: the page picks one of its detectors by name, and no other."""
+    session.boxes, session.detectors = _parquet_boxes(session, tmp_path)
     assert session.detectors == ("rgb",)
     req = request(trapezoid=tilted_trapezoid(), method="pedestrians", points=[], camera_height_m=4.0)
     assert abs(api.fit(session, req)["correction"]["fitted"]["horizon_row"] - CAM.horizon_row) < 2.0
@@ -198,14 +209,77 @@ def test_pedestrians_detector_of_a_dataset_parquet(session, tmp_path):
         api.fit(session, {**req, "detector": "../x"})
 
 
-def test_pedestrians_save_names_the_boxes(boxes_server):
+def test_pedestrians_probe_has_the_corrections_own_error_bar(session, tmp_path):
+    """locate with a pedestrians correction: the corrected position's ellipse is the correction's own error model
+    (its fitted horizon's uncertainty on top of the corrected trapezoid's), at the request's sigmas."""
+    from homocal import load_corrector
+
+    session.boxes = standing_people_csv(tmp_path / "boxes.csv").resolve()
+    req = request(trapezoid=tilted_trapezoid(), method="pedestrians", points=[], camera_height_m=4.0,
+                  click_sigma_px=0.5, point_sigma_px=0.8)
+    correction = api.fit(session, req)["correction"]
+    (tmp_path / "c.json").write_text(json.dumps(correction))
+    corrector = load_corrector(tmp_path / "c.json")
+    q = CAM.project_ground([[2.0, 30.0]])
+    answer = api.locate(session, {**req, "point": q[0].tolist(), "correction": correction})
+    own = answer["corrected_errorbars"]
+    np.testing.assert_array_equal(own["points"], corrector.transform_points(q))
+    assert own["points"][0] == answer["corrected"]
+    cov = corrector.ground_uncertainty(q, 0.5, 0.8)[0]
+    np.testing.assert_allclose(own["sigma"][0], np.sqrt(np.linalg.eigvalsh(cov))[::-1], rtol=1e-9)
+    assert own["sigma"][0][0] > sigma_radius(ground_uncertainty(corrector.mapping, q, 0.5, 0.8))[0]
+    assert api.locate(session, {**req, "point": q[0].tolist()})["corrected_errorbars"] is None
+
+
+def run_printed_command(command: str, out: Path) -> dict:
+    """Run the ``homocal fit`` command Save printed (in process), writing to ``out``; its correction's JSON."""
+    args = shlex.split(command)
+    assert args[:2] == ["homocal", "fit"] and args.count("CORRECTION.json") == 1
+    assert main([str(out) if a == "CORRECTION.json" else a for a in args[1:]]) == 0
+    return json.loads(out.read_text())
+
+
+@pytest.mark.parametrize("fields", [{"camera_height_m": 4.0}, {}, {"camera_height_m": 4.0, "height_mean_m": 1.7,
+                                                                   "height_sd_m": 0.08}])
+def test_pedestrians_save_prints_the_command_that_reproduces_it(boxes_server, tmp_path, fields):
+    """A boxes CSV has no image size or K: Save writes the frame's size to camera_intrinsics.json and names it in
+    the command with every other setting of the page's fit, and the command's correction is the saved one."""
     status, saved = post(boxes_server, "api/save", request(trapezoid=tilted_trapezoid(), method="pedestrians",
-                                                           camera_height_m=4.0))
+                                                           **fields))
     assert status == 200, saved
-    assert f"--method pedestrians" in saved["command"] and f"--boxes {boxes_server.session.boxes}" in saved["command"]
-    assert "--camera-height 4.0" in saved["command"] and "--points " in saved["command"]
+    out = boxes_server.session.out_dir
+    assert saved["written"][-1] == str(out / api.CAMERA_FILE)
+    assert json.loads((out / api.CAMERA_FILE).read_text()) == {"width": W, "height": H}
+    command = saved["command"]
+    assert f"--boxes {boxes_server.session.boxes}" in command and f"--camera-json {out / api.CAMERA_FILE}" in command
+    assert ("--camera-height 4.0" in command) == ("camera_height_m" in fields) and "--points " in command
+    correction = json.loads((out / "correction.json").read_text())
+    assert run_printed_command(command, tmp_path / "cli.json") == correction
     status, loaded = post(boxes_server, "api/load", {})
     assert status == 200 and loaded["fit"]["method"] == "pedestrians"
+
+
+def test_pedestrians_save_asks_before_replacing_a_camera_file_it_did_not_write(boxes_server):
+    foreign = boxes_server.session.out_dir / api.CAMERA_FILE
+    foreign.write_text('{"width": 1, "height": 1}')
+    req = request(trapezoid=tilted_trapezoid(), method="pedestrians", camera_height_m=4.0)
+    status, answer = post(boxes_server, "api/save", req)
+    assert status == 409 and f"{api.CAMERA_FILE} already in" in answer["error"]
+    assert [p.name for p in boxes_server.session.out_dir.iterdir()] == [api.CAMERA_FILE]  # nothing written
+    assert post(boxes_server, "api/save", {**req, "overwrite": True})[0] == 200
+    assert json.loads(foreign.read_text()) == {"width": W, "height": H}
+
+
+def test_pedestrians_save_names_the_pages_detector(session, tmp_path):
+    """A detections.parquet without segmentation rows: the page fits its first detector, and so does the command
+    (homocal fit's default would be segmentation); its camera.json's K and size go to camera_intrinsics.json."""
+    session.boxes, session.detectors = _parquet_boxes(session, tmp_path, K=CAM.K)
+    saved = api.save(session, request(trapezoid=tilted_trapezoid(), method="pedestrians", points=[]))
+    assert "--detector rgb" in saved["command"] and "--points" not in saved["command"]
+    assert json.loads((session.out_dir / api.CAMERA_FILE).read_text()) == {"width": W, "height": H, "K": CAM.K.tolist()}
+    correction = json.loads((session.out_dir / "correction.json").read_text())
+    assert correction["fitted"]["focal_source"] == "given"
+    assert run_printed_command(saved["command"], tmp_path / "cli.json") == correction
 
 
 # ---- overlays against the camera they should show ----------------------------------------------------

@@ -1,19 +1,23 @@
 """`homocal ui` in a real headless browser (Debian's chromium driven by selenium through chromium-driver):
 click a trapezoid on a simgen frame and its site map, add three reference points, fit, probe, save, load,
-and check that the saved files give the same correction as `homocal fit` on them.
+and check that the saved files give the same correction as `homocal fit` on them; fit the pedestrian
+correction from the dataset's boxes, see its horizon drawn, and apply what Save wrote.
 
 Set HOMOCAL_UI_SCREENSHOT=docs/ui.jpg to also write the README's screenshot of the page."""
 from __future__ import annotations
 
+import csv
 import json
 import os
 import re
+import shlex
 import subprocess
 import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
+import pyarrow.parquet as pq
 import pytest
 from selenium import webdriver
 from selenium.webdriver.chrome.service import Service
@@ -227,3 +231,101 @@ def save_screenshot(driver, path: Path) -> None:
     small = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
     path.parent.mkdir(parents=True, exist_ok=True)
     assert cv2.imwrite(str(path), small, [cv2.IMWRITE_JPEG_QUALITY, 85])
+
+
+def horizon_at(segment, u: float) -> float:
+    """The row at column u of a horizon segment [[u0, v0], [u1, v1]] (image px)."""
+    (u0, v0), (u1, v1) = segment
+    return v0 + (v1 - v0) * (u - u0) / (u1 - u0)
+
+
+def drawn_share(driver, segment, rgb, samples: int = 60) -> float:
+    """The share of ``samples`` columns across the frame canvas at which a pixel within 2 canvas px of the image
+    line ``segment`` has colour ``rgb`` (+-40 a channel): how much of the line is drawn in that colour."""
+    return js(driver, """((seg, rgb, n) => {
+        const c = document.getElementById('frame'), ctx = c.getContext('2d'), W = window.homocalUI.S.info.frame.width;
+        let hit = 0;
+        for (let k = 0; k < n; k++) {
+          const u = (k + 0.5) * W / n, v = seg[0][1] + (seg[1][1] - seg[0][1]) * (u - seg[0][0]) / (seg[1][0] - seg[0][0]);
+          const [x, y] = window.homocalUI.toScreen('frame', [u, v]);
+          const d = ctx.getImageData(Math.round(x) - 2, Math.round(y) - 2, 5, 5).data;
+          for (let i = 0; i < d.length; i += 4) {
+            if (Math.abs(d[i] - rgb[0]) <= 40 && Math.abs(d[i + 1] - rgb[1]) <= 40 && Math.abs(d[i + 2] - rgb[2]) <= 40) { hit++; break; }
+          }
+        }
+        return hit / n; })(arguments[0], arguments[1], arguments[2])""", segment, list(rgb), samples)
+
+
+def test_pedestrians_fit_save_apply_in_a_browser(browser, server, tiny_dataset, tmp_path):
+    """`homocal ui DATASET` with method pedestrians: the dataset's hand-placed trapezoid, the fit from its
+    segmentation boxes at its mount height, the fitted horizon drawn (orange) beside the clicked one (red);
+    Save's printed command writes the same correction, and `homocal apply` maps with the saved one."""
+    from homocal import load_corrector, sigma_radius
+
+    url, out = server
+    ds = load_dataset(tiny_dataset)
+    d = browser
+    d.get(url)
+    wait_for(d, "document.body.dataset.ready === '1'")
+    S = "window.homocalUI.S"
+    d.find_element(By.ID, "use-hand-placed").click()
+    idle(d)
+    assert js(d, f"{S}.view.complete") and js(d, f"{S}.view.horizon") is not None
+
+    Select(d.find_element(By.ID, "method")).select_by_visible_text("pedestrians")
+    assert d.find_element(By.ID, "boxes-fields").is_displayed()
+    assert Select(d.find_element(By.ID, "detector")).first_selected_option.text == "segmentation"
+    assert float(d.find_element(By.ID, "camera-height").get_attribute("value")) == ds.camera["mount_height_m"]
+    d.find_element(By.ID, "fit").click()
+    wait_for(d, f"{S}.fit !== null")
+    idle(d)
+    summary = d.find_element(By.ID, "fit-summary").text
+    assert summary.startswith("pedestrians: no check points") and "people (tracks):" in summary
+    fit = js(d, f"{S}.fit")
+    clicked = js(d, f"{S}.view.horizon")
+    cx = fit["correction"]["fitted"]["principal_point"][0]
+    fitted_row = fit["correction"]["fitted"]["horizon_row"]
+    assert horizon_at(fit["horizon"], cx) == pytest.approx(fitted_row, abs=1e-6)
+    assert horizon_at(clicked, cx) == pytest.approx(ViewTransformer(ds.trapezoid_image, ds.trapezoid_map).horizon_row(cx), abs=1e-6)
+    true_row = ds.camera["horizon_row"]
+    assert abs(fitted_row - true_row) < abs(horizon_at(clicked, cx) - true_row)  # the people moved it nearer
+    assert d.find_element(By.ID, "show-corrected").is_selected()
+    # the fitted horizon in orange dashes (the corrected grid's orange covers at most ~30 % of a line elsewhere),
+    # the clicked one in red dashes
+    assert drawn_share(d, fit["horizon"], (0xFF, 0x9D, 0x2E)) > 0.6
+    assert drawn_share(d, [[u, v + 40] for u, v in fit["horizon"]], (0xFF, 0x9D, 0x2E)) < 0.5
+    assert drawn_share(d, clicked, (0xFF, 0x50, 0x50)) > 0.5
+
+    d.find_element(By.ID, "mode-probe").click()
+    click(d, "frame", (700.0, 400.0))
+    wait_for(d, f"{S}.probe !== null")
+    own = js(d, f"{S}.probe.answer.corrected_errorbars")  # the correction's own error bar
+    assert own is not None and len(own["sigma"]) == 1
+    assert "; corrected 1-sigma ellipse" in d.find_element(By.ID, "probe-summary").text
+
+    d.find_element(By.ID, "save").click()
+    wait_for(d, "document.getElementById('files-summary').textContent.startsWith('wrote')")
+    saved = json.loads((out / "correction.json").read_text())
+    assert saved == fit["correction"]
+    command = d.find_element(By.ID, "files-summary").text.split("same as: ", 1)[1]
+    args = shlex.split(command)
+    assert args[:2] == ["homocal", "fit"] and "--detector" in args and "--camera-json" in args
+    cli_out = tmp_path / "cli.json"
+    args = [str(cli_out) if a == "CORRECTION.json" else a for a in args[1:]]
+    subprocess.run([sys.executable, "-m", "homocal.cli", *args], check=True, capture_output=True, text=True, env=ENV)
+    assert json.loads(cli_out.read_text()) == saved
+
+    # homocal apply on the saved file: its mapping, and sigma_m from the correction's own error model
+    gt = pq.read_table(tiny_dataset / "gt.parquet", columns=["u", "v", "in_frame"]).to_pydict()
+    feet = np.array([(u, v) for u, v, inside in zip(gt["u"], gt["v"], gt["in_frame"]) if inside][::20])
+    (tmp_path / "feet.csv").write_text("u,v\n" + "".join(f"{float(u)!r},{float(v)!r}\n" for u, v in feet))
+    subprocess.run([sys.executable, "-m", "homocal.cli", "apply", str(out / "correction.json"), "--points",
+                    str(tmp_path / "feet.csv"), "-o", str(tmp_path / "out.csv")], check=True, capture_output=True,
+                   text=True, env=ENV)
+    rows = list(csv.DictReader((tmp_path / "out.csv").open()))
+    corrector = load_corrector(out / "correction.json")
+    assert [r["status"] for r in rows] == ["ok"] * len(feet)
+    np.testing.assert_allclose([[float(r["x"]), float(r["y"])] for r in rows], corrector.transform_points(feet), atol=1e-9)
+    np.testing.assert_allclose([float(r["sigma_m"]) for r in rows], sigma_radius(corrector.ground_uncertainty(feet)),
+                               rtol=1e-12)
+    assert [entry for entry in d.get_log("browser") if entry["source"] == "javascript"] == []  # no script error

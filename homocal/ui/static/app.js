@@ -167,9 +167,9 @@ function drawGrid(ctx, grid, colors) {
   grid.rings.forEach((ring) => ring.lines.forEach((l) => polyline(ctx, "frame", l)));
 }
 
-function drawEllipses(ctx, name, bars, key, centres) {
+function drawEllipses(ctx, name, bars, key, centres, color) {
   const k = number("ellipse-scale") || 1;
-  style(ctx, "#ff4fd8", 1.6);
+  style(ctx, color || "#ff4fd8", 1.6);
   bars[key].forEach((e, i) => polyline(ctx, name, scaled(e, centres[i], k), true));
 }
 
@@ -278,6 +278,8 @@ function renderMap() {
     dot(ctx, "map", groundToMap(a.ground), 4, "#ff4fd8", true);
     if (a.corrected) dot(ctx, "map", groundToMap(a.corrected), 4, "#ff9d2e", true);
     if (a.errorbars) drawEllipses(ctx, "map", a.errorbars, "map", a.errorbars.points.map(groundToMap));
+    const own = a.corrected_errorbars;  // the correction's own error model, about the corrected position
+    if (own) drawEllipses(ctx, "map", own, "map", own.points.map(groundToMap), "#ff9d2e");
   }
 }
 
@@ -330,7 +332,9 @@ function renderPanels(keepTable) {
     $("probe-summary").textContent = `probe (${fmt(S.probe.u, 1)}, ${fmt(S.probe.v, 1)}) px -> ground ` +
       `(${fmt(a.ground[0], 2)}, ${fmt(a.ground[1], 2)}) m at ${fmt(a.distance, 2)} m` +
       (a.corrected ? `; corrected (${fmt(a.corrected[0], 2)}, ${fmt(a.corrected[1], 2)}) m` : "") +
-      (b.sigma.length ? `; 1-sigma ellipse ${fmt(b.sigma[0][0], 3)} x ${fmt(b.sigma[0][1], 3)} m` : "; no error bar (at the horizon)");
+      (b.sigma.length ? `; 1-sigma ellipse ${fmt(b.sigma[0][0], 3)} x ${fmt(b.sigma[0][1], 3)} m` : "; no error bar (at the horizon)") +
+      (a.corrected_errorbars && a.corrected_errorbars.sigma.length ?
+        `; corrected 1-sigma ellipse ${fmt(a.corrected_errorbars.sigma[0][0], 3)} x ${fmt(a.corrected_errorbars.sigma[0][1], 3)} m` : "");
   }
 }
 
