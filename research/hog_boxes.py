@@ -6,7 +6,8 @@ simgen's HogDetector (simgen.detection.hog: OpenCV's HOG people detector, the ho
 decoded H.264 video (video.mp4), on frames 0, N, 2N, ... of the first --seconds (default: all). A dataset
 generated with `--detectors ...,hog` holds HOG rows for every rendered frame already; this reads the video of
 one generated without (HOG costs seconds a frame). The CSV (homocal.boxes.read_boxes: frame,x1,y1,x2,y2 in the
-corners convention) numbers the samples, frame // N, so that one person's boxes in consecutive samples link
+corners convention; each sample's boxes in simgen's canonical order, so the same video gives the same bytes)
+numbers the samples, frame // N, so that one person's boxes in consecutive samples link
 into a track (homocal.geometry.boxes.link_tracks); boxes N frames apart overlap less than a frame apart, so
 fewer link. The output file must not exist: the command writes a new file, never over one.
 """
@@ -30,6 +31,7 @@ from homocal.geometry.boxes import BOX_CONVENTIONS  # noqa: E402
 
 def hog_rows(video: Path, every: int, frames: int) -> list[tuple]:
     """(sample, x1, y1, x2, y2) corners-convention rows of HOG's boxes on frames 0, every, ... < frames."""
+    from simgen.detection.batch import canonical_order  # noqa: PLC0415
     from simgen.detection.hog import HogDetector, hog_missing  # noqa: PLC0415  (cv2's HOG only when run)
 
     if problem := hog_missing():
@@ -40,7 +42,7 @@ def hog_rows(video: Path, every: int, frames: int) -> list[tuple]:
         if i >= frames:
             break
         if i % every == 0:
-            xyxy, _ = detector.people(rgb)
+            xyxy, _ = canonical_order(*detector.people(rgb))  # HOG's order varies with its threads
             rows += [(i // every, *box) for box in (xyxy + to_corners).tolist()]
     return rows
 
