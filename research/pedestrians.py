@@ -4,7 +4,7 @@
         [--boxes SCENE=FILE ...] [--height-mean 1.71 --height-sd 0.09] [--model camera|rotation] [--estimate-camera]
     python research/pedestrians.py DATASET [DATASET ...] --detectors segmentation,rgb,hog --seconds 10
         [--base fitted|hand-placed] [--variants 100] [--height-mean 1.71 --height-sd 0.09] [--estimate-camera]
-        [--boxes FILE] [--end-to-end exact|hand-placed --det SEQ/det/segmentation.txt [--give-k] [-o FOLDER]]
+        [--boxes FILE] [--windows] [--end-to-end exact|hand-placed --det SEQ/det/segmentation.txt [--give-k] [-o FOLDER]]
 
 --study STUDY: a complete `homocal study` folder. Its configuration (StudyParams from study.json), seed,
 datasets and variants (0..n_variants, as the study ran them); per dataset, detector and --seconds value (a
@@ -17,7 +17,10 @@ that scene's boxes from FILE (homocal.boxes.read_boxes) instead of its detection
 --detectors (one name); only the scenes named get pedestrian rows.
 
 DATASET: the same on variants drawn here (homocal.study: the same variants as `homocal study --preset P
---variants N` draws, P by --base), one JSON line per dataset, detector and seconds value.
+--variants N` draws, P by --base), one JSON line per dataset, detector and seconds value. --windows: each
+seconds value S measured on every disjoint window of S seconds of the video (0-S, S-2S, ...; "start" says
+which), then one line of the windows' spread (mean, min, max of each figure): how much the fit moves from one
+recording of that length to the next.
 
 Per variant: the corrector is fitted from the detector's boxes of the first --seconds of video
 (detections.parquet; the intrinsics K from camera.json and the camera height from camera.json's
@@ -115,14 +118,16 @@ def video_seconds(ds: Dataset, seconds: float | None) -> float:
     return length if seconds is None else seconds
 
 
-def detector_boxes(ds: Dataset, detector: str, seconds: float, boxes_file: str | None = None):
+def detector_boxes(ds: Dataset, detector: str, seconds: float, boxes_file: str | None = None, start: float = 0.0):
     """(xyxy (N, 4) homocal px, frames (N,)) of detector's boxes (or those of boxes_file, read_boxes) in the
-    first `seconds` of the dataset's video; ValueError (naming --detectors) if the dataset has no such detector."""
+    `seconds` of the dataset's video from `start` (s); ValueError (naming --detectors) if the dataset has no such
+    detector."""
     if boxes_file is None and detector not in ds.manifest.get("detectors", ()):
         raise ValueError(f"--detectors {detector}: {ds.name} ({ds.path}) has no boxes of it "
                          f"(has: {', '.join(ds.manifest.get('detectors', ())) or 'none'})")
     boxes = read_boxes(boxes_file if boxes_file else Path(ds.path) / "detections.parquet", None if boxes_file else detector)
-    keep = boxes.frames < seconds * float(ds.manifest["fps"])
+    fps = float(ds.manifest["fps"])
+    keep = (boxes.frames >= start * fps) & (boxes.frames < (start + seconds) * fps)
     return boxes.xyxy[keep], boxes.frames[keep]
 
 
@@ -193,16 +198,32 @@ def summarise(rows: list[dict]) -> dict:
             **{k: sum(r[k] for r in firsts.values()) if firsts else None for k in COUNTS}}
 
 
-def measure(path: str, detector: str, seconds: float | None, args) -> dict:
-    """DATASET mode: one dataset, detector and seconds value on the variants of the --base preset."""
+def measure(path: str, detector: str, seconds: float | None, args) -> list[dict]:
+    """DATASET mode: one dataset, detector and seconds value on the variants of the --base preset; with
+    --windows, on every disjoint window of that length, then the windows' spread (window_spread)."""
     params = preset_params(BASES[args.base], n_variants=args.variants)
     scene = StudyScene.from_dataset(path, params)
     ds = load_dataset(path)
     seconds = video_seconds(ds, seconds)
-    rows = variant_rows(scene, params, ds, *detector_boxes(ds, detector, seconds, args.boxes), args)
-    return {"dataset": scene.name, "path": str(path), "detector": detector, "seconds": seconds, "base": args.base,
-            "model": args.model, "prior": [args.height_mean, args.height_sd], "estimate_camera": args.estimate_camera,
-            **summarise(rows), "test_points_5_50m": int(in_range(scene).sum())}
+    starts = [k * seconds for k in range(int(float(ds.manifest["seconds"]) // seconds))] if args.windows else [0.0]
+    lines = []
+    for start in starts:
+        rows = variant_rows(scene, params, ds, *detector_boxes(ds, detector, seconds, args.boxes, start), args)
+        lines.append({"dataset": scene.name, "path": str(path), "detector": detector, "seconds": seconds, "start": start,
+                      "base": args.base, "model": args.model, "prior": [args.height_mean, args.height_sd],
+                      "estimate_camera": args.estimate_camera, **summarise(rows),
+                      "test_points_5_50m": int(in_range(scene).sum())})
+    return lines + ([window_spread(lines)] if args.windows else [])
+
+
+def window_spread(lines: list[dict]) -> dict:
+    """Mean, min and max over --windows' lines of each numeric figure (None where a window has none)."""
+    spread = {k: lines[0][k] for k in ("dataset", "detector", "seconds", "base", "model", "prior")}
+    for key in FIGURES:
+        values = [line[key] for line in lines]
+        if all(isinstance(v, (int, float)) and not isinstance(v, bool) and v is not None and math.isfinite(v) for v in values):
+            spread[key] = {"mean": float(np.mean(values)), "min": float(min(values)), "max": float(max(values))}
+    return {"windows": len(lines), **spread}
 
 
 def end_to_end(path: str, kind: str, args) -> dict:
@@ -362,6 +383,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="a boxes file (homocal.boxes.read_boxes) instead of the dataset's detections; with --study "
                         "SCENE=FILE, repeatable")
     p.add_argument("--seconds", type=seconds_list, help="comma list of seconds of video (default: all of it)")
+    p.add_argument("--windows", action="store_true",
+                   help="DATASET mode: each --seconds value on every disjoint window of that length, and their spread")
     p.add_argument("--base", choices=BASES, help="DATASET mode: the preset whose variants it draws (default fitted)")
     p.add_argument("--variants", type=number(int, 0), help="DATASET mode: variants 0..N (default 100)")
     p.add_argument("--height-mean", type=float, default=DEFAULT_HEIGHT_MEAN_M)
@@ -376,7 +399,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if (args.study is None) == (not args.datasets):
         p.error("give DATASET ... or --study STUDY (one of them)")
-    dataset_only = {"--base": args.base, "--variants": args.variants, "--end-to-end": args.end_to_end, "--det": args.det,
+    dataset_only = {"--windows": args.windows or None, "--base": args.base, "--variants": args.variants, "--end-to-end": args.end_to_end, "--det": args.det,
                     "--give-k": args.give_k or None}
     if args.study is not None and any(v is not None for v in dataset_only.values()):
         p.error(f"{', '.join(k for k, v in dataset_only.items() if v is not None)}: not with --study (it takes the study's variants)")
@@ -403,7 +426,8 @@ def main(argv: list[str] | None = None) -> int:
                 continue
             for detector in args.detectors.split(","):
                 for seconds in args.seconds or [None]:
-                    print(json.dumps(measure(path, detector, seconds, args)), flush=True)
+                    for line in measure(path, detector, seconds, args):
+                        print(json.dumps(line), flush=True)
     except (ValueError, OutputFolderError, OSError) as e:
         print(f"pedestrians.py: error: {e}", file=sys.stderr)
         return 1

@@ -88,13 +88,15 @@ def csv_rows(path: Path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
-def by_hand(dataset: Path, detector: str, seconds: float, params: StudyParams) -> tuple[np.ndarray, np.ndarray]:
+def by_hand(dataset: Path, detector: str, seconds: float, params: StudyParams, start: float = 0.0
+            ) -> tuple[np.ndarray, np.ndarray]:
     """(path improvement %, horizon error px) per variant: ViewTransformer and PedestrianCorrector fitted on each
-    variant's clicked trapezoid, the range errors in numpy."""
+    variant's clicked trapezoid from the boxes of `seconds` of video from `start`, the range errors in numpy."""
     camera = json.loads((dataset / "camera.json").read_text())
     fps = json.loads((dataset / "manifest.json").read_text())["fps"]
     boxes = pq.read_table(dataset / "detections.parquet")
-    boxes = boxes.filter(pc.and_(pc.equal(boxes["detector"], detector), pc.less(boxes["frame"], seconds * fps)))
+    boxes = boxes.filter(pc.and_(pc.equal(boxes["detector"], detector), pc.and_(
+        pc.greater_equal(boxes["frame"], start * fps), pc.less(boxes["frame"], (start + seconds) * fps))))
     xyxy = np.column_stack([boxes[c].to_numpy() for c in ("x1", "y1", "x2", "y2")]).astype(float)
     scene = StudyScene.from_dataset(dataset, params)  # the study's test points and variants
     o, g = scene.origin, scene.test_ground
@@ -184,6 +186,23 @@ def test_dataset_mode_still_measures(datasets, tmp_path):
     assert [(r["detector"], r["seconds"], r["variants"]) for r in lines] == [
         ("segmentation", 1.0, 2), ("segmentation", 1.5, 2), ("rgb", 1.0, 2), ("rgb", 1.5, 2)]
     assert all(r["pos_path"] == 100.0 and not r["refused"] for r in lines)
+
+
+def test_windows_measure_every_disjoint_window_and_their_spread(datasets):
+    """DATASET mode --windows: a line per disjoint window, each against a fit by hand on that window's boxes, then
+    their mean, min and max."""
+    done = run(PEDESTRIANS, datasets[0], "--variants", "1", "--seconds", "0.75", "--windows")
+    assert done.returncode == 0, done.stderr
+    *windows, spread = [json.loads(line) for line in done.stdout.splitlines()]
+    assert [w["start"] for w in windows] == [0.0, 0.75] and spread["windows"] == 2
+    params = script.preset_params(script.BASES["fitted"], n_variants=1)
+    for w in windows:
+        path, horizon = by_hand(datasets[0], "segmentation", 0.75, params, start=w["start"])
+        assert w["horizon_rms_px"] == pytest.approx(np.sqrt(np.mean(horizon**2)), rel=1e-9)
+        assert w["median_path"] == pytest.approx(np.median(path), rel=1e-6)
+    rms = [w["horizon_rms_px"] for w in windows]
+    assert rms[0] != rms[1]
+    assert spread["horizon_rms_px"] == {"mean": pytest.approx(np.mean(rms)), "min": min(rms), "max": max(rms)}
 
 
 @pytest.mark.parametrize("case, args, code, message", [
