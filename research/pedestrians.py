@@ -1,7 +1,7 @@
 """How well PedestrianCorrector corrects the study's trapezoid variants with no reference point (issue 27 item 3).
 
     python research/pedestrians.py --study STUDY -o OUT [--detectors segmentation,rgb] [--seconds 10,60]
-        [--boxes SCENE=FILE ...] [--height-mean 1.71 --height-sd 0.09] [--model camera|rotation] [--estimate-camera]
+        [--boxes SCENE=FILE ...] [--height-mean 1.71 --height-sd 0.09] [--model camera|rotation] [--estimate-camera] [--accept-outliers]
     python research/pedestrians.py DATASET [DATASET ...] --detectors segmentation,rgb,hog --seconds 10
         [--base fitted|hand-placed] [--variants 100] [--height-mean 1.71 --height-sd 0.09] [--estimate-camera]
         [--boxes FILE] [--windows] [--end-to-end exact|hand-placed --det SEQ/det/segmentation.txt [--give-k] [-o FOLDER]]
@@ -67,7 +67,7 @@ import numpy as np
 from homocal.arguments import number
 from homocal.boxes import read_boxes
 from homocal.correctors.base import FORMAT, load_corrector
-from homocal.correctors.pedestrians import DEFAULT_HEIGHT_MEAN_M, DEFAULT_HEIGHT_SD_M, MODELS, PedestrianCorrector
+from homocal.correctors.pedestrians import MAX_OUTLIER_SHARE, DEFAULT_HEIGHT_MEAN_M, DEFAULT_HEIGHT_SD_M, MODELS, PedestrianCorrector
 from homocal.dataset import Dataset, load_dataset
 from homocal.files import OutputFolderError, check_output_file, json_format, output_folder, write_json_atomic, write_text_atomic
 from homocal.geometry import ViewTransformer
@@ -142,7 +142,8 @@ def variant_rows(scene: StudyScene, params: StudyParams, ds: Dataset, xyxy: np.n
         try:
             return PedestrianCorrector(args.height_mean, args.height_sd, args.model).fit(
                 clicked, xyxy, convention="homocal", frames=frames,
-                image_size=(int(ds.camera["width"]), int(ds.camera["height"])), camera_origin=o, **given)
+                image_size=(int(ds.camera["width"]), int(ds.camera["height"])), camera_origin=o,
+                max_outlier_share=max_outlier_share(args), **given)
         except ValueError as e:
             return str(e)
 
@@ -211,7 +212,7 @@ def measure(path: str, detector: str, seconds: float | None, args) -> list[dict]
         rows = variant_rows(scene, params, ds, *detector_boxes(ds, detector, seconds, args.boxes, start), args)
         lines.append({"dataset": scene.name, "path": str(path), "detector": detector, "seconds": seconds, "start": start,
                       "base": args.base, "model": args.model, "prior": [args.height_mean, args.height_sd],
-                      "estimate_camera": args.estimate_camera, **summarise(rows),
+                      "estimate_camera": args.estimate_camera, "max_outlier_share": max_outlier_share(args), **summarise(rows),
                       "test_points_5_50m": int(in_range(scene).sum())})
     return lines + ([window_spread(lines)] if args.windows else [])
 
@@ -318,10 +319,15 @@ def study_report(args, argv: list[str]) -> str:
     return text
 
 
+def max_outlier_share(args) -> float:
+    """The fit's max_outlier_share: 1 with --accept-outliers (no fit refused), else the library's."""
+    return 1.0 if args.accept_outliers else MAX_OUTLIER_SHARE
+
+
 def fit_setting(args) -> dict:
     """The fit's setting, as pedestrians.csv gives it on every row."""
     return {"model": args.model, "height_mean_m": args.height_mean, "height_sd_m": args.height_sd,
-            "camera": "clicked mapping" if args.estimate_camera else "given"}
+            "camera": "clicked mapping" if args.estimate_camera else "given", "max_outlier_share": max_outlier_share(args)}
 
 
 def report_csv(rows: list[tuple[str, str, float, dict]], args) -> str:
@@ -351,8 +357,9 @@ def report_markdown(study: dict, table, rows: list[tuple[str, str, float, dict]]
            + ", ".join(f"{d['scene']} `{d['path']}`" for d in study["datasets"]) + ".",
            "", "The seven methods: every calibration triple of every variant (homocal report's table.csv). The pedestrian "
            f"correction ({args.model} model, prior {args.height_mean:g} m, sd {args.height_sd:g} m, {camera}): one fit per "
-           "variant from the boxes of the first seconds of video, no reference point; samples are its variants. A refused "
-           "fit's variants are failures.", "",
+           "variant from the boxes of the first seconds of video, no reference point; samples are its variants. "
+           + ("No fit refused (--accept-outliers: what a fit PedestrianCorrector refuses would give)." if args.accept_outliers
+              else "A refused fit's variants are failures."), "",
            f"    {shlex.join(['python', 'research/pedestrians.py', *argv])}", ""]
     pooled = any(scene == OVERALL for scene, *_ in rows)
     for scope in table.scopes if pooled else table.scopes[:-1]:
@@ -391,6 +398,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--height-sd", type=float, default=DEFAULT_HEIGHT_SD_M)
     p.add_argument("--model", choices=MODELS, default=MODELS[0], help="PedestrianCorrector's model")
     p.add_argument("--estimate-camera", action="store_true")
+    p.add_argument("--accept-outliers", action="store_true",
+                   help="refuse no fit for its share of outliers (PedestrianCorrector.fit's max_outlier_share 1): "
+                        "what a refused fit would give")
     p.add_argument("--end-to-end", choices=("exact", "hand-placed"))
     p.add_argument("--det", help="--end-to-end: export-mot's det/segmentation.txt of the dataset")
     p.add_argument("--give-k", action="store_true", help="--end-to-end: give the fit camera.json's K")

@@ -271,7 +271,8 @@ class PedestrianCorrector(Corrector):
     def fit(self, transformer: ViewTransformer, xyxy: np.ndarray, *, convention: str, frames: np.ndarray | None = None,
             track_ids: np.ndarray | None = None, camera_height_m: float | None = None, K: np.ndarray | None = None,
             image_size: tuple[int, int] | None = None, image_points: np.ndarray | None = None,
-            ground_points: np.ndarray | None = None, camera_origin=(0.0, 0.0)) -> PedestrianCorrector:
+            ground_points: np.ndarray | None = None, camera_origin=(0.0, 0.0),
+            max_outlier_share: float = MAX_OUTLIER_SHARE) -> PedestrianCorrector:
         """Fit from people's boxes.
 
         Args:
@@ -287,8 +288,10 @@ class PedestrianCorrector(Corrector):
             image_size: (width, height) px; boxes within BORDER_PX of its border are not used.
             image_points, ground_points, camera_origin: optional check points (N, 2) px, (N, 2) m, (2,) m: not
                 used by the fit, their mean errors before and after are error_before_ and error_after_.
+            max_outlier_share: the largest share of outlier boxes, and of rejected people, a fit accepts (1: none
+                refused, to measure what a refused fit reaches; research/pedestrians.py --accept-outliers).
         Returns self. ValueError naming the argument for bad input, and for a fit that cannot be trusted: fewer
-        than MIN_PEOPLE inlier people, or more than MAX_OUTLIER_SHARE of the used boxes or of the people
+        than MIN_PEOPLE inlier people, or more than max_outlier_share of the used boxes or of the people
         outliers (the median start and the inlier rounds break down there: HOG boxes gave a horizon 82 px off
         on scene2 with 61 of 102 people rejected, 7 px off on scene1 with 61 % of the boxes outliers; 60 s of
         segmentation boxes have 3-5 % outlier boxes and 27-29 % rejected people, the rgb detector's 25-37 %
@@ -296,6 +299,8 @@ class PedestrianCorrector(Corrector):
         """
         if not isinstance(transformer, ViewTransformer):
             raise TypeError(f"transformer: expected a homocal.ViewTransformer, got {type(transformer).__name__}")
+        if not (isinstance(max_outlier_share, (int, float)) and 0 < max_outlier_share <= 1):
+            raise ValueError(f"max_outlier_share must be a share in (0, 1], got {max_outlier_share!r}")
         edges = _check_boxes(xyxy, convention)
         n = len(edges)
         frames = _check_labels(frames, n, "frames")
@@ -341,10 +346,10 @@ class PedestrianCorrector(Corrector):
         rejected = {"boxes": (self.n_outliers_, int(used.sum())),
                     "people (tracks)": (self.n_people_ - self.n_people_used_, self.n_people_)}
         for what, (out, of) in rejected.items():
-            if out > MAX_OUTLIER_SHARE * of:
+            if out > max_outlier_share * of:
                 raise ValueError(f"xyxy: {out} of the {of} {what} are outliers (implied height beyond "
                                  f"{OUTLIER_SIGMAS:g} sd of {self.height_mean_m:g} m at the fitted tilt): more than "
-                                 f"{MAX_OUTLIER_SHARE:.0%}, where the robust fit can follow the outliers; use boxes "
+                                 f"{max_outlier_share:.0%}, where the robust fit can follow the outliers; use boxes "
                                  "that reach from the top of the head to the lowest sole, or check the camera height")
         self._set_transformer()
         self._check_points(image_points, ground_points)

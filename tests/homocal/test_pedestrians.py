@@ -15,6 +15,7 @@ import pytest
 from homocal.boxes import read_boxes, read_mot
 from homocal.correctors.base import load_corrector
 from homocal.correctors.pedestrians import (
+    MAX_OUTLIER_SHARE,
     MODELS,
     PedestrianCorrector,
     camera_height_from_homography,
@@ -118,6 +119,34 @@ class TestFitTilt:
         tracked = fit_tilt(many[:, 3], many[:, 1], np.repeat(np.arange(60), 10), CAM.focal_px, CAM.K[1, 2], 4.0, 1.7, 0.07)
         untracked = fit_tilt(many[:, 3], many[:, 1], np.arange(600), CAM.focal_px, CAM.K[1, 2], 4.0, 1.7, 0.07)
         assert tracked["n_people"] == 60 and tracked["tilt_sigma"] > 2.5 * untracked["tilt_sigma"]
+
+
+class TestOutlierShare:
+    """fit's max_outlier_share: past it a fit is refused (default MAX_OUTLIER_SHARE); 1 refuses none, and then the fit
+    is the one fit_tilt gives on the same boxes."""
+
+    @staticmethod
+    def cut_boxes():
+        h, boxes, tracks, _ = people(300, seed=8)
+        boxes[:200, 1] = (boxes[:200, 1] + boxes[:200, 3]) / 2  # two thirds cut to half height
+        return boxes, tracks
+
+    def test_refused_by_default_kept_at_one(self):
+        boxes, tracks = self.cut_boxes()
+        kw = dict(convention="homocal", track_ids=tracks, K=CAM.K, camera_height_m=4.0, image_size=(1280, 720))
+        with pytest.raises(ValueError, match=f"are outliers .* more than {MAX_OUTLIER_SHARE:.0%}"):
+            PedestrianCorrector(1.7, 0.07).fit(clicked_mapping(), boxes, **kw)
+        kept = PedestrianCorrector(1.7, 0.07).fit(clicked_mapping(), boxes, max_outlier_share=1.0, **kw)
+        alone = fit_tilt(boxes[:, 3], boxes[:, 1], tracks, CAM.focal_px, CAM.K[1, 2], 4.0, 1.7, 0.07)
+        assert kept.horizon_row_ == pytest.approx(horizon_row(alone["tilt"], CAM.focal_px, CAM.K[1, 2]), abs=1e-9)
+        assert kept.n_people_used_ == alone["n_people"] < 150
+
+    @pytest.mark.parametrize("share", [0, -0.1, 1.5, math.nan, "0.5", None])
+    def test_bad_share_is_one_error(self, share):
+        boxes, tracks = self.cut_boxes()
+        with pytest.raises(ValueError, match="max_outlier_share must be a share in"):
+            PedestrianCorrector().fit(clicked_mapping(), boxes, convention="homocal", track_ids=tracks, K=CAM.K,
+                                      camera_height_m=4.0, image_size=(1280, 720), max_outlier_share=share)
 
 
 class TestPedestrianCorrector:

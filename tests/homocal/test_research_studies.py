@@ -4,6 +4,7 @@ report's table.csv, refused fits as failure rows, and each script's bad input as
 import csv
 import importlib.util
 import json
+import math
 import shutil
 import subprocess
 import sys
@@ -134,7 +135,8 @@ def test_pedestrian_rows_against_the_corrector_by_hand(report, studies, datasets
             assert float(row["horizon_rms_px"]) == pytest.approx(np.sqrt(np.mean(horizon**2)), rel=1e-9)
         row = rows["overall", detector, "1.0"]
         assert float(row["median_path"]) == pytest.approx(np.median(np.concatenate(pooled)), rel=1e-6)
-    args = script.argparse.Namespace(height_mean=1.65, height_sd=0.09, model="camera", estimate_camera=False)
+    args = script.argparse.Namespace(height_mean=1.65, height_sd=0.09, model="camera", estimate_camera=False,
+                                     accept_outliers=False)
     ds = script.load_dataset(datasets[0])
     one = script.variant_rows(StudyScene.from_dataset(datasets[0], params), params, ds,
                               *script.detector_boxes(ds, "segmentation", 1.0), args)[1]
@@ -168,6 +170,10 @@ def test_a_refused_fit_is_a_row_of_failures(studies, datasets, tmp_path):
     done = run(PEDESTRIANS, datasets[0], "--variants", "1", "--height-mean", "2.4", "--height-sd", "0.05")
     line = json.loads(done.stdout.replace("-Infinity", "null").replace("Infinity", "null").replace("NaN", "null"))
     assert done.returncode == 0 and line["refused"] and line["failures"] == 2 and line["pos_path"] == 0.0
+    done = run(PEDESTRIANS, datasets[0], "--variants", "1", "--height-mean", "2.4", "--height-sd", "0.05", "--accept-outliers")
+    line = json.loads(done.stdout)  # --accept-outliers: the fit the refusal stopped, with its figures
+    assert done.returncode == 0 and not line["refused"] and line["max_outlier_share"] == 1.0
+    assert line["outlier_boxes"] > line["boxes"] / 2 and math.isfinite(line["horizon_rms_px"])
 
 
 def test_dataset_mode_still_measures(datasets, tmp_path):
