@@ -14,7 +14,7 @@ from simgen.model import CAMERA
 
 QUALITY = {  # preset -> (offscreen multisamples, shadow map px; 0: no shadows): ``[render] quality``, ``--quality``
     "draft": (0, 0),  # no anti-aliasing: edges stair-stepped; RGB in 0.29x default's time on llvmpipe (docs/measurements.md)
-    "default": (4, 0),  # MuJoCo's 4 samples, shadows off (what every dataset before the presets used)
+    "default": (4, 0),  # MuJoCo's 4 samples, shadows off
     "high": (8, 4096),  # 8 samples, every light of the scene casts shadows; RGB 2.2x default's time
 }
 

@@ -23,6 +23,7 @@ from simgen.detection.batch import DetectionBatch, detections_table
 from simgen.parquet import write_parquet
 from simgen.scene import DETECTORS as BUILTIN_DETECTORS  # their rows a run writes: no import may replace them
 
+
 def import_mot(dataset_dir: str | os.PathLike, mot_txt_path: str | os.PathLike, name: str, min_iou: float = 0.5) -> pa.Table:
     """An external detector's MOTChallenge output as a matched detections table (detector = name).
 
