@@ -36,8 +36,8 @@ def create_temporary(path: str | Path) -> Path:
 
 
 def temporaries_of(path: str | Path) -> list[Path]:
-    """The files beside ``path`` named like one of its temporaries (``<stem>.tmp<digits><suffix>``, any pid
-    or none), sorted; nothing else in the folder matches."""
+    """The files beside ``path`` named like one of its temporaries (``<stem>.tmp<digits><suffix>``: the
+    random digits of ``create_temporary``, any others or none), sorted; nothing else in the folder matches."""
     path = Path(path)
     if not path.parent.is_dir():
         return []

@@ -122,20 +122,22 @@ def method_request(req: dict) -> tuple[Method, dict]:
     return method, {k: v for k, v in page.items() if k in method.settings}
 
 
-def _fitted(session: Session, req: dict) -> tuple[Corrector, ViewTransformer, np.ndarray, list]:
+def _fitted(session: Session, req: dict) -> tuple[Corrector, ViewTransformer, np.ndarray, list, dict | None]:
     """Fit the request's method as ``homocal fit`` does; return it with the transformer, the points (N, 4) u,v,x,y
-    (from reference points: at least 3; from boxes: any, they only check the fit) and the library's warnings."""
+    (from reference points: at least 3; from boxes: any, they only check the fit), the library's warnings and,
+    for a fit from boxes, the ``_box_settings`` it used (None otherwise)."""
     transformer = _complete_transformer(session, req)
     points = _points(req.get("points"), "points", 4, MAX_REFERENCE_POINTS)
     method, settings = method_request(req)
     corrector = method.make(**settings)
+    box_settings = None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         if method.evidence == "boxes":
-            _fit_boxes(session, req, corrector, transformer, points)
+            box_settings = _fit_boxes(session, req, corrector, transformer, points)
         else:
             corrector.fit(transformer, points[:, :2], points[:, 2:], _camera_origin(req))
-    return corrector, transformer, points, [str(w.message) for w in caught]
+    return corrector, transformer, points, [str(w.message) for w in caught], box_settings
 
 
 def _box_settings(session: Session, req: dict) -> dict:
@@ -162,14 +164,16 @@ def _box_settings(session: Session, req: dict) -> dict:
             "image_size": boxes.image_size or session.frame_size, "K": boxes.K}
 
 
-def _fit_boxes(session: Session, req: dict, corrector, transformer: ViewTransformer, points: np.ndarray) -> None:
-    """Fit a PedestrianCorrector on the session's boxes with _box_settings; the points, if any, check it."""
+def _fit_boxes(session: Session, req: dict, corrector, transformer: ViewTransformer, points: np.ndarray) -> dict:
+    """Fit a PedestrianCorrector on the session's boxes with _box_settings, and return those; the points, if any,
+    check it."""
     settings = _box_settings(session, req)
     boxes = settings["boxes"]
     check = {"image_points": points[:, :2], "ground_points": points[:, 2:]} if len(points) else {}
     corrector.fit(transformer, boxes.xyxy, convention="homocal", frames=boxes.frames, track_ids=boxes.track_ids,
                   camera_height_m=settings["camera_height_m"], K=settings["K"], image_size=settings["image_size"],
                   camera_origin=_camera_origin(req), **check)
+    return settings
 
 
 def _sigmas(req: dict) -> dict:
@@ -210,7 +214,7 @@ def fit(session: Session, req: dict) -> dict:
     residuals, the corrected grid, the horizon of the mapping the correction maps with (Corrector.mapping: the
     clicked one for the regressions), the trustworthy range of the correction's own error model
     (Corrector.ground_uncertainty) and the correction's JSON (what Save writes)."""
-    corrector, transformer, points, caught = _fitted(session, req)
+    corrector, transformer, points, caught, _ = _fitted(session, req)
     mapped = transformer.transform_points(points[:, :2])
     corrected = corrector.transform_points(points[:, :2])
     w, h = session.frame_size
@@ -268,7 +272,7 @@ def save(session: Session, req: dict) -> dict:
     from them. A file this server did not write (or that was replaced since) is overwritten only with
     "overwrite": true (the page asks first; otherwise FileExistsError); a symbolic link is never replaced
     (``Refused``)."""
-    corrector, _, points, _ = _fitted(session, req)
+    corrector, _, points, _, box_settings = _fitted(session, req)
     method = method_of(corrector)
     image, map_px = trapezoid(req)
     names = (TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE) + ((CAMERA_FILE,) if method.evidence == "boxes" else ())
@@ -289,10 +293,9 @@ def save(session: Session, req: dict) -> dict:
     params = corrector.get_params()
     flags = [f"--{k} {params[k]!r}" for k in ("seed", "threshold") if k in method.settings]
     if method.evidence == "boxes":
-        settings = _box_settings(session, req)
-        (width, height), K = settings["image_size"], settings["K"]
+        (width, height), K = box_settings["image_size"], box_settings["K"]
         camera = {"width": width, "height": height, **({} if K is None else {"K": K.tolist()})}
-        detector, camera_height = settings["detector"], settings["camera_height_m"]
+        detector, camera_height = box_settings["detector"], box_settings["camera_height_m"]
         given = {"--detector": None if detector is None else shlex.quote(detector),
                  "--camera-height": None if camera_height is None else repr(camera_height)}
         flags = [f"--boxes {shlex.quote(str(session.boxes))}", *(f"{k} {v}" for k, v in given.items() if v is not None),

@@ -487,6 +487,24 @@ class TestFitInputChecks:
         with pytest.raises(ValueError, match=rf"{which}\[0\] and {which}\[{index}\] are the same point"):
             RegressionCorrector().fit(perturbed(HAND_ERROR), q, g, ORIGIN)
 
+    @pytest.mark.parametrize("order,pair", [
+        ((0, 1, 2, 1, 0), (0, 4)),  # two points measured twice: the first of them is named, with its repeat
+        ((0, 1, 2, 2, 1), (1, 4)),
+        ((0, 1, 2, 3, 3), (3, 4)),
+    ])
+    def test_duplicates_name_the_first_point_measured_twice(self, order, pair):
+        g = np.array([[0.0, 10.0], [1.0, 20.0], [-1.0, 30.0], [2.0, 40.0]])[list(order)]
+        q = CAM.project_ground(np.column_stack([np.arange(5.0), np.full(5, 15.0)]))  # distinct image points
+        with pytest.raises(ValueError, match=rf"ground_points\[{pair[0]}\] and ground_points\[{pair[1]}\] are the same"):
+            RegressionCorrector().fit(perturbed(HAND_ERROR), q, g, ORIGIN)
+
+    def test_more_than_max_reference_points_is_refused(self):
+        from homocal.correctors import MAX_REFERENCE_POINTS
+
+        g = np.column_stack([np.zeros(MAX_REFERENCE_POINTS + 1), 10.0 + np.arange(MAX_REFERENCE_POINTS + 1) * 1e-4])
+        with pytest.raises(ValueError, match=r"image_points: at most 100,000 calibration points, got 100,001"):
+            RegressionCorrector().fit(perturbed(HAND_ERROR), CAM.project_ground(g), g, ORIGIN)
+
     @pytest.mark.parametrize("which", ["image_points", "ground_points"])
     def test_overflow_has_its_own_message(self, which):
         q, g = CALIB_Q.copy(), CALIB_G.copy()

@@ -6,6 +6,7 @@ correction from the dataset's boxes, see its horizon drawn, and apply what Save 
 Set HOMOCAL_UI_SCREENSHOT=docs/ui.jpg to also write the README's screenshot of the page."""
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import os
@@ -48,21 +49,44 @@ def browser(tmp_path_factory):
     driver.quit()
 
 
-@pytest.fixture
-def server(tiny_dataset, tmp_path):
-    """`homocal ui DATASET` as a user starts it; yields the URL it prints (with its token) and its --out folder."""
-    out = tmp_path / "out"
-    out.mkdir()
-    proc = subprocess.Popen([sys.executable, "-m", "homocal.cli", "ui", str(tiny_dataset), "--out", str(out)],
+@contextlib.contextmanager
+def ui_server(*args: str):
+    """`homocal ui ARGS...` as a user starts it; yields the URL it prints (with its token)."""
+    proc = subprocess.Popen([sys.executable, "-m", "homocal.cli", "ui", *args],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
     try:
         line = proc.stdout.readline()
         match = re.search(r"http://127\.0\.0\.1:\d+/\?token=[\w-]+", line)  # the page's POSTs need the token
         assert match, f"no URL in {line!r}: {proc.stderr.read() if proc.poll() is not None else ''}"
-        yield match.group(0), out
+        yield match.group(0)
     finally:
         proc.terminate()
         proc.wait(timeout=10)
+
+
+@pytest.fixture
+def server(tiny_dataset, tmp_path):
+    """`homocal ui DATASET`; yields the URL it prints (with its token) and its --out folder."""
+    out = tmp_path / "out"
+    out.mkdir()
+    with ui_server(str(tiny_dataset), "--out", str(out)) as url:
+        yield url, out
+
+
+def test_detector_names_are_shown_as_text(browser, tiny_dataset, tmp_path):
+    """A detector name of the boxes file is an option's text, never HTML the page runs."""
+    import pyarrow as pa
+
+    name = '<img id="injected" src="x">'
+    table = pq.read_table(tiny_dataset / "detections.parquet")
+    table = table.set_column(table.schema.get_field_index("detector"), "detector",
+                             pa.array([name] * table.num_rows, type=table.schema.field("detector").type))
+    pq.write_table(table, tmp_path / "boxes.parquet")
+    with ui_server(str(tiny_dataset), "--out", str(tmp_path / "out"), "--boxes", str(tmp_path / "boxes.parquet")) as url:
+        browser.get(url)
+        wait_for(browser, "document.body.dataset.ready === '1'")
+        assert js(browser, "document.getElementById('injected')") is None
+        assert js(browser, "Array.from(document.getElementById('detector').options, (o) => o.text)") == [name]
 
 
 def js(driver, script: str, *args):

@@ -557,7 +557,7 @@ async function start() {
   $("threshold").value = S.info.threshold;
   if (S.info.dataset) { $("use-hand-placed").hidden = false; $("use-calibration").hidden = false; }
   if (S.info.boxes) {
-    $("detector").innerHTML = S.info.boxes.detectors.map((d) => `<option>${d}</option>`).join("");
+    $("detector").replaceChildren(...S.info.boxes.detectors.map((d) => new Option(d)));  // names from the file: text, never HTML
     if (S.info.boxes.detectors.includes("segmentation")) $("detector").value = "segmentation";
     $("detector").hidden = !S.info.boxes.detectors.length;
     if (S.info.boxes.camera_height_m !== null) $("camera-height").value = S.info.boxes.camera_height_m;
