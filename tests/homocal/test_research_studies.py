@@ -284,3 +284,10 @@ def test_compare_least_change_bad_counts_are_one_line(args, flag, tmp_path):
     seed) as argparse's one line naming the flag, before reading any dataset."""
     done = run(RESEARCH / "compare_least_change.py", str(tmp_path), *args)
     assert done.returncode == 2 and done.stdout == "" and flag in done.stderr.strip().splitlines()[-1]
+
+
+def test_foot_sources_exact_detections_alone_is_refused(tmp_path):
+    """research/foot_sources.py --exact-detections without --calibration (which writes the dataset it applies to)
+    is one line naming the flag, not an option silently ignored."""
+    done = run(RESEARCH / "foot_sources.py", str(tmp_path), "--exact-detections")
+    assert done.returncode == 2 and done.stdout == "" and "--exact-detections" in done.stderr.strip().splitlines()[-1]
