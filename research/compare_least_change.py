@@ -17,6 +17,7 @@ import argparse
 import numpy as np
 
 from homocal import DescentCorrector, HorizonCorrector, LeastChangeCorrector, RegressionCorrector, ViewTransformer
+from homocal.arguments import number
 from homocal.keyed_rng import seed_from_key
 from homocal.study.inputs import StudyParams, StudyScene
 
@@ -76,8 +77,8 @@ def run(path: str, shift: str | None, n: int, seed: int, methods: dict, foot_sou
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenes", nargs="+", help="simgen dataset folders")
-    parser.add_argument("--samples", type=int, default=300, help="samples per scene and setting (default 300)")
-    parser.add_argument("--seed", type=int, default=1, help="seed of the sample draws (default 1)")
+    parser.add_argument("--samples", type=number(int, 1), default=300, help="samples per scene and setting (default 300)")
+    parser.add_argument("--seed", type=number(int, 0), default=1, help="seed of the sample draws (default 1)")
     parser.add_argument("--sweep", action="store_true", help="also least-change with other point and map sigmas")
     parser.add_argument("--setting", choices=("both", "hand", "shift6"), default="both",
                         help="hand-placed trapezoids, a horizon shift of 6 px, or both (default)")

@@ -133,6 +133,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--exact-detections", action="store_true",
                         help="with --calibration: matched detections at their agent's exact foot point")
     args = parser.parse_args(argv)
+    if args.exact_detections and not args.calibration:
+        parser.error("--exact-detections: only with --calibration (it rewrites the written dataset's detections)")
     if args.calibration:
         if len(args.studies) != 2:
             parser.error("--calibration needs DATASET OUT")

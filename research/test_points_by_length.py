@@ -62,10 +62,10 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     try:
         lengths = [float(s) for s in args.seconds.split(",")]
-        if not all(0 < s < 1e6 for s in lengths):
+        if not all(0 < s < 1e6 for s in lengths) or len(set(lengths)) != len(lengths):
             raise ValueError
     except ValueError:
-        p.error(f"--seconds {args.seconds!r}: expected positive numbers of seconds, comma-separated")
+        p.error(f"--seconds {args.seconds!r}: expected positive numbers of seconds, comma-separated, none twice")
     print("| dataset | first T s | test points | distance quartiles (m) | median lateral (m) | KS to whole |")
     print("|---|---:|---:|---|---:|---:|")
     try:

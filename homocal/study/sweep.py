@@ -59,15 +59,21 @@ def run_name(param: str, value: str) -> str:
     return f"{param}={value}".replace("/", "_")
 
 
+def sweep_meta(paths: list[str], param: str, values: list[str], args: argparse.Namespace) -> dict:
+    """sweep.json: the swept parameter (a SWEEPABLE name) and its values, the preset, the datasets, and "fixed",
+    study.json's parameters (StudyParams.to_dict) without the swept one's field (descent_delta_max: descent)."""
+    fixed = params_from_args(args).to_dict()
+    fixed.pop(SWEEPABLE[param], None)  # absent: an omit_default option at its default
+    return {"format": FORMAT, "param": param, "values": values, "preset": args.preset, "fixed": fixed,
+            "datasets": [str(Path(p).resolve()) for p in paths]}
+
+
 def run_sweep(paths: list[str], out: str | Path, param: str, values: list[str], args: argparse.Namespace,
               resume: bool = False, progress: bool = True) -> list[dict]:
     """Run (or resume) one study per value of param (a SWEEPABLE name) under out/runs; write sweep.csv and
     sweep.png; return the CSV rows. The other parameters come from args (homocal study's options)."""
     out = Path(out)
-    fixed = params_from_args(args).to_dict()
-    fixed.pop(param, None)
-    meta = {"format": FORMAT, "param": param, "values": values, "preset": args.preset, "fixed": fixed,
-            "datasets": [str(Path(p).resolve()) for p in paths]}
+    meta = sweep_meta(paths, param, values, args)
     params = [params_from_args(args, **{SWEEPABLE[param]: _typed(param, v)}) for v in values]  # every value checked first
     with output_folder(out, FORMAT, resume, marker="sweep.json") as folder:
         if folder.resumed and read_json(out / "sweep.json") != meta:

@@ -23,7 +23,7 @@ from homocal.study.cli import add_study_options, params_from_args
 from homocal.study.inputs import StudyParams, StudyScene, changed_options, descent_settings
 from homocal.study.ceiling import least_mean_error, variant_ceilings
 from homocal.study.report import ceiling_fact, config_label, gap_facts
-from homocal.study.sweep import _typed, expand_values
+from homocal.study.sweep import SWEEPABLE, _typed, expand_values, sweep_meta
 from synthetic_dataset import GROUND_RECT, write_dataset
 
 CAM = PinholeCamera()
@@ -228,6 +228,19 @@ def test_map_scale_sets_the_size_of_the_map_perturbations(datasets, map_scale):
     assert drawn[8:].any()
     assert np.abs(scaled[1] - hand) == pytest.approx(np.abs(drawn[8:]) / map_scale, abs=1e-12)
     assert (scaled[0] == default[0]).all() and np.allclose(default[1], explicit[1], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("param", sorted(SWEEPABLE))
+def test_sweep_json_fixed_leaves_out_the_swept_field(param):
+    """sweep.json's "fixed" holds the study's parameters but the swept one, under its StudyParams field name
+    (descent_delta_max sweeps descent), at the table1-fit preset, which sets descent, map_scale and perturbation."""
+    parser = argparse.ArgumentParser()
+    add_study_options(parser)
+    args = parser.parse_args(["--preset", "table1-fit"])
+    full = params_from_args(args).to_dict()
+    fixed = sweep_meta([], param, ["1", "2"], args)["fixed"]
+    assert SWEEPABLE[param] not in fixed
+    assert fixed == {k: v for k, v in full.items() if k != SWEEPABLE[param]}
 
 
 def test_map_scale_is_recorded_and_left_out_at_its_default():

@@ -275,3 +275,19 @@ def test_reproduction_tables_bad_input_is_one_line(case, folders, message, studi
     lines = err.strip().splitlines()
     assert code == 1 and len(lines) == 1 and message.format(**places) in lines[0], err
     assert lines[0].startswith("reproduction_tables.py: error: ") and out == ""
+
+
+@pytest.mark.parametrize("args, flag", [(["--samples", "0"], "--samples"), (["--samples", "x"], "--samples"),
+                                        (["--seed", "-1"], "--seed"), (["--seed", "1.5"], "--seed")])
+def test_compare_least_change_bad_counts_are_one_line(args, flag, tmp_path):
+    """research/compare_least_change.py refuses a count it cannot draw (no samples: no percentiles; a negative
+    seed) as argparse's one line naming the flag, before reading any dataset."""
+    done = run(RESEARCH / "compare_least_change.py", str(tmp_path), *args)
+    assert done.returncode == 2 and done.stdout == "" and flag in done.stderr.strip().splitlines()[-1]
+
+
+def test_foot_sources_exact_detections_alone_is_refused(tmp_path):
+    """research/foot_sources.py --exact-detections without --calibration (which writes the dataset it applies to)
+    is one line naming the flag, not an option silently ignored."""
+    done = run(RESEARCH / "foot_sources.py", str(tmp_path), "--exact-detections")
+    assert done.returncode == 2 and done.stdout == "" and "--exact-detections" in done.stderr.strip().splitlines()[-1]

@@ -34,7 +34,8 @@ def test_a_prefix_keeps_the_rows_before_its_time_and_the_study_reads_it(tiny_dat
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--seconds", "0"], "--seconds"), (["--seconds", "x"], "--seconds"), (["--seconds", "nan"], "--seconds")])
+    (["--seconds", "0"], "--seconds"), (["--seconds", "x"], "--seconds"), (["--seconds", "nan"], "--seconds"),
+    (["--seconds", "5,5.0"], "--seconds")])  # twice: one prefix folder per length
 def test_bad_seconds_are_one_line(args, message, tiny_dataset):
     done = subprocess.run([sys.executable, str(SCRIPT), str(tiny_dataset), *args], capture_output=True, text=True)
     assert done.returncode == 2 and message in done.stderr and done.stdout == ""
