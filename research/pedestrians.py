@@ -222,7 +222,7 @@ def window_spread(lines: list[dict]) -> dict:
     spread = {k: lines[0][k] for k in ("dataset", "detector", "seconds", "base", "model", "prior")}
     for key in FIGURES:
         values = [line[key] for line in lines]
-        if all(isinstance(v, (int, float)) and not isinstance(v, bool) and v is not None and math.isfinite(v) for v in values):
+        if all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in values):
             spread[key] = {"mean": float(np.mean(values)), "min": float(min(values)), "max": float(max(values))}
     return {"windows": len(lines), **spread}
 
