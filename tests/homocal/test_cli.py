@@ -11,11 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from homocal.cli import main
 from homocal.correctors import (DescentCorrector, HorizonCorrector, LeastChangeCorrector, RegressionCorrector,
                                 load_corrector)
 from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer
 from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius
+
+from cli_run import homocal_main
 
 REPO = Path(__file__).resolve().parents[2]
 STREET = REPO / "examples" / "street"
@@ -32,17 +33,6 @@ def homocal(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     return subprocess.run([sys.executable, "-m", "homocal.cli", *args], cwd=cwd, env=env, capture_output=True,
                           text=True, timeout=60)
-
-
-def homocal_main(*args: str, cwd: Path, capsys, monkeypatch) -> subprocess.CompletedProcess:
-    """homocal.cli.main(args) run in-process in cwd, as a CompletedProcess (usage errors exit through SystemExit)."""
-    monkeypatch.chdir(cwd)
-    try:
-        code = main(list(args))
-    except SystemExit as e:
-        code = e.code
-    out = capsys.readouterr()
-    return subprocess.CompletedProcess(args, code, out.out, out.err)
 
 
 def write_csv(path: Path, header: list[str], rows) -> None:

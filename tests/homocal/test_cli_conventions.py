@@ -10,7 +10,8 @@ from homocal.correctors import RegressionCorrector
 from homocal.geometry import ViewTransformer
 from homocal.progress import show_progress
 
-from test_cli import GROUND, IMAGE, REF_G, REF_Q, homocal_main, work  # noqa: F401 (work is a fixture)
+from cli_run import homocal_main
+from test_cli import GROUND, IMAGE, REF_G, REF_Q, work  # noqa: F401 (work is a fixture)
 
 WRITERS = ("fit", "apply", "study", "sweep", "report", "ui", "advise")
 

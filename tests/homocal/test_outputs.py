@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from homocal.cli import main
-from test_study_report import write_results
+from study_results import write_results
 
 STREET = Path(__file__).resolve().parents[2] / "examples" / "street"
 USER = b"a user's file\n"

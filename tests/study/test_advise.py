@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from synthetic_dataset import GROUND_RECT, write_dataset
-from test_cli import homocal_main  # homocal.cli.main in-process, as a CompletedProcess
+from cli_run import homocal_main  # homocal.cli.main in-process, as a CompletedProcess
 
 from homocal.cli import main
 from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer
