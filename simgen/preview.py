@@ -1,4 +1,5 @@
-"""``simgen preview``: one frame of a scene, annotated with boxes, foot points (detected and true), trapezoids and the horizon."""
+"""``simgen preview``: one frame of a scene, annotated with boxes, foot points (detected and true), trapezoids and the
+horizon, with a legend strip below it."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -15,6 +16,12 @@ from simgen.stage import Stage
 
 _SHIFT = 4  # cv2 fixed-point bits, so sub-pixel coordinates are drawn where they are
 SOFTWARE = "simgen preview"  # the PNG's Software text: marks a file preview wrote (and may replace)
+# What preview draws, each in its colour (BGR) and as the legend names it, in the legend's order.
+HORIZON, EXACT, HAND_PLACED = (255, 0, 255), (255, 255, 0), (0, 255, 255)
+BOX, FOOT, TRUE_FOOT = (0, 200, 0), (0, 0, 255), (255, 80, 0)
+LEGEND = ((BOX, "box", "person's box (segmentation detector)"), (FOOT, "dot", "its foot point (detected)"),
+          (TRUE_FOOT, "cross", "true foot point (ground truth)"), (HAND_PLACED, "line", "hand-placed trapezoid"),
+          (EXACT, "line", "exact trapezoid"), (HORIZON, "line", "horizon"))
 
 
 def _px(points: np.ndarray) -> np.ndarray:
@@ -25,23 +32,50 @@ def _px(points: np.ndarray) -> np.ndarray:
 def annotate(scene: Scene, rgb: np.ndarray, agent_ids: np.ndarray, foot_xy: np.ndarray | None = None) -> np.ndarray:
     """(H, W, 3) RGB frame -> annotated BGR copy: segmentation boxes (green), their foot points (red),
     the ground truth's foot points ``foot_xy`` (N, 2) m if given (blue crosses), hand-placed trapezoid
-    (yellow), exact trapezoid (cyan), horizon (magenta)."""
+    (yellow), exact trapezoid (cyan), horizon (magenta), with a legend of them in a strip below (with_legend)."""
     img = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
     cam = scene.camera
     a, b, c = cam.horizon
     ends = np.array([[0.0, -(c + a * 0) / b], [cam.width - 1.0, -(c + a * (cam.width - 1)) / b]])
-    cv2.line(img, *map(tuple, _px(ends)), (255, 0, 255), 1, cv2.LINE_AA, _SHIFT)
-    cv2.polylines(img, [_px(scene.trapezoid_exact_image)], True, (255, 255, 0), 1, cv2.LINE_AA, _SHIFT)
-    cv2.polylines(img, [_px(scene.hand_placed_image)], True, (0, 255, 255), 1, cv2.LINE_AA, _SHIFT)
+    cv2.line(img, *map(tuple, _px(ends)), HORIZON, 1, cv2.LINE_AA, _SHIFT)
+    cv2.polylines(img, [_px(scene.trapezoid_exact_image)], True, EXACT, 1, cv2.LINE_AA, _SHIFT)
+    cv2.polylines(img, [_px(scene.hand_placed_image)], True, HAND_PLACED, 1, cv2.LINE_AA, _SHIFT)
     batch = SegmentationDetector().detect(0, 0.0, rgb, agent_ids)
     for (x1, y1, x2, y2), (u, v) in zip(batch.xyxy, batch.foot):
-        cv2.rectangle(img, tuple(_px([x1, y1])), tuple(_px([x2, y2])), (0, 200, 0), 1, cv2.LINE_8, _SHIFT)
-        cv2.circle(img, tuple(_px([u, v])), 3 << _SHIFT, (0, 0, 255), -1, cv2.LINE_AA, _SHIFT)
+        cv2.rectangle(img, tuple(_px([x1, y1])), tuple(_px([x2, y2])), BOX, 1, cv2.LINE_8, _SHIFT)
+        cv2.circle(img, tuple(_px([u, v])), 3 << _SHIFT, FOOT, -1, cv2.LINE_AA, _SHIFT)
     if foot_xy is not None:
         for u, v in cam.project_ground(foot_xy):
             if np.isfinite(u + v):
-                cv2.drawMarker(img, (round(u), round(v)), (255, 80, 0), cv2.MARKER_CROSS, 7, 1)
-    return img
+                cv2.drawMarker(img, (round(u), round(v)), TRUE_FOOT, cv2.MARKER_CROSS, 7, 1)
+    return with_legend(img)
+
+
+def with_legend(img: np.ndarray) -> np.ndarray:
+    """The BGR image with a strip below it naming what preview draws (LEGEND): each entry's mark and name,
+    wrapped to the image's width."""
+    font, scale, row = cv2.FONT_HERSHEY_SIMPLEX, 0.4, 16
+    width = img.shape[1]
+    places, x, y = [], 6, 0
+    for color, mark, text in LEGEND:
+        size = 26 + cv2.getTextSize(text, font, scale, 1)[0][0]
+        if x > 6 and x + size > width:
+            x, y = 6, y + row
+        places.append((x, y))
+        x += size + 14
+    strip = np.full((y + row + 6, width, 3), 32, np.uint8)
+    for (color, mark, text), (x, y) in zip(LEGEND, places):
+        cy = y + row // 2 + 3
+        if mark == "box":
+            cv2.rectangle(strip, (x + 2, cy - 5), (x + 14, cy + 5), color, 1)
+        elif mark == "dot":
+            cv2.circle(strip, (x + 8, cy), 3, color, -1)
+        elif mark == "cross":
+            cv2.drawMarker(strip, (x + 8, cy), color, cv2.MARKER_CROSS, 7, 1)
+        else:
+            cv2.line(strip, (x, cy), (x + 16, cy), color, 2)
+        cv2.putText(strip, text, (x + 22, cy + 4), font, scale, (235, 235, 235), 1, cv2.LINE_AA)
+    return np.vstack([img, strip])
 
 
 def is_preview(path: Path) -> bool:

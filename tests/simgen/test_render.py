@@ -85,12 +85,16 @@ def test_preview_writes_an_annotated_frame(small_scene, tmp_path):
     import cv2
 
     from simgen.cli import main
+    from simgen.preview import LEGEND
 
     assert main(["preview", str(small_scene), "-o", str(tmp_path / "frame.png"), "--t", "0.0"]) == 0  # two people 25-36 px tall
     first = (tmp_path / "frame.png").read_bytes()
     assert main(["preview", str(small_scene), "-o", str(tmp_path / "frame.png"), "--t", "0.0"]) == 0  # its own PNG: replaced
     assert (tmp_path / "frame.png").read_bytes() == first and sorted(tmp_path.glob("frame*")) == [tmp_path / "frame.png"]
     img = cv2.imread(str(tmp_path / "frame.png"))
-    assert img.shape == (180, 320, 3)
-    green = (img[:, :, 1] == 200) & (img[:, :, 0] == 0) & (img[:, :, 2] == 0)  # box outlines
+    assert img.shape[0] > 180 and img.shape[1:] == (320, 3)  # the frame, then the legend strip below it
+    frame, strip = img[:180], img[180:]
+    green = (frame[:, :, 1] == 200) & (frame[:, :, 0] == 0) & (frame[:, :, 2] == 0)  # box outlines
     assert green.sum() > 20
+    for color, _, text in LEGEND:  # each mark of the legend in its colour, as the frame draws it
+        assert (strip == color).all(axis=2).sum() >= 5, text
