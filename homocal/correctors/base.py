@@ -67,9 +67,9 @@ def check_calibration(
     if len(q) != len(g):
         raise ValueError(f"image_points has {len(q)} points but ground_points has {len(g)}")
     if len(q) < 3:
-        raise ValueError(f"need at least 3 calibration points, got {len(q)}")
+        raise ValueError(f"need at least 3 reference points, got {len(q)}")
     if len(q) > MAX_REFERENCE_POINTS:
-        raise ValueError(f"image_points: at most {MAX_REFERENCE_POINTS:,} calibration points, got {len(q):,}")
+        raise ValueError(f"image_points: at most {MAX_REFERENCE_POINTS:,} reference points, got {len(q):,}")
     for name, arr in (("image_points", q), ("ground_points", g)):
         bad = np.flatnonzero(~np.isfinite(arr).all(axis=1))
         if bad.size:

@@ -248,7 +248,8 @@ class PedestrianCorrector(Corrector):
     yaw_deg_ (model "camera"; NaN for "rotation"), focal_source_ and camera_height_source_ ("given" or
     "clicked mapping"), n_boxes_, n_border_ (cut by the image border, not used), n_outliers_ (beyond
     OUTLIER_SIGMAS), n_people_ (tracks), n_people_used_, transformer_, m, plus those of ``Corrector``
-    (error_before_ and error_after_ on check points if fit had them, else NaN).
+    (error_before_ and error_after_ on check points if fit had them, else NaN). After fit only (not saved):
+    box_status_ (N,) str, each box's part in the fit: "used", "outlier" or "border".
     """
 
     method = "pedestrians"
@@ -342,6 +343,8 @@ class PedestrianCorrector(Corrector):
         self.mean_sensitivity_px_per_cm_ = abs(focal * secant2 * fit["mean_sensitivity"]) / 100.0
         self.n_boxes_, self.n_border_ = n, int(border.sum())
         self.n_outliers_ = int(used.sum() - fit["inlier_boxes"].sum())
+        self.box_status_ = np.where(border, "border", "outlier")
+        self.box_status_[np.flatnonzero(used)[fit["inlier_boxes"]]] = "used"
         self.n_people_, self.n_people_used_ = len(np.unique(tracks[used])), fit["n_people"]
         rejected = {"boxes": (self.n_outliers_, int(used.sum())),
                     "people (tracks)": (self.n_people_ - self.n_people_used_, self.n_people_)}

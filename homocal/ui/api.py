@@ -34,6 +34,7 @@ CAMERA_FILE = "camera_intrinsics.json"  # Save's --camera-json of a fit from box
 MAX_SIGMA_PX = 100.0  # the error bars' sigmas (pixels): a clicking error beyond this is no click
 MAX_TOLERANCE_M = 1e6
 MAX_SEED = 2**64 - 1
+MAX_DRAWN_BOXES = 5000  # people's boxes a fit answers for the page to draw (every k-th beyond it)
 
 
 class Refused(Exception):
@@ -213,8 +214,10 @@ def fit(session: Session, req: dict) -> dict:
     """Fit the chosen method on the reference points (or the session's boxes); errors before/after, per-point
     residuals, the corrected grid, the horizon of the mapping the correction maps with (Corrector.mapping: the
     clicked one for the regressions), the trustworthy range of the correction's own error model
-    (Corrector.ground_uncertainty) and the correction's JSON (what Save writes)."""
-    corrector, transformer, points, caught, _ = _fitted(session, req)
+    (Corrector.ground_uncertainty), for a fit from boxes the boxes it read by their part in it (drawn_boxes)
+    and the correction's JSON (what Save writes; its calibration_improvement is negative for a correction that
+    makes the reference, or check, points worse)."""
+    corrector, transformer, points, caught, box_settings = _fitted(session, req)
     mapped = transformer.transform_points(points[:, :2])
     corrected = corrector.transform_points(points[:, :2])
     w, h = session.frame_size
@@ -235,8 +238,18 @@ def fit(session: Session, req: dict) -> dict:
         "corrected_grid": overlay.ground_grid(overlay.sample_mapping(corrector.transform_points, transformer, w, h),
                                               _camera_origin(req)),
         "horizon": overlay.horizon_segment(corrector.mapping, w, h),
+        "boxes": None if box_settings is None else drawn_boxes(box_settings["boxes"].xyxy, corrector.box_status_),
         "correction": corrector.to_dict(),
     }
+
+
+def drawn_boxes(xyxy: np.ndarray, status: np.ndarray) -> dict:
+    """The boxes (N, 4) x1, y1, x2, y2 px a fit from boxes read, by their part in it (status (N,): "used",
+    "outlier", "border"), for the page to draw: {"used": [[x1, y1, x2, y2], ...], "outlier": [...], "border":
+    [...], "total": N, "step": k}: every k-th box of each kind, at most MAX_DRAWN_BOXES in all."""
+    step = max(1, math.ceil(len(xyxy) / MAX_DRAWN_BOXES))
+    out = {kind: np.round(xyxy[status == kind][::step], 1).tolist() for kind in ("used", "outlier", "border")}
+    return {**out, "total": len(xyxy), "step": step}
 
 
 def locate(session: Session, req: dict) -> dict:

@@ -29,8 +29,8 @@ def error_bars(session: Session, transformer: ViewTransformer, image_points: np.
     horizon) are left out. Returns {"image_points": (K', 2) px, "points": (K', 2) ground m, "sigma": [[major,
     minor] m, ...], "image": ellipses as image polylines, "map": ellipses in map px, "trustworthy_range_m":
     the straight-ahead range whose 1-sigma radius is <= tolerance_m (None if unbounded or tolerance_m is None),
-    "trustworthy_image":
-    that range's ring as image polylines}.
+    "trustworthy_image": that range's ring as image polylines, "beyond": how many points were left out because
+    they lie beyond that range (their ellipses are not trustworthy: long spikes towards the horizon)}.
     """
     sigmas = {"click_sigma_px": click_sigma_px, "point_sigma_px": point_sigma_px,
               "map_sigma_px": map_sigma_px / session.site_map.scale_px_per_m}
@@ -38,12 +38,15 @@ def error_bars(session: Session, transformer: ViewTransformer, image_points: np.
     cov = uncertainty(image_points, **sigmas)
     valid = np.isfinite(cov).all(axis=(1, 2))
     image_points, cov = image_points[valid], cov[valid]
-    trustworthy = None
+    trustworthy, beyond = None, 0
+    centres = (transformer.transform_points if transform is None else transform)(image_points)
     if tolerance_m is not None:
         trustworthy = float(max_trustworthy_range(transformer, tolerance_m, camera_origin=camera_origin,
                                                  uncertainty=uncertainty, **sigmas))
+        within = np.hypot(*(centres - camera_origin).T) <= trustworthy
+        beyond = int(np.count_nonzero(~within))
+        image_points, centres, cov = image_points[within], centres[within], cov[within]
         trustworthy = trustworthy if np.isfinite(trustworthy) else None
-    centres = (transformer.transform_points if transform is None else transform)(image_points)
     eigval, eigvec = np.linalg.eigh(cov)  # ascending: minor, major; columns of eigvec are the axes
     angle = np.linspace(0, 2 * np.pi, ELLIPSE_VERTICES)
     unit = np.stack([np.cos(angle), np.sin(angle)])  # (2, V)
@@ -56,6 +59,7 @@ def error_bars(session: Session, transformer: ViewTransformer, image_points: np.
         "image": [np.round(transformer.inverse_transform_points(e), 2).tolist() for e in ellipses],
         "map": [np.round(session.site_map.to_pixels(e), 2).tolist() for e in ellipses],
         "trustworthy_range_m": trustworthy,
+        "beyond": beyond,
         "trustworthy_image": [] if trustworthy is None else overlay.ring_in_image(
             transformer, camera_origin, trustworthy, *session.frame_size),
     }

@@ -57,6 +57,7 @@ class Session:
             "dataset": self.dataset,
             "methods": [name for name, m in METHODS.items() if self.boxes is not None or m.evidence == "points"],
             "box_methods": [name for name, m in METHODS.items() if m.evidence == "boxes"],  # fitted from boxes
+            "settings": {name: list(m.settings) for name, m in METHODS.items()},  # the page's fields per method
             "boxes": None if self.boxes is None else {"file": str(self.boxes), "detectors": list(self.detectors),
                                                       "camera_height_m": self.camera_height_m},
             "default_method": DEFAULT_METHOD,

@@ -502,7 +502,7 @@ class TestFitInputChecks:
         from homocal.correctors import MAX_REFERENCE_POINTS
 
         g = np.column_stack([np.zeros(MAX_REFERENCE_POINTS + 1), 10.0 + np.arange(MAX_REFERENCE_POINTS + 1) * 1e-4])
-        with pytest.raises(ValueError, match=r"image_points: at most 100,000 calibration points, got 100,001"):
+        with pytest.raises(ValueError, match=r"image_points: at most 100,000 reference points, got 100,001"):
             RegressionCorrector().fit(perturbed(HAND_ERROR), CAM.project_ground(g), g, ORIGIN)
 
     @pytest.mark.parametrize("which", ["image_points", "ground_points"])

@@ -204,7 +204,7 @@ def test_bad_parameters(kw, message):
 
 
 @pytest.mark.parametrize("q,g,message", [
-    (CAM.project_ground(LINE_G[:2]), LINE_G[:2], "need at least 3 calibration points"),
+    (CAM.project_ground(LINE_G[:2]), LINE_G[:2], "need at least 3 reference points"),
     (np.vstack([CAM.project_ground(LINE_G[:2]), [[np.nan, 300.0]]]), LINE_G, r"image_points\[2\] is not finite"),
     (CAM.project_ground(LINE_G), LINE_G + [[0, 0], [0, 0], [np.nan, 0]], r"ground_points\[2\] is not finite"),
     (np.vstack([CAM.project_ground(LINE_G[:2]), [[640.0, 50.0]]]), LINE_G, "on or above the horizon"),

@@ -369,7 +369,7 @@ def test_corner_order_is_refused(server, image, map_px, message):
      None, 400, "trapezoid image[0]: expected 2 finite numbers"),
     ("api/view", request(click_sigma_px=-1), "application/json", None, 400, "click_sigma_px: expected a number in [0, 100], got -1"),
     ("api/view", request(camera_origin=[0]), "application/json", None, 400, "camera_origin[0]: expected 2 finite"),
-    ("api/fit", request(points=POINTS[:2]), "application/json", None, 400, "need at least 3 calibration points"),
+    ("api/fit", request(points=POINTS[:2]), "application/json", None, 400, "need at least 3 reference points"),
     ("api/fit", request(method="magic"), "application/json", None, 400, "method: expected one of regression,"),
     ("api/fit", request(seed=1.5, method="descent"), "application/json", None, 400, "seed: expected an integer"),
     ("api/fit", request(trapezoid={"image": IMAGE.tolist(), "map": MAP[:3].tolist()}), "application/json", None,

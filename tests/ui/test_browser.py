@@ -353,3 +353,139 @@ def test_pedestrians_fit_save_apply_in_a_browser(browser, server, tiny_dataset, 
     np.testing.assert_allclose([float(r["sigma_m"]) for r in rows], sigma_radius(corrector.ground_uncertainty(feet)),
                                rtol=1e-12)
     assert [entry for entry in d.get_log("browser") if entry["source"] == "javascript"] == []  # no script error
+
+
+# ---- what the page shows as its state changes (issue 35): one server for the module's tests below -----------------
+@pytest.fixture(scope="module")
+def page(browser, tiny_dataset, tmp_path_factory):
+    """`homocal ui DATASET` started once, the page loaded with the dataset's hand-placed trapezoid."""
+    with ui_server(str(tiny_dataset), "--out", str(tmp_path_factory.mktemp("page"))) as url:
+        browser.get(url)
+        wait_for(browser, "document.body.dataset.ready === '1'")
+        browser.find_element(By.ID, "use-hand-placed").click()
+        idle(browser)
+        yield browser
+
+
+def message(driver) -> tuple[str, str]:
+    """The status line's text and kind (its class: error, warn, info or '')."""
+    element = driver.find_element(By.ID, "message")
+    return element.text, element.get_attribute("class")
+
+
+def drawn(driver, canvas: str) -> dict:
+    return js(driver, f"window.homocalUI.drawn.{canvas}")
+
+
+def assert_labels_apart(driver) -> None:
+    """On both canvases, the labels drawn are inside the canvas and no two of their rectangles overlap."""
+    for canvas in ("frame", "map"):
+        labels = drawn(driver, canvas)["labels"]
+        width, height = js(driver, f"[document.getElementById('{canvas}').width, document.getElementById('{canvas}').height]")
+        for i, a in enumerate(labels):
+            assert 0 <= a["x"] and a["x"] + a["w"] <= width and 0 <= a["y"] and a["y"] + a["h"] <= height, a
+            for b in labels[i + 1:]:
+                apart = (a["x"] + a["w"] <= b["x"] or b["x"] + b["w"] <= a["x"] or a["y"] + a["h"] <= b["y"]
+                         or b["y"] + b["h"] <= a["y"])
+                assert apart, (canvas, a, b)
+
+
+def test_ellipses_only_within_the_trustworthy_range(page, tiny_dataset):
+    """The view's 1-sigma ellipses are drawn only for grid nodes within the trustworthy range (on the frame and the
+    map); the nodes beyond it are counted in one line that says why."""
+    d = page
+    bars = js(d, "window.homocalUI.S.view.errorbars")
+    reach, origin = bars["trustworthy_range_m"], np.array(load_dataset(tiny_dataset).camera_origin)
+    assert reach is not None and bars["beyond"] > 0  # this view has nodes beyond the range: the check is not empty
+    for canvas in ("frame", "map"):
+        ellipses = [e for e in drawn(d, canvas)["ellipses"] if e["kind"] == "view"]
+        assert len(ellipses) == len(bars["points"]) > 0
+        assert max(np.hypot(*(np.array(e["ground"]) - origin)) for e in ellipses) <= reach
+    assert f"{bars['beyond']} grid nodes beyond it have no ellipse" in d.find_element(By.ID, "errorbar-summary").text
+    assert_labels_apart(d)
+    assert {"TL", "TR", "BR", "BL", "horizon"} <= {label["text"] for label in drawn(d, "frame")["labels"]}
+
+
+def test_fields_follow_the_method(page):
+    """A setting's field shows only for the methods the catalogue gives that setting; the boxes' fields only for
+    a method fitted from boxes."""
+    from homocal.correctors.catalogue import METHODS
+
+    d = page
+    for name, method in METHODS.items():
+        Select(d.find_element(By.ID, "method")).select_by_visible_text(name)
+        for setting in ("seed", "threshold", "height_mean_m", "height_sd_m"):  # each field's id is its setting
+            assert d.find_element(By.ID, setting).is_displayed() == (setting in method.settings), (name, setting)
+        assert d.find_element(By.ID, "boxes-fields").is_displayed() == (method.evidence == "boxes"), name
+
+
+def test_banners_follow_the_state(page, tiny_dataset):
+    """A refused fit's message clears once its cause is gone; a fit that makes its check points worse is a warning
+    in its own colour with the numbers; the status line keeps its height; the pedestrians fit draws its boxes
+    (used and outliers), and hides them when unticked; no two labels overlap."""
+    d = page
+    S = "window.homocalUI.S"
+    cal_image, cal_ground, _ = load_dataset(tiny_dataset).calibration_points(source="segmentation")
+    height = js(d, "document.getElementById('message').offsetHeight")
+    Select(d.find_element(By.ID, "method")).select_by_visible_text("least-change")
+    d.find_element(By.ID, "clear-points").click()
+    d.find_element(By.ID, "fit").click()
+    idle(d)
+    assert message(d) == ("need at least 3 reference points, got 0", "error")
+
+    d.find_element(By.ID, "mode-reference").click()
+    for n, row in enumerate(CALIBRATION_ROWS):  # a click adds the point, then its exact values are typed
+        click(d, "frame", cal_image[row])
+        for key, value in zip("uvxy", [*cal_image[row], *cal_ground[row]]):
+            field = d.find_element(By.CSS_SELECTOR, f'#points-table input[data-i="{n}"][data-key="{key}"]')
+            field.clear()
+            field.send_keys(repr(float(value)) + "\t")
+    assert js(d, f"{S}.points.length") == 3
+    assert message(d) == ("", "")  # the refusal's cause (no points) is gone: so is its message
+
+    d.find_element(By.ID, "fit").click()
+    wait_for(d, f"{S}.fit !== null")
+    text, kind = message(d)
+    assert kind == "info" and text.startswith("fitted: least-change")
+    colours = {"info": js(d, "getComputedStyle(document.getElementById('message')).backgroundColor")}
+
+    Select(d.find_element(By.ID, "method")).select_by_visible_text("pedestrians")
+    assert message(d) == ("", "")  # the fit it spoke of is out of date
+    Select(d.find_element(By.ID, "detector")).select_by_visible_text("rgb")
+    d.find_element(By.ID, "fit").click()
+    wait_for(d, f"{S}.fit !== null")
+    idle(d)
+    fit = js(d, f"{S}.fit")
+    before, after = fit["error_before"], fit["error_after"]
+    assert after > before  # the rgb boxes' fit makes these check points worse
+    text, kind = message(d)
+    assert kind == "warn"
+    assert text == (f"check points {before:.3f} -> {after:.3f} m, {100 * (before - after) / before:.1f} %: "
+                    "this correction makes them worse")
+    colours["warn"] = js(d, "getComputedStyle(document.getElementById('message')).backgroundColor")
+    assert colours["warn"] != colours["info"]
+    assert "worse" in d.find_element(By.ID, "fit-summary").get_attribute("class")
+    assert js(d, "document.getElementById('message').offsetHeight") == height
+
+    # the boxes the fit read: used and outliers drawn, as many as it answered; none once unticked
+    boxes = drawn(d, "frame")["boxes"]
+    assert boxes["used"] == len(fit["boxes"]["used"]) > 0 and boxes["outlier"] == len(fit["boxes"]["outlier"]) > 0
+    assert len(fit["boxes"]["used"]) + len(fit["boxes"]["outlier"]) + len(fit["boxes"]["border"]) == fit["boxes"]["total"]
+    red = red_pixels(d)
+    assert red > 50
+    d.find_element(By.ID, "show-boxes").click()
+    assert drawn(d, "frame")["boxes"] == {"used": 0, "outlier": 0, "border": 0}
+    assert red_pixels(d) < red / 10
+    d.find_element(By.ID, "show-boxes").click()
+    assert_labels_apart(d)
+    assert {"horizon", "fitted horizon", "P0", "P1", "P2"} <= {label["text"] for label in drawn(d, "frame")["labels"]}
+    assert [entry for entry in d.get_log("browser") if entry["source"] == "javascript"] == []
+
+
+def red_pixels(driver) -> int:
+    """Frame-canvas pixels of the outlier boxes' red (#ff3b3b, +-12 a channel)."""
+    return js(driver, """(() => {
+        const c = document.getElementById('frame'), d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+        let n = 0;
+        for (let i = 0; i < d.length; i += 4) if (d[i] >= 243 && Math.abs(d[i + 1] - 59) <= 12 && Math.abs(d[i + 2] - 59) <= 12) n++;
+        return n; })()""")

@@ -18,6 +18,7 @@ const S = {
   fit: null,           // last /api/fit answer, null when out of date
   fitStale: null,      // the previous fit's summary, shown struck through
   probe: null,         // {u, v, answer}
+  message: null,       // {text, kind: "error" | "warn" | "info", topic}: the status line (see say)
 };
 const images = { frame: new Image(), map: new Image() };
 const views = { frame: { zoom: 1, panX: 0, panY: 0 }, map: { zoom: 1, panX: 0, panY: 0 } };
@@ -58,8 +59,10 @@ function viewRequest() {
 function fromBoxes(method) { return S.info.box_methods.includes(method); }
 
 function fitRequest() {
-  const req = { ...viewRequest(), points: S.points.map((p) => [p.u, p.v, p.x, p.y]), method: $("method").value,
-                seed: number("seed"), threshold: number("threshold") };
+  const req = { ...viewRequest(), points: S.points.map((p) => [p.u, p.v, p.x, p.y]), method: $("method").value };
+  for (const key of S.info.settings[req.method]) {  // a setting's field has the setting's name as its id
+    if ($(key) && $(key).value !== "") req[key] = number(key);
+  }
   if (fromBoxes(req.method)) {  // the session's boxes file: the page names a detector of it, never a path
     if (S.info.boxes.detectors.length) req.detector = $("detector").value;
     if ($("camera-height").value !== "") req.camera_height_m = number("camera-height");
@@ -67,10 +70,20 @@ function fitRequest() {
   return req;
 }
 
-function say(text, kind) {
-  const m = $("message");
-  m.textContent = text;
-  m.className = text ? kind : "";
+// ---- status line: one message at a time, tied to its topic ("view", "fit", "probe", "click", "files"); it is
+// cleared when its cause is gone: a new answer on the same topic, or (fit, files) any change of the fit's inputs.
+function say(text, kind, topic) {
+  S.message = text ? { text, kind, topic } : null;
+  showMessage();
+}
+function clearTopic(...topics) {
+  if (S.message && topics.includes(S.message.topic)) say("");
+}
+function showMessage() {
+  const m = $("message"), msg = S.message;
+  m.textContent = msg ? msg.text : "";
+  m.title = m.textContent;  // the whole text on hover if it is longer than the fixed-height line shows
+  m.className = msg ? msg.kind : "";
 }
 
 let viewSeq = 0, viewShown = 0;  // the newest answer shown wins over older ones that arrive late
@@ -83,8 +96,8 @@ async function refreshView(light) {
   if (seq > viewShown) {
     viewShown = seq;
     S.view = answer;
-    if (error) say(error, "error");
-    else if ($("message").className === "error") say("", "");
+    if (error) say(error, "error", "view");
+    else clearTopic("view");
     render();
   }
   return error;
@@ -101,6 +114,7 @@ function dragView() {  // at most one light request in flight while a corner is 
 function invalidateFit() {
   if (S.fit) S.fitStale = S.fit.summary;
   S.fit = null;
+  clearTopic("fit", "files");  // what they said was of the inputs before this change
 }
 
 // A change of the trapezoid; undo() takes it back if the server refuses it (mirrored map, bad order...).
@@ -112,7 +126,7 @@ async function changeTrapezoid(undo) {
   if (reason && undo) {
     undo();
     await refreshView();
-    say("refused: " + reason, "error");
+    say("refused: " + reason, "error", "view");
   }
 }
 
@@ -136,6 +150,20 @@ function groundToMap(g) {
 const round = (x, step) => Math.round(x / step) / Math.round(1 / step);  // step: 0.1 or 0.01
 
 // ---- drawing ----------------------------------------------------------------------------------------
+// Each render records what it drew on window.homocalUI.drawn (labels placed and hidden, ellipses, boxes): what
+// the browser tests check, and where a new overlay records its own.
+const LABEL_FONT = "bold 12px sans-serif", LABEL_HEIGHT = 12;
+// Where a label may go, tried in this order: (dx, dy) of its baseline's start from its anchor (negative dx: the
+// text ends dx left of it); the farther ones get a leader line to the anchor.
+const LABEL_OFFSETS = [[8, -8], [-8, -8], [8, 20], [-8, 20], [16, -24], [-16, -24], [16, 36], [-16, 36], [0, -40], [0, 52]];
+const LEADER_PX = 22;
+let drawn = null;  // {frame: {...}, map: {...}} of the last render (newDrawn)
+
+function newDrawn() {
+  const one = () => ({ pending: [], taken: [], labels: [], hidden: [], ellipses: [], boxes: { used: 0, outlier: 0, border: 0 } });
+  return { frame: one(), map: one() };
+}
+
 function polyline(ctx, name, pts, close) {
   ctx.beginPath();
   pts.forEach((p, i) => { const s = toScreen(name, p); i ? ctx.lineTo(s[0], s[1]) : ctx.moveTo(s[0], s[1]); });
@@ -143,20 +171,57 @@ function polyline(ctx, name, pts, close) {
   ctx.stroke();
 }
 function style(ctx, color, width, dash) { ctx.strokeStyle = color; ctx.lineWidth = width; ctx.setLineDash(dash || []); }
-function label(ctx, name, p, text, color, dx, dy) {
-  const s = toScreen(name, p);
-  ctx.font = "bold 12px sans-serif";
-  ctx.lineWidth = 3; ctx.strokeStyle = "rgba(0,0,0,0.8)"; ctx.setLineDash([]);
-  ctx.strokeText(text, s[0] + (dx || 6), s[1] + (dy || -6));
-  ctx.fillStyle = color;
-  ctx.fillText(text, s[0] + (dx || 6), s[1] + (dy || -6));
+
+// A label to place once everything is drawn (placeLabels): near one of its anchors (image or map pixels), the
+// higher priority first; one that finds no free spot is left out (drawn[name].hidden).
+function label(name, anchors, text, color, priority) {
+  drawn[name].pending.push({ anchors: anchors.map((p) => toScreen(name, p)), text, color, priority });
 }
+// Points along an image (or map) line where a label of it may go: at the given shares of the frame's width.
+function alongLine(segment, shares) {
+  const [[u0, v0], [u1, v1]] = segment, W = S.info.frame.width;
+  return shares.map((k) => { const u = k * W; return [u, v0 + (v1 - v0) * (u - u0) / (u1 - u0)]; });
+}
+function alongPolyline(line, shares) { return shares.map((k) => line[Math.floor(k * (line.length - 1))]); }
+function longest(lines) { return lines.reduce((a, b) => (b.length > a.length ? b : a), []); }
+
+const overlaps = (a, b) => a.x < b.x + b.w && b.x < a.x + a.w && a.y < b.y + b.h && b.y < a.y + a.h;
+
+function placeLabels(ctx, name) {
+  const c = $(name), d = drawn[name];
+  ctx.font = LABEL_FONT; ctx.setLineDash([]);
+  d.pending.sort((a, b) => b.priority - a.priority).forEach((l) => {
+    const w = ctx.measureText(l.text).width;
+    for (const a of l.anchors) {
+      for (const [dx, dy] of LABEL_OFFSETS) {
+        const x = dx >= 0 ? a[0] + dx : a[0] + dx - w, y = a[1] + dy;  // the baseline's start
+        const box = { x: x - 1, y: y - LABEL_HEIGHT, w: w + 2, h: LABEL_HEIGHT + 3 };
+        if (box.x < 0 || box.y < 0 || box.x + box.w > c.width || box.y + box.h > c.height) continue;
+        if (d.taken.some((t) => overlaps(t, box))) continue;
+        if (Math.hypot(dx, dy) > LEADER_PX) {
+          style(ctx, l.color, 1);
+          ctx.beginPath(); ctx.moveTo(a[0], a[1]);
+          ctx.lineTo(Math.min(Math.max(a[0], box.x), box.x + box.w), Math.min(Math.max(a[1], box.y), box.y + box.h)); ctx.stroke();
+        }
+        ctx.lineWidth = 3; ctx.strokeStyle = "rgba(0,0,0,0.8)"; ctx.strokeText(l.text, x, y);
+        ctx.fillStyle = l.color; ctx.fillText(l.text, x, y);
+        d.taken.push(box); d.labels.push({ text: l.text, ...box });
+        return;
+      }
+    }
+    d.hidden.push(l.text);
+  });
+  d.pending = [];
+}
+
+// A filled marker; it also keeps labels off itself.
 function dot(ctx, name, p, r, color, fill) {
   const s = toScreen(name, p);
   ctx.beginPath(); ctx.arc(s[0], s[1], r, 0, 2 * Math.PI);
   ctx.setLineDash([]);
   if (fill) { ctx.fillStyle = color; ctx.fill(); }
   ctx.strokeStyle = fill ? "#000" : color; ctx.lineWidth = 2; ctx.stroke();
+  drawn[name].taken.push({ x: s[0] - r - 1, y: s[1] - r - 1, w: 2 * r + 2, h: 2 * r + 2 });
 }
 function scaled(poly, centre, k) { return poly.map((p) => [centre[0] + k * (p[0] - centre[0]), centre[1] + k * (p[1] - centre[1])]); }
 
@@ -167,24 +232,46 @@ function drawGrid(ctx, grid, colors) {
   grid.rings.forEach((ring) => ring.lines.forEach((l) => polyline(ctx, "frame", l)));
 }
 
-function drawEllipses(ctx, name, bars, key, centres, color) {
+// The 1-sigma ellipses of error_bars' answer (the server leaves out those beyond the trustworthy range).
+function drawEllipses(ctx, name, bars, key, centres, color, kind) {
   const k = number("ellipse-scale") || 1;
   style(ctx, color || "#ff4fd8", 1.6);
-  bars[key].forEach((e, i) => polyline(ctx, name, scaled(e, centres[i], k), true));
+  bars[key].forEach((e, i) => {
+    polyline(ctx, name, scaled(e, centres[i], k), true);
+    drawn[name].ellipses.push({ kind, ground: bars.points[i] });
+  });
 }
 
 function drawTrapezoid(ctx, name, quad) {
   style(ctx, "#33e0ff", 2);
   if (quad.length > 1) polyline(ctx, name, quad, quad.length === 4);
-  quad.forEach((p, i) => { dot(ctx, name, p, 5, "#33e0ff", true); label(ctx, name, p, CORNERS[i], "#33e0ff"); });
+  quad.forEach((p, i) => { dot(ctx, name, p, 5, "#33e0ff", true); label(name, [p], CORNERS[i], "#33e0ff", 5); });
+}
+
+const BOX_STYLES = { used: ["rgba(125,255,107,0.55)", []], outlier: ["#ff3b3b", []], border: ["rgba(200,200,200,0.6)", [3, 3]] };
+// The people's boxes a fit from boxes read, by their part in it (api.drawn_boxes), if "show boxes" is ticked.
+function drawBoxes(ctx) {
+  const boxes = S.fit && S.fit.boxes;
+  if (!boxes || !$("show-boxes").checked) return;
+  for (const [kind, [color, dash]] of Object.entries(BOX_STYLES)) {
+    style(ctx, color, kind === "outlier" ? 1.5 : 1, dash);
+    boxes[kind].forEach(([x1, y1, x2, y2]) => {
+      const a = toScreen("frame", [x1, y1]), b = toScreen("frame", [x2, y2]);
+      ctx.strokeRect(a[0], a[1], b[0] - a[0], b[1] - a[1]);
+    });
+    drawn.frame.boxes[kind] = boxes[kind].length;
+  }
 }
 
 // keepTable: leave the reference-point inputs in place (the user is typing in them), only clear its residuals.
 function render(keepTable) {
   if (!S.info) return;
+  drawn = newDrawn();
+  window.homocalUI.drawn = drawn;
   renderFrame();
   renderMap();
   renderPanels(keepTable);
+  showMessage();
 }
 
 function renderFrame() {
@@ -193,39 +280,39 @@ function renderFrame() {
   ctx.setTransform(v.zoom, 0, 0, v.zoom, v.panX + 0.5 * v.zoom, v.panY + 0.5 * v.zoom);
   ctx.drawImage(images.frame, -0.5, -0.5);
   ctx.setTransform(1, 0, 0, 1, 0, 0);
-  const view = S.view;
+  const view = S.view, corrected = S.fit && $("show-corrected").checked;
+  drawBoxes(ctx);
   if (view && view.complete) {
     drawGrid(ctx, view.grid, ["rgba(255,255,255,0.28)", "rgba(255,255,255,0.75)", "rgba(255,235,90,0.9)"]);
     view.grid.rings.forEach((ring) => {
-      const line = ring.lines.reduce((a, b) => (b.length > a.length ? b : a), []);
-      if (line.length) label(ctx, "frame", line[Math.floor(line.length / 2)], ring.r + " m", "#ffeb5a");
+      const line = longest(ring.lines);
+      if (line.length) label("frame", alongPolyline(line, [0.5, 0.35, 0.65]), ring.r + " m", "#ffeb5a", 1);
     });
-    if (S.fit && $("show-corrected").checked) {
-      drawGrid(ctx, S.fit.corrected_grid, ["rgba(255,157,46,0.35)", "rgba(255,157,46,0.9)", "rgba(255,157,46,0.9)"]);
-    }
+    if (corrected) drawGrid(ctx, S.fit.corrected_grid, ["rgba(255,157,46,0.35)", "rgba(255,157,46,0.9)", "rgba(255,157,46,0.9)"]);
     if (view.horizon) {
-      const [[u0, v0], [u1, v1]] = view.horizon, u = 0, v = v0 + (v1 - v0) * (u - u0) / (u1 - u0);
-      style(ctx, "#ff5050", 2, [10, 6]); polyline(ctx, "frame", view.horizon); label(ctx, "frame", [u, v], "horizon", "#ff5050", 4, -6);
+      style(ctx, "#ff5050", 2, [10, 6]); polyline(ctx, "frame", view.horizon);
+      label("frame", alongLine(view.horizon, [0.02, 0.3, 0.6]), "horizon", "#ff5050", 3);
     }
-    if (S.fit && S.fit.horizon && $("show-corrected").checked) {  // the horizon of the mapping the correction maps with
-      const [[u0, v0], [u1, v1]] = S.fit.horizon, u = 0, v = v0 + (v1 - v0) * (u - u0) / (u1 - u0);
-      style(ctx, "#ff9d2e", 2, [4, 4]); polyline(ctx, "frame", S.fit.horizon); label(ctx, "frame", [u, v], "fitted horizon", "#ff9d2e", 4, 14);
+    if (corrected && S.fit.horizon) {  // the horizon of the mapping the correction maps with
+      style(ctx, "#ff9d2e", 2, [4, 4]); polyline(ctx, "frame", S.fit.horizon);
+      label("frame", alongLine(S.fit.horizon, [0.15, 0.45, 0.75]), "fitted horizon", "#ff9d2e", 3);
     }
     if (view.errorbars) {
-      drawEllipses(ctx, "frame", view.errorbars, "image", view.errorbars.image_points);
+      drawEllipses(ctx, "frame", view.errorbars, "image", view.errorbars.image_points, null, "view");
       style(ctx, "#ff4fd8", 2.5, [4, 4]);
       view.errorbars.trustworthy_image.forEach((l) => polyline(ctx, "frame", l));
-      const ring = view.errorbars.trustworthy_image.reduce((a, b) => (b.length > a.length ? b : a), []);
-      if (ring.length) label(ctx, "frame", ring[Math.floor(ring.length * 0.3)], "trustworthy", "#ff4fd8");
+      const ring = longest(view.errorbars.trustworthy_image);
+      if (ring.length) label("frame", alongPolyline(ring, [0.3, 0.5, 0.7]), "trustworthy", "#ff4fd8", 2);
     }
   }
   drawTrapezoid(ctx, "frame", S.trap.image);
-  S.points.forEach((p, i) => { dot(ctx, "frame", [p.u, p.v], 5, "#7dff6b", true); label(ctx, "frame", [p.u, p.v], "P" + i, "#7dff6b"); });
+  S.points.forEach((p, i) => { dot(ctx, "frame", [p.u, p.v], 5, "#7dff6b", true); label("frame", [[p.u, p.v]], "P" + i, "#7dff6b", 4); });
   if (S.probe) {
     dot(ctx, "frame", [S.probe.u, S.probe.v], 4, "#ff4fd8", true);
     const bars = S.probe.answer.errorbars;
-    if (bars) drawEllipses(ctx, "frame", bars, "image", bars.image_points);
+    if (bars) drawEllipses(ctx, "frame", bars, "image", bars.image_points, null, "probe");
   }
+  placeLabels(ctx, "frame");
 }
 
 function renderMap() {
@@ -249,10 +336,12 @@ function renderMap() {
     view.grid.rings.forEach((ring) => {
       style(ctx, "rgba(255,235,90,0.8)", 1.2, [6, 4]);
       ctx.beginPath(); ctx.arc(camS[0], camS[1], ring.r * s, 0, 2 * Math.PI); ctx.stroke();
-      label(ctx, "map", [cam[0], cam[1] - ring.r * m.scale_px_per_m], ring.r + " m", "#ffeb5a", 3, -3);
+      const at = (deg) => [cam[0] + ring.r * m.scale_px_per_m * Math.sin(deg * Math.PI / 180),
+                           cam[1] - ring.r * m.scale_px_per_m * Math.cos(deg * Math.PI / 180)];
+      label("map", [at(0), at(-30), at(30)], ring.r + " m", "#ffeb5a", 1);
     });
     if (view.errorbars) {
-      drawEllipses(ctx, "map", view.errorbars, "map", view.errorbars.points.map(groundToMap));
+      drawEllipses(ctx, "map", view.errorbars, "map", view.errorbars.points.map(groundToMap), null, "view");
       const r = view.errorbars.trustworthy_range_m;
       if (r !== null) {
         style(ctx, "#ff4fd8", 2.5, [4, 4]);
@@ -260,7 +349,7 @@ function renderMap() {
       }
     }
   }
-  dot(ctx, "map", cam, 5, "#ffffff", true); label(ctx, "map", cam, "camera", "#ffffff");
+  dot(ctx, "map", cam, 5, "#ffffff", true); label("map", [cam], "camera", "#ffffff", 4);
   drawTrapezoid(ctx, "map", S.trap.map);
   S.points.forEach((p, i) => {
     if (p.x === null || p.y === null) return;
@@ -271,16 +360,17 @@ function renderMap() {
       style(ctx, "#ff9d2e", 1.2); polyline(ctx, "map", [g, after]);
       dot(ctx, "map", before, 3, "#ffffff", true); dot(ctx, "map", after, 3, "#ff9d2e", true);
     }
-    dot(ctx, "map", g, 5, "#7dff6b", true); label(ctx, "map", g, "P" + i, "#7dff6b");
+    dot(ctx, "map", g, 5, "#7dff6b", true); label("map", [g], "P" + i, "#7dff6b", 4);
   });
   if (S.probe) {
     const a = S.probe.answer;
     dot(ctx, "map", groundToMap(a.ground), 4, "#ff4fd8", true);
     if (a.corrected) dot(ctx, "map", groundToMap(a.corrected), 4, "#ff9d2e", true);
-    if (a.errorbars) drawEllipses(ctx, "map", a.errorbars, "map", a.errorbars.points.map(groundToMap));
+    if (a.errorbars) drawEllipses(ctx, "map", a.errorbars, "map", a.errorbars.points.map(groundToMap), null, "probe");
     const own = a.corrected_errorbars;  // the correction's own error model, about the corrected position
-    if (own) drawEllipses(ctx, "map", own, "map", own.points.map(groundToMap), "#ff9d2e");
+    if (own) drawEllipses(ctx, "map", own, "map", own.points.map(groundToMap), "#ff9d2e", "probe");
   }
+  placeLabels(ctx, "map");
 }
 
 // ---- panels -----------------------------------------------------------------------------------------
@@ -315,7 +405,7 @@ function renderPanels(keepTable) {
   else table.innerHTML = pointRows();
 
   const summary = $("fit-summary");
-  if (S.fit) { summary.textContent = S.fit.summary; summary.className = "out"; }
+  if (S.fit) { summary.textContent = S.fit.summary; summary.className = worse(S.fit) ? "out worse" : "out"; }
   else if (S.fitStale) { summary.textContent = S.fitStale + "\n(out of date: press Fit)"; summary.className = "out stale"; }
   else summary.textContent = "no fit yet: a complete trapezoid and 3 or more reference points";
 
@@ -325,7 +415,8 @@ function renderPanels(keepTable) {
   else {
     const r = bars.trustworthy_range_m;
     $("errorbar-summary").textContent = `trustworthy range (1-sigma error <= ${number("tolerance")} m): ` +
-      (r === null ? "none" : r.toFixed(1) + " m") + "  (dashed pink ring)";
+      (r === null ? "unbounded" : r.toFixed(1) + " m") + "  (dashed pink ring)" +
+      (bars.beyond ? `\n${bars.beyond} grid nodes beyond it have no ellipse: their 1-sigma error exceeds the tolerance` : "");
   }
   if (S.probe) {
     const a = S.probe.answer, b = a.errorbars;
@@ -416,26 +507,29 @@ async function onUp(name, e) {
 async function clickAt(name, q, exact) {
   if (S.mode === "trapezoid") {
     const quad = S.trap[name === "frame" ? "image" : "map"];
-    if (quad.length >= 4) { say(`all 4 ${name === "frame" ? "image" : "map"} corners are placed: drag one to move it, or Clear`, "info"); return; }
+    if (quad.length >= 4) { say(`all 4 ${name === "frame" ? "image" : "map"} corners are placed: drag one to move it, or Clear`, "info", "click"); return; }
+    clearTopic("click");
     quad.push(q);
     await changeTrapezoid(() => quad.pop());
   } else if (S.mode === "reference") {
     const open = S.points.find((p) => p.x === null || p.y === null);
     if (name === "frame") S.points.push({ u: q[0], v: q[1], x: null, y: null });
     else if (open) { const g = mapToGround(exact); open.x = round(g[0], 0.01); open.y = round(g[1], 0.01); }
-    else { say("click the reference point's foot on the frame first", "error"); return; }
+    else { say("click the reference point's foot on the frame first", "error", "click"); return; }
+    clearTopic("click");
     invalidateFit(); render();
   } else if (S.mode === "probe") {
-    if (name !== "frame") { say("probe: click a point of the frame", "error"); return; }
+    if (name !== "frame") { say("probe: click a point of the frame", "error", "probe"); return; }
     try {
       const answer = await api("locate", { ...viewRequest(), point: q, correction: S.fit ? S.fit.correction : null });
       S.probe = { u: q[0], v: q[1], answer };
-      say("", "");
-    } catch (e) { say(e.message, "error"); }
+      clearTopic("probe");
+    } catch (e) { say(e.message, "error", "probe"); }
     render();
   } else if (name !== "map") {
-    say("camera ground point: click it on the map", "error");
+    say("camera ground point: click it on the map", "error", "click");
   } else {
+    clearTopic("click");
     const g = mapToGround(exact);
     S.camera = [round(g[0], 0.01), round(g[1], 0.01)];
     $("camera-x").value = S.camera[0]; $("camera-y").value = S.camera[1];
@@ -452,15 +546,28 @@ function onWheel(name, e) {
 }
 
 // ---- buttons ----------------------------------------------------------------------------------------
+// A fit that makes its reference (or check) points worse: negative improvement.
+function worse(fit) { const k = fit.correction.calibration_improvement; return k !== null && k < 0; }
+
+function fitVerdict(fit) {
+  if (worse(fit)) {
+    const which = fromBoxes($("method").value) ? "check points" : "reference points";
+    return [`${which} ${fmt(fit.error_before, 3)} -> ${fmt(fit.error_after, 3)} m, ` +
+            `${fmt(fit.correction.calibration_improvement, 1)} %: ` +
+            "this correction makes them worse", "warn"];
+  }
+  if (fit.warnings.length) return ["warning: " + fit.warnings.join("; "), "warn"];
+  return ["fitted: " + fit.summary, "info"];
+}
+
 async function doFit() {
   const open = S.points.findIndex((p) => p.x === null || p.y === null);
-  if (open >= 0) { say(`P${open} has no ground position yet: click it on the map or type x, y`, "error"); return; }
+  if (open >= 0) { say(`P${open} has no ground position yet: click it on the map or type x, y`, "error", "fit"); return; }
   try {
     S.fit = await api("fit", fitRequest());
     S.fitStale = null;
-    say(S.fit.warnings.length ? "warning: " + S.fit.warnings.join("; ") : "fitted: " + S.fit.summary,
-        S.fit.warnings.length ? "error" : "info");
-  } catch (e) { S.fit = null; say(e.message, "error"); }
+    say(...fitVerdict(S.fit), "fit");
+  } catch (e) { S.fit = null; say(e.message, "error", "fit"); }
   render();
 }
 
@@ -474,8 +581,8 @@ async function doSave() {
       answer = await api("save", { ...request, overwrite: true });
     }
     $("files-summary").textContent = "wrote " + answer.written.join(", ") + "\nsame as: " + answer.command;
-    say("saved", "info");
-  } catch (e) { say(e.message, "error"); }
+    say("saved", "info", "files");
+  } catch (e) { say(e.message, "error", "files"); }
 }
 
 async function doLoad() {
@@ -486,13 +593,14 @@ async function doLoad() {
     S.fit = null; S.fitStale = null; S.probe = null;
     if (answer.fit) {
       $("method").value = answer.fit.method; $("seed").value = answer.fit.seed; $("threshold").value = answer.fit.threshold;
+      showMethodFields();
       S.camera = answer.fit.camera_origin;
       $("camera-x").value = S.camera[0]; $("camera-y").value = S.camera[1];
     }
     await refreshView();
     if (answer.fit && (S.points.length >= 3 || fromBoxes(answer.fit.method))) await doFit();
     $("files-summary").textContent = "loaded " + answer.loaded.join(", ");
-  } catch (e) { say(e.message, "error"); }
+  } catch (e) { say(e.message, "error", "files"); }
 }
 
 function bind() {
@@ -503,7 +611,9 @@ function bind() {
     c.addEventListener("wheel", (e) => onWheel(name, e), { passive: false });
     c.addEventListener("contextmenu", (e) => e.preventDefault());
   }
-  document.querySelectorAll("input[name=mode]").forEach((r) => r.addEventListener("change", () => { S.mode = r.value; render(); }));
+  document.querySelectorAll("input[name=mode]").forEach((r) => r.addEventListener("change", () => {
+    S.mode = r.value; clearTopic("click", "probe"); render();
+  }));
   $("clear-trapezoid").onclick = () => { S.trap = { image: [], map: [] }; changeTrapezoid(null); };
   $("clear-points").onclick = () => { S.points = []; invalidateFit(); render(); };
   $("fit").onclick = doFit;
@@ -525,10 +635,13 @@ function bind() {
     $(id).addEventListener("change", () => { S.camera = [number("camera-x"), number("camera-y")]; changeTrapezoid(null); });
   }
   for (const id of ["click-sigma", "point-sigma", "map-sigma", "tolerance"]) $(id).addEventListener("change", () => refreshView());
-  $("ellipse-scale").addEventListener("change", render);
-  $("show-corrected").addEventListener("change", render);
-  $("method").addEventListener("change", () => { $("boxes-fields").hidden = !fromBoxes($("method").value); invalidateFit(); render(); });
-  for (const id of ["detector", "camera-height"]) $(id).addEventListener("change", () => { invalidateFit(); render(); });
+  $("ellipse-scale").addEventListener("change", () => render());
+  $("show-corrected").addEventListener("change", () => render());
+  $("show-boxes").addEventListener("change", () => render());
+  $("method").addEventListener("change", () => { showMethodFields(); invalidateFit(); render(); });
+  for (const id of ["detector", "camera-height", "seed", "threshold", "height_mean_m", "height_sd_m"]) {
+    $(id).addEventListener("change", () => { invalidateFit(); render(); });
+  }
   $("use-hand-placed").onclick = () => { S.trap = JSON.parse(JSON.stringify(S.info.dataset.hand_placed)); changeTrapezoid(null); };
   $("use-calibration").onclick = () => {
     S.points = S.info.dataset.calibration.map((p) => ({ u: p[0], v: p[1], x: p[2], y: p[3] }));
@@ -536,6 +649,14 @@ function bind() {
   };
   window.addEventListener("mouseup", (e) => { if (drag) onUp(drag.name, e); });  // also when let go outside
   window.addEventListener("resize", () => { sizeCanvases(); render(); });
+}
+
+// Only the fields of the chosen method: a [data-setting] field shows if the catalogue lists that setting for it
+// (session.info's "settings"), the boxes' fields if it is fitted from boxes.
+function showMethodFields() {
+  const method = $("method").value;
+  document.querySelectorAll("[data-setting]").forEach((el) => { el.hidden = !S.info.settings[method].includes(el.dataset.setting); });
+  $("boxes-fields").hidden = !fromBoxes(method);
 }
 
 function sizeCanvases() {
@@ -555,6 +676,7 @@ async function start() {
   $("method").innerHTML = S.info.methods.map((m) => `<option>${m}</option>`).join("");
   $("method").value = S.info.default_method;
   $("threshold").value = S.info.threshold;
+  showMethodFields();
   if (S.info.dataset) { $("use-hand-placed").hidden = false; $("use-calibration").hidden = false; }
   if (S.info.boxes) {
     $("detector").replaceChildren(...S.info.boxes.detectors.map((d) => new Option(d)));  // names from the file: text, never HTML
@@ -573,5 +695,7 @@ async function start() {
   document.body.dataset.ready = "1";
 }
 
-window.homocalUI = { S, views, toScreen, idle: () => inFlight === 0 && !dragAgain };
-start().catch((e) => say(e.message, "error"));
+// The page's hook for its browser tests and scripts/screenshots.py: its state, the view transforms, a click at an
+// image (or map) pixel as the mouse gives it, and what the last render drew (drawn).
+window.homocalUI = { S, views, toScreen, clickAt, drawn, idle: () => inFlight === 0 && !dragAgain };
+start().catch((e) => say(e.message, "error", "start"));
