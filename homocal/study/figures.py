@@ -1,5 +1,6 @@
 """The study's figures as PNG files (matplotlib's object API with the Agg canvas; no pyplot state).
 
+- the headline: each method's path improvement distribution per scene, side by side, the paper's Table 1 marked;
 - error against distance with the fitted quadratic e = a d^2 + b d (paper Section 3), per scene;
 - the distance distribution of the test points (paper Fig. 2);
 - the calibration and path improvement distributions per method;
@@ -22,10 +23,11 @@ from homocal.dataset import Dataset, calibration_source, load_dataset
 from homocal.files import write_atomic
 from homocal.geometry import ViewTransformer
 from homocal.study.aggregate import Quantiles, scan
-from homocal.study.metrics import METHODS
+from homocal.study.metrics import D_METHODS, METHODS, PAPER
 from homocal.study.perturb import base_quad, perturbed_quads
 
 DPI = 110
+HEADLINE = "path_improvement.png"  # the report's first figure (headline_figure)
 
 
 @dataclass(frozen=True)
@@ -39,7 +41,7 @@ class FigureFile:
 
 def figure_names(study: dict) -> list[str]:
     """The file names make_figures may write for a study (those of its scenes whose dataset is missing are not)."""
-    return [*(f"error_distance_{entry['scene']}.png" for entry in study["datasets"]), "test_distance.png",
+    return [HEADLINE, *(f"error_distance_{entry['scene']}.png" for entry in study["datasets"]), "test_distance.png",
             "improvement_histograms.png", "path_heatmaps.png"]
 
 
@@ -53,7 +55,9 @@ def make_figures(results_dir: Path, study: dict, shards: dict[str, list[Path]], 
     """Write every figure the results allow into out_dir; return them and notes on the ones left out.
     progress: a bar per pass over the shards on stderr for long reads."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    datasets, notes, figures = [], [], []
+    datasets, notes = [], []
+    figures = [FigureFile(out_dir / HEADLINE, "Path improvement of each method, per scene",
+                          headline_figure(shards, out_dir / HEADLINE, progress=progress))]
     source, n_test, seed = study.get("foot_source", "exact"), study.get("n_test"), study.get("seed", 0)
     max_distance = study.get("max_test_distance")
     for entry in study["datasets"]:
@@ -105,20 +109,80 @@ class ColumnHistogram:
         self.median.second_pass()
 
 
+def column_histograms(shards: dict[str, list[Path]], columns: list[str], edges: np.ndarray, what: str,
+                      progress: bool = False, per_scene: bool = False) -> dict:
+    """A ColumnHistogram (edges (B + 1,)) of each column, all scenes pooled ({column: histogram}) or per scene
+    ({(scene, column): histogram}); read in two passes one shard at a time (aggregate.scan)."""
+    hists: dict = {}
+    for n in (1, 2):
+        for scene, batch in scan(shards, columns, f"{what}, pass {n} of 2", progress):
+            for c in columns:
+                key = (scene, c) if per_scene else c
+                if n == 1 and key not in hists:
+                    hists[key] = ColumnHistogram(edges)
+                hists[key].add(batch[c])
+        if n == 1:
+            for h in hists.values():
+                h.second_pass()
+    return hists
+
+
+def headline_figure(shards: dict[str, list[Path]], out: Path, lo: float = -100.0, hi: float = 100.0,
+                    width: float = 2.0, progress: bool = False) -> str:
+    """The report's first figure: per scene (a panel each), each method's path improvement distribution (percent)
+    as a strip whose height follows the share of samples per bin, with its median; the paper's Table 1 median and
+    mean path improvement marked on its two methods' strips. Returns the caption."""
+    edges = np.arange(lo, hi + width / 2, width)
+    columns = [f"path_{m}" for m in METHODS]
+    hists = column_histograms(shards, columns, edges, "headline", progress, per_scene=True)
+    scenes = list(dict.fromkeys(scene for scene, _ in hists))
+    fig = Figure(figsize=(13, 0.1 + (0.55 * len(METHODS) + 0.9) * len(scenes)), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(len(scenes), 1, sharex=True, squeeze=False).ravel())
+    centres = (edges[:-1] + edges[1:]) / 2
+    for ax, scene in zip(axes, scenes):
+        notes = []
+        for row, method in enumerate(METHODS):
+            h = hists[(scene, f"path_{method}")]
+            share = h.counts / max(h.median.n, 1)
+            y = len(METHODS) - 1 - row
+            half = 0.42 * share / max(share.max(), 1e-12)
+            ax.fill_between(centres, y - half, y + half, step="mid", color="tab:blue", alpha=0.55, lw=0)
+            median = h.median.values()[0]
+            ax.plot([median] * 2, [y - 0.42, y + 0.42], color="k", lw=2)
+            outside = 100 * (h.below + h.above) / max(h.median.n, 1)
+            notes.append(f"median {median:.1f} %" + (f", {outside:.1f} % outside" if outside >= 0.05 else ""))
+            if method in D_METHODS:
+                ax.plot(PAPER[method]["median_path"], y, "D", color="tab:red", ms=8, mec="k")
+                ax.plot(PAPER[method]["mean_path"], y, "^", color="tab:orange", ms=8, mec="k")
+        ax.set_yticks(range(len(METHODS)), list(METHODS)[::-1], fontsize=10)
+        ax.set_ylim(-0.6, len(METHODS) - 0.4)
+        right = ax.twinx()  # each strip's median (and share outside the display) beside it
+        right.set_ylim(ax.get_ylim())
+        right.set_yticks(range(len(METHODS)), notes[::-1], fontsize=9)
+        ax.set_xlim(lo, hi)
+        ax.axvline(0, color="0.3", lw=0.8)
+        ax.set_title(f"{scene}", fontsize=11, loc="left")
+        ax.grid(axis="x", color="0.85", lw=0.6)
+    axes[-1].set_xlabel("path improvement (%) = 100 (E_before - E_after) / E_before")
+    axes[0].plot([], [], "D", color="tab:red", mec="k", label="paper's Table 1: median")
+    axes[0].plot([], [], "^", color="tab:orange", mec="k", label="paper's Table 1: mean")
+    axes[0].plot([], [], color="k", lw=2, label="ours: median")
+    fig.legend(loc="outside upper center", fontsize=9, ncols=3)
+    save(fig, out)
+    return (f"Each method's path improvement per scene: the strip's height follows the share of samples per "
+            f"{width:g} pp bin (each strip scaled to its own highest bin), the black bar is its median; shown on "
+            f"[{lo:g}, {hi:g}] %, the share outside it given beside the median (failed corrections count below). The "
+            f"paper's Table 1 median (diamond) and mean (triangle) path improvement are marked on its two methods, "
+            f"{' and '.join(D_METHODS)}.")
+
+
 def improvement_histograms(shards: dict[str, list[Path]], out: Path, lo: float = -200.0, hi: float = 100.0, width: float = 2.0,
                            progress: bool = False) -> str:
     """Histograms of calibration and path improvement (percent) per method, all scenes pooled, shown on [lo, hi];
     read in two passes one shard at a time (aggregate.scan)."""
     edges = np.arange(lo, hi + width / 2, width)
     columns = [f"{kind}_{m}" for m in METHODS for kind in ("cal", "path")]
-    hists = {c: ColumnHistogram(edges) for c in columns}
-    for n in (1, 2):
-        for _, batch in scan(shards, columns, f"histograms, pass {n} of 2", progress):
-            for c in columns:
-                hists[c].add(batch[c])
-        if n == 1:
-            for h in hists.values():
-                h.second_pass()
+    hists = column_histograms(shards, columns, edges, "histograms", progress)
     fig = Figure(figsize=(10, 2.6 * len(METHODS)), layout="constrained")
     axes = fig.subplots(len(METHODS), 2, sharex=True)
     for row, method in zip(axes, METHODS):

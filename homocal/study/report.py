@@ -14,7 +14,7 @@ import base64
 import csv
 import html
 import io
-import json
+import re
 import sys
 from pathlib import Path
 from typing import Sequence
@@ -23,12 +23,13 @@ import numpy as np
 
 from homocal.files import output_folder, write_json_atomic, write_text_atomic
 from homocal.progress import add_progress_option, show_progress
-from homocal.study.figures import FigureFile, figure_names, make_figures
+from homocal.study.figures import HEADLINE, FigureFile, figure_names, make_figures
 from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer
 from homocal.study.ceiling import QUADRATIC, variant_ceilings, weighted_median
-from homocal.study.inputs import OPTIONS, StudyParams, StudyScene, changed_options, option_text
+from homocal.study.inputs import OPTIONS, StudyParams, StudyScene, changed_options, option_text, preset_params
 from homocal.study.law import horizon_shift_law, perturbation_law
+from homocal.study.options import PRESETS
 from homocal.study.metrics import (D_KEYS, D_METHODS, METRICS, PAPER, Table, build_table, complete_shard_files, load_study,
                                    paper_distance, table_cells, to_csv, to_markdown, to_text, verified_shard_files)
 from homocal.study.perturb import MAX_PIXELS
@@ -36,7 +37,8 @@ from homocal.study.perturb import MAX_PIXELS
 STYLE = """body{font-family:sans-serif;max-width:1400px;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:2px 8px}
 td.num{text-align:right;font-variant-numeric:tabular-nums}.grid{display:grid;grid-template-columns:1fr 1fr;gap:1.5em}
-figure{margin:0}figure img{width:100%}figcaption{font-size:0.9em;color:#444}.warn{color:#a00}"""
+figure{margin:0 0 2em}figure img{width:100%;max-width:1400px}figcaption{font-size:0.95em;color:#444}.warn{color:#a00}
+nav ol{columns:2}code{background:#f3f3f3;padding:0 3px}"""
 FORMAT = "homocal-report"  # report.json's "format": marks a report folder
 
 
@@ -364,24 +366,27 @@ def law_html(results_dir: Path, study: dict) -> list[str]:
 
 def render_html(study: dict, table: Table, figures: list[FigureFile], notes: list[str], out_dir: Path,
                 first: Sequence[str] = (), missing: int = 0) -> str:
-    """The report page: the incomplete-study warning, the sections given in first (Reproduction, the law),
-    the study's parameters and counts, the table per method, the figures two by two."""
+    """The report page: a table of contents, the incomplete-study warning, the headline figure (figures.HEADLINE),
+    the sections given in first (Reproduction, the law), the study's settings (settings_html) and counts, the
+    table per method, the other figures one under another at full width."""
     e = html.escape
     done, total = study.get("samples_done"), study.get("samples_total")
     degenerate = study.get("degenerate", [])
     rows_read = table.value("regression", "n")
+    headline = [f for f in figures if f.path.name == HEADLINE]
+    versions = ", ".join(f"{k} {v}" for k, v in study.get("versions", {}).items())
     parts = [
-        f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>homocal study report</title><style>{STYLE}</style></head><body>",
-        "<h1>homocal study report</h1>",
-        "" if study.get("complete") and not missing else f"<p class='warn'>The study is not complete: {missing} shard(s) missing, {e(_show(done))} of {e(_show(total))} samples in study.json's count; the numbers below are of the shards finished so far.</p>",
+        "" if study.get("complete") and not missing else f"<p class='warn'>The study is not complete: {missing} shard(s) missing, {_count(done)} of {_count(total)} samples in study.json's count; the numbers below are of the shards finished so far.</p>",
+        "<h2>The methods at a glance</h2>",
+        *(_figure_html(f, out_dir) for f in headline),
         *first,
         "<h2>Study</h2>",
-        _html_table(["parameter", "value"], [[k, _show(v)] for k, v in study.items() if k not in ("datasets", "degenerate", "versions")]),
+        *settings_html(study),
         _html_table(["scene", "dataset", "config hash"], [[d["scene"], d.get("path", ""), d.get("config_hash", "")] for d in study["datasets"]]),
-        f"<p>Samples done: {e(_show(done))} of {e(_show(total))} (study.json); rows read from the shards: {rows_read:,}. "
+        f"<p>Samples done: {_count(done)} of {_count(total)} (study.json); rows read from the shards: {rows_read:,}. "
         f"Degenerate trapezoid variants: {len(degenerate)}.</p>",
         _html_table(["scene", "variant", "reason"], [[d.get("scene", ""), d.get("variant", ""), d.get("reason", "")] for d in degenerate]) if degenerate else "",
-        f"<p>Versions: {e(_show(study.get('versions', {})))}</p>",
+        f"<p>Versions: {e(versions)}</p>" if versions else "",
         "<h2>Table 1 and more</h2>",
         "<p>Improvements in percent, 100 (E_before - E_after) / E_before of the mean ground error on the calibration "
         "points (calibration) and the test points (path); pp = percentage points. Also in <a href='table.md'>table.md</a> "
@@ -393,14 +398,72 @@ def render_html(study: dict, table: Table, figures: list[FigureFile], notes: lis
     parts.append("</div>")
     parts.append("<h2>Figures</h2>")
     parts += [f"<p class='warn'>{e(note)}</p>" for note in notes]
-    parts.append("<div class='grid'>")
-    for fig in figures:
-        data = base64.b64encode(fig.path.read_bytes()).decode("ascii")
-        rel = fig.path.relative_to(out_dir).as_posix()
-        parts.append(f"<figure><img src='data:image/png;base64,{data}' alt='{e(rel)}'><figcaption><b>{e(fig.title)}.</b> "
-                     f"{e(fig.caption)} <a href='{e(rel)}'>{e(rel)}</a></figcaption></figure>")
-    parts.append("</div></body></html>")
-    return "\n".join(p for p in parts if p)
+    parts += [_figure_html(f, out_dir) for f in figures if f.path.name != HEADLINE]
+    body, contents = _numbered_sections("\n".join(p for p in parts if p))
+    return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>homocal study report</title><style>{STYLE}</style>"
+            f"</head><body>\n<h1>homocal study report</h1>\n{contents}\n{body}\n</body></html>")
+
+
+def settings_html(study: dict) -> list[str]:
+    """The study's settings as homocal study's command line gives them: each option's flag and value (with its
+    unit) and what it sets, those that differ from the preset's values marked; then the settings no option sets
+    (StudyParams' internal fields), in words."""
+    params = StudyParams.from_dict(study)
+    preset = study.get("preset")
+    base = preset_params(preset) if preset in PRESETS else StudyParams()
+    label = f" ({study['preset_label']})" if study.get("preset_label") else ""
+    rows = []
+    for name, opt in OPTIONS.items():
+        value = getattr(params, name)
+        text = opt.to_text(value) + (f" {opt.unit}" if opt.unit and value is not None else "")
+        meaning = opt.none if value is None else opt.help
+        changed = option_text(name, value) != option_text(name, getattr(base, name))
+        rows.append([opt.flag, text, ("set; " if changed else "") + meaning])
+    fixed = [f"the hybrid's threshold {params.threshold:g} % (the paper's Section 5.4)",
+             "least change's settings " + ", ".join(f"{k} = {v:g}" for k, v in params.least_change.items()),
+             "descent's other settings " + ", ".join(f"{k} = {_words(v)}" for k, v in params.descent.items()
+                                                     if k != "delta_max")]
+    return [f"<p>Preset <code>--preset {html.escape(str(preset))}</code>{html.escape(label)}; as its command line: "
+            f"<code>{html.escape(' '.join(option_text(n, getattr(params, n)) for n in OPTIONS))}</code>.</p>",
+            _html_table(["option", "value", "what it sets ('set': differs from the preset)"], rows),
+            "<p>Fixed, no option: " + html.escape("; ".join(fixed)) + ".</p>"]
+
+
+def _words(value) -> str:
+    """A setting's value as text: numbers with %g, lists joined by commas."""
+    if isinstance(value, (list, tuple)):
+        return ", ".join(_words(v) for v in value)
+    return f"{value:g}" if isinstance(value, (int, float)) and not isinstance(value, bool) else str(value)
+
+
+def _count(value) -> str:
+    """A count of study.json, or "?" if it has none."""
+    return f"{value:,}" if isinstance(value, int) else "?"
+
+
+def _figure_html(fig: FigureFile, out_dir: Path) -> str:
+    """A figure embedded as a data URI at full width, its caption and a link to its file."""
+    e = html.escape
+    data = base64.b64encode(fig.path.read_bytes()).decode("ascii")
+    rel = fig.path.relative_to(out_dir).as_posix()
+    return (f"<figure><img src='data:image/png;base64,{data}' alt='{e(fig.title)}'><figcaption><b>{e(fig.title)}.</b> "
+            f"{e(fig.caption)} <a href='{e(rel)}'>{e(rel)}</a></figcaption></figure>")
+
+
+_H2 = re.compile(r"<h2>(.*?)</h2>")
+
+
+def _numbered_sections(body: str) -> tuple[str, str]:
+    """(body with an id on each h2, the table of contents linking to them)."""
+    titles: list[str] = []
+
+    def anchor(match: re.Match) -> str:
+        titles.append(match.group(1))
+        return f"<h2 id='section-{len(titles)}'>{match.group(1)}</h2>"
+
+    body = _H2.sub(anchor, body)
+    items = "".join(f"<li><a href='#section-{i + 1}'>{t}</a></li>" for i, t in enumerate(titles))
+    return body, f"<nav><b>Contents</b><ol>{items}</ol></nav>"
 
 
 def _html_table(header: list[str], rows: list[list], numeric: bool = False) -> str:
@@ -412,6 +475,3 @@ def _html_table(header: list[str], rows: list[list], numeric: bool = False) -> s
     )
     return f"<table><tr>{head}</tr>{body}</table>"
 
-
-def _show(value) -> str:
-    return value if isinstance(value, str) else json.dumps(value)

@@ -149,12 +149,64 @@ class TestReportCommand:
         assert "Degenerate trapezoid variants: 1" in html and "collinear vertices" in html
         assert "dataset not available" in html  # the datasets of this study do not exist: figures left out, said so
         pngs = sorted((out / "figures").glob("*.png"))
-        assert [p.name for p in pngs] == ["improvement_histograms.png", "path_heatmaps.png"]
+        assert [p.name for p in pngs] == ["improvement_histograms.png", "path_heatmaps.png", "path_improvement.png"]
         for png in pngs:
             assert f"figures/{png.name}" in html
             assert_nontrivial_png(png)
         assert (out / "table.md").read_text().count("### ") == len(METHODS)
         assert (out / "table.csv").read_text().startswith("method,metric,alpha,beta,overall,paper")
+
+    def test_page_reads_as_a_page(self, results, tmp_path):
+        """A table of contents linking every section; the headline figure before every other; the settings as the
+        study's flags with their units, never study.json's keys, raw JSON or null."""
+        import re
+        from html.parser import HTMLParser
+
+        root, _ = results
+        report.write_report(root, tmp_path / "page")
+        page = (tmp_path / "page" / "report.html").read_text()
+
+        class Text(HTMLParser):  # the text a reader sees: the body's, not the style sheet's
+            words: list[str] = []
+            tag = ""
+
+            def handle_starttag(self, tag, attrs):
+                self.tag = tag
+
+            def handle_data(self, data):
+                if self.tag not in ("style", "title"):
+                    self.words.append(data)
+
+        reader = Text()
+        reader.feed(page)
+        text = " ".join(reader.words)
+        for raw in ("null", "{\"", "[\"", "\": ", "[{", "n_variants", "samples_degenerate", "n_degenerate",
+                    "max_test_distance"):  # no JSON, no study.json key
+            assert raw not in text, raw
+        sections = re.findall(r"<h2 id='(section-\d+)'>", page)
+        assert len(sections) >= 4 and all(f"<a href='#{s}'>" in page for s in sections)
+        assert page.index("<nav>") < page.index("<h2 ")
+        first, second = [m.start() for m in re.finditer(r"<figure>", page)][:2]
+        assert first < page.index("figures/path_improvement.png") < second  # the headline is the first figure
+        assert page.index("figures/path_improvement.png") < page.index(">Reproduction of the paper's Table 1</h2>")
+        rows = dict(re.findall(r"<tr><td>(--[a-z-]+)</td><td>([^<]*)</td>", page))
+        assert rows["--variants"] == str(PARAMS.n_variants) and rows["--n-test"] == str(PARAMS.n_test)
+        assert rows["--max-test-distance"] == f"{PARAMS.max_test_distance:g} m"
+        assert rows["--horizon-shift"] == "none"
+        assert f"--variants {PARAMS.n_variants}" in text
+
+    def test_headline_medians_per_scene(self, results, tmp_path):
+        """The headline figure's medians are each scene's own (the standard library's median of its shards'
+        values); the scenes are its panels."""
+        root, stored = results
+        shards = metrics.shard_files(root, metrics.load_study(root))
+        edges = np.arange(-100.0, 101.0, 2.0)
+        hists = figures.column_histograms(shards, [f"path_{m}" for m in METHODS], edges, "test", per_scene=True)
+        assert {scene for scene, _ in hists} == set(SCENES)
+        for (scene, column), h in hists.items():
+            assert h.median.values()[0] == pytest.approx(statistics.median(stored[scene][column]), abs=1e-4)
+            inside = [v for v in stored[scene][column] if -100 <= v <= 100]
+            assert h.counts.sum() == len(inside)
 
     def test_shards_without_a_column_are_bad_input(self, tmp_path, capsys):
         write_results(tmp_path)
