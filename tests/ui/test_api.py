@@ -146,6 +146,11 @@ def test_pedestrians_fit_from_the_launch_boxes(boxes_server):
     reference = PedestrianCorrector().fit(clicked, boxes.xyxy, convention="homocal", frames=boxes.frames,
                                           camera_height_m=4.0, image_size=(W, H))
     assert fit["correction"] == json.loads(json.dumps(reference.to_dict()))
+    drawn = fit["boxes"]  # every box it read, by its part in the fit (the reference's counts)
+    assert drawn["total"] == reference.n_boxes_ == len(boxes.xyxy) and drawn["step"] == 1
+    assert (len(drawn["outlier"]), len(drawn["border"])) == (reference.n_outliers_, reference.n_border_)
+    used = np.array(drawn["used"] + drawn["outlier"] + drawn["border"])
+    np.testing.assert_allclose(np.sort(used, axis=0), np.sort(boxes.xyxy, axis=0), atol=0.05)  # rounded to 0.1 px
     (u0, v0), (u1, v1) = fit["horizon"]
     at_cx = v0 + (v1 - v0) * (CAM.K[0, 2] - u0) / (u1 - u0)
     assert at_cx == pytest.approx(reference.horizon_row_, abs=1e-6) and abs(at_cx - CAM.horizon_row) < 2.0
@@ -622,7 +627,7 @@ def test_error_ellipses_are_the_librarys_1_sigma_covariances(session):
     bars = api.view(session, request(tolerance_m=0.4, **sigmas))["errorbars"]
     transformer = ViewTransformer(IMAGE, GROUND)
     q = np.array(bars["image_points"])
-    assert len(q) >= 5
+    assert len(q) >= 3  # those within the trustworthy range (test_ellipses_only_within_the_trustworthy_range)
     cov = ground_uncertainty(transformer, q, 2.0, 0.5, 3.0 / SITE.scale_px_per_m)
     for c, sigma, ellipse_map, s in zip(bars["points"], bars["sigma"], bars["map"], cov):
         d = SITE.to_metres(np.array(ellipse_map)) - c
@@ -635,6 +640,16 @@ def test_error_ellipses_are_the_librarys_1_sigma_covariances(session):
     for line in bars["trustworthy_image"]:
         np.testing.assert_allclose(np.hypot(*transformer.transform_points(np.array(line)).T), expected, rtol=2e-3)
     assert api.view(session, request(errorbars=False))["errorbars"] is None
+
+
+def test_ellipses_only_within_the_trustworthy_range(session):
+    """The grid nodes whose ellipses are answered are those within the trustworthy range of the camera ground point
+    (the others counted in "beyond"): with a tolerance no node exceeds, all of them."""
+    every = api.view(session, request(tolerance_m=1e6))["errorbars"]
+    bars = api.view(session, request(tolerance_m=0.4))["errorbars"]
+    within = np.hypot(*np.array(every["points"]).T) <= bars["trustworthy_range_m"]  # camera ground point (0, 0)
+    assert every["beyond"] == 0 and bars["beyond"] == np.count_nonzero(~within) > 0
+    np.testing.assert_array_equal(bars["points"], np.array(every["points"])[within])
 
 
 def test_fit_passes_on_the_librarys_warnings(session):
