@@ -1,9 +1,9 @@
 """`homocal ui` in a real headless browser (Debian's chromium driven by selenium through chromium-driver):
 click a trapezoid on a simgen frame and its site map, add three reference points, fit, probe, save, load,
 and check that the saved files give the same correction as `homocal fit` on them; fit the pedestrian
-correction from the dataset's boxes, see its horizon drawn, and apply what Save wrote.
-
-Set HOMOCAL_UI_SCREENSHOT=docs/ui.jpg to also write the README's screenshot of the page."""
+correction from the dataset's boxes, see its horizon drawn, and apply what Save wrote; what the page shows as its
+state changes (its status line, labels, ellipses, fields and boxes). scripts/screenshots.py takes the docs'
+screenshots of the page."""
 from __future__ import annotations
 
 import contextlib
@@ -16,7 +16,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
@@ -211,8 +210,6 @@ def test_click_fit_save_load_in_a_browser(browser, server, tiny_dataset, tmp_pat
     wait_for(d, f"{S}.probe !== null")
     probe = js(d, f"{S}.probe")
     assert re.search(r"-> ground .* m; corrected .* m; 1-sigma ellipse", d.find_element(By.ID, "probe-summary").text)
-    if os.environ.get("HOMOCAL_UI_SCREENSHOT"):
-        save_screenshot(d, Path(os.environ["HOMOCAL_UI_SCREENSHOT"]))
 
     d.find_element(By.ID, "save").click()
     wait_for(d, "document.getElementById('files-summary').textContent.startsWith('wrote')")
@@ -246,15 +243,6 @@ def test_click_fit_save_load_in_a_browser(browser, server, tiny_dataset, tmp_pat
     np.testing.assert_array_equal(js(d, f"{S}.points.map((p) => [p.u, p.v, p.x, p.y])"), points)
     assert js(d, f"{S}.fit.correction") == saved
     assert [entry for entry in d.get_log("browser") if entry["source"] == "javascript"] == []  # no script error
-
-
-def save_screenshot(driver, path: Path) -> None:
-    """The browser's screenshot of the page, shrunk to 1120 px wide, as JPEG quality 85 (about 200 kB)."""
-    image = cv2.imdecode(np.frombuffer(driver.get_screenshot_as_png(), np.uint8), cv2.IMREAD_COLOR)
-    scale = 1120 / image.shape[1]
-    small = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    assert cv2.imwrite(str(path), small, [cv2.IMWRITE_JPEG_QUALITY, 85])
 
 
 def horizon_at(segment, u: float) -> float:
