@@ -378,6 +378,7 @@ def assert_labels_apart(driver) -> None:
                 assert apart, (canvas, a, b)
 
 
+@pytest.mark.browser
 def test_ellipses_only_within_the_trustworthy_range(page, tiny_dataset):
     """The view's 1-sigma ellipses are drawn only for grid nodes within the trustworthy range (on the frame and the
     map); the nodes beyond it are counted in one line that says why."""
@@ -394,6 +395,7 @@ def test_ellipses_only_within_the_trustworthy_range(page, tiny_dataset):
     assert {"TL", "TR", "BR", "BL", "horizon"} <= {label["text"] for label in drawn(d, "frame")["labels"]}
 
 
+@pytest.mark.browser
 def test_fields_follow_the_method(page):
     """A setting's field shows only for the methods the catalogue gives that setting; the boxes' fields only for
     a method fitted from boxes."""
@@ -407,6 +409,7 @@ def test_fields_follow_the_method(page):
         assert d.find_element(By.ID, "boxes-fields").is_displayed() == (method.evidence == "boxes"), name
 
 
+@pytest.mark.browser
 def test_banners_follow_the_state(page, tiny_dataset):
     """A refused fit's message clears once its cause is gone; a fit that makes its check points worse is a warning
     in its own colour with the numbers; the status line keeps its height; the pedestrians fit draws its boxes
