@@ -325,10 +325,15 @@ def test_too_few_people():
 
 
 def test_border_boxes_are_not_used():
+    """Boxes cut by the border are left out, boxes of people 60 % too tall are outliers: box_status_ says which."""
     _, boxes, frames, _ = people(60, seed=14)
     boxes[:10, 3] = CAM.height - 0.5  # cut by the bottom border
+    boxes[10:13, 1] -= 0.6 * (boxes[10:13, 3] - boxes[10:13, 1])  # 60 % taller: far beyond 3 sd of the prior
     c = _fit(xyxy=boxes, track_ids=frames, image_size=SIZE)
     assert c.n_border_ == 10 and c.n_people_ == 50
+    assert list(c.box_status_[:13]) == ["border"] * 10 + ["outlier"] * 3
+    assert np.count_nonzero(c.box_status_ == "outlier") == c.n_outliers_
+    assert np.count_nonzero(c.box_status_ == "used") == 60 - 10 - c.n_outliers_
 
 
 class TestBoxes:
