@@ -84,7 +84,7 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None, com
     folder whose figure and closest value it shows; replicates: studies of the same configuration at other
     seeds (check_replicates), over which with this one table_spread.csv and the page give every Table 1 number
     and D as mean and range; progress: a bar on stderr per pass over the shards that takes more than a second
-    (the table's two passes, the figures' four). ValueError if a results directory is not one (no study.json)
+    (the table's two passes, the figures' six). ValueError if a results directory is not one (no study.json)
     or holds no shard yet, or a replicate's configuration differs other than by seed.
     """
     results_dir = Path(results_dir)
