@@ -23,6 +23,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from homocal.geometry.lens import Lens
+
 
 @dataclass(frozen=True)
 class PinholeCamera:
@@ -153,10 +155,8 @@ class PinholeCamera:
         return float(-c / b)
 
     @property
-    def lens(self) -> "Lens":
+    def lens(self) -> Lens:
         """The lens: K, distortion and image size (``homocal.geometry.lens.Lens``)."""
-        from homocal.geometry.lens import Lens  # LENS-MERGE: top-level once lens.py is merged
-
         return Lens(self.K, np.array(self.distortion), (self.width, self.height))
 
     def project(self, points_world: np.ndarray) -> np.ndarray:
