@@ -284,12 +284,14 @@ def detectors_problem(names: list[str] | tuple[str, ...]) -> str | None:
 
 
 def in_frame(camera: PinholeCamera, uv: np.ndarray) -> np.ndarray:
-    """(N, 2) pixels -> (N,) bool: inside the image (pixel centres at integers) and below the horizon."""
+    """(N, 2) the camera's pixels -> (N,) bool: inside the image (pixel centres at integers) and below the horizon
+    (a line of the undistorted image: tested on the undistorted pixels)."""
     a, b, c = camera.horizon
     u, v = uv[:, 0], uv[:, 1]
+    hu, hv = (camera.lens.undistort_points(uv).T if any(camera.distortion) else (u, v))
     with np.errstate(invalid="ignore"):  # NaN (not in front of the camera) -> False
         inside = (u >= -0.5) & (u < camera.width - 0.5) & (v >= -0.5) & (v < camera.height - 0.5)
-        return inside & (a * u + b * v + c > 0)
+        return inside & (a * hu + b * hv + c > 0)
 
 
 def _visible(camera: PinholeCamera, xy: np.ndarray) -> np.ndarray:
@@ -339,11 +341,16 @@ def _read_camera(raw: dict) -> PinholeCamera:
             hfov_deg=_get(raw, "camera.hfov_deg"),
             mount_height_m=_get(raw, "camera.mount_height_m"),
             tilt_deg=_get(raw, "camera.tilt_deg"),
+            roll_deg=_get(raw, "camera.roll_deg", default=0.0),
+            yaw_deg=_get(raw, "camera.yaw_deg", default=0.0),
+            distortion=tuple(_get(raw, "camera.distortion", list, default=[0.0] * 5)),
         )
+        camera.lens.check_folds()
     except ConfigError:
         raise
     except ValueError as e:
-        raise ConfigError(f"scene.toml: {e}") from None
+        message = str(e)  # PinholeCamera's start with "camera:", the Lens's with the field ("distortion: ...")
+        raise ConfigError(f"scene.toml: {message if message.startswith('camera') else 'camera.' + message}") from None
     if camera.width % 2 or camera.height % 2:
         raise ConfigError(f"scene.toml: camera.width, camera.height: must be even (yuv420p video), got {camera.width}x{camera.height}")
     return camera

@@ -22,14 +22,18 @@ CALIBRATION_SCHEMA = pa.schema([
 
 
 def camera_json(scene: Scene) -> dict:
+    """camera.json (data_schema.md). ``roll_deg``, ``yaw_deg`` and ``distortion`` are written when any of them is
+    not zero (absent: zero, as in every pinhole dataset); ``horizon_row`` is null with a roll."""
     cam = scene.camera
     lists = lambda a: np.asarray(a, dtype=float).tolist()  # noqa: E731
+    real = {"roll_deg": cam.roll_deg, "yaw_deg": cam.yaw_deg, "distortion": list(cam.distortion)}
     return {
         "K": lists(cam.K), "R": lists(cam.R), "t": lists(cam.t), "width": cam.width, "height": cam.height,
         "hfov_deg": cam.hfov_deg, "vfov_deg": cam.vfov_deg, "mount_height_m": cam.mount_height_m,
-        "tilt_deg": cam.tilt_deg, "image_to_ground": lists(cam.image_to_ground),
+        "tilt_deg": cam.tilt_deg, **(real if cam.roll_deg or cam.yaw_deg or any(cam.distortion) else {}),
+        "image_to_ground": lists(cam.image_to_ground),
         "ground_to_image": lists(cam.ground_to_image), "horizon": lists(cam.horizon),
-        "horizon_row": cam.horizon_row, "camera_origin": [0.0, 0.0],
+        "horizon_row": None if cam.roll_deg else cam.horizon_row, "camera_origin": [0.0, 0.0],
     }  # fmt: skip
 
 

@@ -168,12 +168,18 @@ class PinholeCamera:
         with np.errstate(divide="ignore", invalid="ignore"):
             uv = (cam @ self.K.T)[:, :2] / cam[:, 2:3]
         uv[cam[:, 2] <= 0] = np.nan
-        if any(self.distortion):
-            lens = self.lens
-            with np.errstate(invalid="ignore"):
-                uv[np.hypot(*(cam[:, :2] / cam[:, 2:3]).T) >= lens.max_monotonic_radius] = np.nan
-            uv = lens.distort_points(uv)
-        return uv
+        return self.distort(uv)
+
+    def distort(self, pixels: np.ndarray) -> np.ndarray:
+        """Undistorted pixels (N, 2) (the pinhole image of K) -> the camera's pixels (N, 2) through the lens; NaN
+        beyond the lens's fold (normalised radius >= ``Lens.max_monotonic_radius``). Without distortion: the input."""
+        if not any(self.distortion):
+            return pixels
+        lens = self.lens
+        uv = np.array(pixels, dtype=np.float64).reshape(-1, 2)
+        with np.errstate(invalid="ignore"):
+            uv[np.hypot(*((uv - self.K[:2, 2]) / self.focal_px).T) >= lens.max_monotonic_radius] = np.nan
+        return lens.distort_points(uv)
 
     def project_ground(self, points_xy: np.ndarray) -> np.ndarray:
         """Project ground points (N, 2) metres (z = 0) to the camera's pixels (N, 2)."""
