@@ -228,6 +228,6 @@ class StudyScene:
                                                   max_lateral=params.test_lateral_max)
         return cls(ds.name, ds.site_map, ds.trapezoid_image, ds.trapezoid_map, np.asarray(ds.camera_origin, float),
                    cal_image, cal_ground, distance, test_image, test_ground, triples(len(cal_image)),
-                   np.asarray(ds.camera["K"], dtype=np.float64), float(ds.camera["horizon_row"]),
-                   float(ds.camera["width"]), str(ds.manifest.get("config_hash", "")))
+                   ds.camera.K, ds.camera.horizon_row,
+                   float(ds.camera.image_size[0]), str(ds.manifest.get("config_hash", "")))
 

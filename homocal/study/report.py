@@ -275,7 +275,7 @@ def gap_facts(study: dict) -> list[str]:
             ds = load_dataset(entry["path"])
         except ValueError:
             continue
-        K = np.asarray(ds.camera["K"], dtype=np.float64)
+        K = ds.camera.K
         rows = [ViewTransformer(t["image"], ds.site_map.to_metres(t["map"])).horizon_row(K[0, 2])
                 for t in (ds.trapezoids["exact"], ds.trapezoids["hand_placed"])]
         _, ground = ds.test_points(params.foot_source, n=params.n_test, seed=params.seed,
@@ -288,7 +288,7 @@ def gap_facts(study: dict) -> list[str]:
                      f"(negative: below; the mapping then overestimates range), and {base}; {100 * near:.1f} % of its "
                      f"{len(ground)} test points are within 2 m of the calibration line (the calibration objects stand on it); "
                      f"the map perturbations are px of {_map_scale_words(params.map_scale, ds.site_map.scale_px_per_m)}; "
-                     f"the image perturbations are px of {_image_width_words(params.image_width, float(ds.camera['width']))}.")
+                     f"the image perturbations are px of {_image_width_words(params.image_width, float(ds.camera.image_size[0]))}.")
     return facts
 
 
@@ -346,7 +346,7 @@ def law_html(results_dir: Path, study: dict) -> list[str]:
             continue
         exact = ds.trapezoids["exact"]
         vt = ViewTransformer(exact["image"], ds.site_map.to_metres(exact["map"]))
-        K = np.asarray(ds.camera["K"], dtype=np.float64)
+        K = ds.camera.K
         shift_rows = [[f"{r['shift_px']:g}", f"{r['exponent_Y']:.3f}", f"{r['exponent_Y_offset']:.3f}", f"{r['error_far_m']:.3f}",
                        f"{r['first_order_far_m']:.3f}", f"{r['eq17_far_m']:.3f}"] for r in horizon_shift_law(vt, K, ds.camera_origin)]
         parts += [f"<h3>{e(ds.name)}</h3>", _html_table(
