@@ -195,12 +195,13 @@ def _spread(values: list[float]) -> tuple[float, float, float]:
 def config_label(study: dict) -> str:
     """A study's configuration in its options' words: its preset and what it is (study.json's preset_label;
     none in a study.json written before presets were labelled, whose "paper" may name another configuration),
-    its base error, click noise and metric always, then every other study option that differs from homocal
+    its base error, click noise, metric and lens always, then every other study option that differs from homocal
     study's defaults (inputs.changed_options)."""
     params = StudyParams.from_dict(study)
     parts = ["hand-placed trapezoid as it is" if params.horizon_shift is None else option_text("horizon_shift", params.horizon_shift),
-             option_text("click_noise", params.click_noise), option_text("metric", params.metric)]
-    rest = tuple(n for n in OPTIONS if n not in ("n_variants", "horizon_shift", "click_noise", "metric"))
+             option_text("click_noise", params.click_noise), option_text("metric", params.metric),
+             option_text("lens", params.lens)]
+    rest = tuple(n for n in OPTIONS if n not in ("n_variants", "horizon_shift", "click_noise", "metric", "lens"))
     parts += changed_options(params, StudyParams(), rest)  # the other options, where they differ from the defaults
     label = f" ({study['preset_label']})" if study.get("preset_label") else ""
     return f"preset {study.get('preset')}{label}, {params.n_variants} variants: " + " ".join(parts)
