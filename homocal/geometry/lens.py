@@ -48,21 +48,14 @@ class Lens:
     image_size: tuple[int, int]
 
     def __post_init__(self) -> None:
-        K = _float_array(self.K, (3, 3), "K")
+        K = float_array(self.K, (3, 3), "K")
         if not (K[0, 0] > 0 and K[1, 1] > 0):
             raise ValueError(f"K: fx and fy must be > 0, got fx = {K[0, 0]!r}, fy = {K[1, 1]!r}")
         if K[0, 1] != 0 or K[1, 0] != 0 or K[2].tolist() != [0.0, 0.0, 1.0]:
             raise ValueError(f"K: expected [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), got {K.tolist()}")
-        dist = _float_array(self.distortion, (5,), "distortion")
-        size = self.image_size
-        if not (isinstance(size, (tuple, list, np.ndarray)) and len(size) == 2
-                and all(isinstance(x, (int, np.integer)) and not isinstance(x, bool) for x in size)
-                and all(0 < x <= MAX_IMAGE_SIDE for x in size)):
-            raise ValueError(f"image_size: expected (width, height), two integers in [1, {MAX_IMAGE_SIDE}] px, "
-                             f"got {size!r}")
         object.__setattr__(self, "K", K)
-        object.__setattr__(self, "distortion", dist)
-        object.__setattr__(self, "image_size", (int(size[0]), int(size[1])))
+        object.__setattr__(self, "distortion", float_array(self.distortion, (5,), "distortion"))
+        object.__setattr__(self, "image_size", check_image_size(self.image_size))
 
     def __eq__(self, other: object) -> bool:
         return (isinstance(other, Lens) and self.image_size == other.image_size
@@ -224,7 +217,32 @@ class Lens:
         return xy
 
 
-def _float_array(value, shape: tuple[int, ...], name: str) -> np.ndarray:
+def undistort_input(points: np.ndarray, lens: Lens | None, name: str) -> np.ndarray:
+    """The one step from the camera's pixels to the undistorted image for points a user gives (trapezoid corners,
+    reference points, box corners): (N, 2) px -> (N, 2) px of ``lens.undistort_points``; as they are (a copy)
+    without a lens or with an identity lens. ValueError naming ``name`` and the first finite point with no
+    pre-image (beyond the lens's fold: outside any frame this lens can record)."""
+    p = as_points(points, name)
+    if lens is None or lens.is_identity:
+        return p
+    out = lens.undistort_points(p)
+    lost = np.flatnonzero(np.isfinite(p).all(axis=1) & ~np.isfinite(out).all(axis=1))
+    if lost.size:
+        raise ValueError(f"{name}: point {lost[0]} = {p[lost[0]].tolist()} lies beyond the lens's fold (radius "
+                         f"{lens.max_distorted_radius:.4g} normalised): no ray of this lens reaches it")
+    return out
+
+
+def check_image_size(size) -> tuple[int, int]:
+    """(width, height) as two ints in [1, MAX_IMAGE_SIDE]; ValueError naming image_size otherwise."""
+    if not (isinstance(size, (tuple, list, np.ndarray)) and len(size) == 2
+            and all(isinstance(x, (int, np.integer)) and not isinstance(x, bool) for x in size)
+            and all(0 < x <= MAX_IMAGE_SIDE for x in size)):
+        raise ValueError(f"image_size: expected (width, height), two integers in [1, {MAX_IMAGE_SIDE}] px, got {size!r}")
+    return int(size[0]), int(size[1])
+
+
+def float_array(value, shape: tuple[int, ...], name: str) -> np.ndarray:
     """value as a read-only float64 array of shape, finite; ValueError naming name otherwise."""
     try:
         arr = np.array(value, dtype=np.float64)
