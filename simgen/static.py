@@ -9,6 +9,7 @@ import numpy as np
 import pyarrow as pa
 
 from homocal.files import write_atomic, write_json_atomic
+from homocal.geometry.camera_file import camera_json_dict
 from simgen.backend import mujoco
 from simgen.detection import SegmentationDetector
 from simgen.scene import Scene
@@ -19,22 +20,6 @@ CALIBRATION_SCHEMA = pa.schema([
     ("u", pa.float64()), ("v", pa.float64()), ("u_exact", pa.float64()), ("v_exact", pa.float64()),
     ("x1", pa.float64()), ("y1", pa.float64()), ("x2", pa.float64()), ("y2", pa.float64()),
 ])  # fmt: skip
-
-
-def camera_json(scene: Scene) -> dict:
-    """camera.json (data_schema.md). ``roll_deg``, ``yaw_deg`` and ``distortion`` are written when any of them is
-    not zero (absent: zero, as in every pinhole dataset); ``horizon_row`` is null with a roll."""
-    cam = scene.camera
-    lists = lambda a: np.asarray(a, dtype=float).tolist()  # noqa: E731
-    real = {"roll_deg": cam.roll_deg, "yaw_deg": cam.yaw_deg, "distortion": list(cam.distortion)}
-    return {
-        "K": lists(cam.K), "R": lists(cam.R), "t": lists(cam.t), "width": cam.width, "height": cam.height,
-        "hfov_deg": cam.hfov_deg, "vfov_deg": cam.vfov_deg, "mount_height_m": cam.mount_height_m,
-        "tilt_deg": cam.tilt_deg, **(real if cam.roll_deg or cam.yaw_deg or any(cam.distortion) else {}),
-        "image_to_ground": lists(cam.image_to_ground),
-        "ground_to_image": lists(cam.ground_to_image), "horizon": lists(cam.horizon),
-        "horizon_row": None if cam.roll_deg else cam.horizon_row, "camera_origin": [0.0, 0.0],
-    }  # fmt: skip
 
 
 def trapezoids_json(scene: Scene) -> dict:
@@ -63,7 +48,7 @@ def site_map(scene: Scene) -> np.ndarray:
 
 
 def write_static(scene: Scene, out: Path) -> None:
-    write_json_atomic(out / "camera.json", camera_json(scene))
+    write_json_atomic(out / "camera.json", camera_json_dict(scene.camera))  # homocal's camera codec
     write_json_atomic(out / "trapezoids.json", trapezoids_json(scene))
     image = site_map(scene)
     write_atomic(out / "site_map.png", lambda p: p.write_bytes(cv2.imencode(".png", image)[1].tobytes()))
