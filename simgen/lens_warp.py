@@ -27,15 +27,15 @@ class LensWarp:
         width, height: the pinhole render's size, px.
         fovy_deg: its vertical field of view (MuJoCo's ``fovy``), degrees.
         linear: cv2's fixed-point maps (``convertMaps``, CV_16SC2 and CV_16UC1) for bilinear remapping.
-        rows, cols: (H, W) int64 render pixel nearest to each frame pixel's undistorted ray.
+        nearest: (H, W) int64 flat index (row * width + column) of the render pixel nearest to each frame pixel's
+            undistorted ray.
     """
 
     width: int
     height: int
     fovy_deg: float
     linear: tuple[np.ndarray, np.ndarray]
-    rows: np.ndarray
-    cols: np.ndarray
+    nearest: np.ndarray
 
     def rgb(self, image: np.ndarray) -> np.ndarray:
         """(height, width, 3) uint8 render -> the camera's (H, W, 3) frame, bilinear."""
@@ -43,7 +43,7 @@ class LensWarp:
 
     def ids(self, image: np.ndarray) -> np.ndarray:
         """(height, width) ids of the render -> the camera's (H, W) ids, nearest (ids are never blended)."""
-        return image[self.rows, self.cols]
+        return np.take(image.ravel(), self.nearest)
 
 
 @functools.cache
@@ -63,7 +63,8 @@ def lens_warp(camera: PinholeCamera) -> LensWarp | None:
     src = (und + [mx, my]).reshape(h, w, 2).astype(np.float32)
     linear = cv2.convertMaps(src[..., 0], src[..., 1], cv2.CV_16SC2)
     fovy = math.degrees(2.0 * math.atan((h / 2.0 + my) / camera.focal_px))
-    return LensWarp(w + 2 * mx, h + 2 * my, fovy, linear, np.rint(src[..., 1]).astype(np.int64), np.rint(src[..., 0]).astype(np.int64))
+    nearest = np.rint(src[..., 1]).astype(np.int64) * (w + 2 * mx) + np.rint(src[..., 0]).astype(np.int64)
+    return LensWarp(w + 2 * mx, h + 2 * my, fovy, linear, nearest)
 
 
 def render_view(camera: PinholeCamera) -> tuple[int, int, float]:
