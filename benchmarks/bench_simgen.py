@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
+import simgen.chunks as chunks
 import simgen.dataset as dataset
 from simgen.model import CAMERA
 from simgen.backend import backend, mujoco
@@ -203,7 +204,7 @@ def main() -> None:
           f"detectors {','.join(scene.detectors)}, quality {scene.quality}, MUJOCO_GL={backend()}")
 
     raw, chunk_ms, ratios, inside_ms, chunk_inside = RawPasses(scene, a.seed), [], [], [0.0], []
-    per_chunk, run_chunk = dataset._chunk_frames(scene), dataset._run_chunk
+    per_chunk, run_chunk = chunks.chunk_frames(scene), chunks.run_chunk
     raw_ms: list[float] = []
 
     def timed(stage, detectors, c, parts, tick):
@@ -227,7 +228,7 @@ def main() -> None:
         return wrapper
 
     originals = FrameRenderer.rgb, FrameRenderer.segmentation
-    dataset._run_chunk = timed
+    chunks.run_chunk = timed
     try:
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
@@ -236,7 +237,7 @@ def main() -> None:
             FrameRenderer.rgb, FrameRenderer.segmentation = originals
             total_s = time.perf_counter() - t0 - sum(raw_ms) / 1e3
     finally:
-        dataset._run_chunk = run_chunk
+        chunks.run_chunk = run_chunk
         FrameRenderer.rgb, FrameRenderer.segmentation = originals
         raw.close()
 

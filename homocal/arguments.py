@@ -5,6 +5,9 @@ from __future__ import annotations
 import argparse
 import math
 import numbers
+from pathlib import Path
+
+from homocal.geometry import CameraModel, read_camera
 
 
 def number(kind: type, low: float, high: float = math.inf, low_open: bool = False):
@@ -53,3 +56,18 @@ def xy_pair(text: str) -> tuple[float, float]:
     if not (math.isfinite(x) and math.isfinite(y)):
         raise argparse.ArgumentTypeError(f"expected two finite numbers X,Y, got {text!r}")
     return x, y
+
+
+CAMERA_JSON_HELP = ("the camera: a dataset's camera.json or a lens.json (K, distortion, image_size); the image points "
+                    "given are undistorted with its lens before any homography (docs/real-camera.md)")
+
+
+def camera_json(path: Path | None) -> CameraModel | None:
+    """--camera-json's camera (homocal.geometry.read_camera), None without the flag; ValueError "--camera-json
+    FILE: key: problem" for a bad file."""
+    if path is None:
+        return None
+    try:
+        return read_camera(path)
+    except ValueError as e:
+        raise ValueError(f"--camera-json {e}") from None

@@ -16,6 +16,7 @@ which adds 1 when writing MOT, as MOTChallenge exporters do, lands exactly on ou
 from __future__ import annotations
 
 import configparser
+import dataclasses
 import itertools
 import math
 import os
@@ -27,8 +28,10 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from homocal.files import read_json, read_points_csv
-from homocal.geometry.boxes import box_edges
+from homocal.files import read_points_csv
+from homocal.geometry.boxes import box_edges, undistort_boxes
+from homocal.geometry.camera_file import read_camera
+from homocal.geometry.lens import Lens
 
 MOT_COLUMNS = (9, 10)
 MAX_MOT_BYTES = 2**28
@@ -143,6 +146,7 @@ class PersonBoxes:
         track_ids: (N,) int64 person of each box, or None when the file has none.
         image_size: (width, height) px when the file's folder says it (seqinfo.ini, camera.json), else None.
         K: (3, 3) intrinsics when the file's folder has them (a dataset's camera.json), else None.
+        lens: the Lens the boxes were undistorted with (read_boxes' lens), else None: xyxy are the file's pixels.
     """
 
     frames: np.ndarray
@@ -150,10 +154,12 @@ class PersonBoxes:
     track_ids: np.ndarray | None = None
     image_size: tuple[int, int] | None = None
     K: np.ndarray | None = None
+    lens: Lens | None = None
 
 
-def read_boxes(path: str | os.PathLike, detector: str | None = None) -> PersonBoxes:
-    """People's boxes from a file, by its extension:
+def read_boxes(path: str | os.PathLike, detector: str | None = None, lens: Lens | None = None) -> PersonBoxes:
+    """People's boxes from a file, by its extension, in the undistorted image of ``lens`` when given
+    (geometry.boxes.undistort_boxes; its image size must be the file's when the file says one):
 
     - ``.txt``: a MOTChallenge file (read_mot), such as ``simgen export-mot``'s ``SEQ/det/<detector>.txt``
       (ids -1: no tracks) or a gt.txt (its ids are the tracks). When the file sits in ``SEQ/det/`` or
@@ -169,7 +175,8 @@ def read_boxes(path: str | os.PathLike, detector: str | None = None) -> PersonBo
     ValueError naming the file (and line or row) for anything else: a missing file, another extension, a
     detector for a file that is not Parquet, a detector with no rows, no boxes, a value that is not a finite
     number, a frame or track id that is not an integer >= 0, a box upside down or empty (read_mot refuses a
-    width or height <= 0; PedestrianCorrector.fit checks every box again).
+    width or height <= 0; PedestrianCorrector.fit checks every box again), a lens whose image size is not the
+    file's, a box beyond the lens's fold, no lens for a detections.parquet whose camera.json has a distortion.
     """
     path = Path(path)
     if not path.is_file():
@@ -185,7 +192,18 @@ def read_boxes(path: str | os.PathLike, detector: str | None = None) -> PersonBo
         boxes = _read_csv_boxes(path)
     else:
         raise ValueError(f"{path}: expected a MOTChallenge .txt, a detections .parquet or a .csv of frame,x1,y1,x2,y2")
-    return boxes
+    if lens is None:  # boxes.lens here: the lens of the camera.json beside a detections.parquet (_read_detections)
+        if boxes.lens is not None and not boxes.lens.is_identity:
+            raise ValueError(f"{path}: the camera.json beside it has a lens distortion: give that lens (homocal fit "
+                             "--camera-json) so that the boxes are undistorted as the trapezoid is")
+        return dataclasses.replace(boxes, lens=None)
+    if boxes.image_size is not None and boxes.image_size != lens.image_size:
+        raise ValueError(f"{path}: its image size {list(boxes.image_size)} differs from the lens's {list(lens.image_size)}")
+    try:
+        xyxy = undistort_boxes(boxes.xyxy, lens)
+    except ValueError as e:
+        raise ValueError(f"{path}: {e}") from None
+    return dataclasses.replace(boxes, xyxy=xyxy, image_size=lens.image_size, K=lens.K, lens=lens)
 
 
 def _read_mot_boxes(path: Path) -> PersonBoxes:
@@ -223,15 +241,13 @@ def _read_detections(path: Path, detector: str) -> PersonBoxes:
     bad = np.flatnonzero(~np.isfinite(xyxy).all(axis=1))
     if bad.size:
         raise ValueError(f"{path}: row {bad[0]} of detector {detector!r} has no finite box")
-    size = K = None
+    size = K = lens = None
     camera_path = path.parent / "camera.json"
     if camera_path.is_file():
-        camera = read_json(camera_path)
-        try:
-            size, K = (int(camera["width"]), int(camera["height"])), np.asarray(camera["K"], dtype=np.float64)
-        except (KeyError, TypeError, ValueError) as e:
-            raise ValueError(f"{camera_path}: needs width, height and K ({e})") from None
-    return PersonBoxes(table.column("frame").to_numpy().astype(np.int64), xyxy, None, size, K)
+        camera = read_camera(camera_path)
+        size, K = camera.image_size, camera.K
+        lens = camera.lens
+    return PersonBoxes(table.column("frame").to_numpy().astype(np.int64), xyxy, None, size, K, lens)
 
 
 def _read_csv_boxes(path: Path) -> PersonBoxes:

@@ -10,7 +10,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from homocal.files import read_json
-from homocal.geometry import SiteMap, validate_quad
+from homocal.geometry import CameraModel, SiteMap, read_camera, validate_quad
 from homocal.names import check_name
 
 EXACT = "exact"
@@ -30,7 +30,7 @@ class Dataset:
     Attributes:
         path: the dataset folder. name: the scene name (manifest.json's "scene", else the folder's name;
             names.check_name: it becomes part of paths).
-        camera: camera.json as a dict. camera_origin: (2,) world metres.
+        camera: camera.json (read_camera; it has K and camera_origin). camera_origin: (2,) world metres.
         site_map: scale and origin of the site map.
         trapezoid_image: (4, 2) hand-placed image trapezoid, px (TL, TR, BR, BL).
         trapezoid_map: (4, 2) hand-placed site-map trapezoid, map px.
@@ -40,7 +40,7 @@ class Dataset:
     path: Path
     name: str
     manifest: dict
-    camera: dict
+    camera: CameraModel
     camera_origin: np.ndarray
     site_map: SiteMap
     trapezoid_image: np.ndarray
@@ -125,15 +125,17 @@ def load_dataset(path: str | Path) -> Dataset:
     manifest = read_json(path / "manifest.json")
     if not manifest.get("complete", False):
         raise ValueError(f"{path}: the run is not complete (manifest.json complete = false); finish it with simgen generate --resume")
-    camera = read_json(path / "camera.json")
+    camera = read_camera(path / "camera.json")
+    missing = [key for key in ("K", "camera_origin") if getattr(camera, key) is None]
+    if missing:
+        raise ValueError(f"{path / 'camera.json'}: missing key {missing[0]} (a dataset's camera.json has K and camera_origin)")
     trapezoids = read_json(path / "trapezoids.json")
     try:
         hand = trapezoids["hand_placed"]
         image = validate_quad(np.asarray(hand["image"], dtype=np.float64), f"{path}/trapezoids.json hand_placed.image")
         site_map_quad = validate_quad(np.asarray(hand["map"], dtype=np.float64), f"{path}/trapezoids.json hand_placed.map")
-        origin = np.asarray(camera["camera_origin"], dtype=np.float64)
     except KeyError as e:
-        raise ValueError(f"{path}: missing key {e} in camera.json or trapezoids.json") from None
+        raise ValueError(f"{path}: missing key {e} in trapezoids.json") from None
     if not (path / "site_map.json").is_file():
         raise ValueError(f"{path}: missing site_map.json")
     dataset = Dataset(
@@ -141,7 +143,7 @@ def load_dataset(path: str | Path) -> Dataset:
         name=check_name(manifest.get("scene", path.name), f"{path / 'manifest.json'}: scene"),
         manifest=manifest,
         camera=camera,
-        camera_origin=origin,
+        camera_origin=camera.camera_origin,
         site_map=SiteMap.from_json(path / "site_map.json"),
         trapezoid_image=image,
         trapezoid_map=site_map_quad,

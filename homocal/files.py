@@ -112,11 +112,14 @@ class OutputFolder:
                 tmp.unlink()
 
 
-def read_json(path: str | Path) -> dict:
-    """Read a JSON object from path; ValueError (naming the file) if it is missing, unreadable or not an object."""
+def read_json(path: str | Path, max_bytes: int | None = None) -> dict:
+    """Read a JSON object from path; ValueError (naming the file) if it is missing, unreadable, larger than
+    max_bytes (when given) or not an object."""
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"{path}: no such file")
+    if max_bytes is not None and path.stat().st_size > max_bytes:
+        raise ValueError(f"{path}: larger than {max_bytes} bytes: not a file of this kind")
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as e:

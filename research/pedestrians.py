@@ -135,14 +135,14 @@ def variant_rows(scene: StudyScene, params: StudyParams, ds: Dataset, xyxy: np.n
     """One dict per variant 0..params.n_variants that is not degenerate (prepare_variant): scene, variant,
     path (improvement %, NaN: a failure), rel_before, rel_after (5-50 m; inf: a failure), and either refusal
     (PedestrianCorrector.fit's message) or horizon_error, sigma (px) and the fit's COUNTS."""
-    given = {} if args.estimate_camera else {"K": scene.K, "camera_height_m": float(ds.camera["mount_height_m"])}
+    given = {} if args.estimate_camera else {"K": scene.K, "camera_height_m": ds.camera.mount_height_m}
     o, near = scene.origin, in_range(scene)
 
     def fit(clicked: ViewTransformer) -> PedestrianCorrector | str:
         try:
             return PedestrianCorrector(args.height_mean, args.height_sd, args.model).fit(
                 clicked, xyxy, convention="homocal", frames=frames,
-                image_size=(int(ds.camera["width"]), int(ds.camera["height"])), camera_origin=o,
+                image_size=ds.camera.image_size, camera_origin=o,
                 max_outlier_share=max_outlier_share(args), **given)
         except ValueError as e:
             return str(e)
@@ -229,7 +229,7 @@ def window_spread(lines: list[dict]) -> dict:
 
 def end_to_end(path: str, kind: str, args) -> dict:
     ds = load_dataset(path)
-    K, true_row = np.asarray(ds.camera["K"], float), float(ds.camera["horizon_row"])
+    K, true_row = ds.camera.K, ds.camera.horizon_row
     quads = {"exact": ds.trapezoids["exact"], "hand-placed": ds.trapezoids["hand_placed"]}[kind]
     target = ds.site_map.to_metres(np.asarray(quads["map"], float))
     image = np.asarray(quads["image"], float)
@@ -241,7 +241,7 @@ def end_to_end(path: str, kind: str, args) -> dict:
     boxes = read_boxes(args.det)
     corrector = PedestrianCorrector(args.height_mean, args.height_sd, args.model).fit(
         clicked, boxes.xyxy, convention="homocal", frames=boxes.frames, track_ids=boxes.track_ids,
-        camera_height_m=float(ds.camera["mount_height_m"]), image_size=boxes.image_size, K=K if args.give_k else None)
+        camera_height_m=ds.camera.mount_height_m, image_size=boxes.image_size, K=K if args.give_k else None)
     corrector.save(out)
     loaded = load_corrector(out)
     gt = ds.table("gt.parquet")

@@ -1,18 +1,18 @@
 """Regenerate the scenes' generated assets: ground textures and the hand-placed trapezoids.
 
-    python scenes/make_scene_assets.py            # rewrite scene1's and scene2's ground.png and trapezoid blocks
+    python scenes/make_scene_assets.py            # rewrite the shipped scenes' ground.png and trapezoid blocks
     python scenes/make_scene_assets.py DIR ...    # rewrite the trapezoid block of any scene folder (a copy you edited)
 
 The ground texture is painted here from a list of rectangles in world metres (x right, y forward),
 at RES px per metre, over the extent of the scene's ``ground`` plane. MuJoCo stretches it once over
 the plane (``texrepeat="1 1" texuniform="false"``): image top = +y, image left = -x, like a site map.
 
-The hand-placed trapezoids are a function of the scene: the exact vertices (the scene's own camera and
-``trapezoid.ground_m``, image and site map) moved by 1 to 2 px in a random direction (keyed by SEED and
+The hand-placed trapezoids are a function of the scene: the exact vertices (the scene's own camera, with its
+pose and lens, and ``trapezoid.ground_m``, image and site map) moved by 1 to 2 px in a random direction (keyed by SEED and
 the folder's name) and rounded to integers, as a person clicks them. They are stored in ``scene.toml``
 between the BEGIN/END markers, and ``load_scene`` refuses a block that no longer fits the camera
-(edit the camera or the trapezoid, then rerun this on the folder). scene1's and scene2's blocks are
-this function's output.
+(edit the camera or the trapezoid, then rerun this on the folder). The shipped scenes' blocks are
+this function's output; scene3 is scene1's street (its painting) seen by another camera.
 """
 from __future__ import annotations
 
@@ -154,7 +154,7 @@ def main() -> None:
                 sys.exit(f"make_scene_assets: error: {folder}: {e}")
             print(f"{folder}: trapezoid block written")
         return
-    for name, rects in (("scene1", scene1()), ("scene2", scene2())):
+    for name, rects in (("scene1", scene1()), ("scene2", scene2()), ("scene3", scene1())):
         d = HERE / name
         xml = (d / "scene.xml").read_text()
         m = re.search(r'name="ground"[^>]*size="([\d.]+) ([\d.]+)[^"]*"[^>]*pos="([-\d.]+) ([-\d.]+)', xml)

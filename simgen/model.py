@@ -15,6 +15,7 @@ import numpy as np
 from homocal.geometry.camera import PinholeCamera
 from simgen.backend import mujoco
 from simgen.humanoid import PARTS, Person, pose
+from simgen.lens_warp import render_view
 from simgen.scene import Scene
 
 CAMERA = "simgen_camera"
@@ -43,12 +44,14 @@ class RunModel:
 
 
 def add_camera(spec: mujoco.MjSpec, camera: PinholeCamera) -> None:
-    """Add the pinhole camera (position, xyaxes, fovy from ``camera``) and size the offscreen buffer."""
-    cam = spec.worldbody.add_camera(name=CAMERA, pos=camera.position.tolist(), fovy=camera.vfov_deg)
+    """Add the pinhole camera (position, xyaxes, fovy from ``camera``; with a lens, the wider pinhole view of
+    ``simgen.lens_warp``) and size the offscreen buffer."""
+    width, height, fovy = render_view(camera)
+    cam = spec.worldbody.add_camera(name=CAMERA, pos=camera.position.tolist(), fovy=fovy)
     cam.alt.type = mujoco.mjtOrientation.mjORIENTATION_XYAXES
     cam.alt.xyaxes = list(camera.mujoco_xyaxes)
-    spec.visual.global_.offwidth = max(spec.visual.global_.offwidth, camera.width)
-    spec.visual.global_.offheight = max(spec.visual.global_.offheight, camera.height)
+    spec.visual.global_.offwidth = max(spec.visual.global_.offwidth, width)
+    spec.visual.global_.offheight = max(spec.visual.global_.offheight, height)
 
 
 def _add_person(spec: mujoco.MjSpec, name: str) -> None:

@@ -36,8 +36,13 @@ def annotate(scene: Scene, rgb: np.ndarray, agent_ids: np.ndarray, foot_xy: np.n
     img = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
     cam = scene.camera
     a, b, c = cam.horizon
-    ends = np.array([[0.0, -(c + a * 0) / b], [cam.width - 1.0, -(c + a * (cam.width - 1)) / b]])
-    cv2.line(img, *map(tuple, _px(ends)), HORIZON, 1, cv2.LINE_AA, _SHIFT)
+    if any(cam.distortion):  # a line of the undistorted image, curved by the lens
+        u = np.linspace(-cam.width, 2.0 * cam.width, 300)
+        curve = cam.distort(np.column_stack([u, -(c + a * u) / b]))
+        cv2.polylines(img, [_px(curve[np.isfinite(curve).all(axis=1)])], False, HORIZON, 1, cv2.LINE_AA, _SHIFT)
+    else:
+        ends = np.array([[0.0, -(c + a * 0) / b], [cam.width - 1.0, -(c + a * (cam.width - 1)) / b]])
+        cv2.line(img, *map(tuple, _px(ends)), HORIZON, 1, cv2.LINE_AA, _SHIFT)
     cv2.polylines(img, [_px(scene.trapezoid_exact_image)], True, EXACT, 1, cv2.LINE_AA, _SHIFT)
     cv2.polylines(img, [_px(scene.hand_placed_image)], True, HAND_PLACED, 1, cv2.LINE_AA, _SHIFT)
     batch = SegmentationDetector().detect(0, 0.0, rgb, agent_ids)

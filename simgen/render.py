@@ -9,7 +9,9 @@ import warnings
 
 import numpy as np
 
+from homocal.geometry.camera import PinholeCamera
 from simgen.backend import BackendError, backend_message, mujoco
+from simgen.lens_warp import lens_warp, render_view
 from simgen.model import CAMERA
 
 QUALITY = {  # preset -> (offscreen multisamples, shadow map px; 0: no shadows): ``[render] quality``, ``--quality``
@@ -28,9 +30,13 @@ def apply_quality(model: mujoco.MjModel, quality: str) -> None:
 
 
 class FrameRenderer:
-    """The RGB and segmentation passes of the run camera; a context manager (closes the GL context)."""
+    """The RGB and segmentation passes of the run camera (the model's, added by ``add_camera(spec, camera)``), in
+    the camera's frame: with a lens, MuJoCo's wider pinhole render remapped through it (``simgen.lens_warp``);
+    a context manager (closes the GL context)."""
 
-    def __init__(self, model: mujoco.MjModel, width: int, height: int) -> None:
+    def __init__(self, model: mujoco.MjModel, camera: PinholeCamera) -> None:
+        self._warp = lens_warp(camera)
+        width, height, _ = render_view(camera)
         try:
             with warnings.catch_warnings():  # glfw warns (several lines) before failing without a DISPLAY
                 warnings.simplefilter("ignore")
@@ -44,7 +50,8 @@ class FrameRenderer:
 
     def rgb(self) -> np.ndarray:
         """(H, W, 3) uint8, row 0 at the top."""
-        return self._r.render()
+        image = self._r.render()
+        return image if self._warp is None else self._warp.rgb(image)
 
     def segmentation(self) -> np.ndarray:
         """(H, W) int32 geom id at each pixel, -1 where no geom (background or other objects)."""
@@ -53,7 +60,8 @@ class FrameRenderer:
             seg = self._r.render()
         finally:
             self._r.disable_segmentation_rendering()
-        return np.where(seg[:, :, 1] == int(mujoco.mjtObj.mjOBJ_GEOM), seg[:, :, 0], -1)
+        ids = np.where(seg[:, :, 1] == int(mujoco.mjtObj.mjOBJ_GEOM), seg[:, :, 0], -1)
+        return ids if self._warp is None else self._warp.ids(ids)
 
     def close(self) -> None:
         self._r.close()

@@ -284,12 +284,14 @@ def detectors_problem(names: list[str] | tuple[str, ...]) -> str | None:
 
 
 def in_frame(camera: PinholeCamera, uv: np.ndarray) -> np.ndarray:
-    """(N, 2) pixels -> (N,) bool: inside the image (pixel centres at integers) and below the horizon."""
+    """(N, 2) the camera's pixels -> (N,) bool: inside the image (pixel centres at integers) and below the horizon
+    (a line of the undistorted image: tested on the undistorted pixels)."""
     a, b, c = camera.horizon
     u, v = uv[:, 0], uv[:, 1]
+    hu, hv = (camera.lens.undistort_points(uv).T if any(camera.distortion) else (u, v))
     with np.errstate(invalid="ignore"):  # NaN (not in front of the camera) -> False
         inside = (u >= -0.5) & (u < camera.width - 0.5) & (v >= -0.5) & (v < camera.height - 0.5)
-        return inside & (a * u + b * v + c > 0)
+        return inside & (a * hu + b * hv + c > 0)
 
 
 def _visible(camera: PinholeCamera, xy: np.ndarray) -> np.ndarray:
@@ -330,6 +332,68 @@ def describe(scene: Scene) -> str:
             f"{scene.agent_count} people, detectors {','.join(scene.detectors)}")
 
 
+def _read_camera(raw: dict) -> PinholeCamera:
+    """``[camera]``: the PinholeCamera it describes (each key is a PinholeCamera field). Raises ConfigError."""
+    try:
+        camera = PinholeCamera(
+            width=_get(raw, "camera.width", int),
+            height=_get(raw, "camera.height", int),
+            hfov_deg=_get(raw, "camera.hfov_deg"),
+            mount_height_m=_get(raw, "camera.mount_height_m"),
+            tilt_deg=_get(raw, "camera.tilt_deg"),
+            roll_deg=_get(raw, "camera.roll_deg", default=0.0),
+            yaw_deg=_get(raw, "camera.yaw_deg", default=0.0),
+            distortion=tuple(_get(raw, "camera.distortion", list, default=[0.0] * 5)),
+        )
+        camera.lens.check_folds()
+    except ConfigError:
+        raise
+    except ValueError as e:
+        message = str(e)  # PinholeCamera's start with "camera:", the Lens's with the field ("distortion: ...")
+        raise ConfigError(f"scene.toml: {message if message.startswith('camera') else 'camera.' + message}") from None
+    if camera.width % 2 or camera.height % 2:
+        raise ConfigError(f"scene.toml: camera.width, camera.height: must be even (yuv420p video), got {camera.width}x{camera.height}")
+    return camera
+
+
+def _read_routes(raw: dict) -> tuple[Route, ...]:
+    """``[[agents.routes]]``. Raises ConfigError."""
+    routes = []
+    for i, r in enumerate(_get(raw, "agents.routes", list)):
+        key = f"agents.routes[{i}]"
+        rd = {"agents": {f"routes[{i}]": r}}
+        route = Route(
+            name=str(r.get("name", f"route {i}")) if isinstance(r, dict) else "",
+            points=_points(rd, f"{key}.points"),
+            width_m=_get(rd, f"{key}.width_m"),
+            both_ways=_get(rd, f"{key}.both_ways", bool),
+            weight=_get(rd, f"{key}.weight"),
+            wait_s=_range(rd, f"{key}.wait_s") if "wait_s" in r else (0.0, 0.0),
+            wait_share=_get(rd, f"{key}.wait_share") if "wait_share" in r else 0.0,
+        )
+        if not 0 <= route.wait_share <= 1:
+            raise ConfigError(f"scene.toml: {key}.wait_share: must be in [0, 1], got {route.wait_share}")
+        if route.weight <= 0 or route.width_m < 0 or np.any(np.hypot(*np.diff(route.points, axis=0).T) == 0):
+            raise ConfigError(f"scene.toml: {key}: needs weight > 0, width_m >= 0 and no repeated points")
+        routes.append(route)
+    return tuple(routes)
+
+
+def _read_calibration(raw: dict) -> np.ndarray:
+    """``[calibration]``: (M, 2) ground points (x, d), metres, of the calibration objects. Raises ConfigError."""
+    key = "calibration.distances_m"
+    calib = np.linspace(_get(raw, key + ".start"), _get(raw, key + ".stop"), _get(raw, key + ".count", int))
+    if len(calib) < 3:
+        raise ConfigError(f"scene.toml: {key}.count: must be >= 3")
+    layout = _get(raw, "calibration.layout", str) if "layout" in raw["calibration"] else "line"
+    lateral = _get(raw, "calibration.lateral_m") if "lateral_m" in raw["calibration"] else 0.0
+    if layout not in ("line", "zigzag") or lateral < 0 or (layout == "line" and lateral):
+        raise ConfigError(f"scene.toml: calibration.layout, lateral_m: expected \"line\" (lateral_m 0) or \"zigzag\" "
+                          f"with lateral_m >= 0, got {layout!r}, {lateral}")
+    sign = np.where(np.arange(len(calib)) % 2 == 0, 1.0, -1.0) if layout == "zigzag" else np.zeros(len(calib))
+    return np.column_stack([sign * lateral, calib])
+
+
 def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
     """Read and validate ``folder/scene.toml`` and the MJCF it names. Raises ConfigError.
 
@@ -352,51 +416,9 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
     model_path = folder / _get(raw, "model", str)
     if not model_path.is_file():
         raise ConfigError(f"scene.toml: model: {model_path} does not exist")
-    try:
-        camera = PinholeCamera(
-            width=_get(raw, "camera.width", int),
-            height=_get(raw, "camera.height", int),
-            hfov_deg=_get(raw, "camera.hfov_deg"),
-            mount_height_m=_get(raw, "camera.mount_height_m"),
-            tilt_deg=_get(raw, "camera.tilt_deg"),
-        )
-    except ConfigError:
-        raise
-    except ValueError as e:
-        raise ConfigError(f"scene.toml: {e}") from None
-    if camera.width % 2 or camera.height % 2:
-        raise ConfigError(f"scene.toml: camera.width, camera.height: must be even (yuv420p video), got {camera.width}x{camera.height}")
-
-    routes = []
-    for i, r in enumerate(_get(raw, "agents.routes", list)):
-        key = f"agents.routes[{i}]"
-        rd = {"agents": {f"routes[{i}]": r}}
-        route = Route(
-            name=str(r.get("name", f"route {i}")) if isinstance(r, dict) else "",
-            points=_points(rd, f"{key}.points"),
-            width_m=_get(rd, f"{key}.width_m"),
-            both_ways=_get(rd, f"{key}.both_ways", bool),
-            weight=_get(rd, f"{key}.weight"),
-            wait_s=_range(rd, f"{key}.wait_s") if "wait_s" in r else (0.0, 0.0),
-            wait_share=_get(rd, f"{key}.wait_share") if "wait_share" in r else 0.0,
-        )
-        if not 0 <= route.wait_share <= 1:
-            raise ConfigError(f"scene.toml: {key}.wait_share: must be in [0, 1], got {route.wait_share}")
-        if route.weight <= 0 or route.width_m < 0 or np.any(np.hypot(*np.diff(route.points, axis=0).T) == 0):
-            raise ConfigError(f"scene.toml: {key}: needs weight > 0, width_m >= 0 and no repeated points")
-        routes.append(route)
-
-    key = "calibration.distances_m"
-    calib = np.linspace(_get(raw, key + ".start"), _get(raw, key + ".stop"), _get(raw, key + ".count", int))
-    if len(calib) < 3:
-        raise ConfigError(f"scene.toml: {key}.count: must be >= 3")
-    layout = _get(raw, "calibration.layout", str) if "layout" in raw["calibration"] else "line"
-    lateral = _get(raw, "calibration.lateral_m") if "lateral_m" in raw["calibration"] else 0.0
-    if layout not in ("line", "zigzag") or lateral < 0 or (layout == "line" and lateral):
-        raise ConfigError(f"scene.toml: calibration.layout, lateral_m: expected \"line\" (lateral_m 0) or \"zigzag\" "
-                          f"with lateral_m >= 0, got {layout!r}, {lateral}")
-    sign = np.where(np.arange(len(calib)) % 2 == 0, 1.0, -1.0) if layout == "zigzag" else np.zeros(len(calib))
-    calib_xy = np.column_stack([sign * lateral, calib])
+    camera = _read_camera(raw)
+    routes = _read_routes(raw)
+    calib_xy = _read_calibration(raw)
 
     scene = Scene(
         name=_scene_name(folder),
@@ -412,8 +434,8 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
         agent_count=_get(raw, "agents.count", int),
         speed_mps=_range(raw, "agents.speed_mps", low=1e-3),
         gap_s=_range(raw, "agents.gap_s"),
-        routes=tuple(routes),
-        calibration_distances=calib,
+        routes=routes,
+        calibration_distances=calib_xy[:, 1],
         calibration_xy=calib_xy,
         trapezoid_ground=_points(raw, "trapezoid.ground_m", 4),
         hand_placed_image=_points(raw, "trapezoid.hand_placed_image", 4, integer=True),
@@ -426,13 +448,21 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
     _check_run(scene)
     if scene.agent_count < 0 or scene.rgb_warmup_frames < 0:
         raise ConfigError("scene.toml: agents.count and detection.rgb_warmup_frames must be >= 0")
-    if not routes and scene.agent_count:
+    if not scene.routes and scene.agent_count:
         raise ConfigError("scene.toml: agents.routes: at least one route is needed when agents.count > 0")
     if not scene.map_scale > 0:
         raise ConfigError(f"scene.toml: site_map.scale_px_per_m: must be > 0, got {scene.map_scale}")
+    _check_placement(scene, check_trapezoid)
+    return scene
 
+
+def _check_placement(scene: Scene, check_trapezoid: bool) -> None:
+    """The calibration objects and the trapezoid in the camera's view; the hand-placed vertices (if
+    ``check_trapezoid``) inside their images and near the exact ones. Raises ConfigError."""
+    camera = scene.camera
     x0, x1, y0, y1 = scene.ground.extent
-    bad = ~_visible(camera, calib_xy) | (calib <= 0) | (calib > y1)
+    calib = scene.calibration_distances
+    bad = ~_visible(camera, scene.calibration_xy) | (calib <= 0) | (calib > y1)
     if bad.any():
         near = camera.mount_height_m / math.tan(math.radians(camera.tilt_deg + camera.vfov_deg / 2))
         raise ConfigError(
@@ -449,7 +479,6 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
             if np.any(q < 0) or np.any(q[:, 0] > w - 1) or np.any(q[:, 1] > h - 1):
                 raise ConfigError(f"scene.toml: {key}: a vertex lies outside the {w}x{h} image")
         _check_hand_placed(scene)
-    return scene
 
 
 def _scene_name(folder: Path) -> str:

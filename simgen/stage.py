@@ -25,7 +25,7 @@ class Stage:
         self.data = mujoco.MjData(self.model)
         mujoco.mj_forward(self.model, self.data)  # camera poses are set by mj_forward, not mj_kinematics
         self.crowd = Crowd(scene, seed, scene.seconds if t_end is None else t_end)
-        self.renderer = FrameRenderer(self.model, scene.camera.width, scene.camera.height)
+        self.renderer = FrameRenderer(self.model, scene.camera)
         self._geom_agent = np.full(self.model.ngeom, -1, np.int32)
 
     def place(self, state: AgentState) -> None:

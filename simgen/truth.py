@@ -31,7 +31,9 @@ _MAX_SPAN = 8192  # px: a silhouette larger than this (an agent almost at the le
 
 
 def _sphere_outline(camera: PinholeCamera, centres: np.ndarray, radius: np.ndarray) -> np.ndarray:
-    """(N, 3) world sphere centres, (N,) radii -> (N, 24, 2) pixel outline of their silhouettes (NaN if not in front)."""
+    """(N, 3) world sphere centres, (N,) radii -> (N, 24, 2) pixel outline of their silhouettes (NaN if not in front),
+    through the lens (the outline's points distorted; the hull between them stays straight, a sub-pixel error at
+    an agent's size)."""
     cc = centres @ camera.R.T + camera.t  # camera frame
     d2 = np.einsum("ij,ij->i", cc, cc)
     centre = cc * (1.0 - radius**2 / d2)[:, None]  # the tangent circle, in the plane normal to cc
@@ -45,7 +47,7 @@ def _sphere_outline(camera: PinholeCamera, centres: np.ndarray, radius: np.ndarr
     with np.errstate(divide="ignore", invalid="ignore"):
         uv = uvw[..., :2] / uvw[..., 2:]
     uv[~(ring[..., 2] > radius[:, None])] = np.nan
-    return uv
+    return camera.distort(uv.reshape(-1, 2)).reshape(uv.shape)
 
 
 def silhouette_outlines(camera: PinholeCamera, segments: np.ndarray, radii: np.ndarray) -> np.ndarray:

@@ -9,28 +9,35 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from homocal.geometry import PinholeCamera, SiteMap
+from homocal.geometry import Lens, PinholeCamera, SiteMap
 
 GROUND_RECT = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])  # TL, TR, BR, BL, metres
 
 
 def write_dataset(path: str | Path, scene: str = "synthetic", n_calibration: int = 12, n_test: int = 500,
-                  seed: int = 0) -> Path:
+                  seed: int = 0, distortion: list[float] | None = None) -> Path:
     """Write a complete dataset folder: calibration objects at 5..44 m ahead, n_test agent positions on the road
-    (exact projections; the "segmentation" detector adds 0.5 px noise), a hand-placed trapezoid within 2 px."""
+    (exact projections; the "segmentation" detector adds 0.5 px noise), a hand-placed trapezoid within 2 px.
+    With distortion (OpenCV's k1, k2, p1, p2, k3) every image point is the lens's (Lens.distort_points) and
+    camera.json says it."""
     cam, site = PinholeCamera(), SiteMap(10.0, (200.0, 600.0))
+    lens = Lens(cam.K, np.zeros(5) if distortion is None else distortion, (cam.width, cam.height))
+
+    def project(xy: np.ndarray) -> np.ndarray:
+        return lens.distort_points(cam.project_ground(xy))
+
     rng = np.random.default_rng(seed)
     path = Path(path)
     path.mkdir(parents=True, exist_ok=True)
-    exact_image = cam.project_ground(GROUND_RECT)
+    exact_image = project(GROUND_RECT)
     hand_image = np.round(exact_image + rng.uniform(-2, 2, (4, 2)))
     exact_map = site.to_pixels(GROUND_RECT)
     hand_map = np.round(exact_map + rng.uniform(-1, 1, (4, 2)))
     dist = np.linspace(5.0, 44.0, n_calibration)
     cal_g = np.column_stack([np.zeros(n_calibration), dist])
-    cal_q = cam.project_ground(cal_g)
+    cal_q = project(cal_g)
     test_g = np.column_stack([rng.uniform(-4, 4, n_test), rng.uniform(5, 45, n_test)])
-    test_q = cam.project_ground(test_g)
+    test_q = project(test_g)
     det_q = test_q + rng.normal(0, 0.5, test_q.shape)
     nan = np.full(n_test, np.nan)
     tables = {
@@ -50,7 +57,7 @@ def write_dataset(path: str | Path, scene: str = "synthetic", n_calibration: int
         "manifest.json": {"scene": scene, "seed": seed, "config_hash": f"synthetic-{scene}-{seed}", "complete": True,
                           "detectors": ["segmentation"]},
         "camera.json": {"camera_origin": [0.0, 0.0], "width": cam.width, "height": cam.height, "K": cam.K.tolist(),
-                        "horizon_row": cam.horizon_row},
+                        "horizon_row": cam.horizon_row, **({} if distortion is None else {"distortion": distortion})},
         "trapezoids.json": {"order": "TL,TR,BR,BL", "hand_placed": {"image": hand_image.tolist(), "map": hand_map.tolist()},
                             "exact": {"image": exact_image.tolist(), "map": exact_map.tolist()},
                             "ground_m": GROUND_RECT.tolist()},

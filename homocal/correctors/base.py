@@ -25,7 +25,7 @@ from homocal.correctors.serialization import (
     number,
 )
 from homocal.files import read_json, write_text_atomic
-from homocal.geometry import ViewTransformer, as_points, check_magnitude
+from homocal.geometry import CameraModel, Lens, ViewTransformer, as_points, check_magnitude
 from homocal.uncertainty import ground_uncertainty
 
 MAX_REFERENCE_POINTS = 100_000  # calibration pairs a fit takes (fit, advise and the page refuse more)
@@ -98,6 +98,10 @@ class Corrector:
     """Base of the correctors. Subclasses set ``method`` (the JSON "method" key) and ``param_names`` (their
     constructor arguments) and implement ``_fit``, ``_transform``, ``_fitted_state`` and ``_set_fitted_state``.
 
+    Image points are pixels of the undistorted image (a pinhole's). ``lens_``, the camera's Lens when the caller
+    set it (homocal fit: --camera-json's), travels with the saved correction so that homocal apply undistorts
+    the feet it is given (``Lens.undistort_points``) before ``transform_points``; None: a pinhole's pixels.
+
     Attributes after fit (or load):
         base_transformer_: the ViewTransformer being corrected.
         camera_origin_: (2,) camera ground point, target units.
@@ -108,6 +112,7 @@ class Corrector:
     method: ClassVar[str]
     param_names: ClassVar[tuple[str, ...]]
     _registry: ClassVar[dict[str, type[Corrector]]] = {}
+    lens_: Lens | None = None
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -200,6 +205,7 @@ class Corrector:
             "error_after": self.error_after_,
             "calibration_improvement": float_or_none(self.calibration_improvement_),
             "fitted": self._fitted_state(),
+            **({} if self.lens_ is None else {"lens": self.lens_.to_dict()}),
         }
 
     def to_json(self) -> str:
@@ -266,6 +272,11 @@ class Corrector:
         if not isinstance(data["fitted"], dict):
             raise ValueError(f"field fitted: expected an object, got {data['fitted']!r}")
         obj._set_fitted_state(data["fitted"])
+        if data.get("lens") is not None:  # files before the lens have none: a pinhole's pixels
+            try:
+                obj.lens_ = CameraModel.from_dict(data["lens"]).lens.check_folds()
+            except (AttributeError, TypeError, ValueError) as e:
+                raise ValueError(f"field lens: {e if isinstance(e, ValueError) else 'expected K, distortion, image_size'}") from None
         return obj
 
     @classmethod

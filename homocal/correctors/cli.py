@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from homocal.arguments import SEED, number, xy_pair
+from homocal.arguments import CAMERA_JSON_HELP, SEED, camera_json, number, xy_pair
 from homocal.boxes import DEFAULT_DETECTOR, read_boxes
 from homocal.correctors.base import MAX_REFERENCE_POINTS, load_corrector
 from homocal.correctors.catalogue import DEFAULT_METHOD, LEAST_CHANGE_PRIORS, METHODS, fit_note, label, quality
@@ -24,15 +24,16 @@ from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.least_change import LeastChangeCorrector
 from homocal.correctors.pedestrians import DEFAULT_HEIGHT_MEAN_M, DEFAULT_HEIGHT_SD_M
 from homocal.correctors.serialization import FORMAT
-from homocal.files import check_output_file, csv_header, json_format, read_json, read_points_csv, write_text_atomic
-from homocal.geometry import MAX_COORDINATE, ViewTransformer
+from homocal.files import check_output_file, csv_header, json_format, read_points_csv, write_text_atomic
+from homocal.geometry import MAX_COORDINATE, CameraModel, ViewTransformer
+from homocal.geometry.lens import undistort_input
 from homocal.uncertainty import max_trustworthy_range, sigma_radius, straight_ahead_column
 
 LEAST_CHANGE = {k: LeastChangeCorrector().get_params()[k] for k in LEAST_CHANGE_PRIORS}  # fit's prior flags, defaults
 TRUST_TOLERANCE_M = 0.5  # homocal fit reports how far the 1-sigma error stays under this
 APPLIED = ("x", "y", "sigma_m", "status")  # the columns homocal apply adds (last in its output)
 BOX_FLAGS = {"boxes": "--boxes", "detector": "--detector", "camera_height": "--camera-height",
-             "height_mean": "--height-mean", "height_sd": "--height-sd", "camera_json": "--camera-json"}
+             "height_mean": "--height-mean", "height_sd": "--height-sd"}
 LIBRARY_FLAGS = {"camera_height_m": "--camera-height", "height_mean_m": "--height-mean", "height_sd_m": "--height-sd",
                  "image_size": "--camera-json's width, height", "K": "--camera-json's K"}  # PedestrianCorrector's parameters
 
@@ -58,14 +59,21 @@ the range straight ahead out to which the 1-sigma error of a corrected point (th
 as homocal apply's sigma_m, at 1.5 px clicking error on each trapezoid corner and 1 px on the foot point:
 homocal.max_trustworthy_range) stays under 0.5 m.
 
+CAMERA.json (--camera-json, any method): a dataset's camera.json; a lens.json
+  {"K": [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], "distortion": [k1, k2, p1, p2, k3], "image_size": [W, H]}
+(homocal lens; OpenCV's distortion model); or {"width": W, "height": H, "K": ...} (K optional). Its lens
+undistorts the trapezoid's image corners, the reference points and the boxes before any homography, and
+the correction carries it (homocal apply undistorts the feet with it). The trapezoid file's "image_size"
+(a dataset's: its camera.json's) and the boxes file's must be the lens's.
+
 --method pedestrians fits from people's boxes instead (--boxes), with no reference point: the camera's
 tilt from the boxes' implied heights (docs/pedestrians.md). BOXES is a MOTChallenge .txt (simgen export-mot's
 SEQ/det/<detector>.txt; seqinfo.ini beside SEQ/det gives the image size), a simgen dataset's
 detections.parquet (--detector, default segmentation; its camera.json gives K and the image size) or a
 .csv with columns frame,x1,y1,x2,y2 (optional track_id; pixel corners at integers, as supervision's
-Detections.xyxy). CAMERA.json: {"width": W, "height": H, "K": [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]} (a
-dataset's camera.json; K optional): without K the focal length is read from the clicked trapezoid
-(principal point at the image centre), without --camera-height the height too; give both when you can.
+Detections.xyxy). --camera-json gives the image size and K (K optional): without K the focal length is
+read from the clicked trapezoid (principal point at the image centre), without --camera-height the height
+too; give both when you can.
 --points is then optional: the reference points do not enter the fit, they check it (independent
 evidence: their mean error before and after is printed and stored). The fit is refused when more than half
 of the boxes, or of the people (tracks), are outliers: the robust fit can follow them there."""
@@ -81,7 +89,10 @@ other columns are carried through to the output. The output has the same rows an
             regressions) and --point-sigma-px on the foot point; for pedestrians plus the fitted
             horizon's own uncertainty (its horizon_sigma_px as a tilt error);
   status    ok; beyond_horizon (on or above the horizon: x, y, sigma_m = nan); bad_input (u or v is
-            nan, inf or beyond +/-1e9 in the input: x, y, sigma_m = nan).
+            nan, inf or beyond +/-1e9 in the input, or beyond the fold of the correction's lens: x, y,
+            sigma_m = nan).
+A correction fitted with --camera-json carries that lens: the feet are the camera's pixels, undistorted
+with it before the mapping.
 Rows are never dropped; the summary line names the lines of the non-finite rows."""
 
 
@@ -120,8 +131,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                      f"(default {DEFAULT_HEIGHT_MEAN_M:g}, adults: docs/pedestrians.md)")
     fit.add_argument("--height-sd", type=float, metavar="M", help="pedestrians: the people's height spread, metres "
                      f"(default {DEFAULT_HEIGHT_SD_M:g})")
-    fit.add_argument("--camera-json", type=Path, metavar="CAMERA.json", help="pedestrians: the image size and "
-                     "intrinsics K (see below; default: those beside the boxes file)")
+    fit.add_argument("--camera-json", type=Path, metavar="CAMERA.json", help=CAMERA_JSON_HELP + "; it is saved "
+                     "with the correction. Pedestrians: its image size and K (default: those beside the boxes file)")
     fit.set_defaults(handler=handle_fit)
 
     apply = subparsers.add_parser(
@@ -140,7 +151,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def handle_fit(args: argparse.Namespace) -> int:
-    transformer = ViewTransformer.from_trapezoid_file(args.trapezoid)
+    camera = camera_json(args.camera_json)
+    lens = None if camera is None else camera.lens
+    transformer = ViewTransformer.from_trapezoid_file(args.trapezoid, lens)
     method = METHODS[args.method]
     boxes_flags = [flag for key, flag in BOX_FLAGS.items() if getattr(args, key) is not None]
     if method.evidence == "boxes" and args.boxes is None:
@@ -152,7 +165,8 @@ def handle_fit(args: argparse.Namespace) -> int:
     points = None
     if args.points is not None:
         _, _, cols, _ = read_points_csv(args.points, ("u", "v", "x", "y"), finite=True, most=MAX_REFERENCE_POINTS)
-        points = np.column_stack([cols[c] for c in ("u", "v", "x", "y")])
+        points = np.column_stack([undistort_input(np.column_stack([cols["u"], cols["v"]]), lens, str(args.points)),
+                                  cols["x"], cols["y"]])
     if str(args.out) == "-":
         raise ValueError("-o -: the correction is a JSON file, not a table: give its file name")
     check_output_file(args.out, lambda p: json_format(p) == FORMAT, "homocal correction (JSON with format "
@@ -162,10 +176,13 @@ def handle_fit(args: argparse.Namespace) -> int:
         raise ValueError(f"{', '.join(given)}: the priors of --method least-change, not of {args.method}")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        fit_from = _fit_from_boxes if method.evidence == "boxes" else _fit_from_points
-        corrector, source = fit_from(args, method, transformer, points)
+        if method.evidence == "boxes":
+            corrector, source = _fit_from_boxes(args, method, transformer, points, camera)
+        else:
+            corrector, source = _fit_from_points(args, method, transformer, points)
     for w in caught:
         print(f"homocal: warning: {args.points or args.boxes}: {w.message}", file=sys.stderr)
+    corrector.lens_ = lens
     corrector.save(args.out)
     print(f"homocal fit: {args.method} correction from {source} written to {args.out}: "
           f"{quality(corrector)}.{fit_note(corrector)}")
@@ -188,17 +205,19 @@ def _fit_from_points(args: argparse.Namespace, method, transformer: ViewTransfor
     return corrector, f"{len(points)} reference points"
 
 
-def _fit_from_boxes(args: argparse.Namespace, method, transformer: ViewTransformer, points: np.ndarray | None):
-    """The fitted PedestrianCorrector of fit's flags and a phrase naming its evidence; ValueError (a library
-    parameter's name replaced by its flag, see LIBRARY_FLAGS) for bad input or an untrustworthy fit."""
+def _fit_from_boxes(args: argparse.Namespace, method, transformer: ViewTransformer, points: np.ndarray | None,
+                    camera: CameraModel | None):
+    """The fitted PedestrianCorrector of fit's flags (boxes undistorted with the camera's lens) and a phrase naming
+    its evidence; ValueError (a library parameter's name replaced by its flag, see LIBRARY_FLAGS) for bad input
+    or an untrustworthy fit."""
     try:
         corrector = method.make(height_mean_m=args.height_mean, height_sd_m=args.height_sd)
     except ValueError as e:
         raise ValueError(_flag_message(str(e))) from None
-    boxes = read_boxes(args.boxes, args.detector)
+    boxes = read_boxes(args.boxes, args.detector, None if camera is None else camera.lens)
     size, K = boxes.image_size, boxes.K
-    if args.camera_json is not None:
-        size, K = _camera_json(args.camera_json)
+    if camera is not None:
+        size, K = camera.image_size, camera.K
     check = {} if points is None else {"image_points": points[:, :2], "ground_points": points[:, 2:]}
     try:
         corrector.fit(transformer, boxes.xyxy, convention="homocal", frames=boxes.frames, track_ids=boxes.track_ids,
@@ -224,19 +243,6 @@ def _flag_message(message: str) -> str:
                   lambda m: LIBRARY_FLAGS[m.group(1)], message)
 
 
-def _camera_json(path: Path) -> tuple[tuple[int, int], np.ndarray | None]:
-    """(width, height) and K (3, 3) or None of --camera-json; ValueError naming the flag and file."""
-    data = read_json(path)
-    try:
-        size = (data["width"], data["height"])
-        K = None if data.get("K") is None else np.asarray(data["K"], dtype=np.float64)
-    except (KeyError, TypeError, ValueError) as e:
-        raise ValueError(f"--camera-json {path}: needs width, height and optionally K ({e})") from None
-    if K is not None and K.shape != (3, 3):
-        raise ValueError(f"--camera-json {path}: K must be a 3x3 matrix, got shape {K.shape}")
-    return size, K
-
-
 def handle_apply(args: argparse.Namespace) -> int:
     corrector = load_corrector(args.correction)
     fields, rows, cols, lines = read_points_csv(args.points, ("u", "v"), finite=False)
@@ -247,6 +253,9 @@ def handle_apply(args: argparse.Namespace) -> int:
     q = np.column_stack([cols["u"], cols["v"]])
     bad_input = ~(np.abs(q) <= MAX_COORDINATE).all(axis=1)  # nan, inf, or an overflow
     q[bad_input] = np.nan
+    if corrector.lens_ is not None:  # the camera's pixels -> the undistorted image the correction maps
+        q = corrector.lens_.undistort_points(q)
+        bad_input |= np.isnan(q).any(axis=1)  # beyond the lens's fold
     xy = corrector.transform_points(q)
     sigma = sigma_radius(corrector.ground_uncertainty(q, args.click_sigma_px, args.point_sigma_px))
     status = np.where(bad_input, "bad_input", np.where(np.isnan(xy).any(axis=1), "beyond_horizon", "ok"))
@@ -263,7 +272,7 @@ def handle_apply(args: argparse.Namespace) -> int:
         write_text_atomic(args.out, buffer.getvalue())
     beyond = int((status == "beyond_horizon").sum())
     bad_lines = [lines[i] for i in np.flatnonzero(bad_input)]
-    bad = (f"; {len(bad_lines)} with u or v nan, inf or beyond 1e9 (status bad_input, line"
+    bad = (f"; {len(bad_lines)} with u or v nan, inf or beyond 1e9{'' if corrector.lens_ is None else ' or the lens'} (status bad_input, line"
            f"{'s' if len(bad_lines) > 1 else ''} {_line_list(bad_lines)})" if bad_lines else "")
     print(f"homocal apply: {len(rows)} points mapped with the {label(corrector)} correction of {args.correction} "
           f"and written to {'stdout' if to_stdout else args.out}; {beyond} on or above the horizon (status "

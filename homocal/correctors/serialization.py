@@ -7,7 +7,9 @@ A correction file is one JSON object (see ``Corrector.to_dict``)::
      "params": {...constructor arguments...},
      "transformer": {"source": 4x2 image px (TL, TR, BR, BL), "target": 4x2 ground units},
      "camera_origin": [x, y], "error_before": e, "error_after": e, "calibration_improvement": pct | null,
-     "fitted": {...the method's fitted parameters...}}
+     "fitted": {...the method's fitted parameters...},
+     "lens": {"K": 3x3, "distortion": [k1, k2, p1, p2, k3], "image_size": [W, H]}}   optional: the camera's
+                                   lens (its undistorted pixels are the ones mapped); absent: a pinhole's
 
 Every field is checked on load against what fit could have produced (``Corrector._from_fields``); a bad one
 is one ValueError naming the file and the field ("field fitted.a: must be >= 0 ...").

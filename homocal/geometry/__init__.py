@@ -1,6 +1,7 @@
-"""Geometry: the pinhole camera model, homographies from trapezoids, site-map units, box foot points."""
-from homocal.geometry.boxes import BOX_CONVENTIONS, box_bottom_points
+"""Geometry: the pinhole camera model, the lens (distortion), homographies from trapezoids, site-map units, box foot points."""
+from homocal.geometry.boxes import BOX_CONVENTIONS, box_bottom_points, undistort_boxes
 from homocal.geometry.camera import PinholeCamera
+from homocal.geometry.camera_file import CameraModel, camera_json_dict, read_camera
 from homocal.geometry.homography import (
     MAX_COORDINATE,
     ViewTransformer,
@@ -12,11 +13,14 @@ from homocal.geometry.homography import (
     signed_area,
     validate_quad,
 )
+from homocal.geometry.lens import Lens
 from homocal.geometry.sitemap import SiteMap
 from homocal.geometry.trapezoid_file import read_trapezoid_file
 
 __all__ = [
     "BOX_CONVENTIONS",
+    "CameraModel",
+    "Lens",
     "MAX_COORDINATE",
     "PinholeCamera",
     "SiteMap",
@@ -24,10 +28,13 @@ __all__ = [
     "apply_homography",
     "as_points",
     "box_bottom_points",
+    "camera_json_dict",
     "check_magnitude",
     "check_orientation",
     "homography_from_quads",
     "signed_area",
+    "undistort_boxes",
+    "read_camera",
     "read_trapezoid_file",
     "validate_quad",
 ]

@@ -44,6 +44,25 @@ def box_bottom_points(xyxy: np.ndarray, *, convention: str) -> np.ndarray:
     return np.column_stack([(edges[:, 0] + edges[:, 2]) / 2.0, edges[:, 3]])
 
 
+def undistort_boxes(edges: np.ndarray, lens) -> np.ndarray:
+    """Box edges (N, 4) homocal px in the camera's (distorted) pixels -> edges (N, 4) in the undistorted image of
+    ``lens`` (homocal.geometry.Lens; None or an identity lens: a copy as they are). The foot point (the bottom
+    edge's centre) and the head row (the top edge's centre) are undistorted exactly; the width is that of the
+    undistorted bottom edge, centred on the foot. ValueError naming xyxy[i] for a box beyond the lens's fold."""
+    edges = np.array(edges, dtype=np.float64)
+    if lens is None or lens.is_identity:
+        return edges
+    x1, y1, x2, y2 = edges.T
+    xc = (x1 + x2) / 2.0
+    foot, head, left, right = (lens.undistort_points(np.column_stack(p)) for p in ((xc, y2), (xc, y1), (x1, y2), (x2, y2)))
+    lost = np.flatnonzero(np.isfinite(edges).all(axis=1) & ~np.isfinite(np.column_stack([foot, head, left, right])).all(axis=1))
+    if lost.size:
+        raise ValueError(f"xyxy[{lost[0]}] = {edges[lost[0]].tolist()} lies beyond the lens's fold: no ray of this "
+                         "lens reaches it")
+    half = np.hypot(*(right - left).T) / 2.0
+    return np.column_stack([foot[:, 0] - half, head[:, 1], foot[:, 0] + half, foot[:, 1]])
+
+
 def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Intersection over union (N, M) of boxes a (N, 4) and b (M, 4), edges (x1, y1, x2, y2) in one convention."""
     w = np.clip(np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0]), 0, None)

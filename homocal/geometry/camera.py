@@ -1,10 +1,17 @@
-"""The ideal pinhole camera of the paper (Section 5.1): the one home of the camera model.
+"""The camera of the paper (Section 5.1), and a real one: the one home of the camera model.
 
 Frames (see data_schema.md):
-  world  metres; x right, y forward (ground projection of the optical axis), z up;
-         origin on the ground directly under the camera, so range = ||(x, y)||.
+  world  metres; x right, y forward (the ground projection of the optical axis at yaw 0: the scene's forward),
+         z up; origin on the ground directly under the camera, so range = ||(x, y)||.
   camera OpenCV: x right, y down, z forward; ``X_cam = R @ X_world + t``.
   image  pixels; u right, v down; the centre of the top-left pixel is (0, 0).
+
+Pose: from the level camera looking along +y, turned by yaw about the world's vertical (right-handed about +z:
+yaw > 0 turns the view towards -x, to the left), then tilted down by tilt about its own x axis, then rolled by roll
+about its own optical axis (right-handed about the camera's z: roll > 0 lowers the camera's right side, so the
+scene turns counter-clockwise in the image). Lens: OpenCV's distortion (k1, k2, p1, p2, k3) applied to the
+pinhole image of K (``homocal.geometry.lens.Lens``); the ground homographies and the horizon are those of that
+undistorted pinhole image, and ``project`` gives the distorted pixels the camera records.
 
 The same numbers feed the MuJoCo camera (simgen), the exported ``camera.json``, the exact
 trapezoids and the render tests.
@@ -16,16 +23,21 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from homocal.geometry.lens import Lens
+
 
 @dataclass(frozen=True)
 class PinholeCamera:
-    """A distortion-free pinhole camera at (0, 0, mount_height_m), yaw 0, tilted down.
+    """A camera at (0, 0, mount_height_m): yawed, tilted down, rolled (in that order), with a lens.
 
     Args:
         width, height: image size in pixels.
-        hfov_deg: horizontal field of view in degrees.
+        hfov_deg: horizontal field of view in degrees (of the undistorted pinhole image).
         mount_height_m: height of the optical centre above the ground, metres.
         tilt_deg: downward pitch of the optical axis below the horizontal, degrees.
+        roll_deg: turn about the optical axis, degrees in (-90, 90); > 0 lowers the camera's right side.
+        yaw_deg: turn about the vertical, degrees in (-180, 180]; > 0 turns the view from +y towards -x.
+        distortion: (k1, k2, p1, p2, k3), OpenCV's order and meaning on normalised coordinates; zeros: none.
     """
 
     width: int = 1280
@@ -33,8 +45,19 @@ class PinholeCamera:
     hfov_deg: float = 95.0
     mount_height_m: float = 4.0
     tilt_deg: float = 15.0
+    roll_deg: float = 0.0
+    yaw_deg: float = 0.0
+    distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
+        d = tuple(self.distortion)
+        if len(d) != 5 or not all(isinstance(k, (int, float)) and not isinstance(k, bool) and math.isfinite(k) for k in d):
+            raise ValueError(f"camera: distortion must be 5 finite numbers (k1, k2, p1, p2, k3), got {list(d)!r}")
+        object.__setattr__(self, "distortion", tuple(float(k) for k in d))
+        if not -90.0 < self.roll_deg < 90.0:
+            raise ValueError(f"camera: roll_deg must be in (-90, 90), got {self.roll_deg}")
+        if not -180.0 < self.yaw_deg <= 180.0:
+            raise ValueError(f"camera: yaw_deg must be in (-180, 180], got {self.yaw_deg}")
         if self.width <= 0 or self.height <= 0:
             raise ValueError(f"camera: width and height must be positive, got {self.width}x{self.height}")
         if not 0.0 < self.hfov_deg < 180.0:
@@ -73,12 +96,18 @@ class PinholeCamera:
 
     @property
     def R(self) -> np.ndarray:
-        """(3, 3) world-to-camera rotation (OpenCV); rows are the camera x (right), y (down), z (forward)."""
+        """(3, 3) world-to-camera rotation (OpenCV); rows are the camera x (right), y (down), z (forward) in world
+        coordinates: R = Rz(roll)^T R_tilt Rz(yaw)^T, Rz(a) the right-handed turn by a about z (the module's order)."""
         s, c = math.sin(math.radians(self.tilt_deg)), math.cos(math.radians(self.tilt_deg))
         right = [1.0, 0.0, 0.0]
         forward = [0.0, c, -s]
         down = [0.0, -s, -c]  # forward x right
-        return np.array([right, down, forward])
+        R = np.array([right, down, forward])
+        if self.yaw_deg:
+            R = R @ _turn_z(self.yaw_deg).T
+        if self.roll_deg:
+            R = _turn_z(self.roll_deg).T @ R
+        return R
 
     @property
     def t(self) -> np.ndarray:
@@ -94,20 +123,21 @@ class PinholeCamera:
     # ---- ground plane -----------------------------------------------------------------
     @property
     def ground_to_image(self) -> np.ndarray:
-        """(3, 3) homography from world ground (x, y, 1) in metres to image pixels: K [r1 r2 t]."""
+        """(3, 3) homography from world ground (x, y, 1) in metres to undistorted image pixels: K [r1 r2 t]."""
         R = self.R
         H = self.K @ np.column_stack([R[:, 0], R[:, 1], self.t])
         return H / np.linalg.norm(H)
 
     @property
     def image_to_ground(self) -> np.ndarray:
-        """(3, 3) homography from image pixels (u, v, 1) to world ground metres; inverse of ground_to_image."""
+        """(3, 3) homography from undistorted image pixels (u, v, 1) to world ground metres; inverse of ground_to_image."""
         H = np.linalg.inv(self.ground_to_image)
         return H / np.linalg.norm(H)
 
     @property
     def horizon(self) -> np.ndarray:
-        """(3,) image line (a, b, c), a u + b v + c = 0, unit (a, b): where the ground's points at infinity project.
+        """(3,) line (a, b, c) of the undistorted image, a u + b v + c = 0, unit (a, b): where the ground's points at
+        infinity project.
 
         It is the vanishing line of the ground plane, l = K^-T R e_z; for a level camera row v = cy - f tan(tilt).
         """
@@ -117,27 +147,51 @@ class PinholeCamera:
 
     @property
     def horizon_row(self) -> float:
-        """Image row v of the horizon (yaw 0, no roll: the horizon is a horizontal line)."""
+        """Image row v of the horizon (undistorted image) when it is a horizontal line: roll 0 (any yaw).
+        ValueError with a roll (the horizon is then a slanted line: ``horizon``)."""
+        if self.roll_deg:
+            raise ValueError(f"camera: horizon_row: the horizon is not a row with roll_deg = {self.roll_deg}; use horizon")
         a, b, c = self.horizon
         return float(-c / b)
 
+    @property
+    def lens(self) -> Lens:
+        """The lens: K, distortion and image size (``homocal.geometry.lens.Lens``)."""
+        return Lens(self.K, np.array(self.distortion), (self.width, self.height))
+
     def project(self, points_world: np.ndarray) -> np.ndarray:
-        """Project world points (N, 3) metres to pixels (N, 2); points behind the camera give NaN."""
+        """Project world points (N, 3) metres to the camera's pixels (N, 2), distorted by the lens; NaN for points
+        behind the camera and for rays beyond the lens's fold (radius >= ``Lens.max_monotonic_radius``, where
+        OpenCV's polynomial turns back and no real lens images them)."""
         P = np.asarray(points_world, dtype=np.float64).reshape(-1, 3)
         cam = P @ self.R.T + self.t
         with np.errstate(divide="ignore", invalid="ignore"):
             uv = (cam @ self.K.T)[:, :2] / cam[:, 2:3]
         uv[cam[:, 2] <= 0] = np.nan
-        return uv
+        return self.distort(uv)
+
+    def distort(self, pixels: np.ndarray) -> np.ndarray:
+        """Undistorted pixels (N, 2) (the pinhole image of K) -> the camera's pixels (N, 2) through the lens; NaN
+        beyond the lens's fold (normalised radius >= ``Lens.max_monotonic_radius``). Without distortion: the input."""
+        if not any(self.distortion):
+            return pixels
+        lens = self.lens
+        uv = np.array(pixels, dtype=np.float64).reshape(-1, 2)
+        with np.errstate(invalid="ignore"):
+            uv[np.hypot(*((uv - self.K[:2, 2]) / self.focal_px).T) >= lens.max_monotonic_radius] = np.nan
+        return lens.distort_points(uv)
 
     def project_ground(self, points_xy: np.ndarray) -> np.ndarray:
-        """Project ground points (N, 2) metres (z = 0) to pixels (N, 2)."""
+        """Project ground points (N, 2) metres (z = 0) to the camera's pixels (N, 2)."""
         xy = np.asarray(points_xy, dtype=np.float64).reshape(-1, 2)
         return self.project(np.column_stack([xy, np.zeros(len(xy))]))
 
     def ray_to_ground(self, pixels: np.ndarray) -> np.ndarray:
-        """Back-project pixels (N, 2) to the ground (N, 2) metres; at or above the horizon gives NaN."""
+        """Back-project the camera's pixels (N, 2) (distorted, as ``project`` gives them) to the ground (N, 2)
+        metres; at or above the horizon gives NaN."""
         uv = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        if any(self.distortion):
+            uv = self.lens.undistort_points(uv)
         rays = np.column_stack([uv, np.ones(len(uv))]) @ np.linalg.inv(self.K).T @ self.R  # world directions
         with np.errstate(divide="ignore", invalid="ignore"):
             s = -self.mount_height_m / rays[:, 2]
@@ -148,6 +202,12 @@ class PinholeCamera:
     def to_dict(self) -> dict:
         """The parameters, for configs and manifests."""
         return asdict(self)
+
+
+def _turn_z(degrees: float) -> np.ndarray:
+    """(3, 3) right-handed rotation by ``degrees`` about the z axis."""
+    s, c = math.sin(math.radians(degrees)), math.cos(math.radians(degrees))
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def tilt_homography(K: np.ndarray, delta: float) -> np.ndarray:

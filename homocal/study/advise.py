@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from homocal.arguments import number, xy_pair
+from homocal.arguments import CAMERA_JSON_HELP, camera_json, number, xy_pair
 from homocal.correctors.base import MAX_REFERENCE_POINTS
 from homocal.correctors.catalogue import DEFAULT_METHOD, METHODS as CATALOGUE_METHODS
 from homocal.files import check_output_file, csv_header, read_points_csv, write_text_atomic
@@ -174,6 +174,7 @@ def add_parser(subparsers) -> None:
         description="Rank triples of reference positions by the path improvement a correction from them gives, "
                     "simulated around your clicked trapezoid with the study's perturbation model.")
     p.add_argument("--trapezoid", required=True, type=Path, metavar="TRAP.json", help="the trapezoid homocal fit reads")
+    p.add_argument("--camera-json", type=Path, metavar="CAMERA.json", help=CAMERA_JSON_HELP)
     p.add_argument("--distances", default="5:50:1", metavar="SPEC",
                    help="reference distances straight ahead of the camera origin, metres: START:STOP:STEP (STOP "
                         "included) and/or a comma list, at least 3 (default 5:50:1)")
@@ -251,7 +252,8 @@ def handle_advise(args: argparse.Namespace) -> int:
                          f"distances or lateral offsets, or fewer --samples")
     if args.out is not None:
         check_output_file(args.out, lambda p: csv_header(p) == list(CSV_FIELDS), "homocal advise CSV")
-    transformer, site_map = read_trapezoid_file(args.trapezoid)
+    camera = camera_json(args.camera_json)
+    transformer, site_map = read_trapezoid_file(args.trapezoid, None if camera is None else camera.lens)
     if site_map is None or args.map_scale is not None:
         site_map = SiteMap(args.map_scale or DEFAULT_MAP_SCALE, site_map.origin_px if site_map else (0.0, 0.0))
     if args.test_points is None:

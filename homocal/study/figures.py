@@ -351,7 +351,7 @@ def _variant_quads(ds: Dataset, variants_file: Path, n: int) -> list[tuple[str, 
     if not variants_file.is_file():
         return [hand]
     t = pq.read_table(variants_file).to_pydict()
-    K = np.asarray(ds.camera["K"], dtype=np.float64)
+    K = ds.camera.K
     horizon = float(ViewTransformer(ds.trapezoid_image, ds.site_map.to_metres(ds.trapezoid_map)).horizon_row(K[0, 2]))
     out = []
     for row in range(len(t["variant"])):
@@ -361,7 +361,7 @@ def _variant_quads(ds: Dataset, variants_file: Path, n: int) -> list[tuple[str, 
         if t["degenerate"][row] or (row > 0 and not offsets.any()):
             continue
         noise = np.array([t[f"click_{k}"][row] for k in range(8)])
-        base = base_quad(ds.trapezoid_image, K, horizon, float(ds.camera["horizon_row"]), t["horizon_shift_px"][row], noise)
+        base = base_quad(ds.trapezoid_image, K, horizon, ds.camera.horizon_row, t["horizon_shift_px"][row], noise)
         name = "base trapezoid (variant 0)" if row == 0 else f"variant {t['variant'][row]}"
         out.append((name, perturbed_quads(base, ds.trapezoid_map, offsets)))
     return out or [hand]

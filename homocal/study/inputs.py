@@ -11,12 +11,14 @@ from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.least_change import LeastChangeCorrector
 from homocal.dataset import EXACT, calibration_source, load_dataset
 from homocal.geometry import SiteMap, ViewTransformer
+from homocal.geometry.lens import undistort_input
 from homocal.study.options import (DEFAULT_PRESET, Number, Parsed, Via, Words, declared_options, internal, option,
                                    preset_values)
 from homocal.study.perturb import PERTURBATIONS, ShiftSpec, base_quad, draw_base_error, draw_variant, perturbed_quads
 from homocal.study.triples import distance_features, triples
 
 METRICS = ("euclidean", "range")
+LENS_MODES = ("ignore", "known")  # --lens: the datasets' lens distortion ignored (a pinhole's pixels) or removed
 MAX_VARIANTS = 100_000  # 100x the paper's 1000 trapezoid variants per scene (one shard each)
 MAX_N_TEST = 1_000_000  # test points per scene
 MAX_MAP_SCALE = 1000.0  # px per metre: a 1 mm map pixel
@@ -99,6 +101,10 @@ class StudyParams:
                                     "(each chosen coordinate its own 0-3 px and sign), variant (one 0-3 px per variant, "
                                     "each coordinate its own sign) or variant-positive (one 0-3 px per variant, added to "
                                     "every chosen coordinate)")
+    lens: str = option("ignore", flag="--lens", kind=Words(LENS_MODES), sweep=True, omit_default=True,
+                       help="the datasets' lens (camera.json's distortion): known undistorts every image point (the "
+                            "calibration and test points, the hand-placed trapezoid) with it before the corrections; "
+                            "ignore maps the camera's pixels as a pinhole's, as the paper's pipeline does on a real lens")
     threshold: float = internal(DEFAULT_THRESHOLD, why="the hybrid's switch, fixed by the paper (Section 5.4)")
     descent: dict = option(default_factory=lambda: dict(DESCENT_DEFAULTS), flag="--descent-delta-max", kind=DESCENT,
                            unit="px", sweep=True, metavar="PX", presets={"table1-fit": "18"},
@@ -226,8 +232,11 @@ class StudyScene:
         test_image, test_ground = ds.test_points(params.foot_source, n=params.n_test, seed=params.seed,
                                                   max_distance=params.max_test_distance,
                                                   max_lateral=params.test_lateral_max)
-        return cls(ds.name, ds.site_map, ds.trapezoid_image, ds.trapezoid_map, np.asarray(ds.camera_origin, float),
+        lens = ds.camera.lens if params.lens == "known" else None  # ignore: the camera's pixels as a pinhole's
+        cal_image, test_image, image_quad = (undistort_input(q, lens, f"{path}: {what}") for q, what in (
+            (cal_image, "calibration points"), (test_image, "test points"), (ds.trapezoid_image, "hand-placed trapezoid")))
+        return cls(ds.name, ds.site_map, image_quad, ds.trapezoid_map, np.asarray(ds.camera_origin, float),
                    cal_image, cal_ground, distance, test_image, test_ground, triples(len(cal_image)),
-                   np.asarray(ds.camera["K"], dtype=np.float64), float(ds.camera["horizon_row"]),
-                   float(ds.camera["width"]), str(ds.manifest.get("config_hash", "")))
+                   ds.camera.K, ds.camera.horizon_row,
+                   float(ds.camera.image_size[0]), str(ds.manifest.get("config_hash", "")))
 

@@ -197,12 +197,13 @@ def _spread(values: list[float]) -> tuple[float, float, float]:
 def config_label(study: dict) -> str:
     """A study's configuration in its options' words: its preset and what it is (study.json's preset_label;
     none in a study.json written before presets were labelled, whose "paper" may name another configuration),
-    its base error, click noise and metric always, then every other study option that differs from homocal
+    its base error, click noise, metric and lens always, then every other study option that differs from homocal
     study's defaults (inputs.changed_options)."""
     params = StudyParams.from_dict(study)
     parts = ["hand-placed trapezoid as it is" if params.horizon_shift is None else option_text("horizon_shift", params.horizon_shift),
-             option_text("click_noise", params.click_noise), option_text("metric", params.metric)]
-    rest = tuple(n for n in OPTIONS if n not in ("n_variants", "horizon_shift", "click_noise", "metric"))
+             option_text("click_noise", params.click_noise), option_text("metric", params.metric),
+             option_text("lens", params.lens)]
+    rest = tuple(n for n in OPTIONS if n not in ("n_variants", "horizon_shift", "click_noise", "metric", "lens"))
     parts += changed_options(params, StudyParams(), rest)  # the other options, where they differ from the defaults
     label = f" ({study['preset_label']})" if study.get("preset_label") else ""
     return f"preset {study.get('preset')}{label}, {params.n_variants} variants: " + " ".join(parts)
@@ -277,7 +278,7 @@ def gap_facts(study: dict) -> list[str]:
             ds = load_dataset(entry["path"])
         except ValueError:
             continue
-        K = np.asarray(ds.camera["K"], dtype=np.float64)
+        K = ds.camera.K
         rows = [ViewTransformer(t["image"], ds.site_map.to_metres(t["map"])).horizon_row(K[0, 2])
                 for t in (ds.trapezoids["exact"], ds.trapezoids["hand_placed"])]
         _, ground = ds.test_points(params.foot_source, n=params.n_test, seed=params.seed,
@@ -290,7 +291,7 @@ def gap_facts(study: dict) -> list[str]:
                      f"(negative: below; the mapping then overestimates range), and {base}; {100 * near:.1f} % of its "
                      f"{len(ground)} test points are within 2 m of the calibration line (the calibration objects stand on it); "
                      f"the map perturbations are px of {_map_scale_words(params.map_scale, ds.site_map.scale_px_per_m)}; "
-                     f"the image perturbations are px of {_image_width_words(params.image_width, float(ds.camera['width']))}.")
+                     f"the image perturbations are px of {_image_width_words(params.image_width, float(ds.camera.image_size[0]))}.")
     return facts
 
 
@@ -348,7 +349,7 @@ def law_html(results_dir: Path, study: dict) -> list[str]:
             continue
         exact = ds.trapezoids["exact"]
         vt = ViewTransformer(exact["image"], ds.site_map.to_metres(exact["map"]))
-        K = np.asarray(ds.camera["K"], dtype=np.float64)
+        K = ds.camera.K
         shift_rows = [[f"{r['shift_px']:g}", f"{r['exponent_Y']:.3f}", f"{r['exponent_Y_offset']:.3f}", f"{r['error_far_m']:.3f}",
                        f"{r['first_order_far_m']:.3f}", f"{r['eq17_far_m']:.3f}"] for r in horizon_shift_law(vt, K, ds.camera_origin)]
         parts += [f"<h3>{e(ds.name)}</h3>", _html_table(

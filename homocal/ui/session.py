@@ -96,7 +96,7 @@ def from_dataset(path: Path, out_dir: Path, frame_index: int = 0, boxes: Path | 
     ds = load_dataset(path)
     session = from_files(path / "video.mp4", path / "site_map.png", ds.site_map, ds.camera_origin, out_dir,
                          frame_index, path / "detections.parquet" if boxes is None else boxes)
-    session.camera_height_m = float(ds.camera["mount_height_m"])
+    session.camera_height_m = ds.camera.mount_height_m
     image, ground, _ = ds.calibration_points(source="segmentation")
     session.title = f"{ds.name} ({path})"
     session.dataset = {

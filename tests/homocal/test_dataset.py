@@ -13,6 +13,11 @@ from homocal.dataset import calibration_source, load_dataset
 TABLES = ("gt.parquet", "detections.parquet", "calibration.parquet")
 
 
+def camera_json(dataset) -> dict:
+    """The dataset's camera.json as plain JSON (not through homocal's reader)."""
+    return json.loads((dataset / "camera.json").read_text())
+
+
 def project(camera: dict, xy: np.ndarray) -> np.ndarray:
     """K (R X + t) for ground points, from camera.json's K, R, t (not its homographies)."""
     K, R, t = (np.asarray(camera[k], dtype=float) for k in ("K", "R", "t"))
@@ -26,11 +31,11 @@ def test_calibration_points(tiny_dataset):
     image, ground, distance = ds.calibration_points("exact")
     assert len(distance) == 40 and np.allclose(distance, np.arange(5.0, 45.0))
     np.testing.assert_allclose(ground, np.column_stack([np.zeros(40), distance]))
-    np.testing.assert_allclose(image, project(ds.camera, ground), atol=1e-9)
+    np.testing.assert_allclose(image, project(camera_json(tiny_dataset), ground), atol=1e-9)
     detected, _, _ = ds.calibration_points("segmentation")
     # the detected box's bottom is the near edge of the soles (data_schema.md): at most 0.125 m nearer the camera
     # than the foot point of a person standing with its feet together, on a pixel boundary (y2 = row + 0.5)
-    near_soles = project(ds.camera, ground - [0.0, 0.125])
+    near_soles = project(camera_json(tiny_dataset), ground - [0.0, 0.125])
     assert np.abs(detected[:, 0] - image[:, 0]).max() < 1.0
     assert (detected[:, 1] > image[:, 1] - 1.0).all() and (detected[:, 1] < near_soles[:, 1] + 1.0).all()
 
@@ -39,7 +44,7 @@ def test_calibration_points(tiny_dataset):
 def test_test_points_map_near_their_truth(tiny_dataset, source):
     ds = load_dataset(tiny_dataset)
     image, ground = ds.test_points(source)
-    H = np.asarray(ds.camera["image_to_ground"])
+    H = np.asarray(camera_json(tiny_dataset)["image_to_ground"])
     p = np.column_stack([image, np.ones(len(image))]) @ H.T
     err = np.hypot(*(p[:, :2] / p[:, 2:] - ground).T)
     if source == "exact":

@@ -31,7 +31,7 @@ def test_line_is_the_default_and_zigzag_alternates(tmp_path):
 
 
 def test_zigzag_objects_are_rendered_where_they_stand(tmp_path):
-    from simgen.dataset import calibration_table
+    from simgen.static import calibration_table
     from simgen.stage import Stage
 
     folder = copy_scene(tmp_path, small=False)

@@ -260,7 +260,7 @@ def test_two_workers_give_the_serial_bytes(run, tmp_path, capsys):
 
 def test_a_worker_with_other_code_refuses_to_render(small_scene, tmp_path):
     """A worker whose code or libraries differ from the run's (build_id) fails in one line before rendering."""
-    from simgen.dataset import DatasetError, build_id, render_chunks
+    from simgen.chunks import DatasetError, build_id, render_chunks
     from simgen.scene import load_scene
 
     scene = load_scene(small_scene).with_run(seconds=1)

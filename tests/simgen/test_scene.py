@@ -6,6 +6,7 @@ import shutil
 import subprocess
 import sys
 
+import cv2
 import numpy as np
 import pytest
 
@@ -15,7 +16,7 @@ from simgen.scene import ConfigError, load_scene
 from scene_copies import SCENES, copy_scene, edit_toml
 
 
-@pytest.mark.parametrize("name, count, stop", [("scene1", 40, 44.0), ("scene2", 39, 49.0)])
+@pytest.mark.parametrize("name, count, stop", [("scene1", 40, 44.0), ("scene2", 39, 49.0), ("scene3", 40, 44.0)])
 def test_shipped_scenes(name, count, stop):
     scene = load_scene(SCENES / name)
     cam = scene.camera
@@ -120,7 +121,39 @@ def test_copied_and_edited_scene_gets_its_own_trapezoid(tmp_path):
         assert np.all((off >= 1.0) & (off <= 2.0)), off
 
 
-@pytest.mark.parametrize("name", ["scene1", "scene2"])
+def test_a_copied_scene_given_a_real_camera_gets_its_trapezoid(tmp_path):
+    """A user adds yaw, roll and a lens to a copy of scene1: load_scene asks for the derivation, which then places
+    the trapezoid 1-2 px from the distorted pixels of its ground corners (cv2.projectPoints)."""
+    folder = copy_scene(tmp_path, small=False)
+    toml = folder / "scene.toml"
+    toml.write_text(toml.read_text().replace("[camera]", "[camera]\nyaw_deg = -6.0\nroll_deg = 2.0\n"
+                                             "distortion = [-0.2, 0.04, 0.0, 0.0, 0.0]", 1))
+    with pytest.raises(ConfigError, match="make_scene_assets.py"):
+        load_scene(folder)
+    subprocess.run([sys.executable, str(SCENES / "make_scene_assets.py"), str(folder)], check=True, capture_output=True)
+    scene, cam = load_scene(folder), load_scene(folder).camera
+    ground = np.column_stack([scene.trapezoid_ground, np.zeros(4)])
+    exact = cv2.projectPoints(ground, cv2.Rodrigues(cam.R)[0], cam.t, cam.K, np.array([-0.2, 0.04, 0.0, 0.0, 0.0]))[0][:, 0]
+    off = np.hypot(*(scene.hand_placed_image - exact).T)
+    assert (cam.yaw_deg, cam.roll_deg) == (-6.0, 2.0) and np.all((off >= 1.0) & (off <= 2.0)), off
+
+
+@pytest.mark.parametrize("key, value, message", [
+    ("distortion", "[-0.30, 0.09, 0.0005, -0.0003, -0.012]", "camera.distortion: .* folds the image"),
+    ("distortion", "[-0.2, 0.04]", "camera: distortion must be 5 finite numbers"),
+    ("roll_deg", "95.0", "camera: roll_deg must be in"),
+    ("yaw_deg", "\"8\"", "camera.yaw_deg: expected float"),
+])
+def test_a_bad_real_camera_is_refused_in_one_line(tmp_path, key, value, message):
+    folder = copy_scene(tmp_path, small=False)
+    toml = folder / "scene.toml"
+    toml.write_text(toml.read_text().replace("[camera]", f"[camera]\n{key} = {value}", 1))
+    with pytest.raises(ConfigError, match=message) as e:
+        load_scene(folder)
+    assert str(e.value).startswith("scene.toml: ") and len(str(e.value).splitlines()) == 1
+
+
+@pytest.mark.parametrize("name", ["scene1", "scene2", "scene3"])
 def test_shipped_trapezoids_are_the_derivation(tmp_path, name):
     """Rerunning the derivation on a copy of a shipped scene gives its scene.toml byte for byte."""
     folder = tmp_path / name
@@ -154,7 +187,7 @@ def test_a_shipped_scene_by_name_is_the_scene_by_path(tmp_path, monkeypatch):
     from simgen.scene import SHIPPED, scene_folder, shipped_scenes
 
     monkeypatch.chdir(tmp_path)
-    assert shipped_scenes() == ["scene1", "scene2"]
+    assert shipped_scenes() == ["scene1", "scene2", "scene3"]
     assert scene_folder("scene1") == SHIPPED / "scene1" and (SHIPPED / "scene1").resolve() == (SCENES / "scene1").resolve()
     (tmp_path / "scene1").mkdir()  # a folder of that name where the user is: the path wins
     assert scene_folder("scene1") == tmp_path.joinpath("scene1").relative_to(tmp_path)

@@ -27,10 +27,11 @@ def test_scenes_lists_the_shipped_scenes(capsys):
     lines = capsys.readouterr().out.splitlines()
     assert lines[0] == "scene1: a straight two-lane street; 1280x720, 60 s at 20 fps, 24 people, detectors segmentation,rgb"
     assert lines[1].startswith("scene2: a four-lane avenue; 1280x720, 60 s at 20 fps, 30 people, ")
-    assert lines[2].startswith("simgen scenes: 2 shipped scenes in ") and len(lines) == 3
+    assert lines[2].startswith("scene3: scene 1's street seen by a real CCTV camera; 1280x720, 60 s at 20 fps, 24 people, ")
+    assert lines[3].startswith("simgen scenes: 3 shipped scenes in ") and len(lines) == 4
 
 
-@pytest.mark.parametrize("scene", ["scene3", "../scene1", "scenes/scene1/", ".", "", "a\nb", "x" * 300])
+@pytest.mark.parametrize("scene", ["scene4", "../scene1", "scenes/scene1/", ".", "", "a\nb", "x" * 300])
 def test_a_scene_that_is_neither_a_folder_nor_shipped_is_one_line(scene, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     if scene == ".":  # an existing folder is a scene folder: it has no scene.toml
@@ -41,7 +42,7 @@ def test_a_scene_that_is_neither_a_folder_nor_shipped_is_one_line(scene, tmp_pat
     err = capsys.readouterr().err
     assert err.startswith("simgen: error: ") and message in err and len(err.splitlines()) == 1, err
     if scene != ".":
-        assert err.endswith("(shipped: scene1, scene2)\n"), err
+        assert err.endswith("(shipped: scene1, scene2, scene3)\n"), err
     assert list(tmp_path.iterdir()) == []
 
 

@@ -254,7 +254,7 @@ def test_map_scale_is_recorded_and_left_out_at_its_default():
     label = config_label({"preset": "table1-fit", "preset_label": "fitted to Table 1, not the paper's protocol",
                           **StudyParams(horizon_shift="12", map_scale=2.5).to_dict()})
     assert label == ("preset table1-fit (fitted to Table 1, not the paper's protocol), 1000 variants: --horizon-shift 12 "
-                     "--click-noise 0 --metric euclidean --map-scale 2.5")
+                     "--click-noise 0 --metric euclidean --lens ignore --map-scale 2.5")
     assert "--map-scale" not in config_label({"preset": "quick", **StudyParams().to_dict()})
     assert config_label({"preset": "paper", **StudyParams(horizon_shift="16").to_dict()}).startswith(
         "preset paper, 1000 variants: --horizon-shift 16")  # written before presets were labelled: no label

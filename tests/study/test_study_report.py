@@ -266,9 +266,9 @@ class TestDatasetFigures:
         offsets = np.zeros((4, 2))
         offsets[0, 1] = 2
         np.testing.assert_array_equal(map_quad, ds.trapezoid_map + [[0, -1], [0, 0], [0, 0], [0, 0]])
-        K = np.asarray(ds.camera["K"])
+        K = ds.camera.K
         shifted = ViewTransformer(image - offsets, ds.site_map.to_metres(ds.trapezoid_map)).horizon_row(K[0, 2])
-        assert shifted == pytest.approx(ds.camera["horizon_row"] - 5.0, abs=1e-6)
+        assert shifted == pytest.approx(ds.camera.horizon_row - 5.0, abs=1e-6)
         np.testing.assert_allclose(picked[2][1][0] - ds.trapezoid_image, [[0.5, 0.5], [0.5, 0.5], [-2.5, 1.5], [0.5, 0.5]])
 
     def test_report_draws_them(self, dataset_dir, tmp_path):

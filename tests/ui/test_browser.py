@@ -287,7 +287,7 @@ def test_pedestrians_fit_save_apply_in_a_browser(browser, server, tiny_dataset, 
     Select(d.find_element(By.ID, "method")).select_by_visible_text("pedestrians")
     assert d.find_element(By.ID, "boxes-fields").is_displayed()
     assert Select(d.find_element(By.ID, "detector")).first_selected_option.text == "segmentation"
-    assert float(d.find_element(By.ID, "camera-height").get_attribute("value")) == ds.camera["mount_height_m"]
+    assert float(d.find_element(By.ID, "camera-height").get_attribute("value")) == ds.camera.mount_height_m
     d.find_element(By.ID, "fit").click()
     wait_for(d, f"{S}.fit !== null")
     idle(d)
@@ -299,7 +299,7 @@ def test_pedestrians_fit_save_apply_in_a_browser(browser, server, tiny_dataset, 
     fitted_row = fit["correction"]["fitted"]["horizon_row"]
     assert horizon_at(fit["horizon"], cx) == pytest.approx(fitted_row, abs=1e-6)
     assert horizon_at(clicked, cx) == pytest.approx(ViewTransformer(ds.trapezoid_image, ds.trapezoid_map).horizon_row(cx), abs=1e-6)
-    true_row = ds.camera["horizon_row"]
+    true_row = ds.camera.horizon_row
     assert abs(fitted_row - true_row) < abs(horizon_at(clicked, cx) - true_row)  # the people moved it nearer
     assert d.find_element(By.ID, "show-corrected").is_selected()
     # the fitted horizon in orange dashes (the corrected grid's orange covers at most ~30 % of a line elsewhere),
