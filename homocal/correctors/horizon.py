@@ -11,7 +11,7 @@ from homocal.correctors.serialization import number
 from homocal.geometry import ViewTransformer
 
 GRID_INTERVALS = 8  # the bracketing grid: epsilon_k = -delta + 2 delta k / 8, k = 1..8
-NEWTON_STEPS = 8  # safeguarded Newton steps in the bracket at most (on tests/homocal/test_method_kernels.py's
+NEWTON_STEPS = 8  # safeguarded Newton steps in the bracket at most (on tests/study/test_method_kernels.py's
 # 300 cases: converged after 3-7 derivative evaluations, 5.6 on average)
 FLAT = 1e-12  # the refined epsilon is kept unless its loss is above the grid's best by more than this, relative
 
@@ -114,7 +114,7 @@ class HorizonCorrector(Corrector):
     shift: it needs nothing beyond the trapezoid and is exact for the paper's model; for a true tilt error of
     +/-0.5-1 degree on the paper's camera it recovers the horizon shift within 6 % and leaves corrected points
     within 0.16 m out to 50 m, where the uncorrected ones are 4-14 m off
-    (tests/homocal/test_correctors.py::TestHorizonCorrector). Because it is a homography, lateral points move
+    (tests/correctors/test_correctors.py::TestHorizonCorrector). Because it is a homography, lateral points move
     consistently with the range correction, and a user gets a matrix (supervision style: ``.m``).
 
     Fit. epsilon minimises the sum of squared Euclidean calibration residuals, sum_i ||H_eps(q_i) - g_i||^2

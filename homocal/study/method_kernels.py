@@ -2,7 +2,7 @@
 intercept (homocal.correctors.regression.fit_quadratic_intercept), the horizon correction
 (homocal.correctors.horizon.fit_horizon_shift) and least change (LeastChangeCorrector, least_change3). Plain
 functions of one calibration triple, the same algorithm, iteration counts and tolerances as the readable
-correctors; tests/homocal/test_method_kernels.py checks that their results agree to 1e-9 (rounding-level ties
+correctors; tests/study/test_method_kernels.py checks that their results agree to 1e-9 (rounding-level ties
 aside, every decision is the same; where one is not, both still converge to the same minimum). Least change's
 last Gauss-Newton steps change its objective below rounding, so its step counts may differ and its quads agree
 to 2e-6 px. Conventions as homocal.study.kernels: the cal and test tables' rows named in homocal.study.rows;
