@@ -20,16 +20,24 @@ from homocal.lens.lines import LensFit, fit_lines, intrinsics, line_residuals
 MIN_SEGMENT_PX = 12.0  # shorter LSD segments are texture
 MAX_GAP_PX = 10.0  # an end this near the next segment's start continues it
 MAX_TURN_DEG = 6.0  # and turns by at most this much
-MIN_CHAIN = 0.2  # of the image width: shorter chains bend too little to say anything
-MIN_CHAIN_SEGMENTS = 3
+MAX_OFFSET_PX = 1.5  # and starts at most this far to the side of the end's line (not a parallel edge beside it)
+SAMPLE_PX = 20.0  # a chain's points: one about every this many pixels along its segments
+MIN_CHAIN = 0.15  # of the image width: shorter chains bend too little to say anything
 OUTLIER_FACTOR = 3.0  # a chain whose RMS after the fit is above this many times the median is not straight in the world
+
+
+def _samples(segment: np.ndarray) -> np.ndarray:
+    """Points along a segment (x1, y1, x2, y2), (M, 2): about every SAMPLE_PX, none at its ends (LSD places a
+    segment's middle better than its ends); at least its middle."""
+    n = max(1, int(np.hypot(*(segment[2:] - segment[:2])) // SAMPLE_PX))
+    return segment[:2] + ((np.arange(n) + 0.5) / n)[:, None] * (segment[2:] - segment[:2])
 
 
 def chains(segments: np.ndarray) -> list[np.ndarray]:
     """Chain (N, 4) segments (x1, y1, x2, y2) into polylines [(M_i, 2)]: a segment continues a chain when one of
-    its ends lies within MAX_GAP_PX of the chain's end and it turns by at most MAX_TURN_DEG (the nearest such);
-    longest segments first, each used once. A polyline holds the points at 1/4, 1/2 and 3/4 of each of its
-    segments (LSD places a segment's middle better than its ends)."""
+    its ends lies within MAX_GAP_PX of the chain's end, at most MAX_OFFSET_PX to the side of its line, and it turns
+    by at most MAX_TURN_DEG (the nearest such);
+    longest segments first, each used once. A polyline holds the ``_samples`` of its segments."""
     cos_turn = math.cos(math.radians(MAX_TURN_DEG))
     both = np.concatenate([segments, segments[:, [2, 3, 0, 1]]])  # each segment in both directions: (2N, 4)
     length = np.hypot(both[:, 2] - both[:, 0], both[:, 3] - both[:, 1])
@@ -44,16 +52,16 @@ def chains(segments: np.ndarray) -> list[np.ndarray]:
             while True:
                 last = chain[-1] if forward else chain[0][[2, 3, 0, 1]]  # the chain's end segment, pointing outwards
                 heading = (last[2:] - last[:2]) / np.hypot(*(last[2:] - last[:2]))
-                gap = np.hypot(*(both[:, :2] - last[2:]).T)
-                fits = (gap <= MAX_GAP_PX) & ((both[:, 2:] - both[:, :2]) @ heading >= cos_turn * length) & ~np.tile(used, 2)
+                step = both[:, :2] - last[2:]
+                gap, offset = np.hypot(*step.T), np.abs(step @ [-heading[1], heading[0]])
+                fits = ((gap <= MAX_GAP_PX) & (offset <= MAX_OFFSET_PX) & ~np.tile(used, 2)
+                        & ((both[:, 2:] - both[:, :2]) @ heading >= cos_turn * length))
                 if not fits.any():
                     break
                 j = np.flatnonzero(fits)[np.argmin(gap[fits])]
                 used[j % len(segments)] = True
                 chain = chain + [both[j]] if forward else [both[j][[2, 3, 0, 1]]] + chain
-        c = np.array(chain)
-        out.append(np.concatenate([c[:, None, :2] + f * (c[:, None, 2:] - c[:, None, :2]) for f in (0.25, 0.5, 0.75)],
-                                  axis=1).reshape(-1, 2))
+        out.append(np.concatenate([_samples(seg) for seg in chain]))
     return out
 
 
@@ -64,11 +72,10 @@ def frame_lines(path: Path) -> tuple[tuple[int, int], list[np.ndarray]]:
     segments = np.zeros((0, 4)) if found is None else found.reshape(-1, 4).astype(np.float64)
     segments = segments[np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1]) >= MIN_SEGMENT_PX]
     size = (gray.shape[1], gray.shape[0])
-    lines = [c for c in chains(segments) if len(c) >= 3 * MIN_CHAIN_SEGMENTS
-             and np.linalg.norm(c[-1] - c[0]) >= MIN_CHAIN * size[0]]
+    lines = [c for c in chains(segments) if np.linalg.norm(c[-1] - c[0]) >= MIN_CHAIN * size[0]]
     if not lines:
-        raise ValueError(f"{path}: no long straight edge found (chains of {MIN_CHAIN_SEGMENTS} or more segments, "
-                         f"{MIN_CHAIN:.0%} of the width); click lines instead (--lines)")
+        raise ValueError(f"{path}: no long straight edge found (chains of segments {MIN_CHAIN:.0%} of the width or "
+                         "longer); click lines instead (--lines)")
     return size, [np.clip(c, -0.5, np.array(size) - 0.5) for c in lines]
 
 
