@@ -1,19 +1,23 @@
 """How well `homocal lens --lines` recovers a wide lens from clicked straight ground lines, and what it leaves in
 the ground mapping (docs/real-camera.md, "A lens without a checkerboard").
 
-Run: python research/lens_lines.py [--camera-json CAMERA.json] [--seeds N] [--noise-px PX] [--terms T]
+Run: python research/lens_lines.py [--dataset DATASET] [--seeds N] [--noise-px PX] [--terms T]
 
-The camera is CAMERA.json's (K, R, t, distortion, width, height: a simgen dataset's), else the stand-in of the
-card's camera: 1280x720, hfov 95, 4 m high, 15 degrees down, roll 1 degree, yaw 8 degrees, k1 = -0.2, k2 = 0.04.
-The street crosses the view at STREET_DEG to the optical axis: its two kerbs and its lane lines (LANES, metres
-from the centre line, from 2 m to 80 m along it) and three stop lines across it are projected through the lens,
-and CLICKS points spread along each visible part are clicked with Gaussian noise of --noise-px on each coordinate.
-For each seed: `homocal lens --lines` on them (with the true focal length, --focal), then
+The camera is DATASET's camera.json (K, R, t, distortion, width, height: a simgen dataset of scene3), else a
+stand-in of scene3's camera (scenes/scene3/scene.toml: 1280x720, hfov 95, 4 m high, 15 degrees down, yaw 8 degrees
+towards -x, roll 1 degree lowering its right side, distortion STAND_IN). The lines are scene3's street (scene1's):
+the sidewalks' outer edges, the kerbs, the road's edge lines and its centre line (ALONG, x in metres, from y = 0
+to 80 m), the zebra crossings' edges across the road (ACROSS, y in metres, x from -3.5 to 3.5 m) and, with
+--buildings, the houses' facades along the street (FACADES: the two vertical edges, the roof line and the foot of
+each; coplanar, so none hides another). Each is
+projected through the lens, and CLICKS points spread along its visible part are clicked with Gaussian noise of
+--noise-px on each coordinate (--clicks points, default CLICKS). For each seed: `homocal lens --lines` on them (with the true focal length,
+--focal), then
   - k1 and the corner displacement (how far the lens moves the frame's corner pixel) against the true ones;
-  - the ground mapping of a trapezoid (TRAPEZOID, metres; its corners clicked with the same noise, then
-    undistorted) at test points 5-50 m from the camera (every metre of range, every 5 degrees of bearing, those
-    in the frame; their exact distorted pixels undistorted): the median relative range error with the true
-    lens and with the estimated one, and their ratio.
+  - the ground mapping of scene3's trapezoid (TRAPEZOID, metres) at test points 5-50 m from the camera (every
+    metre of range, every 5 degrees of bearing, those in the frame; their exact distorted pixels undistorted):
+    the median relative range error with the true lens and with the estimated one, from the trapezoid's corners
+    clicked with the same noise and (last column) from its exact corners.
 Prints one row per seed and the mean and range of each column.
 """
 from __future__ import annotations
@@ -32,23 +36,25 @@ from homocal.files import read_json
 from homocal.geometry import PinholeCamera, ViewTransformer
 from homocal.geometry.lens import Lens
 
-STREET_DEG = 25.0  # the street's direction, degrees from the optical axis's ground direction
-LANES = (-7.0, -5.25, -1.75, 1.75, 5.25, 7.0)  # kerbs at +/-7 m, lane lines, metres from the street's centre line
-STOP_LINES = (8.0, 14.0, 20.0)  # lines across the street, metres along it from the camera's foot
-CLICKS = 12  # points clicked along each visible line
-TRAPEZOID = np.array([[-3.0, 25.0], [3.0, 25.0], [3.0, 8.0], [-3.0, 8.0]])  # TL, TR, BR, BL, metres
+STAND_IN = [-0.30678, 0.0825017, 0.0028784, -0.00015829, 0.0]  # scenes/scene3/scene.toml's distortion
+ALONG = (-7.5, -3.5, -3.25, 0.0, 3.25, 3.5, 7.5)  # x, metres: sidewalk edges, kerbs, edge lines, centre line
+ACROSS = (7.0, 10.0, 22.0, 26.0)  # y, metres: the zebra crossings' near and far edges
+FACADES = ((10.0, 5.0, 19.0, 10.0), (10.0, 26.0, 46.0, 14.0), (10.0, 52.0, 80.0, 8.0),  # x, y from, y to, height (m):
+           (-10.0, 7.0, 25.0, 12.0), (-10.0, 32.0, 56.0, 16.0), (-10.0, 64.0, 88.0, 10.0))  # scene3's houses, scene.xml
+CLICKS = 12  # points clicked along each visible line (default of --clicks)
+TRAPEZOID = np.array([[-3.25, 40.0], [3.25, 40.0], [3.25, 10.0], [-3.25, 10.0]])  # scene3's, TL, TR, BR, BL, metres
 
 
-def stand_in() -> tuple[np.ndarray, np.ndarray, np.ndarray, Lens]:
-    """R (3, 3), t (3,), rvec (3,), Lens of the card's camera with roll 1 deg, yaw 8 deg, k1 -0.2, k2 0.04."""
+def stand_in() -> tuple[np.ndarray, np.ndarray, Lens]:
+    """R (3, 3), t (3,) and Lens of scene3's camera (module docstring)."""
     cam = PinholeCamera()
     rot = lambda deg: cv2.Rodrigues(np.array([0.0, 0.0, math.radians(deg)]))[0]
-    R = rot(1.0) @ cam.R @ rot(-8.0)  # roll about the optical axis after the tilt, yaw about the vertical before it
-    return R, -R @ cam.position, Lens(cam.K, [-0.2, 0.04, 0.0, 0.0, 0.0], (cam.width, cam.height))
+    R = rot(-1.0) @ cam.R @ rot(-8.0)  # rolled about the optical axis after the tilt, yawed about the vertical before
+    return R, -R @ cam.position, Lens(cam.K, STAND_IN, (cam.width, cam.height))
 
 
-def from_camera_json(path: Path) -> tuple[np.ndarray, np.ndarray, Lens]:
-    c = read_json(path)
+def from_dataset(path: Path) -> tuple[np.ndarray, np.ndarray, Lens]:
+    c = read_json(path / "camera.json")
     return np.array(c["R"]), np.array(c["t"]), Lens(c["K"], c["distortion"], (c["width"], c["height"]))
 
 
@@ -62,19 +68,22 @@ def in_frame(p: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     return (p[:, 0] >= 0) & (p[:, 0] <= size[0] - 1) & (p[:, 1] >= 0) & (p[:, 1] <= size[1] - 1)
 
 
-def street_lines(R, t, lens: Lens) -> list[np.ndarray]:
+def street_lines(R, t, lens: Lens, buildings: bool, clicks: int) -> list[np.ndarray]:
     """The visible parts of the street's lines, each as dense distorted pixels (M, 2) ordered along it."""
-    a = math.radians(STREET_DEG)
-    along, across = np.array([math.sin(a), math.cos(a), 0.0]), np.array([math.cos(a), -math.sin(a), 0.0])
-    s = np.linspace(-80.0, 80.0, 4001)
-    worlds = [off * across + s[:, None] * along for off in LANES]
-    worlds += [d * along + np.linspace(-7.0, 7.0, 701)[:, None] * across for d in STOP_LINES]
+    y, x = np.linspace(0.0, 80.0, 4001), np.linspace(-3.5, 3.5, 701)
+    worlds = [np.column_stack([np.full_like(y, a), y, np.zeros_like(y)]) for a in ALONG]
+    worlds += [np.column_stack([x, np.full_like(x, a), np.zeros_like(x)]) for a in ACROSS]
+    if buildings:
+        s = np.linspace(0.0, 1.0, 1001)[:, None]
+        for x, y0, y1, h in FACADES:
+            worlds += [np.array([x, y, 0.0]) + s * [0.0, 0.0, h] for y in (y0, y1)]
+            worlds += [np.array([x, y0, z]) + s * [0.0, y1 - y0, 0.0] for z in (0.0, h)]
     out = []
     for X in worlds:
         X = X[(R @ X.T + t[:, None])[2] > 0.5]  # in front of the camera
         p = project(X, R, t, lens)
         p = p[in_frame(p, lens.image_size)]
-        if len(p) >= CLICKS and np.linalg.norm(p[-1] - p[0]) > 100:
+        if len(p) >= clicks and np.linalg.norm(p[-1] - p[0]) > 100:
             out.append(p)
     return out
 
@@ -89,24 +98,26 @@ def range_error(lens: Lens, corners_px: np.ndarray, test_px: np.ndarray, test_xy
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--camera-json", type=Path)
+    parser.add_argument("--dataset", type=Path)
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--noise-px", type=float, default=1.0)
     parser.add_argument("--terms", default="k1,k2")
+    parser.add_argument("--buildings", action="store_true")
+    parser.add_argument("--clicks", type=int, default=CLICKS)
     args = parser.parse_args()
-    R, t, true = from_camera_json(args.camera_json) if args.camera_json else stand_in()
+    R, t, true = from_dataset(args.dataset) if args.dataset else stand_in()
     corner = np.zeros((1, 2))
     true_corner = float(np.linalg.norm(true.undistort_points(corner) - corner))
-    lines = street_lines(R, t, true)
+    lines = street_lines(R, t, true, args.buildings, args.clicks)
     ranges, bearings = np.meshgrid(np.arange(5.0, 50.5), np.radians(np.arange(-60.0, 61.0, 5.0)))
     test_xy = np.column_stack([(ranges * np.sin(bearings)).ravel(), (ranges * np.cos(bearings)).ravel()])
     test_px = project(np.column_stack([test_xy, np.zeros(len(test_xy))]), R, t, true)
     keep = in_frame(test_px, true.image_size)
     test_xy, test_px = test_xy[keep], test_px[keep]
     exact_corners = project(np.column_stack([TRAPEZOID, np.zeros(4)]), R, t, true)
-    print(f"camera: {'%s' % args.camera_json if args.camera_json else 'stand-in'}; true k1 {true.distortion[0]:.4f}, "
+    print(f"camera: {args.dataset or 'stand-in'}; true k1 {true.distortion[0]:.4f}, "
           f"corner displacement {true_corner:.1f} px; {len(lines)} lines, {len(test_xy)} test points; "
-          f"--noise-px {args.noise_px:g}, --terms {args.terms}")
+          f"--noise-px {args.noise_px:g}, --clicks {args.clicks}, --terms {args.terms}{', --buildings' if args.buildings else ''}")
     print("| seed | k1 | k1 error % | corner px | corner error % | RMS after px | range err known % | "
           "range err estimated % | ratio | exact trapezoid: estimated % |")
     print("|---|---|---|---|---|---|---|---|---|---|")
@@ -116,7 +127,7 @@ def main() -> None:
             rng = np.random.default_rng(seed)
             clicks = []
             for p in lines:
-                picked = p[np.linspace(0, len(p) - 1, CLICKS).round().astype(int)]
+                picked = p[np.linspace(0, len(p) - 1, args.clicks).round().astype(int)]
                 clicks.append(np.clip(picked + rng.normal(0.0, args.noise_px, picked.shape), -0.5,
                                       np.array(true.image_size) - 0.5).tolist())
             lines_json, lens_json = Path(tmp) / f"lines{seed}.json", Path(tmp) / f"lens{seed}.json"

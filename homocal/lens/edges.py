@@ -85,7 +85,7 @@ def fit_frame(path: Path, terms: str, hfov_deg: float | None = None, focal_px: f
     size, lines = frame_lines(path)
     K = intrinsics(size, hfov_deg, focal_px)
     fit = fit_lines(size, lines, K, terms)
-    rms = [np.sqrt(np.mean(line_residuals(fit.lens.undistort_points(line), np.array([0, len(line)])) ** 2))
+    rms = [np.sqrt(np.mean(line_residuals(fit.lens.undistort_points(line), np.array([0, len(line)]))[0] ** 2))
            for line in lines]
     keep = [line for line, r in zip(lines, rms) if r <= OUTLIER_FACTOR * np.median(rms)]
     return fit_lines(size, keep, K, terms) if len(keep) < len(lines) else fit

@@ -31,6 +31,7 @@ DEFAULT_HFOV_DEG = 95.0  # the focal length when none is given: a wide CCTV lens
 TERMS = {"k1": (0,), "k1,k2": (0, 1), "k1,k2,k3": (0, 1, 4), "k1,k2,p1,p2": (0, 1, 2, 3)}  # fitted -> index in [k1, k2, p1, p2, k3]
 DEFAULT_TERMS = "k1,k2"
 FOLDED_RESIDUAL_PX = 1e3  # each point's residual while the coefficients fold the frame before it
+FD_STEP_PX = 1e-3  # central differences of the lens's derivative: error ~ step^2 * the map's 3rd derivative, far below 1e-6
 MIN_CENTRE_DISTANCE = 0.05  # of the half diagonal: a line nearer the image centre than this stays straight under any radial distortion
 
 
@@ -118,21 +119,25 @@ def check_lines(image_size, lines) -> tuple[tuple[int, int], list[np.ndarray]]:
     return (w, h), out
 
 
-def line_residuals(points: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """Each point's signed distance from the total-least-squares line of its polyline (rows ``starts[i]`` to
-    ``starts[i + 1]``), (N,)."""
-    out = np.empty(len(points))
+def line_residuals(points: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each point's signed distance (N,) from the total-least-squares line of its polyline (rows ``starts[i]`` to
+    ``starts[i + 1]``), and that line's unit normal (N, 2)."""
+    distance, normal = np.empty(len(points)), np.empty((len(points), 2))
     for a, b in zip(starts[:-1], starts[1:]):
         p = points[a:b] - points[a:b].mean(axis=0)
-        normal = np.linalg.svd(p, full_matrices=False)[2][1]  # the direction of least spread
-        out[a:b] = p @ normal
-    return out
+        normal[a:b] = np.linalg.svd(p, full_matrices=False)[2][1]  # the direction of least spread
+        distance[a:b] = p @ normal[a]
+    return distance, normal
 
 
-def _lengths(points: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """(N,) the length of each point's polyline (end to end)."""
-    ends = np.linalg.norm(points[starts[1:] - 1] - points[starts[:-1]], axis=1)
-    return np.repeat(ends, np.diff(starts))
+def _in_frame_pixels(lens: Lens, undistorted: np.ndarray, distance: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Distances (N,) of undistorted points from their lines, along ``normal`` (N, 2), as distances in the distorted
+    frame (to first order): distance / |J^-T normal|, J (N, 2, 2) the lens's derivative at each point (central
+    differences of ``distort_points``, FD_STEP_PX)."""
+    columns = [(lens.distort_points(undistorted + step) - lens.distort_points(undistorted - step)) / (2 * FD_STEP_PX)
+               for step in (np.array([FD_STEP_PX, 0.0]), np.array([0.0, FD_STEP_PX]))]
+    jacobian_t = np.stack(columns, axis=1)  # rows: d(distorted)/du, d(distorted)/dv: J transposed
+    return distance / np.linalg.norm(np.linalg.solve(jacobian_t, normal[..., None])[..., 0], axis=1)
 
 
 def fit_lines(image_size: tuple[int, int], lines: list[np.ndarray], K: np.ndarray, terms: str = DEFAULT_TERMS) -> LensFit:
@@ -142,8 +147,9 @@ def fit_lines(image_size: tuple[int, int], lines: list[np.ndarray], K: np.ndarra
         image_size: (W, H) pixels. lines: [(N_i, 2)] distorted pixels, as ``check_lines`` returns them.
         K: (3, 3) intrinsics (``intrinsics``). terms: which of [k1, k2, p1, p2, k3] are fitted; the rest stay 0.
     Returns:
-        LensFit. Residual of a point: its distance from its undistorted polyline's best straight line, rescaled by
-        the polyline's distorted over undistorted length (so shrinking the image cannot make lines straighter).
+        LensFit. Residual of a point: its distance from its undistorted polyline's best straight line, measured in
+        the distorted frame (``_in_frame_pixels``), where the clicks' errors are: so the fit weighs each click
+        alike wherever the lens stretches the image, and shrinking the image cannot make lines straighter.
     Raises:
         ValueError: every line passes within MIN_CENTRE_DISTANCE of the half diagonal of the image centre (radial
         distortion leaves such lines straight), or fewer residuals than coefficients.
@@ -159,7 +165,6 @@ def fit_lines(image_size: tuple[int, int], lines: list[np.ndarray], K: np.ndarra
     if len(points) - 2 * len(lines) <= len(index):
         raise ValueError(f"{len(points)} points on {len(lines)} lines fix no more than {len(points) - 2 * len(lines)} "
                          f"coefficients; {terms} needs more")
-    length = _lengths(points, starts)
 
     def lens_of(x: np.ndarray) -> Lens:
         distortion = np.zeros(5)
@@ -167,10 +172,11 @@ def fit_lines(image_size: tuple[int, int], lines: list[np.ndarray], K: np.ndarra
         return Lens(K, distortion, image_size)
 
     def residuals(x: np.ndarray) -> np.ndarray:
-        undistorted = lens_of(x).undistort_points(points)
+        lens = lens_of(x)
+        undistorted = lens.undistort_points(points)
         if not np.isfinite(undistorted).all():  # a point beyond the fold: coefficients far from any answer
             return np.full(len(points), FOLDED_RESIDUAL_PX)
-        return line_residuals(undistorted, starts) * length / _lengths(undistorted, starts)
+        return _in_frame_pixels(lens, undistorted, *line_residuals(undistorted, starts))
 
     before = residuals(np.zeros(len(index)))
     result = least_squares(residuals, np.zeros(len(index)), x_scale=0.1, method="lm")
