@@ -18,7 +18,8 @@ projected through the lens, and CLICKS points spread along its visible part are 
     metre of range, every 5 degrees of bearing, those in the frame; their exact distorted pixels undistorted):
     the median relative range error with the true lens and with the estimated one, from the trapezoid's corners
     clicked with the same noise and (last column) from its exact corners.
-Prints one row per seed and the mean and range of each column.
+Prints one row per seed and the mean and range of each column. --write-lines FILE also writes seed 0's clicks as
+LINES.json (examples/lens/lines.json is `--buildings --write-lines examples/lens/lines.json` on the stand-in).
 """
 from __future__ import annotations
 
@@ -88,10 +89,20 @@ def street_lines(R, t, lens: Lens, buildings: bool, clicks: int) -> list[np.ndar
     return out
 
 
-def range_error(lens: Lens, corners_px: np.ndarray, test_px: np.ndarray, test_xy: np.ndarray) -> float:
-    """Median |mapped range - true range| / true range of the test points through the trapezoid, both undistorted
-    with ``lens``."""
-    vt = ViewTransformer(lens.undistort_points(corners_px), TRAPEZOID)
+def test_points(R, t, lens: Lens) -> tuple[np.ndarray, np.ndarray]:
+    """Ground points 5-50 m from the camera (every metre, every 5 degrees of bearing) seen in the frame: their
+    distorted pixels (N, 2) and ground metres (N, 2)."""
+    ranges, bearings = np.meshgrid(np.arange(5.0, 50.5), np.radians(np.arange(-60.0, 61.0, 5.0)))
+    xy = np.column_stack([(ranges * np.sin(bearings)).ravel(), (ranges * np.cos(bearings)).ravel()])
+    px = project(np.column_stack([xy, np.zeros(len(xy))]), R, t, lens)
+    keep = in_frame(px, lens.image_size)
+    return px[keep], xy[keep]
+
+
+def range_error(lens: Lens, corners_px: np.ndarray, ground: np.ndarray, test_px: np.ndarray, test_xy: np.ndarray) -> float:
+    """Median |mapped range - true range| / true range of the test points through the trapezoid (image corners,
+    ground corners in metres), both undistorted with ``lens``."""
+    vt = ViewTransformer(lens.undistort_points(corners_px), ground)
     mapped = vt.transform_points(lens.undistort_points(test_px))
     return float(np.nanmedian(np.abs(np.hypot(*mapped.T) - np.hypot(*test_xy.T)) / np.hypot(*test_xy.T)))
 
@@ -104,16 +115,13 @@ def main() -> None:
     parser.add_argument("--terms", default="k1,k2")
     parser.add_argument("--buildings", action="store_true")
     parser.add_argument("--clicks", type=int, default=CLICKS)
+    parser.add_argument("--write-lines", type=Path)
     args = parser.parse_args()
     R, t, true = from_dataset(args.dataset) if args.dataset else stand_in()
     corner = np.zeros((1, 2))
     true_corner = float(np.linalg.norm(true.undistort_points(corner) - corner))
     lines = street_lines(R, t, true, args.buildings, args.clicks)
-    ranges, bearings = np.meshgrid(np.arange(5.0, 50.5), np.radians(np.arange(-60.0, 61.0, 5.0)))
-    test_xy = np.column_stack([(ranges * np.sin(bearings)).ravel(), (ranges * np.cos(bearings)).ravel()])
-    test_px = project(np.column_stack([test_xy, np.zeros(len(test_xy))]), R, t, true)
-    keep = in_frame(test_px, true.image_size)
-    test_xy, test_px = test_xy[keep], test_px[keep]
+    test_px, test_xy = test_points(R, t, true)
     exact_corners = project(np.column_stack([TRAPEZOID, np.zeros(4)]), R, t, true)
     print(f"camera: {args.dataset or 'stand-in'}; true k1 {true.distortion[0]:.4f}, "
           f"corner displacement {true_corner:.1f} px; {len(lines)} lines, {len(test_xy)} test points; "
@@ -132,17 +140,20 @@ def main() -> None:
                                       np.array(true.image_size) - 0.5).tolist())
             lines_json, lens_json = Path(tmp) / f"lines{seed}.json", Path(tmp) / f"lens{seed}.json"
             lines_json.write_text(json.dumps({"image_size": list(true.image_size), "lines": clicks}))
+            if seed == 0 and args.write_lines:
+                rounded = [[[round(u, 1), round(v, 1)] for u, v in line] for line in clicks]  # as a page saves clicks
+                args.write_lines.write_text(json.dumps({"image_size": list(true.image_size), "lines": rounded}) + "\n")
             code = homocal_main(["lens", "--lines", str(lines_json), "-o", str(lens_json), "--terms", args.terms,
                                  "--focal", repr(float(true.K[0, 0]))])
             assert code == 0
             out = read_json(lens_json)
             est = Lens(out["K"], out["distortion"], tuple(out["image_size"]))
             clicked = exact_corners + rng.normal(0.0, args.noise_px, exact_corners.shape)
-            known, estimated = (range_error(lens, clicked, test_px, test_xy) for lens in (true, est))
+            known, estimated = (range_error(lens, clicked, TRAPEZOID, test_px, test_xy) for lens in (true, est))
             k1 = est.distortion[0]
             row = [seed, k1, 100 * (k1 / true.distortion[0] - 1), out["fit"]["corner_displacement_px"],
                    100 * (out["fit"]["corner_displacement_px"] / true_corner - 1), out["fit"]["rms_after_px"],
-                   100 * known, 100 * estimated, estimated / known, 100 * range_error(est, exact_corners, test_px, test_xy)]
+                   100 * known, 100 * estimated, estimated / known, 100 * range_error(est, exact_corners, TRAPEZOID, test_px, test_xy)]
             rows.append(row)
             print("| " + " | ".join(f"{v:.4g}" if isinstance(v, float) else str(v) for v in row) + " |")
     a = np.array(rows)[:, 1:]

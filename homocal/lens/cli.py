@@ -53,8 +53,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     focal.add_argument("--hfov", type=number(float, 1, 179), metavar="DEG",
                        help=f"--lines, --frame: horizontal field of view, degrees (default {DEFAULT_HFOV_DEG:g})")
     focal.add_argument("--focal", type=number(float, 1, 1e6), metavar="PX", help="--lines, --frame: focal length, pixels")
-    lens.add_argument("--terms", choices=TERMS, default=DEFAULT_TERMS,
-                      help="the distortion coefficients fitted, the others 0 (default %(default)s)")
+    lens.add_argument("--terms", choices=TERMS, default=DEFAULT_TERMS, metavar="TERMS",
+                      help=f"the distortion coefficients fitted, the others 0: {' or '.join(TERMS)} (default %(default)s)")
     lens.add_argument("--pattern", type=_pattern, metavar="COLSxROWS", help="--checkerboard: inner corners, e.g. 9x6")
     lens.add_argument("--square-m", type=number(float, 0, 100, low_open=True), metavar="M",
                       help="--checkerboard: side of one square, metres")
