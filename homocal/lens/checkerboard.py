@@ -8,12 +8,14 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from PIL import Image
 
 from homocal.geometry.lens import MAX_IMAGE_SIDE, Lens
 from homocal.lens.lines import DEFAULT_TERMS, TERMS
 
 MAX_FRAMES = 200  # checkerboard photographs in one calibration
 MAX_FRAME_BYTES = 64 * 2**20  # one image file
+MAX_FRAME_PIXELS = 50_000_000  # one decoded frame (8K is 33 million)
 MIN_FRAMES = 3  # views of the board calibrateCamera needs for K and five coefficients
 SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-3)  # cornerSubPix: 0.001 px or 100 steps
 
@@ -36,16 +38,23 @@ class BoardFit:
 
 
 def read_gray(path: Path) -> np.ndarray:
-    """A frame as (H, W) uint8 grey; ValueError naming the file if it is missing, too large or not an image."""
+    """A frame as (H, W) uint8 grey; ValueError naming the file if it is missing, too large (its file, or its size
+    read from its header before decoding) or not an image."""
     if not path.is_file():
         raise ValueError(f"{path}: no such file")
     if os.path.getsize(path) > MAX_FRAME_BYTES:
         raise ValueError(f"{path}: larger than {MAX_FRAME_BYTES // 2**20} MiB (the most an image file may be)")
+    try:
+        with Image.open(path) as header:  # the size, before any pixel is decoded
+            width, height = header.size
+    except (OSError, Image.DecompressionBombError):
+        raise ValueError(f"{path}: not a readable image") from None
+    if max(width, height) > MAX_IMAGE_SIDE or width * height > MAX_FRAME_PIXELS:
+        raise ValueError(f"{path}: {width}x{height} px, larger than {MAX_FRAME_PIXELS:,} pixels or {MAX_IMAGE_SIDE} px "
+                         "a side (the most a frame may be)")
     image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
     if image is None:
         raise ValueError(f"{path}: not a readable image")
-    if max(image.shape) > MAX_IMAGE_SIDE:
-        raise ValueError(f"{path}: wider or taller than {MAX_IMAGE_SIDE} px")
     return image
 
 

@@ -13,11 +13,13 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from scipy.spatial import cKDTree
 
 from homocal.lens.checkerboard import read_gray
 from homocal.lens.lines import LensFit, fit_lines, intrinsics, line_residuals
 
 MIN_SEGMENT_PX = 12.0  # shorter LSD segments are texture
+MAX_SEGMENTS = 5_000  # the longest segments chained (about 4 s at most; a 1280x720 street frame has about 250)
 MAX_GAP_PX = 10.0  # an end this near the next segment's start continues it
 MAX_TURN_DEG = 6.0  # and turns by at most this much
 MAX_OFFSET_PX = 1.5  # and starts at most this far to the side of the end's line (not a parallel edge beside it)
@@ -41,6 +43,7 @@ def chains(segments: np.ndarray) -> list[np.ndarray]:
     cos_turn = math.cos(math.radians(MAX_TURN_DEG))
     both = np.concatenate([segments, segments[:, [2, 3, 0, 1]]])  # each segment in both directions: (2N, 4)
     length = np.hypot(both[:, 2] - both[:, 0], both[:, 3] - both[:, 1])
+    starts = cKDTree(both[:, :2])
     used = np.zeros(len(segments), bool)
     out = []
     for i in np.argsort(-length[:len(segments)]):
@@ -52,13 +55,14 @@ def chains(segments: np.ndarray) -> list[np.ndarray]:
             while True:
                 last = chain[-1] if forward else chain[0][[2, 3, 0, 1]]  # the chain's end segment, pointing outwards
                 heading = (last[2:] - last[:2]) / np.hypot(*(last[2:] - last[:2]))
-                step = both[:, :2] - last[2:]
+                near = np.array(starts.query_ball_point(last[2:], MAX_GAP_PX), dtype=int)
+                step = both[near, :2] - last[2:]
                 gap, offset = np.hypot(*step.T), np.abs(step @ [-heading[1], heading[0]])
-                fits = ((gap <= MAX_GAP_PX) & (offset <= MAX_OFFSET_PX) & ~np.tile(used, 2)
-                        & ((both[:, 2:] - both[:, :2]) @ heading >= cos_turn * length))
+                fits = ((offset <= MAX_OFFSET_PX) & ~used[near % len(segments)]
+                        & ((both[near, 2:] - both[near, :2]) @ heading >= cos_turn * length[near]))
                 if not fits.any():
                     break
-                j = np.flatnonzero(fits)[np.argmin(gap[fits])]
+                j = near[fits][np.argmin(gap[fits])]
                 used[j % len(segments)] = True
                 chain = chain + [both[j]] if forward else [both[j][[2, 3, 0, 1]]] + chain
         out.append(np.concatenate([_samples(seg) for seg in chain]))
@@ -66,10 +70,13 @@ def chains(segments: np.ndarray) -> list[np.ndarray]:
 
 
 def frame_lines(path: Path) -> tuple[tuple[int, int], list[np.ndarray]]:
-    """((W, H), polylines) of the long chains of LSD segments of the image ``path``; ValueError if there are none."""
+    """((W, H), polylines) of the long chains of the MAX_SEGMENTS longest LSD segments of the image ``path``;
+    ValueError if there are none."""
     gray = read_gray(path)
     found = cv2.createLineSegmentDetector().detect(gray)[0]
     segments = np.zeros((0, 4)) if found is None else found.reshape(-1, 4).astype(np.float64)
+    length = np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
+    segments = segments[np.argsort(-length)[:MAX_SEGMENTS]]
     segments = segments[np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1]) >= MIN_SEGMENT_PX]
     size = (gray.shape[1], gray.shape[0])
     lines = [c for c in chains(segments) if np.linalg.norm(c[-1] - c[0]) >= MIN_CHAIN * size[0]]

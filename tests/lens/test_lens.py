@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
-from homocal.lens import lines as lines_module
+from homocal.lens import checkerboard, lines as lines_module
 from homocal.lens.lines import check_lines, fit_lines, intrinsics, line_residuals
 
 from cli_run import homocal_main
@@ -243,6 +243,14 @@ def test_bad_board_and_frame(tmp_path, capsys, monkeypatch, args, message):
     r = run(tmp_path, capsys, monkeypatch, *args, "-o", "lens.json")
     assert r.returncode == 2 and message in r.stderr and r.stderr.count("\n") == 1, r.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_frame_size_read_before_decoding(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(checkerboard, "MAX_FRAME_PIXELS", 100 * 100)  # the bound, declared once, made small here
+    cv2.imwrite(str(tmp_path / "frame.png"), np.zeros((101, 100), np.uint8))
+    r = run(tmp_path, capsys, monkeypatch, "--frame", "frame.png", "-o", "lens.json")
+    assert r.returncode == 2 and "frame.png: 100x101 px, larger than 10,000 pixels" in r.stderr
+    assert not (tmp_path / "lens.json").exists()
 
 
 def test_check_lines_counts_the_points_before_converting(monkeypatch):
