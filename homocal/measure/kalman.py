@@ -18,8 +18,9 @@ ACCEL_PSD = 0.5
 person who stops or starts within about two seconds). Chosen from that, not fitted to a benchmark."""
 START_POSITION_SIGMA_M = 100.0
 """A track's first state: position unknown (this sigma, far beyond any error bar; the first measurement sets it)."""
-START_SPEED_SIGMA_MPS = 2.0
-"""... and velocity 0 with this sigma per axis (a walker's speed is under 2 m/s; a runner's under 6, 3 sigma)."""
+START_SPEED_SIGMA_MPS = 10.0
+"""... and velocity 0 with this sigma per axis: all but unknown (a sprinter's 10 m/s is one sigma), so that the
+start does not pull a track's first speeds towards 0 (a 2 m/s sigma pulled a walker's first speed 3 % low)."""
 
 
 def transition(dt: np.ndarray, q: float) -> tuple[np.ndarray, np.ndarray]:
