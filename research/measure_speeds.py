@@ -139,7 +139,8 @@ def evaluate(paths: list[str], detector: str, shift: float) -> dict:
             err = np.abs(speed - true_speed)
             p = pooled[key]
             p["err"].append(err[ok])
-            p["rel"].append(np.where(true_speed[ok] >= WALKING_MPS, 100 * err[ok] / true_speed[ok], np.nan))
+            walking = true_speed[ok] >= WALKING_MPS
+            p["rel"].append(np.where(walking, 100 * err[ok] / np.where(walking, true_speed[ok], 1.0), np.nan))
             p["range"].append(rng[ok])
             for k in (1, 2):
                 p[f"cover{k}"].append(err[ok] <= k * sigma[ok] if sigma is not None else np.full(ok.sum(), np.nan))
