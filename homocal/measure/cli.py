@@ -88,7 +88,10 @@ def file_fps(path: Path) -> float | None:
     seqinfo = path.parent.parent / "seqinfo.ini"
     if path.suffix.lower() == ".txt" and seqinfo.is_file():
         parser = configparser.ConfigParser()
-        parser.read(seqinfo, encoding="utf-8")
+        try:
+            parser.read(seqinfo, encoding="utf-8")
+        except (configparser.Error, UnicodeDecodeError) as e:
+            raise ValueError(f"{seqinfo}: not a MOTChallenge seqinfo.ini ({e})") from None
         return parser.get("Sequence", "frameRate", fallback=None)
     return None
 
