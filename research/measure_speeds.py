@@ -185,15 +185,14 @@ def throughput(path: str, minutes: float) -> str:
                 xyxy = boxes.xyxy + 0.5  # homocal edges -> the CSV's pixel corners
                 block = np.column_stack([boxes.frames + c * length, ids + c * (ids.max() + 1), xyxy])
                 np.savetxt(f, block, fmt=["%d", "%d", "%.3f", "%.3f", "%.3f", "%.3f"], delimiter=",")
-        trap = Path(tmp) / "trapezoid.json"
-        trap.write_text((Path(path) / "trapezoids.json").read_text())
+        trap = Path(path) / "trapezoids.json"  # its hand-placed trapezoid, uncorrected
         n = copies * len(ids)
         start = time.perf_counter()
         subprocess.run([sys.executable, "-m", "homocal.cli", "measure", str(trap), "--boxes", str(csv), "--fps",
                         f"{fps:g}", "--out", str(Path(tmp) / "tracks.parquet"), "--no-progress"], check=True)
         seconds = time.perf_counter() - start
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
-    return (f"throughput: {n:,} boxes ({copies} copies of {ds.name}'s {length} frames of segmentation boxes, "
+    return (f"throughput: {n:,} boxes in the file ({copies} copies of {ds.name}'s {length} frames of segmentation boxes, "
             f"{copies * length / fps / 60:.1f} min at {fps:g} fps) in {seconds:.1f} s: {n / seconds:,.0f} boxes/s "
             f"(the whole command: start, read, write); peak memory {peak:.0f} MB")
 
