@@ -136,3 +136,28 @@ def test_bad_input_is_one_line_and_writes_nothing(scene, capsys, monkeypatch, wr
     assert r.returncode == 2
     assert r.stderr.startswith("homocal: error: ") and r.stderr.count("\n") == 1 and words in r.stderr, r.stderr
     assert sorted(p.name for p in scene.rglob("*")) == before
+
+
+def test_mot_sequence_gives_fps_and_tracks(scene, capsys, monkeypatch):
+    """A MOT gt.txt beside seqinfo.ini: its frame rate and image size come from seqinfo.ini, its ids are the
+    tracks (MOT frames 1-based, boxes 1-based pixels: bb_left = x1 + 1.5)."""
+    (scene / "SEQ" / "gt").mkdir(parents=True)
+    (scene / "SEQ" / "seqinfo.ini").write_text("[Sequence]\nname=x\nframeRate=10\nseqLength=60\nimWidth=1280\nimHeight=720\n")
+    lines = [f"{f + 1},{k + 1},{x1 - 0.5 + 1.5},{y1 - 0.5 + 1.5},{x2 - x1},{y2 - y1},1,1,1\n"
+             for f, k, x1, y1, x2, y2 in walker_rows()]
+    (scene / "SEQ" / "gt" / "gt.txt").write_text("".join(lines))
+    r = homocal_main("measure", "trap.json", "--boxes", "SEQ/gt/gt.txt", "--out", "tracks.parquet", cwd=scene,
+                     capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    assert "180 boxes in 3 tracks (tracks of the file)" in r.stdout and "at 10 fps" in r.stdout
+    tracks = pq.read_table(scene / "tracks.parquet").to_pandas()
+    assert sorted(tracks.track_id.unique()) == [1, 2, 3]
+    np.testing.assert_allclose(tracks[tracks.track_id == 1][["x", "y"]], truth(0, np.arange(FRAMES)), atol=1e-6)
+
+
+def test_pairs_refuse_a_crowded_frame_before_writing(scene, capsys, monkeypatch):
+    monkeypatch.setattr("homocal.measure.tracks.MAX_PEOPLE_PER_FRAME", 2)
+    r = homocal_main("measure", "trap.json", "--boxes", "boxes.csv", "--fps", "10", "--out", "tracks.parquet",
+                     "--pairs", "pairs.parquet", cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 2 and "--pairs: boxes.csv: frame 0 has 3 people: at most 2 a frame" in r.stderr, r.stderr
+    assert not (scene / "tracks.parquet").exists() and not (scene / "pairs.parquet").exists()
