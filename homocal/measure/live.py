@@ -59,10 +59,10 @@ class GroundTracker:
     def update(self, detections, frame: int) -> GroundState:
         """The ground state of each detection in video frame ``frame`` (an integer, larger than the last
         update's). detections: anything with ``xyxy`` (N, 4) boxes and ``tracker_id`` (N,) integers, one box
-        per id (sv.Detections after a tracker's update_with_detections). ValueError otherwise."""
+        per id (sv.Detections whose tracker_id a tracker filled). ValueError otherwise."""
         xyxy, ids = getattr(detections, "xyxy", None), getattr(detections, "tracker_id", None)
         if xyxy is None or ids is None:
-            raise ValueError("detections: needs xyxy and tracker_id (run a tracker first, such as sv.ByteTrack)")
+            raise ValueError("detections: needs xyxy and tracker_id (run a tracker on them first)")
         ids = np.asarray(ids)
         if ids.dtype.kind not in "iu" or ids.shape != (len(np.asarray(xyxy)),):
             raise ValueError(f"detections.tracker_id: expected (N,) integers for the N boxes, got {ids.dtype} {ids.shape}")

@@ -66,7 +66,7 @@ def test_duck_typed_detections_and_their_refusals():
     check_against_the_file_filter(run(tracker, lambda xyxy, ids: SimpleNamespace(xyxy=xyxy, tracker_id=ids)))
     box = np.array([[600.0, 300.0, 620.0, 400.0]])
     for detections, frame, words in [
-        (SimpleNamespace(xyxy=box, tracker_id=None), 30, "run a tracker first"),
+        (SimpleNamespace(xyxy=box, tracker_id=None), 30, "run a tracker on them first"),
         (SimpleNamespace(xyxy=box, tracker_id=np.array([1.5])), 30, "tracker_id: expected (N,) integers"),
         (SimpleNamespace(xyxy=np.vstack([box, box]), tracker_id=np.array([3, 3])), 30, "an id twice"),
         (SimpleNamespace(xyxy=box, tracker_id=np.array([1])), 19, "larger than the last one (19)"),
