@@ -203,8 +203,8 @@ def handle_measure(args: argparse.Namespace) -> int:
         write_table(args.pairs, PAIR_COLUMNS, counted())
         pairs = f"; {sum(count):,} distances written to {args.pairs}"
     dropped = len(counts) - len(summary["track_id"])
-    short = f" ({dropped} of one frame left out)" if dropped else ""
-    print(f"homocal measure: {len(frames):,} boxes in {len(summary['track_id']):,} tracks{short} ({source}) of "
+    short = f"; {dropped:,} of one frame left out" if dropped else ""
+    print(f"homocal measure: {len(frames):,} boxes in {len(summary['track_id']):,} tracks ({source}{short}) of "
           f"{args.boxes} mapped with {what} of {args.correction} at {fps:g} fps, smoothed and written to {args.out}"
           f"{pairs}. Median speed {np.nanmedian(summary['mean_speed_mps']):.2f} m/s over the tracks.")
     return 0
