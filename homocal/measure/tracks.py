@@ -24,8 +24,8 @@ SUMMARY_COLUMNS = ("track_id", "frames", "first_frame", "last_frame", "duration_
                    "mean_speed_mps", "stationary_s")
 PAIR_COLUMNS = ("frame", "t", "track_a", "track_b", "distance_m", "distance_sigma_m")
 BATCH_CELLS = 2**16
-"""Cells (tracks x frames, padded) filtered at once, and boxes mapped at once for distances: about 60 floats a
-cell, some 35 MB in all."""
+"""Cells (tracks x frames, padded) filtered at once, and boxes mapped at once for distances: about 85 floats a
+cell (the filter's states, predictions, covariances and transitions, the smoother's copies), some 45 MB."""
 MAX_PEOPLE_PER_FRAME = 500
 """People in one frame for --pairs (at most 124,750 distances a frame); more is refused."""
 STATIONARY_MPS = 0.3
