@@ -21,7 +21,7 @@ from homocal.files import check_output_file, json_format, read_json, write_atomi
 from homocal.geometry import ViewTransformer
 from homocal.geometry.boxes import box_bottom_points, link_tracks
 from homocal.measure.kalman import ACCEL_PSD
-from homocal.measure.tracks import (COLUMNS, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
+from homocal.measure.tracks import (COLUMNS, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
                                     TrapezoidMapping, check_people_per_frame, check_tracks, measure_tracks, pair_distances, summarise)
 from homocal.progress import add_progress_option, show_progress
 
@@ -172,6 +172,9 @@ def handle_measure(args: argparse.Namespace) -> int:
     if not keep.any():
         raise ValueError(f"{args.boxes}: no track has {MIN_TRACK_FRAMES} frames or more ({len(counts)} tracks of one "
                          "frame): nothing to measure a speed from")
+    if counts.max() > MAX_TRACK_FRAMES:
+        raise ValueError(f"{args.boxes}: a track of {counts.max():,} frames: at most {MAX_TRACK_FRAMES:,} "
+                         "(MAX_TRACK_FRAMES; split the recording)")
     frames, feet, ids = boxes.frames[keep], box_bottom_points(boxes.xyxy[keep], convention="homocal"), ids[keep]
     if args.pairs is not None:
         try:

@@ -26,6 +26,8 @@ PAIR_COLUMNS = ("frame", "t", "track_a", "track_b", "distance_m", "distance_sigm
 BATCH_CELLS = 2**16
 """Cells (tracks x frames, padded) filtered at once, and boxes mapped at once for distances: about 85 floats a
 cell (the filter's states, predictions, covariances and transitions, the smoother's copies), some 45 MB."""
+MAX_TRACK_FRAMES = BATCH_CELLS
+"""The longest track measured (a batch of its own; 36 minutes at 30 fps): homocal measure refuses longer ones."""
 MAX_PEOPLE_PER_FRAME = 500
 """People in one frame for --pairs (at most 124,750 distances a frame); more is refused."""
 STATIONARY_MPS = 0.3
@@ -90,7 +92,7 @@ def check_tracks(frames: np.ndarray, track_ids: np.ndarray) -> None:
 
 def track_batches(track_ids: np.ndarray, frames: np.ndarray) -> Iterator[list[np.ndarray]]:
     """The rows of each track (index arrays, in frame order), tracks in increasing id, grouped into batches of
-    at most BATCH_CELLS cells (tracks x the longest track's rows; a longer track is a batch of its own)."""
+    at most BATCH_CELLS cells (tracks x the longest track's rows; a track of up to MAX_TRACK_FRAMES rows)."""
     order = np.lexsort((frames, track_ids))
     _, starts = np.unique(track_ids[order], return_index=True)
     batch, longest = [], 0

@@ -161,3 +161,11 @@ def test_pairs_refuse_a_crowded_frame_before_writing(scene, capsys, monkeypatch)
                      "--pairs", "pairs.parquet", cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
     assert r.returncode == 2 and "--pairs: boxes.csv: frame 0 has 3 people: at most 2 a frame" in r.stderr, r.stderr
     assert not (scene / "tracks.parquet").exists() and not (scene / "pairs.parquet").exists()
+
+
+def test_a_track_longer_than_the_bound_is_refused(scene, capsys, monkeypatch):
+    monkeypatch.setattr("homocal.measure.cli.MAX_TRACK_FRAMES", FRAMES - 1)
+    r = homocal_main("measure", "trap.json", "--boxes", "boxes.csv", "--fps", "10", "--out", "tracks.parquet",
+                     cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 2 and f"a track of {FRAMES} frames: at most {FRAMES - 1}" in r.stderr, r.stderr
+    assert not (scene / "tracks.parquet").exists()
