@@ -16,7 +16,7 @@ def test_dataset_boxes_measured_with_their_frame_rate(tiny_dataset, tmp_path, ca
                      "--out", "tracks.parquet", cwd=tmp_path, capsys=capsys, monkeypatch=monkeypatch)
     assert r.returncode == 0, r.stderr
     fps = json.loads((tiny_dataset / "manifest.json").read_text())["fps"]
-    assert "(linked by IoU)" in r.stdout and f"at {fps:g} fps" in r.stdout
+    assert "tracks (linked by IoU" in r.stdout and f"at {fps:g} fps" in r.stdout
     tracks = pq.read_table(tmp_path / "tracks.parquet").to_pandas()
     np.testing.assert_allclose(tracks.t, tracks.frame / fps)
     # walkers: the simulated people walk at 0.6-1.8 m/s (gt.parquet's speed), the hand-placed trapezoid is
