@@ -15,10 +15,11 @@ from importlib.metadata import version
 from homocal.correctors import cli as corrector_cli
 from homocal.files import OutputFolderError, os_message
 from homocal.lens import cli as lens_cli
+from homocal.measure import cli as measure_cli
 from homocal.study import advise as study_advise, cli as study_cli, report as study_report, sweep as study_sweep
 from homocal.ui import cli as ui_cli
 
-SUBCOMMANDS = (corrector_cli, study_cli, study_sweep, study_report, study_advise, ui_cli, lens_cli)
+SUBCOMMANDS = (corrector_cli, study_cli, study_sweep, study_report, study_advise, ui_cli, lens_cli, measure_cli)
 
 
 class _Parser(argparse.ArgumentParser):

@@ -1,0 +1,213 @@
+"""``homocal measure``: people's ground positions, speeds and distances from their boxes (docs/measure.md)."""
+from __future__ import annotations
+
+import argparse
+import configparser
+import math
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+from tqdm import tqdm
+
+from homocal.arguments import number
+from homocal.boxes import DEFAULT_DETECTOR, read_boxes
+from homocal.correctors.base import load_corrector
+from homocal.correctors.catalogue import label
+from homocal.correctors.cli import _sigma
+from homocal.correctors.serialization import FORMAT
+from homocal.files import check_output_file, json_format, read_json, write_atomic
+from homocal.geometry import ViewTransformer
+from homocal.geometry.boxes import box_bottom_points, link_tracks
+from homocal.measure.kalman import ACCEL_PSD
+from homocal.measure.tracks import (COLUMNS, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
+                                    TrapezoidMapping, check_people_per_frame, check_tracks, measure_tracks, pair_distances, summarise)
+from homocal.progress import add_progress_option, show_progress
+
+MAX_FPS = 1000.0
+"""The highest frame rate taken (--fps, or the boxes' file's)."""
+INTEGER_COLUMNS = {"frame", "track_id", "frames", "first_frame", "last_frame", "track_a", "track_b"}
+
+FORMATS = f"""\
+CORRECTION.json: written by homocal fit (any method, pedestrians too), or a trapezoid file alone (homocal fit
+--help's TRAP.json: the clicked mapping, uncorrected).
+BOXES: a MOTChallenge .txt (a gt.txt's ids are the tracks; seqinfo.ini beside SEQ/det or SEQ/gt gives the
+image size and frame rate), a simgen dataset's detections.parquet (--detector; manifest.json beside it gives
+the frame rate) or a .csv of frame,x1,y1,x2,y2 (optional track_id; pixel corners at integers, as
+supervision's Detections.xyxy). Without track ids the boxes are linked into tracks by IoU (homocal's
+link_tracks: IoU >= 0.3, gaps up to 5 frames). A track's rows must come in increasing frame order, one box per
+track and frame; tracks of fewer than {MIN_TRACK_FRAMES} frames are left out (and counted).
+TRACKS.parquet, one row per track and frame, tracks in increasing id, frames in order:
+  frame, t (s, frame / fps), track_id, u, v (the foot point, px), x, y (its ground point, m), sigma_m (its
+  1-sigma radius, m), x_smooth, y_smooth (m), vx, vy (m/s), speed_mps and speed_sigma_mps (its 1-sigma):
+  a constant-velocity Kalman filter with an RTS smoother per track, whose measurement noise is each point's
+  own covariance (the mapping's error model at --click-sigma-px, --point-sigma-px) and whose process noise
+  is a white acceleration of spectral density --accel-psd.
+--summary TRACKS_SUMMARY.parquet, one row per track: {", ".join(SUMMARY_COLUMNS)}
+  (stationary: smoothed speed under {STATIONARY_MPS:g} m/s).
+--pairs PAIRS.parquet, one row per two people in one frame: {", ".join(PAIR_COLUMNS)}."""
+
+
+def add_parser(subparsers) -> None:
+    p = subparsers.add_parser(
+        "measure", help="people's ground positions, speeds and distances, with error bars, from their boxes",
+        description="Map each track's foot points to the ground and smooth them into positions and speeds with "
+                    "error bars.", epilog=FORMATS, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("correction", type=Path, metavar="CORRECTION.json", help="homocal fit's output, or a trapezoid file")
+    p.add_argument("--boxes", required=True, type=Path, metavar="FILE", help="people's boxes (see below)")
+    p.add_argument("--detector", metavar="NAME", help=f"the detector's rows of a detections.parquet (default {DEFAULT_DETECTOR})")
+    p.add_argument("--fps", type=number(float, 0, MAX_FPS, low_open=True), metavar="F",
+                   help="frames per second (default: the boxes' file's, when it says it)")
+    p.add_argument("-o", "--out", required=True, type=Path, metavar="TRACKS.parquet", help="the table to write")
+    p.add_argument("--summary", type=Path, metavar="FILE.parquet", help="also write one row per track here")
+    p.add_argument("--pairs", type=Path, metavar="FILE.parquet", help="also write the distances between people here")
+    p.add_argument("--accel-psd", type=number(float, 0, 1e6, low_open=True), default=ACCEL_PSD, metavar="Q",
+                   help=f"the filter's acceleration spectral density, m^2/s^3 (default {ACCEL_PSD:g})")
+    p.add_argument("--click-sigma-px", type=_sigma, default=1.5, metavar="PX",
+                   help="clicking error of each trapezoid coordinate, pixels (default 1.5)")
+    p.add_argument("--point-sigma-px", type=_sigma, default=1.0, metavar="PX",
+                   help="error of each foot point coordinate, pixels (default 1.0)")
+    add_progress_option(p)
+    p.set_defaults(handler=handle_measure)
+
+
+def load_mapping(path: Path):
+    """(a fitted Corrector or a TrapezoidMapping, its label) of a correction file or a trapezoid file."""
+    if json_format(path) == FORMAT:
+        corrector = load_corrector(path)
+        return corrector, f"the {label(corrector)} correction"
+    return TrapezoidMapping(ViewTransformer.from_trapezoid_file(path)), "the trapezoid (uncorrected)"
+
+
+def file_fps(path: Path) -> float | None:
+    """The frame rate the boxes' file's folder says: a dataset's manifest.json "fps", a MOT sequence's
+    seqinfo.ini frameRate; None when neither is there."""
+    if path.suffix.lower() == ".parquet" and (path.parent / "manifest.json").is_file():
+        return read_json(path.parent / "manifest.json").get("fps")
+    seqinfo = path.parent.parent / "seqinfo.ini"
+    if path.suffix.lower() == ".txt" and seqinfo.is_file():
+        parser = configparser.ConfigParser()
+        try:
+            parser.read(seqinfo, encoding="utf-8")
+        except (configparser.Error, UnicodeDecodeError) as e:
+            raise ValueError(f"{seqinfo}: not a MOTChallenge seqinfo.ini ({e})") from None
+        return parser.get("Sequence", "frameRate", fallback=None)
+    return None
+
+
+def check_fps(args: argparse.Namespace) -> float:
+    if args.fps is not None:
+        return args.fps
+    fps = file_fps(args.boxes)
+    if fps is None:
+        raise ValueError(f"--fps: required ({args.boxes} does not say its frame rate)")
+    try:
+        fps = float(fps)
+    except (TypeError, ValueError):
+        fps = math.nan
+    if not 0 < fps <= MAX_FPS:
+        raise ValueError(f"{args.boxes}: its folder's frame rate {fps!r} is not in (0, {MAX_FPS:g}]: give --fps")
+    return fps
+
+
+def check_image_size(mapping, size: tuple[int, int] | None, args: argparse.Namespace) -> None:
+    """ValueError when the boxes' image size is known and the correction's clicked corners (or the pedestrian
+    fit's principal point) lie outside that image by more than a pixel: a correction of another camera."""
+    if size is None:
+        return
+    w, h = size
+    points = [*mapping.base_transformer_.source] + ([mapping.principal_point_] if hasattr(mapping, "principal_point_") else [])
+    for u, v in points:
+        if not (-1.5 <= u <= w + 0.5 and -1.5 <= v <= h + 0.5):
+            raise ValueError(f"{args.correction}: its image point ({u:g}, {v:g}) lies outside the {w}x{h} image of "
+                             f"{args.boxes}: a correction of another image size or camera")
+
+
+def parquet_columns(path: Path) -> list[str] | None:
+    try:
+        return pq.read_schema(path).names
+    except (pa.ArrowException, OSError):
+        return None
+
+
+def schema(columns: tuple[str, ...]) -> pa.Schema:
+    return pa.schema([(c, pa.int64() if c in INTEGER_COLUMNS else pa.float64()) for c in columns])
+
+
+def write_table(path: Path, columns: tuple[str, ...], batches, bar=None) -> None:
+    """Write batches (dicts of columns) to the Parquet file ``path`` atomically, one row group a batch."""
+    def write(tmp: Path) -> None:
+        with pq.ParquetWriter(tmp, schema(columns)) as writer:
+            for batch in batches:
+                writer.write_table(pa.table({c: batch[c] for c in columns}, schema=schema(columns)))
+                if bar is not None:
+                    bar.update(len(batch[columns[0]]))
+    write_atomic(path, write)
+
+
+def handle_measure(args: argparse.Namespace) -> int:
+    outputs = {"--out": (args.out, COLUMNS), "--summary": (args.summary, SUMMARY_COLUMNS),
+               "--pairs": (args.pairs, PAIR_COLUMNS)}
+    paths = [p.resolve() for p, _ in outputs.values() if p is not None]
+    if len(set(paths)) != len(paths):
+        raise ValueError("--out, --summary and --pairs: give each its own file")
+    for flag, (path, columns) in outputs.items():
+        if path is not None:
+            check_output_file(path, lambda p, c=columns: parquet_columns(p) == list(c), f"table of homocal measure {flag}")
+    fps = check_fps(args)
+    mapping, what = load_mapping(args.correction)
+    boxes = read_boxes(args.boxes, args.detector)
+    check_image_size(mapping, boxes.image_size, args)
+    if boxes.track_ids is None:
+        ids, source = link_tracks(boxes.frames, boxes.xyxy), "linked by IoU"
+    else:
+        ids, source = boxes.track_ids, "tracks of the file"
+        try:
+            check_tracks(boxes.frames, ids)
+        except ValueError as e:
+            raise ValueError(f"{args.boxes}: {e}") from None
+    _, inverse, counts = np.unique(ids, return_inverse=True, return_counts=True)
+    keep = counts[inverse] >= MIN_TRACK_FRAMES
+    if not keep.any():
+        raise ValueError(f"{args.boxes}: no track has {MIN_TRACK_FRAMES} frames or more ({len(counts)} tracks of one "
+                         "frame): nothing to measure a speed from")
+    if counts.max() > MAX_TRACK_FRAMES:
+        raise ValueError(f"{args.boxes}: a track of {counts.max():,} frames: at most {MAX_TRACK_FRAMES:,} "
+                         "(MAX_TRACK_FRAMES; split the recording)")
+    frames, feet, ids = boxes.frames[keep], box_bottom_points(boxes.xyxy[keep], convention="homocal"), ids[keep]
+    if args.pairs is not None:
+        try:
+            check_people_per_frame(frames)
+        except ValueError as e:
+            raise ValueError(f"--pairs: {args.boxes}: {e}") from None
+    sigmas = {"click_sigma_px": args.click_sigma_px, "point_sigma_px": args.point_sigma_px}
+    summaries = []
+
+    def tracks():
+        for batch in measure_tracks(mapping, frames, feet, ids, fps, accel_psd=args.accel_psd, **sigmas):
+            summaries.append(summarise(batch))
+            yield batch
+
+    with tqdm(total=len(frames), unit="box", desc="measure", disable=not show_progress(args)) as bar:
+        write_table(args.out, COLUMNS, tracks(), bar)
+    summary = {c: np.concatenate([s[c] for s in summaries]) for c in SUMMARY_COLUMNS}
+    if args.summary is not None:
+        write_table(args.summary, SUMMARY_COLUMNS, [summary])
+    pairs = ""
+    if args.pairs is not None:
+        count = []
+
+        def counted():
+            for batch in pair_distances(mapping, frames, feet, ids, fps, **sigmas):
+                count.append(len(batch["frame"]))
+                yield batch
+
+        write_table(args.pairs, PAIR_COLUMNS, counted())
+        pairs = f"; {sum(count):,} distances written to {args.pairs}"
+    dropped = len(counts) - len(summary["track_id"])
+    short = f"; {dropped:,} of one frame left out" if dropped else ""
+    print(f"homocal measure: {len(frames):,} boxes in {len(summary['track_id']):,} tracks ({source}{short}) of "
+          f"{args.boxes} mapped with {what} of {args.correction} at {fps:g} fps, smoothed and written to {args.out}"
+          f"{pairs}. Median speed {np.nanmedian(summary['mean_speed_mps']):.2f} m/s over the tracks.")
+    return 0

@@ -1,0 +1,107 @@
+"""A constant-velocity Kalman filter on the ground plane and its Rauch-Tung-Striebel smoother, batched over
+tracks (each track one row of (n, L) arrays, padded at its end).
+
+State s = (x, y, vx, vy) (metres, metres per second). Between two frames dt seconds apart the velocity takes a
+white-noise acceleration of spectral density q (m^2/s^3, ACCEL_PSD: the standard continuous white-noise
+acceleration model, Bar-Shalom, Li and Kirubarajan 2001, Section 6.2.2):
+    s' = F s + w,  F = [[I, dt I], [0, I]],  Q = q [[dt^3/3 I, dt^2/2 I], [dt^2/2 I, dt I]].
+A measurement z (2,) = (x, y) with covariance R (2, 2): the mapping's own per-point covariance
+(``Corrector.ground_uncertainty``), so a far point, whose R is large, counts less. A measurement that is NaN
+(a foot point on or above the horizon) is skipped: the step only predicts.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+ACCEL_PSD = 0.5
+"""q, m^2/s^3: a walker's velocity wanders by sqrt(q T) m/s in T seconds (0.7 m/s in one second, enough for a
+person who stops or starts within about two seconds). Chosen from that, not fitted to a benchmark."""
+START_POSITION_SIGMA_M = 100.0
+"""A track's first state: position unknown (this sigma, far beyond any error bar; the first measurement sets it)."""
+START_SPEED_SIGMA_MPS = 10.0
+"""... and velocity 0 with this sigma per axis: all but unknown (a sprinter's 10 m/s is one sigma), so that the
+start does not pull a track's first speeds towards 0 (a 2 m/s sigma pulled a walker's first speed 3 % low)."""
+
+
+def transition(dt: np.ndarray, q: float) -> tuple[np.ndarray, np.ndarray]:
+    """F (n, 4, 4) and Q (n, 4, 4) of the module docstring for time steps dt (n,) seconds."""
+    n = len(dt)
+    F = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+    F[:, 0, 2] = F[:, 1, 3] = dt
+    Q = np.zeros((n, 4, 4))
+    for i in range(2):
+        Q[:, i, i] = q * dt**3 / 3
+        Q[:, i, i + 2] = Q[:, i + 2, i] = q * dt**2 / 2
+        Q[:, i + 2, i + 2] = q * dt
+    return F, Q
+
+
+def kalman_filter(t: np.ndarray, z: np.ndarray, R: np.ndarray, q: float = ACCEL_PSD) -> dict[str, np.ndarray]:
+    """Forward pass over tracks: t (n, L) seconds, non-decreasing along each row (a padded step repeats the last
+    time and has NaN z), z (n, L, 2) metres, R (n, L, 2, 2) metres^2.
+
+    Returns "x", "P" (the filtered states (n, L, 4) and covariances (n, L, 4, 4)), "x_pred", "P_pred" (the
+    predictions before each update) and "F" (n, L, 4, 4), the transitions into each step (identity at step 0).
+    """
+    n, L = t.shape
+    x, P = start_state(n)
+    out = {k: np.empty((n, L, 4)) for k in ("x", "x_pred")} | {k: np.empty((n, L, 4, 4)) for k in ("P", "P_pred", "F")}
+    for k in range(L):
+        x, P, F = predict(x, P, t[:, k] - t[:, k - 1] if k else np.zeros(n), q)
+        out["x_pred"][:, k], out["P_pred"][:, k], out["F"][:, k] = x, P, F
+        x, P = update(x, P, z[:, k], R[:, k])
+        out["x"][:, k], out["P"][:, k] = x, P
+    return out
+
+
+def start_state(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """n tracks' first states (n, 4) and covariances (n, 4, 4): START_POSITION_SIGMA_M, START_SPEED_SIGMA_MPS."""
+    P = np.diag([START_POSITION_SIGMA_M**2] * 2 + [START_SPEED_SIGMA_MPS**2] * 2)
+    return np.zeros((n, 4)), np.broadcast_to(P, (n, 4, 4)).copy()
+
+
+def predict(x: np.ndarray, P: np.ndarray, dt: np.ndarray, q: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """States (n, 4) and covariances (n, 4, 4) moved on by dt (n,) seconds: F x, F P F^T + Q, and F."""
+    F, Q = transition(dt, q)
+    return np.einsum("nij,nj->ni", F, x), F @ P @ F.transpose(0, 2, 1) + Q, F
+
+
+def update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The Kalman update of states x (n, 4), covariances P (n, 4, 4) by position measurements z (n, 2) with
+    covariances R (n, 2, 2), Joseph form; rows whose z or R is not finite are returned as they are."""
+    ok = np.isfinite(z).all(axis=1) & np.isfinite(R).all(axis=(1, 2))
+    if not ok.any():
+        return x, P
+    x, P = x.copy(), P.copy()
+    xo, Po, zo, Ro = x[ok], P[ok], z[ok], R[ok]
+    S = Po[:, :2, :2] + Ro
+    K = np.linalg.solve(S, Po[:, :2, :]).transpose(0, 2, 1)  # P H^T S^-1, (m, 4, 2); S and P symmetric
+    x[ok] = xo + np.einsum("nij,nj->ni", K, zo - xo[:, :2])
+    A = np.broadcast_to(np.eye(4), Po.shape).copy()
+    A[:, :, :2] -= K
+    P[ok] = A @ Po @ A.transpose(0, 2, 1) + K @ Ro @ K.transpose(0, 2, 1)
+    return x, P
+
+
+def rts_smoother(filtered: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Rauch-Tung-Striebel backward pass over ``kalman_filter``'s output: smoothed states (n, L, 4) and
+    covariances (n, L, 4, 4), each conditioned on the whole track:
+        C_k = P_k F_{k+1}^T P_pred_{k+1}^-1,  x_s,k = x_k + C_k (x_s,k+1 - x_pred,k+1),
+        P_s,k = P_k + C_k (P_s,k+1 - P_pred,k+1) C_k^T."""
+    x, P = filtered["x"].copy(), filtered["P"].copy()
+    for k in range(x.shape[1] - 2, -1, -1):
+        C = np.linalg.solve(filtered["P_pred"][:, k + 1], filtered["F"][:, k + 1] @ P[:, k]).transpose(0, 2, 1)
+        x[:, k] += np.einsum("nij,nj->ni", C, x[:, k + 1] - filtered["x_pred"][:, k + 1])
+        P[:, k] += C @ (P[:, k + 1] - filtered["P_pred"][:, k + 1]) @ C.transpose(0, 2, 1)
+    return x, P
+
+
+def speed_and_sigma(v: np.ndarray, Pv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Speed |v| (...,) m/s of velocities v (..., 2) and its 1-sigma by the delta method from their covariances
+    Pv (..., 2, 2): sigma^2 = v^T Pv v / |v|^2 (the variance along the velocity's direction); at |v| = 0, where
+    the speed's derivative is undefined, the sqrt of Pv's largest eigenvalue."""
+    speed = np.linalg.norm(v, axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        along = np.einsum("...i,...ij,...j->...", v, Pv, v) / speed**2
+    largest = np.linalg.eigvalsh(np.nan_to_num(Pv))[..., -1]
+    return speed, np.sqrt(np.where(speed > 0, along, largest))

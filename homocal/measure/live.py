@@ -1,0 +1,88 @@
+"""``GroundTracker``: ground positions and speeds frame by frame from a tracker's boxes, such as supervision's
+``sv.Detections`` with ``tracker_id`` (duck-typed: supervision is not imported, the extra
+``pip install "homocal[supervision]"`` only brings it in for its users)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from homocal.geometry.boxes import box_bottom_points
+from homocal.measure.kalman import ACCEL_PSD, predict, speed_and_sigma, start_state, update
+from homocal.measure.tracks import map_points, as_mapping
+from homocal.uncertainty import sigma_radius
+
+MAX_AGE_S = 2.0
+"""A track not seen for longer than this is forgotten (its state dropped: memory stays bounded by the
+people seen in the last MAX_AGE_S); seen again, it starts anew."""
+
+
+@dataclass(frozen=True)
+class GroundState:
+    """One frame's answer of ``GroundTracker.update``, aligned with the detections given (N rows).
+
+    Attributes: tracker_id (N,) int64; xy (N, 2) mapped foot points, metres; sigma_m (N,) their 1-sigma
+    radius; xy_filtered (N, 2) and velocity (N, 2) m/s, the forward Kalman filter's state; speed_mps (N,)
+    and speed_sigma_mps (N,) its speed and delta-method 1-sigma (homocal.measure.kalman)."""
+
+    tracker_id: np.ndarray
+    xy: np.ndarray
+    sigma_m: np.ndarray
+    xy_filtered: np.ndarray
+    velocity: np.ndarray
+    speed_mps: np.ndarray
+    speed_sigma_mps: np.ndarray
+
+
+class GroundTracker:
+    """A causal constant-velocity Kalman filter per track on the ground (homocal measure's filter, forward pass
+    only: each answer uses the frames up to it).
+
+    Args:
+        mapping: a fitted Corrector (homocal.load_corrector) or a ViewTransformer.
+        fps: frames per second of the video (> 0): t = frame / fps.
+        convention: the boxes' pixel convention (homocal.box_bottom_points): "corners" for supervision's
+            Detections of YOLO-like models, "indices" for its mask_to_xyxy boxes, "homocal" for simgen's.
+        accel_psd, click_sigma_px, point_sigma_px: as homocal.measure.measure_tracks.
+    """
+
+    def __init__(self, mapping, fps: float, *, convention: str = "corners", accel_psd: float = ACCEL_PSD,
+                 click_sigma_px: float = 1.5, point_sigma_px: float = 1.0) -> None:
+        if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
+            raise ValueError(f"fps: expected a finite number > 0, got {fps!r}")
+        self.mapping, self.fps, self.convention = as_mapping(mapping), float(fps), convention
+        self.accel_psd, self.click_sigma_px, self.point_sigma_px = accel_psd, click_sigma_px, point_sigma_px
+        self._tracks: dict[int, tuple[np.ndarray, np.ndarray, int]] = {}  # id -> state (4,), covariance (4, 4), frame
+        self._frame: int | None = None
+
+    def update(self, detections, frame: int) -> GroundState:
+        """The ground state of each detection in video frame ``frame`` (an integer, larger than the last
+        update's). detections: anything with ``xyxy`` (N, 4) boxes and ``tracker_id`` (N,) integers, one box
+        per id (sv.Detections whose tracker_id a tracker filled). ValueError otherwise."""
+        xyxy, ids = getattr(detections, "xyxy", None), getattr(detections, "tracker_id", None)
+        if xyxy is None or ids is None:
+            raise ValueError("detections: needs xyxy and tracker_id (run a tracker on them first)")
+        ids = np.asarray(ids)
+        if ids.dtype.kind not in "iu" or ids.shape != (len(np.asarray(xyxy)),):
+            raise ValueError(f"detections.tracker_id: expected (N,) integers for the N boxes, got {ids.dtype} {ids.shape}")
+        if len(np.unique(ids)) != len(ids):
+            raise ValueError("detections.tracker_id: an id twice in one frame")
+        if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)) or (self._frame is not None and frame <= self._frame):
+            raise ValueError(f"frame: expected an integer larger than the last one ({self._frame}), got {frame!r}")
+        self._frame = int(frame)
+        self._tracks = {k: s for k, s in self._tracks.items() if (frame - s[2]) / self.fps <= MAX_AGE_S}
+        feet = box_bottom_points(np.asarray(xyxy), convention=self.convention)
+        xy, cov = map_points(self.mapping, feet, self.click_sigma_px, self.point_sigma_px)
+        x, P = start_state(len(ids))
+        dt = np.zeros(len(ids))
+        for i, k in enumerate(ids.tolist()):
+            if k in self._tracks:
+                x[i], P[i], last = self._tracks[k]
+                dt[i] = (frame - last) / self.fps
+        x, P, _ = predict(x, P, dt, self.accel_psd)
+        x, P = update(x, P, xy, cov)
+        for i, k in enumerate(ids.tolist()):
+            self._tracks[k] = (x[i], P[i], int(frame))
+        speed, speed_sigma = speed_and_sigma(x[:, 2:], P[:, 2:, 2:])
+        return GroundState(ids.astype(np.int64), xy, sigma_radius(cov), x[:, :2], x[:, 2:], speed, speed_sigma)

@@ -1,0 +1,220 @@
+"""People's tracks measured on the ground: per track and frame the mapped foot point with its error bar, the
+smoothed position and velocity and the speed with its error bar; per track its path, mean speed and time
+stationary; per frame the distances between the people in view.
+
+Memory is bounded by design: tracks are filtered in batches of at most BATCH_CELLS (tracks x longest track's
+frames), distances in chunks of frames of at most BATCH_CELLS boxes, and a frame holds at most
+MAX_PEOPLE_PER_FRAME people for distances.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import Protocol
+
+import numpy as np
+
+from homocal.geometry import ViewTransformer
+from homocal.measure.kalman import ACCEL_PSD, kalman_filter, rts_smoother, speed_and_sigma
+from homocal.uncertainty import ground_uncertainty, sigma_radius
+
+COLUMNS = ("frame", "t", "track_id", "u", "v", "x", "y", "sigma_m", "x_smooth", "y_smooth", "vx", "vy", "speed_mps",
+           "speed_sigma_mps")
+"""homocal measure's table, one row per track and frame (docs/measure.md has their units)."""
+SUMMARY_COLUMNS = ("track_id", "frames", "first_frame", "last_frame", "duration_s", "path_length_m",
+                   "mean_speed_mps", "stationary_s")
+PAIR_COLUMNS = ("frame", "t", "track_a", "track_b", "distance_m", "distance_sigma_m")
+BATCH_CELLS = 2**16
+"""Cells (tracks x frames, padded) filtered at once, and boxes mapped at once for distances: about 85 floats a
+cell (the filter's states, predictions, covariances and transitions, the smoother's copies), some 45 MB."""
+MAX_TRACK_FRAMES = BATCH_CELLS
+"""The longest track measured (a batch of its own; 36 minutes at 30 fps): homocal measure refuses longer ones."""
+MAX_PEOPLE_PER_FRAME = 500
+"""People in one frame for --pairs (at most 124,750 distances a frame); more is refused."""
+STATIONARY_MPS = 0.3
+"""A track is stationary while its smoothed speed is under this (a slow walk is 0.8 m/s; a standing person's
+foot point sways by a few centimetres)."""
+MIN_TRACK_FRAMES = 2
+"""A track needs this many frames for a speed; shorter ones are left out (and counted)."""
+
+
+class Mapping(Protocol):
+    """What homocal measure maps with: a fitted Corrector, or a ViewTransformer in ``TrapezoidMapping``."""
+
+    def transform_points(self, image_points: np.ndarray) -> np.ndarray: ...
+
+    def ground_uncertainty(self, image_points: np.ndarray, click_sigma_px: float = 1.5,
+                           point_sigma_px: float = 1.0) -> np.ndarray: ...
+
+
+class TrapezoidMapping:
+    """A clicked trapezoid's mapping with a Corrector's interface (no correction): its transform_points and
+    homocal.ground_uncertainty."""
+
+    def __init__(self, transformer: ViewTransformer) -> None:
+        if not isinstance(transformer, ViewTransformer):
+            raise TypeError(f"transformer: expected a homocal.ViewTransformer, got {type(transformer).__name__}")
+        self.mapping = self.base_transformer_ = transformer
+
+    def transform_points(self, image_points: np.ndarray) -> np.ndarray:
+        return self.mapping.transform_points(image_points)
+
+    def ground_uncertainty(self, image_points: np.ndarray, click_sigma_px: float = 1.5,
+                           point_sigma_px: float = 1.0) -> np.ndarray:
+        return ground_uncertainty(self.mapping, image_points, click_sigma_px, point_sigma_px)
+
+
+def as_mapping(mapping) -> Mapping:
+    """A Corrector as it is, a ViewTransformer as a TrapezoidMapping."""
+    return TrapezoidMapping(mapping) if isinstance(mapping, ViewTransformer) else mapping
+
+
+def map_points(mapping: Mapping, feet: np.ndarray, click_sigma_px: float, point_sigma_px: float
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Ground points (N, 2) metres and their covariances (N, 2, 2) metres^2 of foot points (N, 2) px."""
+    return mapping.transform_points(feet), mapping.ground_uncertainty(feet, click_sigma_px=click_sigma_px,
+                                                                     point_sigma_px=point_sigma_px)
+
+
+def check_tracks(frames: np.ndarray, track_ids: np.ndarray) -> None:
+    """ValueError for a track whose rows (in the given order) go back in frame or repeat one: the rows of a
+    track must come in increasing frame order, one box per track and frame."""
+    order = np.lexsort((np.arange(len(frames)), track_ids))  # by track, then as given
+    f, k = frames[order], track_ids[order]
+    same = k[1:] == k[:-1]
+    for bad, what in ((same & (f[1:] == f[:-1]), "has two boxes in frame {b}"),
+                      (same & (f[1:] < f[:-1]), "goes back from frame {a} to frame {b}")):
+        i = np.flatnonzero(bad)
+        if i.size:
+            i = i[np.argmin(order[i + 1])]
+            raise ValueError(f"track {k[i]} " + what.format(a=f[i], b=f[i + 1]) + " (row "
+                             f"{order[i + 1]}, from 0): one box per track and frame, in increasing frame order")
+
+
+def track_batches(track_ids: np.ndarray, frames: np.ndarray) -> Iterator[list[np.ndarray]]:
+    """The rows of each track (index arrays, in frame order), tracks in increasing id, grouped into batches of
+    at most BATCH_CELLS cells (tracks x the longest track's rows; a track of up to MAX_TRACK_FRAMES rows)."""
+    order = np.lexsort((frames, track_ids))
+    _, starts = np.unique(track_ids[order], return_index=True)
+    batch, longest = [], 0
+    for rows in np.split(order, starts[1:]):
+        if batch and (len(batch) + 1) * max(longest, len(rows)) > BATCH_CELLS:
+            yield batch
+            batch, longest = [], 0
+        batch.append(rows)
+        longest = max(longest, len(rows))
+    if batch:
+        yield batch
+
+
+def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
+                   accel_psd: float = ACCEL_PSD, smooth: bool = True, click_sigma_px: float = 1.5,
+                   point_sigma_px: float = 1.0) -> Iterator[dict[str, np.ndarray]]:
+    """homocal measure's table in batches of whole tracks (dicts of COLUMNS, each (rows,)), tracks in
+    increasing id, each in frame order.
+
+    Args:
+        mapping: a fitted Corrector or a ViewTransformer.
+        frames: (N,) int video frames (t = frame / fps seconds); track_ids (N,) int, one box per track and
+            frame (``check_tracks``); feet (N, 2) foot points, px.
+        accel_psd: the filter's process noise q, m^2/s^3 (homocal.measure.kalman).
+        smooth: True: the RTS smoother's states (each conditioned on the whole track); False: the forward
+            filter's (each on the frames up to it: what a live system has).
+    x, y are the mapped foot points, sigma_m their 1-sigma radius (homocal.sigma_radius of the mapping's
+    ground_uncertainty at click_sigma_px, point_sigma_px: the filter's measurement noise); x_smooth, y_smooth,
+    vx, vy the filter's state; speed_mps = |(vx, vy)| and speed_sigma_mps its delta-method 1-sigma from the
+    state's velocity covariance (kalman.speed_and_sigma).
+    """
+    mapping = as_mapping(mapping)
+    frames, track_ids = np.asarray(frames, dtype=np.int64), np.asarray(track_ids, dtype=np.int64)
+    feet = np.asarray(feet, dtype=np.float64)
+    for batch in track_batches(track_ids, frames):
+        rows = np.concatenate(batch)
+        xy, cov = map_points(mapping, feet[rows], click_sigma_px, point_sigma_px)
+        n, L = len(batch), max(map(len, batch))
+        t, z, R = np.empty((n, L)), np.full((n, L, 2), np.nan), np.full((n, L, 2, 2), np.nan)
+        at = np.concatenate([[0], np.cumsum([len(r) for r in batch])])
+        for i, r in enumerate(batch):
+            m = len(r)
+            t[i, :m], t[i, m:] = frames[r] / fps, frames[r[-1]] / fps
+            z[i, :m], R[i, :m] = xy[at[i]:at[i + 1]], cov[at[i]:at[i + 1]]
+        filtered = kalman_filter(t, z, R, accel_psd)
+        x, P = rts_smoother(filtered) if smooth else (filtered["x"], filtered["P"])
+        used = np.concatenate([np.arange(len(r)) + i * L for i, r in enumerate(batch)])
+        x, P = x.reshape(-1, 4)[used], P.reshape(-1, 4, 4)[used]
+        speed, speed_sigma = speed_and_sigma(x[:, 2:], P[:, 2:, 2:])
+        yield {"frame": frames[rows], "t": frames[rows] / fps, "track_id": track_ids[rows], "u": feet[rows, 0],
+               "v": feet[rows, 1], "x": xy[:, 0], "y": xy[:, 1], "sigma_m": sigma_radius(cov), "x_smooth": x[:, 0],
+               "y_smooth": x[:, 1], "vx": x[:, 2], "vy": x[:, 3], "speed_mps": speed, "speed_sigma_mps": speed_sigma}
+
+
+def summarise(batch: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Per track of a ``measure_tracks`` batch (SUMMARY_COLUMNS): frames, first and last frame, duration_s
+    (last t - first t), path_length_m (the smoothed path's length: the sum of its steps), mean_speed_mps
+    (path / duration) and stationary_s (the time, summed over steps, whose starting speed_mps is under
+    STATIONARY_MPS)."""
+    ids, starts, counts = np.unique(batch["track_id"], return_index=True, return_counts=True)
+    ends = starts + counts - 1
+    step = np.hypot(np.diff(batch["x_smooth"]), np.diff(batch["y_smooth"]))
+    dt = np.diff(batch["t"])
+    inside = batch["track_id"][1:] == batch["track_id"][:-1]  # steps within a track
+    still = inside & (batch["speed_mps"][:-1] < STATIONARY_MPS)
+    per_track = lambda values: np.add.reduceat(np.concatenate([values, [0.0]]), starts)  # noqa: E731  sums from each start
+    path = per_track(np.where(inside, step, 0.0))
+    duration = batch["t"][ends] - batch["t"][starts]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean_speed = path / duration
+    return {"track_id": ids, "frames": counts.astype(np.int64), "first_frame": batch["frame"][starts],
+            "last_frame": batch["frame"][ends], "duration_s": duration, "path_length_m": path,
+            "mean_speed_mps": mean_speed, "stationary_s": per_track(np.where(still, dt, 0.0))}
+
+
+def frame_chunks(frames: np.ndarray) -> Iterator[np.ndarray]:
+    """Row indices of whole frames, in frame order, at most BATCH_CELLS rows a chunk (a frame holds at most
+    MAX_PEOPLE_PER_FRAME < BATCH_CELLS: ``pair_distances`` checks it first)."""
+    order = np.argsort(frames, kind="stable")
+    _, starts = np.unique(frames[order], return_index=True)
+    bounds = np.append(starts, len(order))
+    first = 0
+    for i in range(1, len(bounds)):
+        if i == len(bounds) - 1 or bounds[i + 1] - bounds[first] > BATCH_CELLS:
+            yield order[bounds[first]:bounds[i]]
+            first = i
+
+
+def check_people_per_frame(frames: np.ndarray) -> None:
+    """ValueError for a frame with more than MAX_PEOPLE_PER_FRAME boxes (frames (N,) int)."""
+    numbers, counts = np.unique(frames, return_counts=True)
+    if counts.max() > MAX_PEOPLE_PER_FRAME:
+        raise ValueError(f"frame {numbers[np.argmax(counts)]} has {counts.max()} people: at most "
+                         f"{MAX_PEOPLE_PER_FRAME} a frame for distances (MAX_PEOPLE_PER_FRAME)")
+
+
+def pair_distances(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
+                   click_sigma_px: float = 1.5, point_sigma_px: float = 1.0) -> Iterator[dict[str, np.ndarray]]:
+    """The ground distance between every two people in the same frame (PAIR_COLUMNS; track_a < track_b), in
+    chunks of frames (``frame_chunks``), from the mapped foot points; distance_sigma_m = sqrt(e^T (C_a + C_b) e)
+    (delta method, e the unit vector from a to b, C the points' covariances taken as independent: the part of
+    the mapping's error the two share, which moves both points alike, is counted twice and the bar errs
+    wide). Pairs with a point on or above the horizon have NaN distance. ValueError for a frame with more than
+    MAX_PEOPLE_PER_FRAME people."""
+    mapping = as_mapping(mapping)
+    frames, track_ids = np.asarray(frames, dtype=np.int64), np.asarray(track_ids, dtype=np.int64)
+    check_people_per_frame(frames)
+    for rows in frame_chunks(frames):
+        rows = rows[np.lexsort((track_ids[rows], frames[rows]))]
+        xy, cov = map_points(mapping, np.asarray(feet, dtype=np.float64)[rows], click_sigma_px, point_sigma_px)
+        f, k = frames[rows], track_ids[rows]
+        _, starts, n = np.unique(f, return_index=True, return_counts=True)
+        a, b = [], []
+        for s, m in zip(starts, n):
+            i, j = np.triu_indices(m, 1)
+            a.append(s + i)
+            b.append(s + j)
+        a, b = np.concatenate(a).astype(np.int64), np.concatenate(b).astype(np.int64)
+        d = xy[b] - xy[a]
+        dist = np.hypot(d[:, 0], d[:, 1])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            e = d / dist[:, None]
+        sigma = np.sqrt(np.einsum("ni,nij,nj->n", e, cov[a] + cov[b], e))
+        yield {"frame": f[a], "t": f[a] / fps, "track_a": k[a], "track_b": k[b], "distance_m": dist,
+               "distance_sigma_m": sigma}

@@ -1,0 +1,222 @@
+"""Speeds and positions of people measured with homocal measure's filter against simgen's ground truth, beside
+supervision's speed recipe (issue 34 item 4; docs/measure.md).
+
+    python research/measure_speeds.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--shift 16]
+    python research/measure_speeds.py DATASET --throughput 10
+
+Per dataset and detector, the clicked trapezoid is the dataset's exact one moved as a tilt error moves it so
+that its horizon lies --shift px above the true one (homocal.study.perturb.base_quad; 16 px is the study's
+table1-fit base error). Its boxes (detections.parquet, homocal's pixels, foot point the bottom edge's centre)
+are linked into tracks by IoU (homocal's link_tracks) and measured with:
+  - "recipe": supervision's speed-estimation example, reimplemented from its steps: the clicked trapezoid's
+    homography by cv2.getPerspectiveTransform (float32), each track's foot points mapped with
+    cv2.perspectiveTransform, the last fps positions kept (a deque of maxlen fps), speed = |newest - oldest| /
+    (len / fps), shown once the track has fps / 2 positions (the example uses the road's y only; here the 2D
+    distance, as people do not walk along one axis);
+  - for each mapping, the clicked trapezoid uncorrected, least change from three reference points (the
+    calibration objects nearest 10, 20 and 35 m straight ahead, their segmentation foot points: what a user
+    clicks), pedestrians (no point; the default height prior, K and the camera height given), each by
+    homocal's filter forward only ("filter", causal) and with the RTS smoother ("smoother") at
+    homocal.measure.ACCEL_PSD, and by the recipe's 1 s difference on that mapping ("1 s diff").
+The truth of a box: its detection's agent (detections.parquet agent_id; boxes of no agent are left out) at
+the box's frame in gt.parquet (step = frame / fps / gt_dt): the true foot point, and the true velocity by a
+central difference over +-1 ground-truth step (+-50 ms) of that agent's track (0 at its first and last step).
+Range: the true point's distance from the camera's ground point; a column gives the 5-50 m errors of the
+boxes at least 1 s from their track's first and last frame. Speed errors |est - true| in m/s, and in
+percent of the true speed over boxes whose true speed is at least WALKING_MPS (a waiting person's percent is
+undefined). Coverage: the share of boxes whose error is inside 1 and 2 times the 1-sigma (positions: |mapped -
+true| <= k sigma_m, the 2D error against the semi-major axis; speeds: |speed - true| <= k speed_sigma_mps).
+
+--throughput MINUTES: the first dataset's segmentation boxes repeated (frames and track ids shifted) into a
+CSV of MINUTES minutes, then `homocal measure` on it as a subprocess: boxes per second and the child's peak
+resident memory (ru_maxrss).
+"""
+from __future__ import annotations
+
+import argparse
+import collections
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from homocal.boxes import read_boxes
+from homocal.correctors import LeastChangeCorrector, PedestrianCorrector
+from homocal.dataset import load_dataset
+from homocal.geometry import ViewTransformer, box_bottom_points
+from homocal.geometry.boxes import link_tracks
+from homocal.measure import measure_tracks
+from homocal.study.perturb import base_quad
+
+BANDS = ((5.0, 15.0), (15.0, 30.0), (30.0, 50.0), (5.0, 50.0))
+WALKING_MPS = 0.5
+REFERENCE_RANGES_M = (10.0, 20.0, 35.0)
+
+
+def recipe_speeds(positions: np.ndarray, frames: np.ndarray, ids: np.ndarray, fps: float) -> np.ndarray:
+    """supervision's speed: per track (rows in frame order), |newest - oldest| / (len / fps) over a deque of the
+    last int(fps) positions, NaN until it holds fps / 2 of them."""
+    out = np.full(len(frames), np.nan)
+    queues: dict[int, collections.deque] = {}
+    for i in np.lexsort((frames, ids)):
+        q = queues.setdefault(int(ids[i]), collections.deque(maxlen=int(fps)))
+        q.append(positions[i])
+        if len(q) >= fps / 2:
+            out[i] = np.linalg.norm(q[-1] - q[0]) / (len(q) / fps)
+    return out
+
+
+def truth(ds, detector: str):
+    """Boxes of ``detector`` with an agent: frames (N,), xyxy (N, 4), true xy (N, 2), true speed (N,), range (N,)."""
+    det = ds.table("detections.parquet").to_pandas()
+    det = det[det.detector == detector].reset_index(drop=True)
+    gt = ds.table("gt.parquet").to_pandas()[["agent_id", "step", "x", "y"]]
+    dt, fps = float(ds.manifest["gt_dt"]), float(ds.manifest["fps"])
+    step = np.round(det.frame.to_numpy() / fps / dt).astype(np.int64)
+
+    def at(offset: int) -> np.ndarray:  # the agent's true foot point offset steps away (NaN: none)
+        keys = det[["agent_id"]].assign(step=step + offset).astype({"agent_id": gt.agent_id.dtype})
+        return keys.merge(gt, on=["agent_id", "step"], how="left")[["x", "y"]].to_numpy(float)
+
+    xy, before, after = at(0), at(-1), at(1)
+    span = dt * (np.isfinite(before[:, 0]).astype(int) + np.isfinite(after[:, 0]))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        vel = (np.where(np.isnan(after), xy, after) - np.where(np.isnan(before), xy, before)) / span[:, None]
+    vel[span == 0] = 0.0
+    xyxy = det[["x1", "y1", "x2", "y2"]].to_numpy(float)
+    return det.frame.to_numpy(np.int64), xyxy, xy, np.linalg.norm(vel, axis=1), np.linalg.norm(xy - ds.camera_origin, axis=1)
+
+
+def mappings(ds, detector: str, shift: float, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> dict:
+    K, true_row = np.asarray(ds.camera["K"], float), float(ds.camera["horizon_row"])
+    exact = ds.trapezoids["exact"]
+    target = ds.site_map.to_metres(np.asarray(exact["map"], float))
+    image = np.asarray(exact["image"], float)
+    row = float(ViewTransformer(image, target).horizon_row(K[0, 2]))
+    clicked = ViewTransformer(base_quad(image, K, row, true_row, shift, np.zeros(8)), target)
+    q, g, distance = ds.calibration_points("segmentation")
+    ahead = np.abs(g[:, 0] - ds.camera_origin[0]) < 1.0
+    pick = [np.flatnonzero(ahead)[np.argmin(np.abs(distance[ahead] - r))] for r in REFERENCE_RANGES_M]
+    least = LeastChangeCorrector().fit(clicked, q[pick], g[pick], ds.camera_origin)
+    peds = PedestrianCorrector().fit(clicked, xyxy, convention="homocal", frames=frames, track_ids=ids, K=K,
+                                     camera_height_m=float(ds.camera["mount_height_m"]),
+                                     image_size=(int(ds.camera["width"]), int(ds.camera["height"])),
+                                     camera_origin=ds.camera_origin)
+    return {"uncorrected": clicked, "least change": least, "pedestrians": peds}, clicked
+
+
+def evaluate(paths: list[str], detector: str, shift: float) -> dict:
+    """{(mapping, estimator): dict of pooled arrays err (m/s), rel (%, NaN below WALKING_MPS), range, cover1/2
+    (speeds), pos1/2 (positions)} over the datasets."""
+    pooled: dict = collections.defaultdict(lambda: collections.defaultdict(list))
+    for path in paths:
+        ds = load_dataset(path)
+        fps = float(ds.manifest["fps"])
+        frames, xyxy, true_xy, true_speed, rng = truth(ds, detector)
+        ids = link_tracks(frames, xyxy)
+        feet = box_bottom_points(xyxy, convention="homocal")
+        maps, clicked = mappings(ds, detector, shift, frames, xyxy, ids)
+        H = cv2.getPerspectiveTransform(clicked.source.astype(np.float32), clicked.target.astype(np.float32))
+        sv_xy = cv2.perspectiveTransform(feet.reshape(-1, 1, 2).astype(np.float32), H).reshape(-1, 2).astype(float)
+        rows = {"recipe": (recipe_speeds(sv_xy, frames, ids, fps), None, None, None)}
+        index = {(f, k): i for i, (f, k) in enumerate(zip(frames, ids))}
+        first, last = (np.array([f(frames[ids == k]) for k in range(ids.max() + 1)]) for f in (np.min, np.max))
+        inner = (frames - first[ids] >= fps) & (last[ids] - frames >= fps)  # at least 1 s from its track's ends
+        for name, mapping in maps.items():
+            for estimator, smooth in (("filter", False), ("smoother", True)):
+                speed, sigma, pos_err, pos_sigma = (np.full(len(frames), np.nan) for _ in range(4))
+                for batch in measure_tracks(mapping, frames, feet, ids, fps, smooth=smooth):
+                    at = np.array([index[(f, k)] for f, k in zip(batch["frame"], batch["track_id"])])
+                    speed[at], sigma[at] = batch["speed_mps"], batch["speed_sigma_mps"]
+                    pos_err[at] = np.hypot(batch["x"] - true_xy[at, 0], batch["y"] - true_xy[at, 1])
+                    pos_sigma[at] = batch["sigma_m"]
+                rows[f"{name}, {estimator}"] = (speed, sigma, pos_err, pos_sigma)
+            rows[f"{name}, 1 s diff"] = (recipe_speeds(mapping.transform_points(feet), frames, ids, fps), None, None, None)
+        for key, (speed, sigma, pos_err, pos_sigma) in rows.items():
+            ok = np.isfinite(true_speed) & np.isfinite(speed)
+            err = np.abs(speed - true_speed)
+            p = pooled[key]
+            p["err"].append(err[ok])
+            walking = true_speed[ok] >= WALKING_MPS
+            p["rel"].append(np.where(walking, 100 * err[ok] / np.where(walking, true_speed[ok], 1.0), np.nan))
+            p["range"].append(rng[ok])
+            p["inner"].append(inner[ok])
+            for k in (1, 2):
+                p[f"cover{k}"].append(err[ok] <= k * sigma[ok] if sigma is not None else np.full(ok.sum(), np.nan))
+                p[f"pos{k}"].append(pos_err[ok] <= k * pos_sigma[ok] if pos_err is not None else np.full(ok.sum(), np.nan))
+    return {key: {k: np.concatenate(v) for k, v in p.items()} for key, p in pooled.items()}
+
+
+def table(results: dict, detector: str, shift: float) -> str:
+    head = " | ".join(f"{lo:g}-{hi:g} m median, p90" for lo, hi in BANDS)
+    lines = [f"Speed error, {detector} boxes, horizon {shift:g} px off: |est - true| in % of the true speed "
+             f"(m/s in brackets)", "", f"| method | {head} | 5-50 m, 1 s or more from a track's ends | "
+             "1/2-sigma speeds | 1/2-sigma positions |", "|---|" + "---:|" * (len(BANDS) + 3)]
+    for key, p in results.items():
+        cells = []
+        for lo, hi in BANDS:
+            band = (p["range"] >= lo) & (p["range"] < hi)
+            rel, err = p["rel"][band], p["err"][band]
+            if not np.isfinite(rel).any():
+                cells.append("-")
+                continue
+            cells.append(f"{np.nanmedian(rel):.1f} % ({np.median(err):.2f}), {np.nanpercentile(rel, 90):.1f} % "
+                         f"({np.percentile(err, 90):.2f})")
+        inside = (p["range"] >= BANDS[-1][0]) & (p["range"] < BANDS[-1][1])
+        rel = p["rel"][inside & p["inner"]]
+        cells.append(f"{np.nanmedian(rel):.1f} %, {np.nanpercentile(rel, 90):.1f} %")
+        cover = lambda name: ("-" if np.isnan(p[f"{name}1"][inside]).all() else  # noqa: E731
+                              f"{100 * np.nanmean(p[f'{name}1'][inside]):.0f} / {100 * np.nanmean(p[f'{name}2'][inside]):.0f} %")
+        lines.append(f"| {key} | " + " | ".join(cells) + f" | {cover('cover')} | {cover('pos')} |")
+    return "\n".join(lines)
+
+
+def throughput(path: str, minutes: float) -> str:
+    ds = load_dataset(path)
+    boxes = read_boxes(Path(path) / "detections.parquet", "segmentation")
+    fps = float(ds.manifest["fps"])
+    ids = link_tracks(boxes.frames, boxes.xyxy)
+    length = int(boxes.frames.max()) + 1
+    copies = int(np.ceil(minutes * 60 * fps / length))
+    with tempfile.TemporaryDirectory() as tmp:
+        csv = Path(tmp) / "boxes.csv"
+        with open(csv, "w") as f:
+            f.write("frame,track_id,x1,y1,x2,y2\n")
+            for c in range(copies):
+                xyxy = boxes.xyxy + 0.5  # homocal edges -> the CSV's pixel corners
+                block = np.column_stack([boxes.frames + c * length, ids + c * (ids.max() + 1), xyxy])
+                np.savetxt(f, block, fmt=["%d", "%d", "%.3f", "%.3f", "%.3f", "%.3f"], delimiter=",")
+        trap = Path(path) / "trapezoids.json"  # its hand-placed trapezoid, uncorrected
+        n = copies * len(ids)
+        start = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "homocal.cli", "measure", str(trap), "--boxes", str(csv), "--fps",
+                        f"{fps:g}", "--out", str(Path(tmp) / "tracks.parquet"), "--no-progress"], check=True)
+        seconds = time.perf_counter() - start
+    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    return (f"throughput: {n:,} boxes in the file ({copies} copies of {ds.name}'s {length} frames of segmentation boxes, "
+            f"{copies * length / fps / 60:.1f} min at {fps:g} fps) in {seconds:.1f} s: {n / seconds:,.0f} boxes/s "
+            f"(the whole command: start, read, write); peak memory {peak:.0f} MB")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("datasets", nargs="+")
+    parser.add_argument("--detectors", default="segmentation,rgb")
+    parser.add_argument("--shift", type=float, default=16.0, help="the clicked horizon above the true one, px")
+    parser.add_argument("--throughput", type=float, metavar="MINUTES")
+    args = parser.parse_args(argv)
+    if args.throughput:
+        print(throughput(args.datasets[0], args.throughput))
+        return 0
+    for detector in args.detectors.split(","):
+        print(table(evaluate(args.datasets, detector, args.shift), detector, args.shift) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

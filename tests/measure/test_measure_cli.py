@@ -1,0 +1,171 @@
+"""homocal measure on walkers of a known camera: their speeds, paths and distances against the truth the camera
+gives; bad input as one line, exit 2, nothing written."""
+import json
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from cli_run import homocal_main
+from homocal.geometry import PinholeCamera
+from homocal.measure import COLUMNS
+
+CAMERA = PinholeCamera()  # 1280x720, 4 m high, 15 degrees down
+FPS = 10.0
+WALKERS = [(-4.0, 8.0, 0.3, 1.3), (5.0, 30.0, -1.0, -0.8), (0.5, 20.0, 0.0, 0.0)]  # x0, y0 (m), vx, vy (m/s)
+FRAMES = 60
+
+
+def truth(k: int, frames: np.ndarray) -> np.ndarray:
+    x0, y0, vx, vy = WALKERS[k]
+    return np.column_stack([x0 + vx * frames / FPS, y0 + vy * frames / FPS])
+
+
+def write_csv(path, rows):
+    path.write_text("frame,track_id,x1,y1,x2,y2\n" + "".join(",".join(map(str, r)) + "\n" for r in rows))
+
+
+def walker_rows(frames=np.arange(FRAMES)):
+    """CSV rows of the walkers' boxes, pixel corners at integers (the CSV's convention): a foot point's homocal
+    row v is the corner row v + 0.5."""
+    rows = []
+    for k in range(len(WALKERS)):
+        for f, (u, v) in zip(frames, CAMERA.project_ground(truth(k, frames))):
+            rows.append((int(f), k, u - 10 + 0.5, v - 80 + 0.5, u + 10 + 0.5, v + 0.5))
+    return rows
+
+
+@pytest.fixture
+def scene(tmp_path):
+    ground = np.array([[-3.0, 40.0], [3.0, 40.0], [3.0, 10.0], [-3.0, 10.0]])
+    (tmp_path / "trap.json").write_text(json.dumps({"image": CAMERA.project_ground(ground).tolist(), "map": ground.tolist()}))
+    write_csv(tmp_path / "boxes.csv", walker_rows())
+    return tmp_path
+
+
+def test_speeds_paths_and_distances_of_known_walkers(scene, capsys, monkeypatch):
+    r = homocal_main("measure", "trap.json", "--boxes", "boxes.csv", "--fps", "10", "--out", "tracks.parquet",
+                     "--summary", "summary.parquet", "--pairs", "pairs.parquet", cwd=scene, capsys=capsys,
+                     monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("homocal measure: 180 boxes in 3 tracks (tracks of the file)")
+    tracks = pq.read_table(scene / "tracks.parquet").to_pandas()
+    assert list(tracks.columns) == list(COLUMNS)
+    for k, track in tracks.groupby("track_id"):
+        assert track.frame.tolist() == list(range(FRAMES))
+        np.testing.assert_allclose(track.t, track.frame / FPS)
+        true = truth(k, track.frame.to_numpy())
+        # the exact trapezoid maps exact foot points exactly (closed-form homography, float64)
+        np.testing.assert_allclose(track[["x", "y"]], true, atol=1e-6)
+        # noise-free constant velocity: the smoother recovers it up to its 0-velocity start prior's pull
+        speed = np.hypot(*WALKERS[k][2:])
+        np.testing.assert_allclose(track.speed_mps, speed, atol=0.02)
+        np.testing.assert_allclose(track[["x_smooth", "y_smooth"]], true, atol=0.02)
+        assert (track.speed_sigma_mps > 0).all() and (track.sigma_m > 0).all()
+    summary = pq.read_table(scene / "summary.parquet").to_pandas()
+    for k, row in summary.iterrows():
+        speed = np.hypot(*WALKERS[k][2:])
+        assert row.frames == FRAMES and row.duration_s == pytest.approx((FRAMES - 1) / FPS)
+        assert row.path_length_m == pytest.approx(speed * row.duration_s, abs=0.05)
+        assert row.stationary_s == pytest.approx(row.duration_s if speed == 0 else 0.0)
+    pairs = pq.read_table(scene / "pairs.parquet").to_pandas()
+    assert len(pairs) == 3 * FRAMES
+    for _, p in pairs.iloc[::17].iterrows():
+        f = np.array([p.frame])
+        true = np.linalg.norm(truth(int(p.track_a), f) - truth(int(p.track_b), f))
+        assert p.distance_m == pytest.approx(true, abs=1e-6) and 0 < p.distance_sigma_m < 5
+
+
+def test_rerun_replaces_its_own_output_only(scene, capsys, monkeypatch):
+    (scene / "mine.parquet").write_text("a user's file")
+    r = homocal_main("measure", "trap.json", "--boxes", "boxes.csv", "--fps", "10", "--out", "mine.parquet",
+                     cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 2 and (scene / "mine.parquet").read_text() == "a user's file"
+
+
+def _one_frame(tmp):
+    write_csv(tmp / "bad.csv", [(0, k, 100, 400, 120, 500) for k in range(3)])
+
+
+def _out_of_order(tmp):
+    rows = walker_rows()
+    rows[3], rows[4] = rows[4], rows[3]
+    write_csv(tmp / "bad.csv", rows)
+
+
+def _duplicate(tmp):
+    rows = walker_rows()
+    write_csv(tmp / "bad.csv", rows[:5] + [rows[4]] + rows[5:])
+
+
+def _other_image(tmp):
+    (tmp / "SEQ" / "gt").mkdir(parents=True)
+    (tmp / "SEQ" / "seqinfo.ini").write_text("[Sequence]\nname=x\nframeRate=10\nseqLength=100\nimWidth=640\nimHeight=360\n")
+    (tmp / "SEQ" / "gt" / "gt.txt").write_text("".join(f"{f + 1},1,100,100,20,80,1,1,1\n" for f in range(5)))
+
+
+def _empty(tmp):
+    (tmp / "bad.csv").write_text("frame,track_id,x1,y1,x2,y2\n")
+
+
+def _nan(tmp):
+    write_csv(tmp / "bad.csv", walker_rows()[:3] + [(3, 0, "nan", 400, 120, 500)])
+
+
+BAD = [  # (writes the boxes, extra arguments, the error's words)
+    (_one_frame, ["--boxes", "bad.csv", "--fps", "10"], "no track has 2 frames or more"),
+    (_out_of_order, ["--boxes", "bad.csv", "--fps", "10"], "track 0 goes back from frame 4 to frame 3"),
+    (_duplicate, ["--boxes", "bad.csv", "--fps", "10"], "track 0 has two boxes in frame 4"),
+    (_other_image, ["--boxes", "SEQ/gt/gt.txt"], "outside the 640x360 image"),
+    (_empty, ["--boxes", "bad.csv", "--fps", "10"], "no boxes"),
+    (_nan, ["--boxes", "bad.csv", "--fps", "10"], "not a finite number"),
+    (walker_rows, ["--boxes", "boxes.csv", "--fps", "0"], "argument --fps: must be a finite number in (0, 1000]"),
+    (walker_rows, ["--boxes", "boxes.csv", "--fps", "nan"], "argument --fps: must be a finite number in (0, 1000]"),
+    (walker_rows, ["--boxes", "boxes.csv", "--fps", "1e9"], "argument --fps: must be a finite number in (0, 1000]"),
+    (walker_rows, ["--boxes", "boxes.csv"], "--fps: required (boxes.csv does not say its frame rate)"),
+]
+
+
+@pytest.mark.parametrize("write, extra, words", BAD, ids=[w.__name__ + "-" + e[-1] for w, e, _ in BAD])
+def test_bad_input_is_one_line_and_writes_nothing(scene, capsys, monkeypatch, write, extra, words):
+    if write is not walker_rows:
+        write(scene)
+    before = sorted(p.name for p in scene.rglob("*"))
+    r = homocal_main("measure", "trap.json", *extra, "--out", "tracks.parquet", "--summary", "s.parquet", "--pairs",
+                     "p.parquet", cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 2
+    assert r.stderr.startswith("homocal: error: ") and r.stderr.count("\n") == 1 and words in r.stderr, r.stderr
+    assert sorted(p.name for p in scene.rglob("*")) == before
+
+
+def test_mot_sequence_gives_fps_and_tracks(scene, capsys, monkeypatch):
+    """A MOT gt.txt beside seqinfo.ini: its frame rate and image size come from seqinfo.ini, its ids are the
+    tracks (MOT frames 1-based, boxes 1-based pixels: bb_left = x1 + 1.5)."""
+    (scene / "SEQ" / "gt").mkdir(parents=True)
+    (scene / "SEQ" / "seqinfo.ini").write_text("[Sequence]\nname=x\nframeRate=10\nseqLength=60\nimWidth=1280\nimHeight=720\n")
+    lines = [f"{f + 1},{k + 1},{x1 - 0.5 + 1.5},{y1 - 0.5 + 1.5},{x2 - x1},{y2 - y1},1,1,1\n"
+             for f, k, x1, y1, x2, y2 in walker_rows()]
+    (scene / "SEQ" / "gt" / "gt.txt").write_text("".join(lines))
+    r = homocal_main("measure", "trap.json", "--boxes", "SEQ/gt/gt.txt", "--out", "tracks.parquet", cwd=scene,
+                     capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    assert "180 boxes in 3 tracks (tracks of the file)" in r.stdout and "at 10 fps" in r.stdout
+    tracks = pq.read_table(scene / "tracks.parquet").to_pandas()
+    assert sorted(tracks.track_id.unique()) == [1, 2, 3]
+    np.testing.assert_allclose(tracks[tracks.track_id == 1][["x", "y"]], truth(0, np.arange(FRAMES)), atol=1e-6)
+
+
+def test_pairs_refuse_a_crowded_frame_before_writing(scene, capsys, monkeypatch):
+    monkeypatch.setattr("homocal.measure.tracks.MAX_PEOPLE_PER_FRAME", 2)
+    r = homocal_main("measure", "trap.json", "--boxes", "boxes.csv", "--fps", "10", "--out", "tracks.parquet",
+                     "--pairs", "pairs.parquet", cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 2 and "--pairs: boxes.csv: frame 0 has 3 people: at most 2 a frame" in r.stderr, r.stderr
+    assert not (scene / "tracks.parquet").exists() and not (scene / "pairs.parquet").exists()
+
+
+def test_a_track_longer_than_the_bound_is_refused(scene, capsys, monkeypatch):
+    monkeypatch.setattr("homocal.measure.cli.MAX_TRACK_FRAMES", FRAMES - 1)
+    r = homocal_main("measure", "trap.json", "--boxes", "boxes.csv", "--fps", "10", "--out", "tracks.parquet",
+                     cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 2 and f"a track of {FRAMES} frames: at most {FRAMES - 1}" in r.stderr, r.stderr
+    assert not (scene / "tracks.parquet").exists()
