@@ -24,6 +24,7 @@ import numpy as np
 
 from homocal.cli import main as homocal_main
 from homocal.files import read_json
+from homocal.geometry.camera_file import read_camera
 from homocal.geometry.lens import Lens
 from lens_lines import test_points, range_error
 
@@ -45,11 +46,10 @@ def main() -> None:
           "range error % median [min, max] |")
     print("|---|---|---|---|---|---|---|")
     for dataset in args.datasets:
-        camera = read_json(dataset / "camera.json")
-        size = (camera["width"], camera["height"])
-        true_lens = Lens(camera["K"], camera.get("distortion", [0.0] * 5), size)
+        camera = read_camera(dataset / "camera.json")
+        true_lens = camera.lens
         true = corner_displacement(true_lens)
-        test_px, test_xy = test_points(np.array(camera["R"]), np.array(camera["t"]), true_lens)
+        test_px, test_xy = test_points(camera.R, camera.t, true_lens)
         trapezoids = read_json(dataset / "trapezoids.json")
         corners, ground = np.array(trapezoids["exact"]["image"]), np.array(trapezoids["ground_m"])
         found, refused, ranges = [], 0, []
@@ -65,10 +65,9 @@ def main() -> None:
                     cv2.imwrite(str(png), image)
                     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
                         code = homocal_main(["lens", "--frame", str(png), "-o", str(out),
-                                             "--focal", repr(float(camera["K"][0][0])), "--terms", args.terms])
+                                             "--focal", repr(float(camera.K[0, 0])), "--terms", args.terms])
                     if code == 0:
-                        fit = read_json(out)
-                        lens = Lens(fit["K"], fit["distortion"], size)
+                        lens = read_camera(out).lens
                         found.append(corner_displacement(lens))
                         ranges.append(100 * range_error(lens, corners, ground, test_px, test_xy))
                     else:

@@ -35,6 +35,7 @@ import numpy as np
 from homocal.cli import main as homocal_main
 from homocal.files import read_json
 from homocal.geometry import PinholeCamera, ViewTransformer
+from homocal.geometry.camera_file import read_camera
 from homocal.geometry.lens import Lens
 
 STAND_IN = [-0.30678, 0.0825017, 0.0028784, -0.00015829, 0.0]  # scenes/scene3/scene.toml's distortion
@@ -55,8 +56,8 @@ def stand_in() -> tuple[np.ndarray, np.ndarray, Lens]:
 
 
 def from_dataset(path: Path) -> tuple[np.ndarray, np.ndarray, Lens]:
-    c = read_json(path / "camera.json")
-    return np.array(c["R"]), np.array(c["t"]), Lens(c["K"], c["distortion"], (c["width"], c["height"]))
+    camera = read_camera(path / "camera.json")
+    return camera.R, camera.t, camera.lens
 
 
 def project(X: np.ndarray, R: np.ndarray, t: np.ndarray, lens: Lens) -> np.ndarray:

@@ -93,7 +93,7 @@ def truth(ds, detector: str):
 
 
 def mappings(ds, detector: str, shift: float, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> dict:
-    K, true_row = np.asarray(ds.camera["K"], float), float(ds.camera["horizon_row"])
+    K, true_row = ds.camera.K, ds.camera.horizon_row
     exact = ds.trapezoids["exact"]
     target = ds.site_map.to_metres(np.asarray(exact["map"], float))
     image = np.asarray(exact["image"], float)
@@ -104,8 +104,8 @@ def mappings(ds, detector: str, shift: float, frames: np.ndarray, xyxy: np.ndarr
     pick = [np.flatnonzero(ahead)[np.argmin(np.abs(distance[ahead] - r))] for r in REFERENCE_RANGES_M]
     least = LeastChangeCorrector().fit(clicked, q[pick], g[pick], ds.camera_origin)
     peds = PedestrianCorrector().fit(clicked, xyxy, convention="homocal", frames=frames, track_ids=ids, K=K,
-                                     camera_height_m=float(ds.camera["mount_height_m"]),
-                                     image_size=(int(ds.camera["width"]), int(ds.camera["height"])),
+                                     camera_height_m=ds.camera.mount_height_m,
+                                     image_size=ds.camera.image_size,
                                      camera_origin=ds.camera_origin)
     return {"uncorrected": clicked, "least change": least, "pedestrians": peds}, clicked
 

@@ -182,7 +182,7 @@ def handle_fit(args: argparse.Namespace) -> int:
             corrector, source = _fit_from_points(args, method, transformer, points)
     for w in caught:
         print(f"homocal: warning: {args.points or args.boxes}: {w.message}", file=sys.stderr)
-    corrector.lens_ = lens
+    corrector.lens_ = None if lens is None or lens.is_identity else lens  # a pinhole's correction stays as before
     corrector.save(args.out)
     print(f"homocal fit: {args.method} correction from {source} written to {args.out}: "
           f"{quality(corrector)}.{fit_note(corrector)}")

@@ -136,10 +136,9 @@ def camera_json_dict(camera: PinholeCamera, camera_origin: tuple[float, float] =
     The ideal pinhole (no distortion, roll or yaw) gives exactly the keys and values of datasets before the lens;
     a camera with any of them adds "distortion", "roll_deg" and "yaw_deg", and drops "horizon_row" under a roll
     (the horizon is then a slanted line: "horizon"). The homographies and the horizon are those of the undistorted
-    image. (PinholeCamera gains roll_deg, yaw_deg and distortion with issue 32; a camera without them is level.)"""
+    image."""
     lists = lambda a: np.asarray(a, dtype=float).tolist()  # noqa: E731
-    roll, yaw = getattr(camera, "roll_deg", 0.0), getattr(camera, "yaw_deg", 0.0)
-    distortion = tuple(getattr(camera, "distortion", NO_DISTORTION))
+    roll, yaw, distortion = camera.roll_deg, camera.yaw_deg, tuple(camera.distortion)
     out = {
         "K": lists(camera.K), "R": lists(camera.R), "t": lists(camera.t), "width": camera.width, "height": camera.height,
         "hfov_deg": camera.hfov_deg, "vfov_deg": camera.vfov_deg, "mount_height_m": camera.mount_height_m,

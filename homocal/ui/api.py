@@ -27,7 +27,7 @@ from homocal.files import read_json, read_points_csv, write_json_atomic, write_t
 from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, signed_area, validate_quad
 from homocal.ui import overlay
 from homocal.ui.errorbars import error_bars
-from homocal.ui.session import Session
+from homocal.ui.session import Session, undistorted
 
 TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE = "trapezoid.json", "reference_points.csv", "correction.json"
 CAMERA_FILE = "camera_intrinsics.json"  # Save's --camera-json of a fit from boxes (not camera.json: a dataset's)
@@ -100,7 +100,8 @@ def transformer_of(session: Session, image: np.ndarray, map_px: np.ndarray) -> V
             check_corner_order(validate_quad(quad, f"{side} corners"), side)
     if len(image) < 4 or len(map_px) < 4:
         return None
-    return ViewTransformer(validate_quad(image, "image"), session.site_map.to_metres(validate_quad(map_px, "map")))
+    image = validate_quad(undistorted(session, validate_quad(image, "image"), "image corners"), "image (undistorted)")
+    return ViewTransformer(image, session.site_map.to_metres(validate_quad(map_px, "map")))
 
 
 def _complete_transformer(session: Session, req: dict) -> ViewTransformer:
@@ -129,8 +130,10 @@ def _fitted(session: Session, req: dict) -> tuple[Corrector, ViewTransformer, np
     for a fit from boxes, the ``_box_settings`` it used (None otherwise)."""
     transformer = _complete_transformer(session, req)
     points = _points(req.get("points"), "points", 4, MAX_REFERENCE_POINTS)
+    points[:, :2] = undistorted(session, points[:, :2], "points")
     method, settings = method_request(req)
     corrector = method.make(**settings)
+    corrector.lens_ = session.lens
     box_settings = None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -198,14 +201,14 @@ def view(session: Session, req: dict) -> dict:
     map_corners = session.site_map.to_metres(np.array([[-0.5, -0.5], [mw - 0.5, -0.5], [mw - 0.5, mh - 0.5],
                                                        [-0.5, mh - 0.5]]))
     max_range = float(np.hypot(*(map_corners - origin).T).max())
-    field = overlay.sample_mapping(transformer.transform_points, transformer, w, h)
+    field = overlay.sample_mapping(transformer.transform_points, transformer, w, h, session.lens)
     return {
         "complete": True,
-        "horizon": overlay.horizon_segment(transformer, w, h),
+        "horizon": overlay.through_lens(overlay.horizon_segment(transformer, w, h), session.lens),
         "grid": overlay.ground_grid(field, origin),
-        "footprint": overlay.footprint(transformer, w, h, session.site_map, origin, max_range),
+        "footprint": overlay.footprint(transformer, w, h, session.site_map, origin, max_range, session.lens),
         "errorbars": None if req.get("errorbars") is False else error_bars(
-            session, transformer, overlay.grid_nodes(field, transformer), origin,
+            session, transformer, overlay.grid_nodes(field, transformer, lens=session.lens), origin,
             _tolerance(req), **_sigmas(req)),
     }
 
@@ -235,9 +238,9 @@ def fit(session: Session, req: dict) -> dict:
         "corrected": corrected.tolist(),
         "residual_before": np.hypot(*(mapped - points[:, 2:]).T).tolist(),
         "residual_after": np.hypot(*(corrected - points[:, 2:]).T).tolist(),
-        "corrected_grid": overlay.ground_grid(overlay.sample_mapping(corrector.transform_points, transformer, w, h),
-                                              _camera_origin(req)),
-        "horizon": overlay.horizon_segment(corrector.mapping, w, h),
+        "corrected_grid": overlay.ground_grid(overlay.sample_mapping(corrector.transform_points, transformer, w, h,
+                                                                     session.lens), _camera_origin(req)),
+        "horizon": overlay.through_lens(overlay.horizon_segment(corrector.mapping, w, h), session.lens),
         "boxes": None if box_settings is None else drawn_boxes(box_settings["boxes"].xyxy, corrector.box_status_),
         "correction": corrector.to_dict(),
     }
@@ -257,7 +260,7 @@ def locate(session: Session, req: dict) -> dict:
     trapezoid's) and, given a fitted "correction", its corrected position with the correction's own error
     ellipse ("corrected_errorbars": Corrector.ground_uncertainty; None beyond the corrected horizon)."""
     transformer = _complete_transformer(session, req)
-    point = _points([req.get("point")], "point", 2)
+    point = undistorted(session, _points([req.get("point")], "point", 2), "point")
     ground = transformer.transform_points(point)[0]
     if not np.isfinite(ground).all():
         raise ValueError(f"the point {point[0].tolist()} is on or above the horizon: it has no ground position")
@@ -285,7 +288,8 @@ def save(session: Session, req: dict) -> dict:
     from them. A file this server did not write (or that was replaced since) is overwritten only with
     "overwrite": true (the page asks first; otherwise FileExistsError); a symbolic link is never replaced
     (``Refused``)."""
-    corrector, _, points, _, box_settings = _fitted(session, req)
+    corrector, _, _, _, box_settings = _fitted(session, req)
+    points = _points(req.get("points"), "points", 4, MAX_REFERENCE_POINTS)  # as clicked: the frame's pixels
     method = method_of(corrector)
     image, map_px = trapezoid(req)
     names = (TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE) + ((CAMERA_FILE,) if method.evidence == "boxes" else ())
@@ -305,16 +309,20 @@ def save(session: Session, req: dict) -> dict:
     writer.writerows([[repr(float(x)) for x in row] for row in points])
     params = corrector.get_params()
     flags = [f"--{k} {params[k]!r}" for k in ("seed", "threshold") if k in method.settings]
+    if session.lens is not None:
+        flags.append(f"--camera-json {shlex.quote(str(session.camera_file))}")
     if method.evidence == "boxes":
         (width, height), K = box_settings["image_size"], box_settings["K"]
-        camera = {"width": width, "height": height, **({} if K is None else {"K": K.tolist()})}
+        camera = {"width": width, "height": height, **({} if K is None else {"K": K.tolist()}),
+                  **({} if session.lens is None else {"distortion": session.lens.distortion.tolist()})}
         detector, camera_height = box_settings["detector"], box_settings["camera_height_m"]
         given = {"--detector": None if detector is None else shlex.quote(detector),
                  "--camera-height": None if camera_height is None else repr(camera_height)}
         flags = [f"--boxes {shlex.quote(str(session.boxes))}", *(f"{k} {v}" for k, v in given.items() if v is not None),
                  f"--camera-json {shlex.quote(str(paths[3]))}", f"--height-mean {params['height_mean_m']!r}",
                  f"--height-sd {params['height_sd_m']!r}"]
-    write_json_atomic(paths[0], {"image": image.tolist(), "map": map_px.tolist(), "site_map": site})
+    size = {} if session.lens is None else {"image_size": list(session.frame_size)}  # checked against the lens's
+    write_json_atomic(paths[0], {"image": image.tolist(), "map": map_px.tolist(), "site_map": site, **size})
     write_text_atomic(paths[1], buffer.getvalue())
     corrector.save(paths[2])
     if method.evidence == "boxes":

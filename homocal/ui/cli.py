@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from homocal.arguments import number, xy_pair
+from homocal.arguments import CAMERA_JSON_HELP, camera_json, number, xy_pair
 from homocal.geometry import SiteMap
 from homocal.ui import session as sessions
 from homocal.ui.server import UIServer
@@ -42,6 +42,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     help="ground point under the camera, metres (default 0,0; the page can change it)")
     ui.add_argument("--boxes", type=Path, metavar="BOXES", help="people's boxes for --method pedestrians (default: "
                     "DATASET's detections.parquet)")
+    ui.add_argument("--camera-json", type=Path, metavar="CAMERA.json", help=CAMERA_JSON_HELP + "; the page draws the "
+                    "grid and horizon through it (default: DATASET's camera.json)")
     ui.add_argument("-o", "--out", type=Path, default=Path("."), metavar="DIR",
                     help="folder Save writes to (default .); made if missing, inside an existing folder")
     ui.add_argument("--port", type=number(int, 0, 65535), default=0, help="port on 127.0.0.1 (default 0: a free one)")
@@ -61,6 +63,9 @@ def handle_ui(args: argparse.Namespace) -> int:
             raise ValueError(f"give a DATASET folder, or --frame, --site-map and --scale (missing {', '.join(missing)})")
         session = sessions.from_files(args.frame, args.site_map, SiteMap(args.scale, args.origin), args.camera_origin,
                                       args.out, args.frame_index, args.boxes)
+    camera = camera_json(args.camera_json)
+    if camera is not None:
+        sessions.use_lens(session, camera.lens, args.camera_json)
     server = UIServer(session, args.port)
     try:
         session.out_dir.mkdir(exist_ok=True)

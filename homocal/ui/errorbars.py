@@ -9,7 +9,7 @@ import numpy as np
 
 from homocal.geometry import ViewTransformer
 from homocal.ui import overlay
-from homocal.ui.session import Session
+from homocal.ui.session import Session, to_frame
 from homocal.uncertainty import ground_uncertainty, max_trustworthy_range
 
 ELLIPSE_VERTICES = 32
@@ -19,7 +19,8 @@ def error_bars(session: Session, transformer: ViewTransformer, image_points: np.
                tolerance_m: float | None, click_sigma_px: float, point_sigma_px: float, map_sigma_px: float,
                uncertainty: Callable[..., np.ndarray] | None = None,
                transform: Callable[[np.ndarray], np.ndarray] | None = None) -> dict:
-    """1-sigma error ellipses of the ground positions of image points (K, 2) px, and the trustworthy range.
+    """1-sigma error ellipses of the ground positions of image points (K, 2) px (the transformer's: undistorted
+    with the session's lens; what it returns as image polylines is in the frame's pixels), and the trustworthy range.
 
     The error model is ``uncertainty`` (a fitted correction's own ``Corrector.ground_uncertainty``, whose
     mapping is transformer), or ``ground_uncertainty`` of transformer if None. The sigmas are theirs: image
@@ -53,13 +54,14 @@ def error_bars(session: Session, transformer: ViewTransformer, image_points: np.
     axes = eigvec * np.sqrt(np.maximum(eigval, 0))[:, None, :]  # (K, 2, 2): each axis scaled by its sigma
     ellipses = (centres[:, :, None] + axes @ unit).transpose(0, 2, 1)  # (K, V, 2) ground m
     return {
-        "image_points": image_points.tolist(),
+        "image_points": to_frame(session, image_points).tolist(),
         "points": centres.tolist(),
         "sigma": np.sqrt(np.maximum(eigval[:, ::-1], 0)).tolist(),
-        "image": [np.round(transformer.inverse_transform_points(e), 2).tolist() for e in ellipses],
+        "image": [np.round(to_frame(session, transformer.inverse_transform_points(e)), 2).tolist() for e in ellipses],
         "map": [np.round(session.site_map.to_pixels(e), 2).tolist() for e in ellipses],
         "trustworthy_range_m": trustworthy,
         "beyond": beyond,
-        "trustworthy_image": [] if trustworthy is None else overlay.ring_in_image(
-            transformer, camera_origin, trustworthy, *session.frame_size),
+        "trustworthy_image": [] if trustworthy is None else [overlay.through_lens(line, session.lens) for line in
+                                                             overlay.ring_in_image(transformer, camera_origin,
+                                                                                   trustworthy, *session.frame_size)],
     }

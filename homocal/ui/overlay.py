@@ -21,6 +21,7 @@ LATTICE_COLUMNS = 200     # image samples across the frame for the iso-lines
 MIN_LINE_GAP_PX = 8.0     # a family of grid lines is drawn only where its lines are at least this far apart
 HORIZON_MARGIN_PX = 1.0   # image points closer than this to the horizon are left out
 RING_STEP_M = 10.0        # range rings every 10 m, like the major grid lines
+LENS_STEP_PX = 8.0        # a straight line of the undistorted image is drawn through the lens in steps this long
 
 
 def horizon_segment(transformer: ViewTransformer, width: int, height: int) -> list[list[float]] | None:
@@ -54,15 +55,35 @@ class Field:
         return np.isfinite(self.metres_per_px) & (self.metres_per_px * MIN_LINE_GAP_PX <= spacing_m)
 
 
-def sample_mapping(mapping: Mapping, transformer: ViewTransformer, width: int, height: int) -> Field:
-    """The mapping on a lattice of LATTICE_COLUMNS image columns, below the transformer's horizon."""
+def through_lens(line: list[list[float]] | None, lens) -> list[list[float]] | None:
+    """An image polyline of undistorted pixels as the frame shows it: densified to points LENS_STEP_PX apart, those
+    inside the lens's fold (radius < max_monotonic_radius: a straight line meets that disc in one run) distorted
+    by lens (homocal.geometry.Lens; None: as it is). Curved where the lens bends it; None if nothing is left."""
+    if line is None or lens is None:
+        return line
+    q = np.asarray(line, dtype=np.float64)
+    steps = np.maximum(1, np.ceil(np.hypot(*np.diff(q, axis=0).T) / LENS_STEP_PX).astype(int))
+    dense = np.vstack([q[i] + np.linspace(0, 1, n, endpoint=False)[:, None] * (q[i + 1] - q[i])
+                       for i, n in enumerate(steps)] + [q[-1:]])
+    radius = np.hypot(*((dense - lens.K[:2, 2]) / np.diag(lens.K)[:2]).T)
+    dense = dense[radius < lens.max_monotonic_radius]
+    return _rounded(lens.distort_points(dense)) if len(dense) >= 2 else None
+
+
+def sample_mapping(mapping: Mapping, transformer: ViewTransformer, width: int, height: int, lens=None) -> Field:
+    """The mapping on a lattice of LATTICE_COLUMNS image columns, below the transformer's horizon; with a lens
+    (homocal.geometry.Lens) the lattice is the frame's pixels and the mapping and horizon see them undistorted."""
     step = width / LATTICE_COLUMNS
     us = np.arange(-0.5, width - 0.5 + step / 2, step)
     vs = np.arange(-0.5, height - 0.5 + step / 2, step)
     uu, vv = np.meshgrid(us, vs)
-    a, b, c = transformer.horizon
-    below = a * uu + b * vv + c >= HORIZON_MARGIN_PX
     q = np.column_stack([uu.ravel(), vv.ravel()])
+    if lens is not None:
+        q = lens.undistort_points(q)
+        uu, vv = q[:, 0].reshape(uu.shape), q[:, 1].reshape(uu.shape)
+    a, b, c = transformer.horizon
+    with np.errstate(invalid="ignore"):
+        below = a * uu + b * vv + c >= HORIZON_MARGIN_PX
     xy = np.full(q.shape, np.nan)
     xy[below.ravel()] = mapping(q[below.ravel()])
     X, Y = xy[:, 0].reshape(uu.shape), xy[:, 1].reshape(uu.shape)
@@ -88,27 +109,28 @@ def ground_grid(field: Field, camera_origin: np.ndarray) -> dict:
     return out
 
 
-def grid_nodes(field: Field, transformer: ViewTransformer, spacing_m: float = 10.0) -> np.ndarray:
-    """Image points (K, 2) px of the nodes of the spacing_m grid (a plain transformer's field) that fall on
-    the lattice where that grid is drawn."""
+def grid_nodes(field: Field, transformer: ViewTransformer, spacing_m: float = 10.0, lens=None) -> np.ndarray:
+    """Image points (K, 2) px (the transformer's: undistorted with a lens) of the nodes of the spacing_m grid (a
+    plain transformer's field) that fall on the lattice (the frame's pixels) where that grid is drawn."""
     f, keep = field, field.drawn(spacing_m)
     if not keep.any():
         return np.zeros((0, 2))
     xs, ys = _levels(f.X[keep], spacing_m), _levels(f.Y[keep], spacing_m)
     nodes = transformer.inverse_transform_points(np.array([[x, y] for y in ys for x in xs]).reshape(-1, 2))
-    inside = (np.isfinite(nodes).all(axis=1) & (nodes[:, 0] >= f.us[0]) & (nodes[:, 0] <= f.us[-1])
-              & (nodes[:, 1] >= f.vs[0]) & (nodes[:, 1] <= f.vs[-1]))
-    nodes = nodes[inside]
-    col = np.clip(np.searchsorted(f.us, nodes[:, 0]), 0, len(f.us) - 1)
-    row = np.clip(np.searchsorted(f.vs, nodes[:, 1]), 0, len(f.vs) - 1)
+    seen = nodes if lens is None else lens.distort_points(nodes)
+    inside = (np.isfinite(seen).all(axis=1) & (seen[:, 0] >= f.us[0]) & (seen[:, 0] <= f.us[-1])
+              & (seen[:, 1] >= f.vs[0]) & (seen[:, 1] <= f.vs[-1]))
+    nodes, seen = nodes[inside], seen[inside]
+    col = np.clip(np.searchsorted(f.us, seen[:, 0]), 0, len(f.us) - 1)
+    row = np.clip(np.searchsorted(f.vs, seen[:, 1]), 0, len(f.vs) - 1)
     return nodes[keep[row, col]]
 
 
 def footprint(transformer: ViewTransformer, width: int, height: int, site_map: SiteMap,
-              camera_origin: np.ndarray, max_range_m: float) -> list[list[float]]:
+              camera_origin: np.ndarray, max_range_m: float, lens=None) -> list[list[float]]:
     """The frame's ground footprint on the site map, (K, 2) map px as a list: the image rectangle cut at the
-    horizon (less HORIZON_MARGIN_PX), its border sampled and mapped to the ground, each point pulled towards
-    camera_origin (2,) m to at most max_range_m."""
+    horizon (less HORIZON_MARGIN_PX), its border sampled (undistorted with a lens) and mapped to the ground, each
+    point pulled towards camera_origin (2,) m to at most max_range_m."""
     a, b, c = transformer.horizon
     corners = np.array([[-0.5, -0.5], [width - 0.5, -0.5], [width - 0.5, height - 0.5], [-0.5, height - 0.5]])
     polygon = _clip_half_plane(corners, np.array([a, b, c - HORIZON_MARGIN_PX]))
@@ -116,7 +138,7 @@ def footprint(transformer: ViewTransformer, width: int, height: int, site_map: S
         return []
     t = np.linspace(0, 1, 64, endpoint=False)[:, None]
     border = np.vstack([p + t * (polygon[(i + 1) % len(polygon)] - p) for i, p in enumerate(polygon)])
-    ground = transformer.transform_points(border)
+    ground = transformer.transform_points(border if lens is None else lens.undistort_points(border))
     ground = ground[np.isfinite(ground).all(axis=1)]
     offset = ground - camera_origin
     dist = np.hypot(*offset.T)

@@ -13,7 +13,8 @@ from homocal.boxes import PersonBoxes, read_boxes, read_detections_table
 from homocal.correctors.catalogue import DEFAULT_METHOD, METHODS
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.dataset import load_dataset
-from homocal.geometry import SiteMap
+from homocal.geometry.lens import undistort_input
+from homocal.geometry import Lens, SiteMap
 
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
 
@@ -34,6 +35,8 @@ class Session:
     boxes: Path | None = None  # the boxes file of --boxes (or a dataset's detections.parquet), resolved
     detectors: tuple[str, ...] = ()  # the detectors of a detections.parquet boxes file (the page picks one)
     camera_height_m: float | None = None  # the page's default camera height (a dataset's mount height)
+    lens: Lens | None = None  # the camera's lens (--camera-json, a dataset's camera.json); None: a pinhole's pixels
+    camera_file: Path | None = None  # the file the lens came from (Save's command names it)
     written: dict[Path, tuple] = field(default_factory=dict)  # the identity (api._identity) of each file this
     # server wrote: Save replaces those without asking while they are still what it wrote
     boxes_read: dict[str | None, PersonBoxes] = field(default_factory=dict, repr=False)  # person_boxes' reads
@@ -42,7 +45,7 @@ class Session:
         """The boxes of ``boxes`` (of ``detector`` for a detections.parquet), read once per session (read_boxes):
         every fit and save of the page fits from them."""
         if detector not in self.boxes_read:
-            self.boxes_read[detector] = read_boxes(self.boxes, detector)
+            self.boxes_read[detector] = read_boxes(self.boxes, detector, self.lens)
         return self.boxes_read[detector]
 
     def info(self) -> dict:
@@ -97,6 +100,7 @@ def from_dataset(path: Path, out_dir: Path, frame_index: int = 0, boxes: Path | 
     session = from_files(path / "video.mp4", path / "site_map.png", ds.site_map, ds.camera_origin, out_dir,
                          frame_index, path / "detections.parquet" if boxes is None else boxes)
     session.camera_height_m = ds.camera.mount_height_m
+    use_lens(session, ds.camera.lens, path / "camera.json")
     image, ground, _ = ds.calibration_points(source="segmentation")
     session.title = f"{ds.name} ({path})"
     session.dataset = {
@@ -104,6 +108,29 @@ def from_dataset(path: Path, out_dir: Path, frame_index: int = 0, boxes: Path | 
         "calibration": np.column_stack([image, ground]).tolist(),
     }
     return session
+
+
+def use_lens(session: Session, lens: Lens | None, camera_file: Path) -> None:
+    """Give the session the camera's lens (an identity lens: none, the pixels are a pinhole's); ValueError if its
+    image size is not the frame's."""
+    if lens is None or lens.is_identity:
+        return
+    if lens.image_size != session.frame_size:
+        raise ValueError(f"{camera_file}: the lens's image size {list(lens.image_size)} differs from the frame's "
+                         f"{list(session.frame_size)}")
+    session.lens, session.camera_file = lens, camera_file
+
+
+def undistorted(session: Session, points: np.ndarray, name: str) -> np.ndarray:
+    """Image points (N, 2) the page sends, in the frame's pixels -> the undistorted pixels every homography of
+    the session maps (geometry.lens.undistort_input; as they are without a lens)."""
+    return undistort_input(points, session.lens, name)
+
+
+def to_frame(session: Session, points: np.ndarray) -> np.ndarray:
+    """Undistorted pixels (N, 2) -> the frame's (the lens's distort_points; as they are without a lens): what the
+    page draws."""
+    return points if session.lens is None else session.lens.distort_points(points)
 
 
 def read_frame(path: Path, index: int) -> tuple[bytes, tuple[int, int]]:

@@ -112,3 +112,23 @@ def test_undistort_boxes_keeps_foot_and_head():
     width = np.hypot(*(LENS.undistort_points(np.column_stack([x2, y2])) - LENS.undistort_points(np.column_stack([x1, y2]))).T)
     np.testing.assert_allclose(out[:, 2] - out[:, 0], width, rtol=1e-12)
     assert undistort_boxes(boxes, None).tobytes() == boxes.tobytes()
+
+
+def test_read_boxes_undistorts_with_the_lens_and_refuses_a_distorted_dataset_without_it(tmp_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from homocal import read_boxes
+
+    boxes = np.array([[100.0, 300.0, 140.0, 420.0], [1000.0, 200.0, 1030.0, 290.0]])
+    pq.write_table(pa.table({"detector": ["segmentation"] * 2, "frame": [0, 1], **dict(zip(("x1", "y1", "x2", "y2"), boxes.T))}),
+                   tmp_path / "detections.parquet")
+    (tmp_path / "camera.json").write_text(json.dumps({"width": 1280, "height": 720, "K": CAM.K.tolist(),
+                                                      "distortion": LENS.distortion.tolist()}))
+    with pytest.raises(ValueError, match="the camera.json beside it has a lens distortion"):
+        read_boxes(tmp_path / "detections.parquet")
+    read = read_boxes(tmp_path / "detections.parquet", lens=LENS)
+    np.testing.assert_array_equal(read.xyxy, undistort_boxes(boxes, LENS))
+    assert read.lens == LENS and read.image_size == (1280, 720)
+    with pytest.raises(ValueError, match=r"image size \[1280, 720\] differs from the lens's \[640, 360\]"):
+        read_boxes(tmp_path / "detections.parquet", lens=Lens(CAM.K, LENS.distortion, (640, 360)))

@@ -20,7 +20,8 @@ ROOT = Path(__file__).parents[2]
 # a value other than the default of every option, as StudyParams keeps it
 OTHER = {"seed": 7, "n_variants": 12, "foot_source": "segmentation", "n_test": 300, "max_test_distance": 30.5,
          "test_lateral_max": 4.0, "horizon_shift": ShiftSpec.parse("normal:6:2"), "click_noise": 1.5, "metric": "range",
-         "map_scale": 2.5, "image_width": 1920.0, "perturbation": "variant", "descent": descent_settings(14.0)}
+         "map_scale": 2.5, "image_width": 1920.0, "perturbation": "variant", "lens": "known",
+         "descent": descent_settings(14.0)}
 
 
 def parser() -> argparse.ArgumentParser:

@@ -1,0 +1,84 @@
+"""homocal ui on a distorted camera: clicks are the frame's pixels, the overlays are drawn through the lens
+(checked with OpenCV's own inverse and the pinhole's ground mapping)."""
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from homocal.geometry import Lens, PinholeCamera, SiteMap
+from homocal.ui import api
+from homocal.ui.session import from_files, use_lens
+
+CAM = PinholeCamera()
+LENS = Lens(CAM.K, [-0.2, 0.04, 5e-4, -3e-4, -0.002], (1280, 720))
+SITE = SiteMap(10.0, (200.0, 700.0))
+GROUND = np.array([[-3.5, 40.0], [3.5, 40.0], [3.5, 10.0], [-3.5, 10.0]])
+REF_G = np.array([[0.0, 8.0], [1.0, 20.0], [-1.0, 35.0]])
+
+
+def seen(xy):
+    return LENS.distort_points(CAM.project_ground(xy))
+
+
+def opencv_undistort(pixels) -> np.ndarray:
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)
+    q = np.asarray(pixels, dtype=np.float64).reshape(-1, 1, 2)
+    return cv2.undistortPoints(q, CAM.K, LENS.distortion, P=CAM.K, criteria=criteria)[:, 0, :]
+
+
+def pinhole_ground(undistorted_px) -> np.ndarray:
+    h = np.column_stack([undistorted_px, np.ones(len(undistorted_px))]) @ CAM.image_to_ground.T
+    return h[:, :2] / h[:, 2:]
+
+
+@pytest.fixture
+def session(tmp_path):
+    frame, site_map = tmp_path / "frame.png", tmp_path / "map.png"
+    cv2.imwrite(str(frame), np.full((720, 1280, 3), 90, np.uint8))
+    cv2.imwrite(str(site_map), np.full((800, 400, 3), 60, np.uint8))
+    (tmp_path / "out").mkdir()
+    s = from_files(frame, site_map, SITE, (0.0, 0.0), tmp_path / "out")
+    (tmp_path / "lens.json").write_text(json.dumps(LENS.to_dict()))
+    use_lens(s, LENS, tmp_path / "lens.json")
+    return s
+
+
+REQ = {"trapezoid": {"image": seen(GROUND).tolist(), "map": SITE.to_pixels(GROUND).tolist()}, "camera_origin": [0, 0],
+       "points": np.column_stack([seen(REF_G), REF_G]).tolist(), "method": "horizon"}
+
+
+def test_grid_and_horizon_are_drawn_through_the_lens(session):
+    view = api.view(session, REQ)
+    a, b, c = CAM.horizon
+    shown = np.asarray(view["horizon"])
+    inside = shown[(shown >= -0.5).all(axis=1) & (shown <= [1279.5, 719.5]).all(axis=1)]
+    assert len(inside) > 10 and np.ptp(inside[:, 1]) > 10  # curved on the frame
+    assert np.abs(opencv_undistort(inside) @ [a, b] + c).max() < 0.1  # on the pinhole's horizon (rounded to 0.1 px)
+    assert len(view["grid"]["major"]) > 3
+    for line in view["grid"]["major"]:  # every vertex on its 10 m line to 0.3 frame px, as test_api's pinhole test
+        q = np.asarray(line)
+        g0, gu, gv = (pinhole_ground(opencv_undistort(q + d)) for d in ([0, 0], [0.5, 0], [0, 0.5]))
+        metres_per_px = np.maximum(np.hypot(*(gu - g0).T), np.hypot(*(gv - g0).T)) / 0.5
+        off = np.abs(g0 - np.round(g0 / 10.0) * 10.0).max(axis=0)
+        assert (off / metres_per_px.max()).min() < 0.3, line[:3]
+
+
+def test_clicks_and_points_are_undistorted(session, tmp_path):
+    located = api.locate(session, {**REQ, "point": seen([[3.0, 20.0]])[0].tolist()})
+    np.testing.assert_allclose(located["ground"], [3.0, 20.0], atol=1e-6)
+    fitted = api.fit(session, REQ)
+    np.testing.assert_allclose(fitted["mapped"], REF_G, atol=1e-6)
+    assert fitted["correction"]["lens"] == LENS.to_dict()
+    saved = api.save(session, REQ)
+    trap = json.loads((session.out_dir / api.TRAPEZOID_FILE).read_text())
+    np.testing.assert_array_equal(trap["image"], REQ["trapezoid"]["image"])
+    assert trap["image_size"] == [1280, 720]
+    assert f"--camera-json {tmp_path / 'lens.json'}" in saved["command"]
+
+
+def test_a_lens_of_another_frame_is_refused(session):
+    with pytest.raises(ValueError, match=r"lens's image size \[1920, 1080\] differs from the frame's \[1280, 720\]"):
+        use_lens(session, Lens(CAM.K, LENS.distortion, (1920, 1080)), "hd.json")
