@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from importlib.metadata import version
 
+from homocal import __version__
 from homocal.correctors import cli as corrector_cli
 from homocal.files import OutputFolderError, os_message
 from homocal.study import advise as study_advise, cli as study_cli, report as study_report, sweep as study_sweep
@@ -29,7 +29,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="homocal", description="Homography ground-plane mapping: correct it from reference points.")
-    parser.add_argument("--version", action="version", version=f"homocal {version('homocal')}")
+    parser.add_argument("--version", action="version", version=f"homocal {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for module in SUBCOMMANDS:
         module.add_parser(subparsers)

@@ -10,7 +10,6 @@ from __future__ import annotations
 import itertools
 from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 
 if TYPE_CHECKING:  # sitemap imports this module
@@ -196,6 +195,8 @@ class ViewTransformer:
             raise ValueError(f"image: expected shape (H, W) or (H, W, C), got {image.shape}")
         to_pixels = np.eye(3) if site_map is None else np.linalg.inv(site_map.to_metres_matrix)
         m = to_pixels @ self.m
+        import cv2  # loads where an image is warped (a cheap ``import homocal``)
+
         out = cv2.warpPerspective(image, m, size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
         inv = np.linalg.inv(m)
         x, y = np.arange(size[0], dtype=np.float64), np.arange(size[1], dtype=np.float64)
