@@ -12,12 +12,13 @@ import argparse
 import sys
 
 from homocal import __version__
+from homocal import examples_cli
 from homocal.correctors import cli as corrector_cli
 from homocal.files import OutputFolderError, os_message
 from homocal.study import advise as study_advise, cli as study_cli, report as study_report, sweep as study_sweep
 from homocal.ui import cli as ui_cli
 
-SUBCOMMANDS = (corrector_cli, study_cli, study_sweep, study_report, study_advise, ui_cli)
+SUBCOMMANDS = (corrector_cli, study_cli, study_sweep, study_report, study_advise, ui_cli, examples_cli)
 
 
 class _Parser(argparse.ArgumentParser):
