@@ -98,7 +98,7 @@ def _add_scene(parser: argparse.ArgumentParser) -> None:
                                       "shipped scene (simgen scenes)")
 
 
-def _add_out(parser: argparse.ArgumentParser, help: str, required: bool = True) -> None:
+def _add_out(parser: argparse.ArgumentParser, help: str, required: bool = True) -> None:  # noqa: A002  (argparse's name)
     """-o/--out, the one output flag of every subcommand that writes (a folder or an image: never ``-``)."""
     parser.add_argument("-o", "--out", type=_output_path, required=required, help=help)
 

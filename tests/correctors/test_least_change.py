@@ -126,7 +126,7 @@ def test_memory_is_linear_in_the_point_count():
 
 def test_safeguard_halves_then_gives_up():
     x, step = np.zeros(2), np.array([8.0, 0.0])
-    accept_below_3 = lambda c: None if c[0] > 3 else 1.0  # full step and half refused, quarter accepted
+    accept_below_3 = lambda c: None if c[0] > 3 else 1.0  # noqa: E731  full step and half refused, quarter accepted
     got = safeguarded_step(x, step, 2.0, accept_below_3)
     np.testing.assert_array_equal(got[0], [2.0, 0.0])
     assert got[1] == 1.0

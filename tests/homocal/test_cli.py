@@ -357,7 +357,7 @@ def test_pedestrians_points_check_the_fit(boxes_work, tiny_dataset, capsys, monk
     a, b = (load_corrector(boxes_work / name) for name in ("a.json", "b.json"))
     assert a.horizon_row_ == b.horizon_row_ and np.array_equal(a.m, b.m)  # the points do not enter the fit
     assert np.isnan(a.error_before_) and b.error_before_ > 0 and b.error_after_ >= 0
-    assert f"checked on " in checked.stdout and f"{b.error_before_:.3f} m before, {b.error_after_:.3f} m after" in checked.stdout
+    assert "checked on " in checked.stdout and f"{b.error_before_:.3f} m before, {b.error_after_:.3f} m after" in checked.stdout
     assert "on the check points, which the fit did not use" in checked.stdout
     for name in ("a.json", "b.json"):
         (boxes_work / name).unlink()
