@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # builds a wheel, installs it, renders from it
+
 ROOT = Path(__file__).resolve().parents[1]
 SCENE_FILES = ("scene.toml", "scene.xml", "ground.png")
 NOT_SOURCE = shutil.ignore_patterns(".git", "build", "*.egg-info", "__pycache__", ".pytest_cache", ".hypothesis", "out")
@@ -50,6 +52,7 @@ def test_the_wheel_depends_on_opencv_python_headless_and_hog_is_an_extra(wheel):
     assert any(r.startswith("opencv-contrib-python-headless") and 'extra == "hog"' in r for r in requires)
 
 
+@pytest.mark.generate
 def test_generate_a_shipped_scene_by_name_from_the_installed_wheel(wheel, tmp_path):
     """The wheel installed alone into a folder (its dependencies are this environment's), run from a folder
     outside the checkout: ``scene1`` is found in the package."""

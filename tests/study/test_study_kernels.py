@@ -17,6 +17,8 @@ from homocal.study.shards import prepare_variant, run_tables
 from homocal.study.triples import n_samples, triples
 from synthetic_dataset import write_dataset
 
+pytestmark = pytest.mark.slow  # kernels against the readable correctors on many variants (minutes)
+
 PARAMS = StudyParams(n_test=300)
 # the base error and the range metric on top: every kernel path is compared with the correctors
 SHIFTED = StudyParams(n_test=300, horizon_shift="normal:6:4", click_noise=1.0, metric="range")
