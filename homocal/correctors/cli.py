@@ -25,7 +25,7 @@ from homocal.correctors.least_change import LeastChangeCorrector
 from homocal.correctors.pedestrians import DEFAULT_HEIGHT_MEAN_M, DEFAULT_HEIGHT_SD_M
 from homocal.correctors.serialization import FORMAT
 from homocal.files import check_output_file, csv_header, json_format, read_json, read_points_csv, write_text_atomic
-from homocal.geometry import MAX_COORDINATE, ViewTransformer
+from homocal.geometry import MAX_COORDINATE, ViewTransformer, read_trapezoid_file
 from homocal.uncertainty import max_trustworthy_range, sigma_radius, straight_ahead_column
 
 LEAST_CHANGE = {k: LeastChangeCorrector().get_params()[k] for k in LEAST_CHANGE_PRIORS}  # fit's prior flags, defaults
@@ -140,7 +140,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def handle_fit(args: argparse.Namespace) -> int:
-    transformer = ViewTransformer.from_trapezoid_file(args.trapezoid)
+    transformer = read_trapezoid_file(args.trapezoid)[0]
     method = METHODS[args.method]
     boxes_flags = [flag for key, flag in BOX_FLAGS.items() if getattr(args, key) is not None]
     if method.evidence == "boxes" and args.boxes is None:

@@ -159,15 +159,6 @@ class ViewTransformer:
         self.m = homography_from_quads(self.source, self.target)
         self.m_inv = homography_from_quads(self.target, self.source)
 
-    @classmethod
-    def from_trapezoid_file(cls, path) -> ViewTransformer:
-        """The image-to-ground (metres) mapping of a trapezoid file (TRAP.json, ``homocal fit --help``; a map in
-        site-map pixels is converted with its scale and origin); ValueError naming the file for bad content.
-        ``homocal.geometry.trapezoid_file.read_trapezoid_file`` also gives the file's site map."""
-        from homocal.geometry.trapezoid_file import read_trapezoid_file  # it imports this module
-
-        return read_trapezoid_file(path)[0]
-
     def transform_points(self, points: np.ndarray, return_valid: bool = False) -> np.ndarray | tuple:
         """Map image points (N, 2) or (N, 1, 2), pixels, to target points (N, 2) float64; NaN on/above the horizon.
 
