@@ -429,6 +429,7 @@ def library_cases() -> list[tuple[str, str, Callable[[], object]]]:
     from homocal.correctors import LeastChangeCorrector
     from homocal.correctors.catalogue import METHODS, get_method
     from homocal.files import read_points_csv
+    from homocal.geometry import read_trapezoid_file
 
     def file(name: str, data: bytes | str, then: Callable[[Path], object]):
         def call():
@@ -443,8 +444,8 @@ def library_cases() -> list[tuple[str, str, Callable[[], object]]]:
         ("least-change 100,001 points", "LeastChangeCorrector.fit", fit(LeastChangeCorrector(), q=many, g=vt.transform_points(many))),
         ("catalogue method a list", "get_method", lambda: get_method(["regression"])),
         ("catalogue descent threshold", "Method.make", lambda: METHODS["descent"].make(threshold=50.0)),
-        ("from_trapezoid_file UTF-16", "ViewTransformer.from_trapezoid_file", file("t.json", json.dumps(TRAP).encode("utf-16"), ViewTransformer.from_trapezoid_file)),
-        ("from_trapezoid_file binary", "ViewTransformer.from_trapezoid_file", file("t.json", BINARY, ViewTransformer.from_trapezoid_file)),
+        ("read_trapezoid_file UTF-16", "read_trapezoid_file", file("t.json", json.dumps(TRAP).encode("utf-16"), read_trapezoid_file)),
+        ("read_trapezoid_file binary", "read_trapezoid_file", file("t.json", BINARY, read_trapezoid_file)),
         ("read_points_csv binary", "read_points_csv", file("r.csv", BINARY, lambda p: read_points_csv(p, ("u", "v"), True))),
         ("read_points_csv over its bound", "read_points_csv", file("r.csv", "u,v\n" + "1,2\n" * 11, lambda p: read_points_csv(p, ("u", "v"), True, most=10))),
         ("ViewTransformer NaN vertex", "ViewTransformer", lambda: ViewTransformer(np.vstack([[nan, 1], image[1:]]), ground)),

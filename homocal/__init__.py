@@ -2,7 +2,16 @@
 
 The flat public API (supervision's style): geometry, the Section 3 error model, the Section 4
 correctors (and the pedestrian correction with its box reader) and the dataset loader. The study lives in homocal.study.
+Importing it loads numpy only: numba, pyarrow and OpenCV load where compiled code runs, a Parquet file is read
+or an image is warped (benchmarks/bench_startup.py measures it).
 """
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("homocal")  # pyproject.toml's version, the one source of both tools' --version
+except PackageNotFoundError:  # a checkout on sys.path that pip never installed
+    __version__ = "0+unknown"
+
 from homocal.correctors import (
     Corrector,
     DescentCorrector,
@@ -28,6 +37,7 @@ from homocal.geometry import (
 from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius
 
 __all__ = [
+    "__version__",
     "ColumnModel",
     "Corrector",
     "Dataset",

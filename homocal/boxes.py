@@ -22,16 +22,17 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.compute as pc
-import pyarrow.parquet as pq
 
 from homocal.files import read_points_csv
 from homocal.geometry.boxes import box_edges, undistort_boxes
 from homocal.geometry.camera_file import read_camera
 from homocal.geometry.lens import Lens
+
+if TYPE_CHECKING:
+    import pyarrow as pa  # pyarrow loads where a Parquet file is read (a cheap ``import homocal``)
 
 MOT_COLUMNS = (9, 10)
 MAX_MOT_BYTES = 2**28
@@ -225,6 +226,9 @@ def _read_mot_boxes(path: Path) -> PersonBoxes:
 
 def read_detections_table(path: str | os.PathLike, columns: list[str]) -> pa.Table:
     """The ``columns`` of a detections.parquet; ValueError naming the file when it is not one."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
     try:
         return pq.read_table(path, columns=columns)
     except (pa.ArrowException, OSError) as e:
@@ -232,6 +236,8 @@ def read_detections_table(path: str | os.PathLike, columns: list[str]) -> pa.Tab
 
 
 def _read_detections(path: Path, detector: str) -> PersonBoxes:
+    import pyarrow.compute as pc
+
     table = read_detections_table(path, ["detector", "frame", "x1", "y1", "x2", "y2"])
     names = sorted(set(table.column("detector").to_pylist()))
     table = table.filter(pc.equal(table.column("detector"), detector))

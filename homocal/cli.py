@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import argparse
 import sys
-from importlib.metadata import version
 
+from homocal import __version__
+from homocal import examples_cli
 from homocal.correctors import cli as corrector_cli
 from homocal.files import OutputFolderError, os_message
 from homocal.lens import cli as lens_cli
@@ -19,7 +20,8 @@ from homocal.measure import cli as measure_cli
 from homocal.study import advise as study_advise, cli as study_cli, report as study_report, sweep as study_sweep
 from homocal.ui import cli as ui_cli
 
-SUBCOMMANDS = (corrector_cli, study_cli, study_sweep, study_report, study_advise, ui_cli, lens_cli, measure_cli)
+SUBCOMMANDS = (corrector_cli, study_cli, study_sweep, study_report, study_advise, ui_cli, lens_cli, measure_cli,
+               examples_cli)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -31,7 +33,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="homocal", description="Homography ground-plane mapping: correct it from reference points.")
-    parser.add_argument("--version", action="version", version=f"homocal {version('homocal')}")
+    parser.add_argument("--version", action="version", version=f"homocal {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for module in SUBCOMMANDS:
         module.add_parser(subparsers)

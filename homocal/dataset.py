@@ -5,9 +5,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.compute as pc
-import pyarrow.parquet as pq
 
 from homocal.files import read_json
 from homocal.geometry import CameraModel, SiteMap, read_camera, validate_quad
@@ -90,6 +87,8 @@ class Dataset:
             detectors = set(table.column("detector").unique().to_pylist())
             if source not in detectors:
                 raise ValueError(f"{self.path}: no detections from detector {source!r} (have {sorted(detectors)})")
+            import pyarrow.compute as pc  # pyarrow loads where a Parquet file is read (a cheap ``import homocal``)
+
             table = table.filter(pc.and_(pc.equal(table.column("detector"), source), pc.greater_equal(table.column("agent_id"), 0)))
             image, ground = _columns(table, ("u", "v")), _columns(table, ("gt_x", "gt_y"))
         keep = np.isfinite(image).all(axis=1) & np.isfinite(ground).all(axis=1)
@@ -108,6 +107,8 @@ class Dataset:
 
     def table(self, filename: str):
         """A Parquet table of the dataset (its columns were checked by load_dataset)."""
+        import pyarrow.parquet as pq
+
         return _parquet(pq.read_table, self.path / filename)
 
 
@@ -149,6 +150,8 @@ def load_dataset(path: str | Path) -> Dataset:
         trapezoid_map=site_map_quad,
         trapezoids=trapezoids,
     )
+    import pyarrow.parquet as pq
+
     for filename, columns in REQUIRED_COLUMNS.items():
         if not (path / filename).is_file():
             raise ValueError(f"{path}: missing {filename}")
@@ -160,6 +163,8 @@ def load_dataset(path: str | Path) -> Dataset:
 
 def _parquet(read, file: Path):
     """read(file) (pq.read_table, pq.read_schema); ValueError naming the file if it is not a Parquet file."""
+    import pyarrow as pa
+
     try:
         return read(file)
     except (pa.ArrowException, OSError) as e:

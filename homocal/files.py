@@ -1,5 +1,5 @@
 """Files a tool owns: atomic writes (a file that exists is whole) and locked, marked output folders
-(DESIGN principle 6); reading a JSON object with one clear error. Shared by homocal and simgen."""
+(docs/maintaining.md principle 6); reading a JSON object with one clear error. Shared by homocal and simgen."""
 from __future__ import annotations
 
 import csv

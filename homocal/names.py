@@ -1,4 +1,4 @@
-"""The one rule for names that reach the file system (DESIGN principle 11).
+"""The one rule for names that reach the file system (docs/maintaining.md principle 11).
 
 Every name read from a file or a request (a scene, detector, sequence or study name) becomes part of a path only
 after ``check_name``: letters, digits, ``.``, ``_`` and ``-``, at most ``MAX_NAME_LENGTH`` characters, not

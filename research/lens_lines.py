@@ -50,9 +50,13 @@ TRAPEZOID = np.array([[-3.25, 40.0], [3.25, 40.0], [3.25, 10.0], [-3.25, 10.0]])
 def stand_in() -> tuple[np.ndarray, np.ndarray, Lens]:
     """R (3, 3), t (3,) and Lens of scene3's camera (module docstring)."""
     cam = PinholeCamera()
-    rot = lambda deg: cv2.Rodrigues(np.array([0.0, 0.0, math.radians(deg)]))[0]
-    R = rot(-1.0) @ cam.R @ rot(-8.0)  # rolled about the optical axis after the tilt, yawed about the vertical before
+    R = _about_z(-1.0) @ cam.R @ _about_z(-8.0)  # rolled about the optical axis after the tilt, yawed about the vertical before
     return R, -R @ cam.position, Lens(cam.K, STAND_IN, (cam.width, cam.height))
+
+
+def _about_z(deg: float) -> np.ndarray:
+    """(3, 3) rotation by deg degrees about the z axis of its frame."""
+    return cv2.Rodrigues(np.array([0.0, 0.0, math.radians(deg)]))[0]
 
 
 def from_dataset(path: Path) -> tuple[np.ndarray, np.ndarray, Lens]:

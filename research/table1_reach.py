@@ -104,7 +104,7 @@ def main() -> None:
             else:
                 cells += ["", ""]
             print(f"| {m} | {k} | {PAPER[m][k]:g} | {' | '.join(cells)} | {100 * gap(best, m, k) ** 2 / total:.0f} % |")
-    rms = lambda gaps: math.sqrt(sum(g * g for g in gaps) / len(gaps))
+    rms = lambda gaps: math.sqrt(sum(g * g for g in gaps) / len(gaps))  # noqa: E731
     print(f"\nLeast D found: {D[ranked[0]]:.1f} pp; on target: "
           f"{min((D[c] for c in on_target), default=math.nan):.1f} pp. Every number at its nearest value, each from "
           f"its own configuration: D {rms(bound):.1f} pp, and {rms(bound_on_target) if on_target else math.nan:.1f} "

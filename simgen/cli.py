@@ -14,9 +14,9 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from importlib.metadata import version
 from pathlib import Path
 
+import simgen
 from homocal.arguments import SEED, number as _number
 from homocal.files import OutputFolderError, os_message, output_folder
 from homocal.progress import add_progress_option, show_progress
@@ -41,7 +41,7 @@ class _Parser(argparse.ArgumentParser):
 
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="simgen", description="MuJoCo synthetic traffic datasets (data_schema.md).")
-    p.add_argument("--version", action="version", version=f"simgen {version('homocal')}",
+    p.add_argument("--version", action="version", version=f"simgen {simgen.__version__}",
                    help="print simgen's version (the installed homocal distribution's) and exit")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -98,7 +98,7 @@ def _add_scene(parser: argparse.ArgumentParser) -> None:
                                       "shipped scene (simgen scenes)")
 
 
-def _add_out(parser: argparse.ArgumentParser, help: str, required: bool = True) -> None:
+def _add_out(parser: argparse.ArgumentParser, help: str, required: bool = True) -> None:  # noqa: A002  (argparse's name)
     """-o/--out, the one output flag of every subcommand that writes (a folder or an image: never ``-``)."""
     parser.add_argument("-o", "--out", type=_output_path, required=required, help=help)
 

@@ -126,7 +126,7 @@ class Scene:
             detectors=self.detectors if detectors is None else tuple(detectors),
             quality=self.quality if quality is None else quality,
         )
-        _check_run(s)
+        _check_run(s, "--detectors" if detectors is not None else DETECTORS_KEY)
         return s
 
 
@@ -255,8 +255,12 @@ def _read_ground(model_path: Path) -> Ground:
     return Ground((cx - hx, cx + hx, cy - hy, cy + hy), model_path.parent / spec.texturedir / tex.file)
 
 
-def _check_run(s: Scene) -> None:
-    """Run options: durations on the 50 ms grid, integer frame counts, known detectors."""
+DETECTORS_KEY = "scene.toml: detection.detectors"
+
+
+def _check_run(s: Scene, detectors_from: str = DETECTORS_KEY) -> None:
+    """Run options: durations on the 50 ms grid, integer frame counts, known detectors (a refusal of the detectors
+    names where they came from: ``detectors_from``, the scene.toml key or the flag)."""
     for key, v in (("run.seconds", s.seconds), ("run.chunk_seconds", s.chunk_seconds)):
         if not (0 < v <= MAX_SECONDS and abs(v * GT_RATE - round(v * GT_RATE)) < 1e-9):
             raise ConfigError(f"scene.toml: {key}: must be a positive multiple of {GT_DT} s, at most {MAX_SECONDS:g}, got {v}")
@@ -268,12 +272,12 @@ def _check_run(s: Scene) -> None:
     if s.quality not in QUALITIES:
         raise ConfigError(f"scene.toml: render.quality: expected one of {', '.join(QUALITIES)}, got {s.quality!r}")
     if problem := detectors_problem(s.detectors):
-        raise ConfigError(f"scene.toml: detection.detectors: {problem}")
+        raise ConfigError(f"{detectors_from}: {problem}")
     if "hog" in s.detectors:
         from simgen.detection.hog import hog_missing  # noqa: PLC0415  (cv2 only when hog is asked for)
 
         if hog_missing():
-            raise ConfigError(f"scene.toml: detection.detectors: hog: {hog_missing()}")
+            raise ConfigError(f"{detectors_from}: hog: {hog_missing()}")
 
 
 def detectors_problem(names: list[str] | tuple[str, ...]) -> str | None:

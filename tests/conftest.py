@@ -9,6 +9,13 @@ from pathlib import Path
 import pytest
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
+RENDERING_FIXTURES = {"tiny_dataset"}  # a test that uses one is marked generate (pyproject.toml's markers)
+
+
+def pytest_collection_modifyitems(items):
+    for item in items:
+        if RENDERING_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.generate)
 
 
 @pytest.fixture(scope="session")

@@ -25,7 +25,7 @@ from homocal.correctors.least_change import LeastChangeCorrector
 from homocal.correctors.pedestrians import DEFAULT_HEIGHT_MEAN_M, DEFAULT_HEIGHT_SD_M
 from homocal.correctors.serialization import FORMAT
 from homocal.files import check_output_file, csv_header, json_format, read_points_csv, write_text_atomic
-from homocal.geometry import MAX_COORDINATE, CameraModel, ViewTransformer
+from homocal.geometry import MAX_COORDINATE, CameraModel, ViewTransformer, read_trapezoid_file
 from homocal.geometry.lens import undistort_input
 from homocal.uncertainty import max_trustworthy_range, sigma_radius, straight_ahead_column
 
@@ -153,7 +153,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def handle_fit(args: argparse.Namespace) -> int:
     camera = camera_json(args.camera_json)
     lens = None if camera is None else camera.lens
-    transformer = ViewTransformer.from_trapezoid_file(args.trapezoid, lens)
+    transformer = read_trapezoid_file(args.trapezoid, lens)[0]
     method = METHODS[args.method]
     boxes_flags = [flag for key, flag in BOX_FLAGS.items() if getattr(args, key) is not None]
     if method.evidence == "boxes" and args.boxes is None:

@@ -10,7 +10,6 @@ import numpy as np
 from homocal.correctors.base import Corrector, mean_error
 from homocal.correctors.serialization import integer, number
 from homocal.geometry import ViewTransformer, apply_homography, homography_from_quads, validate_quad
-from homocal.keyed_rng import shuffled_order
 
 REACH_TOLERANCE = 1e-9  # px: far above the rounding of a coordinate's offset (~1e-13 px), far below any step
 
@@ -129,6 +128,8 @@ class DescentCorrector(Corrector):
 
     def _coordinate_descent(self, v0: np.ndarray, v: np.ndarray, loss) -> tuple[np.ndarray, float, int]:
         """Phase 2 from v; returns (v, L(v), evaluations)."""
+        from homocal.keyed_rng import shuffled_order  # compiled: numba loads here, not with ``import homocal``
+
         L, step, pass_index, evals = loss(v), self.initial_step, 0, 0
         order = np.empty(8, dtype=np.int64)
         while True:

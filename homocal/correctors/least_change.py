@@ -14,7 +14,7 @@ from homocal.geometry import ViewTransformer, apply_homography, homography_from_
 from homocal.geometry.homography import _basis_map
 
 MAX_HALVINGS = 4  # safeguard: the step is tried at 1, 1/2, ..., 1/16 of its length, then the iterate is kept
-STEP_TOLERANCE = 1e-9  # stop once an accepted step is shorter than this, in prior sigmas (normalised units)
+OBJECTIVE_TOLERANCE = 1e-10  # stop once an accepted step lowers Phi by no more than this fraction of it (rounding: ~1e-15)
 
 
 def predicted_points(source: np.ndarray, target: np.ndarray, q: np.ndarray, base: tuple[np.ndarray, np.ndarray]):
@@ -119,7 +119,10 @@ class LeastChangeCorrector(Corrector):
     a 16-unknown least-squares solve whose memory grows linearly with the point count,
     J (2N, 16) = df/dx = (df/dz) diag(sigma), df/dz analytic through the projective basis (``mapped_jacobian``;
     tested against central differences of the closed-form homography).
-    Stopping rule: at most ``iterations`` steps; stop after an accepted step shorter than 1e-9 (normalised).
+    Stopping rule: at most ``iterations`` steps; a step is taken only if it lowers Phi by more than
+    OBJECTIVE_TOLERANCE = 1e-10 of it, else the fit stops where it is. Rounding changes Phi by ~1e-15 of it, so
+    which steps are taken (and their count) is not decided by rounding; Gauss-Newton converges linearly here
+    (rate ~0.05 on the study's triples), and the fit ends ~1e-6 prior sigmas from the optimum.
     Safeguard (``safeguarded_step``): a step is tried at full length, then halved up to MAX_HALVINGS = 4 times,
     until the iterate's quads are usable (``predicted_points``: both pass validate_quad and keep their
     orientation, every reference point maps in front of the horizon) and Phi does not increase; if none is,
@@ -184,13 +187,10 @@ class LeastChangeCorrector(Corrector):
             J = mapped_jacobian(source, target, q).reshape(-1, 16) * sigma
             r = (g - apply_homography(homography_from_quads(source, target), q)).ravel()
             accepted = safeguarded_step(x, gauss_newton_step(x, J, r, self.point_sigma_m) - x, phi, evaluate)
-            if accepted is None:
+            if accepted is None or phi - accepted[1] <= OBJECTIVE_TOLERANCE * phi:
                 break
-            moved = float(np.linalg.norm(accepted[0] - x))
             x, phi = accepted
             self.iterations_ += 1
-            if moved < STEP_TOLERANCE:
-                break
         self.objective_final_ = phi
         self.transformer_ = ViewTransformer(*quads(x))
 

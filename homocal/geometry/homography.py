@@ -10,7 +10,6 @@ from __future__ import annotations
 import itertools
 from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 
 if TYPE_CHECKING:  # sitemap imports this module
@@ -160,16 +159,6 @@ class ViewTransformer:
         self.m = homography_from_quads(self.source, self.target)
         self.m_inv = homography_from_quads(self.target, self.source)
 
-    @classmethod
-    def from_trapezoid_file(cls, path, lens=None) -> ViewTransformer:
-        """The image-to-ground (metres) mapping of a trapezoid file (TRAP.json, ``homocal fit --help``; a map in
-        site-map pixels is converted with its scale and origin), of the undistorted image with a ``Lens``;
-        ValueError naming the file for bad content. ``homocal.geometry.trapezoid_file.read_trapezoid_file`` also
-        gives the file's site map."""
-        from homocal.geometry.trapezoid_file import read_trapezoid_file  # it imports this module
-
-        return read_trapezoid_file(path, lens)[0]
-
     def transform_points(self, points: np.ndarray, return_valid: bool = False) -> np.ndarray | tuple:
         """Map image points (N, 2) or (N, 1, 2), pixels, to target points (N, 2) float64; NaN on/above the horizon.
 
@@ -197,6 +186,8 @@ class ViewTransformer:
             raise ValueError(f"image: expected shape (H, W) or (H, W, C), got {image.shape}")
         to_pixels = np.eye(3) if site_map is None else np.linalg.inv(site_map.to_metres_matrix)
         m = to_pixels @ self.m
+        import cv2  # loads where an image is warped (a cheap ``import homocal``)
+
         out = cv2.warpPerspective(image, m, size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
         inv = np.linalg.inv(m)
         x, y = np.arange(size[0], dtype=np.float64), np.arange(size[1], dtype=np.float64)

@@ -18,7 +18,7 @@ from homocal.correctors.catalogue import label
 from homocal.correctors.cli import _sigma
 from homocal.correctors.serialization import FORMAT
 from homocal.files import check_output_file, json_format, read_json, write_atomic
-from homocal.geometry import ViewTransformer
+from homocal.geometry import read_trapezoid_file
 from homocal.geometry.boxes import box_bottom_points, link_tracks
 from homocal.measure.kalman import ACCEL_PSD
 from homocal.measure.tracks import (COLUMNS, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
@@ -77,7 +77,7 @@ def load_mapping(path: Path):
     if json_format(path) == FORMAT:
         corrector = load_corrector(path)
         return corrector, f"the {label(corrector)} correction"
-    return TrapezoidMapping(ViewTransformer.from_trapezoid_file(path)), "the trapezoid (uncorrected)"
+    return TrapezoidMapping(read_trapezoid_file(path)[0]), "the trapezoid (uncorrected)"
 
 
 def file_fps(path: Path) -> float | None:
@@ -157,7 +157,7 @@ def handle_measure(args: argparse.Namespace) -> int:
             check_output_file(path, lambda p, c=columns: parquet_columns(p) == list(c), f"table of homocal measure {flag}")
     fps = check_fps(args)
     mapping, what = load_mapping(args.correction)
-    boxes = read_boxes(args.boxes, args.detector)
+    boxes = read_boxes(args.boxes, args.detector, getattr(mapping, "lens_", None))  # undistorted with the fit's lens
     check_image_size(mapping, boxes.image_size, args)
     if boxes.track_ids is None:
         ids, source = link_tracks(boxes.frames, boxes.xyxy), "linked by IoU"

@@ -3,9 +3,9 @@ intercept (homocal.correctors.regression.fit_quadratic_intercept), the horizon c
 (homocal.correctors.horizon.fit_horizon_shift) and least change (LeastChangeCorrector, least_change3). Plain
 functions of one calibration triple, the same algorithm, iteration counts and tolerances as the readable
 correctors; tests/study/test_method_kernels.py checks that their results agree to 1e-9 (rounding-level ties
-aside, every decision is the same; where one is not, both still converge to the same minimum). Least change's
-last Gauss-Newton steps change its objective below rounding, so its step counts may differ and its quads agree
-to 2e-6 px. Conventions as homocal.study.kernels: the cal and test tables' rows named in homocal.study.rows;
+aside, every decision is the same; where one is not, both still converge to the same minimum). Least change
+stops on a relative decrease of its objective far above rounding, so both take the same steps and their quads
+agree to 1e-6 px. Conventions as homocal.study.kernels: the cal and test tables' rows named in homocal.study.rows;
 test-point lengths in units of 1/FIXED m (jit.FIXED).
 
 Use in a per-sample loop (i, j, k the triple, H0 the variant's homography, q (M, 2) image and g (M, 2) ground
@@ -27,7 +27,7 @@ import numba as nb
 import numpy as np
 
 from homocal.correctors.horizon import FLAT, GRID_INTERVALS, NEWTON_STEPS, newton_step
-from homocal.correctors.least_change import MAX_HALVINGS, STEP_TOLERANCE
+from homocal.correctors.least_change import MAX_HALVINGS, OBJECTIVE_TOLERANCE
 from homocal.correctors.regression import solve_normal3
 from homocal.study.frame import quad_frame
 from homocal.study.jit import FIXED, JIT, PATH_JIT, fixed_point_mean
@@ -312,8 +312,8 @@ def least_change3(z0, q, g, click_sigma, map_sigma, point_sigma, iterations, z, 
     z (16,) and the corrected map quad's basis into Bt (3, 3) (kernels.target_basis of it, for homography_into);
     return (Gauss-Newton steps accepted, Phi at the end). The same iteration as the readable corrector:
     at most ``iterations`` steps; each tried at full length, then halved up to MAX_HALVINGS times until both quads
-    are usable (_usable, every point in front) and Phi does not rise, else the fit stops; stop after an accepted
-    step shorter than STEP_TOLERANCE. z0's quads must be usable (the variant's)."""
+    are usable (_usable, every point in front) and Phi does not rise; taken only if it lowers Phi by more than
+    OBJECTIVE_TOLERANCE of it, else the fit stops. z0's quads must be usable (the variant's)."""
     sigma = np.empty(16)
     sigma[:8], sigma[8:] = click_sigma, map_sigma
     bs, bt, y, X = np.empty(13), np.empty(13), np.empty(3), np.empty(3)
@@ -339,19 +339,13 @@ def least_change3(z0, q, g, click_sigma, map_sigma, point_sigma, iterations, z, 
             if value <= phi:
                 accepted = True
                 break
-        if not accepted:
+        if not accepted or phi - value <= OBJECTIVE_TOLERANCE * phi:
             for c in range(16):
                 z[c] = z0[c] + sigma[c] * x[c]
             break
-        moved = 0.0
-        for c in range(16):
-            moved += (xc[c] - x[c]) ** 2
-            x[c] = xc[c]
-        moved = math.sqrt(moved)
+        x[:] = xc
         phi = value
         steps += 1
-        if moved < STEP_TOLERANCE:
-            break
     _basis_into(z, 8, bt)
     for k in range(3):
         Bt[0, k], Bt[1, k], Bt[2, k] = z[8 + 2 * k] * bt[9 + k], z[9 + 2 * k] * bt[9 + k], bt[9 + k]

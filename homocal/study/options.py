@@ -1,4 +1,4 @@
-"""The study's options, each declared once (DESIGN principle 9).
+"""The study's options, each declared once (docs/maintaining.md principle 9).
 
 A study option is a ``StudyParams`` field made with ``option(...)``: its flag, its kind (parser and bounds),
 what ``none`` means for it, its unit, its help, whether ``homocal sweep`` can sweep it, whether study.json

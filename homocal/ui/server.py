@@ -152,7 +152,7 @@ class Handler(BaseHTTPRequestHandler):
             self._json(409, {"error": str(e)})
         except (ValueError, OSError) as e:
             self._json(400, {"error": " ".join(str(e).split())})
-        except Exception as e:  # a bug: tell the page, keep serving, print the traceback for the report
+        except Exception as e:  # noqa: BLE001  a bug: tell the page, keep serving, print the traceback for the report
             traceback.print_exc(file=sys.stderr)
             self._json(500, {"error": f"internal error ({type(e).__name__}: {e}); see the terminal"})
 

@@ -19,6 +19,7 @@ none under about 80 px, at a quarter of the cost.
 """
 from __future__ import annotations
 
+from importlib.metadata import PackageNotFoundError, version
 from typing import Callable
 
 import cv2
@@ -48,13 +49,20 @@ class FunctionDetector:
         return DetectionBatch(self.name, frame, t, xyxy, score, associate(xyxy, ids, mask_xyxy, self.min_iou))
 
 
+CONTRIB = "opencv-contrib-python-headless"  # the hog extra's OpenCV build (pyproject.toml)
+
+
 def hog_missing() -> str | None:
-    """None if this OpenCV has the HOG people detector, else one line saying what to install."""
+    """None if this OpenCV has the HOG people detector, else one line saying the pip command that repairs cv2:
+    reinstalling the contrib build's files (at its installed version) over the base build's, or installing it."""
     if hasattr(cv2, "HOGDescriptor"):
         return None
+    try:
+        fix = f"pip install --force-reinstall --no-deps {CONTRIB}=={version(CONTRIB)}"
+    except PackageNotFoundError:
+        fix = f"pip install {CONTRIB} (the hog extra)"
     return (f"OpenCV {cv2.__version__} at {cv2.__file__} has no HOGDescriptor (OpenCV 5 keeps it in the contrib "
-            "build, the hog extra): pip install --force-reinstall --no-deps opencv-contrib-python-headless "
-            "(as scripts/install.sh does)")
+            f"build, whose cv2 files the base build's replaced): {fix}")
 
 
 def _hog() -> "cv2.HOGDescriptor":

@@ -102,13 +102,13 @@ def test_normal_equations_step_equals_the_push_through_step(rows):
 
 @pytest.mark.parametrize("g", [LINE_G, SPREAD_G], ids=["line", "spread"])
 def test_fit_equals_the_push_through_fit(monkeypatch, g):
-    """The whole fit with the 16 x 16 normal equations ends where the (2N, 2N) push-through form ended, to 1e-9
-    (the count of accepted steps may differ by the last one, shorter than STEP_TOLERANCE)."""
+    """The whole fit with the 16 x 16 normal equations ends where the (2N, 2N) push-through form ends, to 1e-6 px
+    and 1e-6 m (the fit's stopping accuracy, ~1e-6 prior sigmas)."""
     ours = fit(g)
     monkeypatch.setattr(least_change, "gauss_newton_step", push_through_step)
     earlier = fit(g)
-    np.testing.assert_allclose(ours.transformer_.source, earlier.transformer_.source, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(ours.transformer_.target, earlier.transformer_.target, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ours.transformer_.source, earlier.transformer_.source, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(ours.transformer_.target, earlier.transformer_.target, rtol=0, atol=1e-6)
     assert ours.objective_final_ == pytest.approx(earlier.objective_final_, rel=1e-9, abs=1e-12)
 
 
@@ -126,7 +126,7 @@ def test_memory_is_linear_in_the_point_count():
 
 def test_safeguard_halves_then_gives_up():
     x, step = np.zeros(2), np.array([8.0, 0.0])
-    accept_below_3 = lambda c: None if c[0] > 3 else 1.0  # full step and half refused, quarter accepted
+    accept_below_3 = lambda c: None if c[0] > 3 else 1.0  # noqa: E731  full step and half refused, quarter accepted
     got = safeguarded_step(x, step, 2.0, accept_below_3)
     np.testing.assert_array_equal(got[0], [2.0, 0.0])
     assert got[1] == 1.0

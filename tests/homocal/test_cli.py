@@ -13,7 +13,7 @@ import pytest
 
 from homocal.correctors import (DescentCorrector, HorizonCorrector, LeastChangeCorrector, RegressionCorrector,
                                 load_corrector)
-from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer
+from homocal.geometry import PinholeCamera, SiteMap, ViewTransformer, read_trapezoid_file
 from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius
 
 from cli_run import homocal_main
@@ -321,7 +321,7 @@ def test_pedestrians_fit_then_apply(boxes_work, tiny_dataset, boxes, flags):
     read = read_boxes(boxes_work / boxes, "segmentation" if flags else None)
     assert f"from {len(read.xyxy)} boxes of {boxes}" in fit.stdout and "no check points" in fit.stdout
     assert "people (tracks):" in fit.stdout and " +- " in fit.stdout
-    reference = PedestrianCorrector().fit(ViewTransformer.from_trapezoid_file(trap), read.xyxy, convention="homocal",
+    reference = PedestrianCorrector().fit(read_trapezoid_file(trap)[0], read.xyxy, convention="homocal",
                                           frames=read.frames, track_ids=read.track_ids, camera_height_m=4.0, K=read.K,
                                           image_size=read.image_size)
     assert json.loads((boxes_work / "c.json").read_text()) == json.loads(json.dumps(reference.to_dict()))
@@ -357,7 +357,7 @@ def test_pedestrians_points_check_the_fit(boxes_work, tiny_dataset, capsys, monk
     a, b = (load_corrector(boxes_work / name) for name in ("a.json", "b.json"))
     assert a.horizon_row_ == b.horizon_row_ and np.array_equal(a.m, b.m)  # the points do not enter the fit
     assert np.isnan(a.error_before_) and b.error_before_ > 0 and b.error_after_ >= 0
-    assert f"checked on " in checked.stdout and f"{b.error_before_:.3f} m before, {b.error_after_:.3f} m after" in checked.stdout
+    assert "checked on " in checked.stdout and f"{b.error_before_:.3f} m before, {b.error_after_:.3f} m after" in checked.stdout
     assert "on the check points, which the fit did not use" in checked.stdout
     for name in ("a.json", "b.json"):
         (boxes_work / name).unlink()

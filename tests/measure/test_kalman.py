@@ -18,15 +18,19 @@ def batch_solution(t, z, R, q):
         blocks.append(W @ A)
         rhs.append(W @ b)
 
-    A = np.zeros((4, 4 * L)); A[:, :4] = np.eye(4)
+    A = np.zeros((4, 4 * L))
+    A[:, :4] = np.eye(4)
     add(A, x0[0], P0[0])
     for k in range(1, L):
         F, Q = transition(np.array([t[k] - t[k - 1]]), q)
-        A = np.zeros((4, 4 * L)); A[:, 4 * k:4 * k + 4] = np.eye(4); A[:, 4 * k - 4:4 * k] = -F[0]
+        A = np.zeros((4, 4 * L))
+        A[:, 4 * k:4 * k + 4] = np.eye(4)
+        A[:, 4 * k - 4:4 * k] = -F[0]
         add(A, np.zeros(4), Q[0])
     for k in range(L):
         if np.isfinite(z[k]).all():
-            A = np.zeros((2, 4 * L)); A[:, 4 * k:4 * k + 2] = np.eye(2)
+            A = np.zeros((2, 4 * L))
+            A[:, 4 * k:4 * k + 2] = np.eye(2)
             add(A, z[k], R[k])
     J, b = np.vstack(blocks), np.concatenate(rhs)
     info = J.T @ J

@@ -21,6 +21,8 @@ from homocal.geometry import ViewTransformer
 from homocal.study.inputs import StudyParams, StudyScene
 from homocal.study.metrics import METHODS, METRICS, OVERALL, build_table, complete_shard_files, format_metric, load_study
 
+pytestmark = pytest.mark.slow  # the research scripts' studies on a rendered dataset
+
 RESEARCH = Path(__file__).resolve().parents[2] / "research"
 PEDESTRIANS, REPRODUCTION = RESEARCH / "pedestrians.py", RESEARCH / "reproduction_tables.py"
 

@@ -11,6 +11,8 @@ import pytest
 
 from simgen.cli import main
 
+pytestmark = pytest.mark.generate  # renders datasets with simgen
+
 mm = pytest.importorskip("motmetrics")
 
 

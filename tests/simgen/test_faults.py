@@ -60,6 +60,8 @@ _HOLD = """
 import sys, time
 from homocal.files import output_folder
 from simgen.dataset import FORMAT
+
+pytestmark = [pytest.mark.generate, pytest.mark.slow]  # killed and resumed simgen runs
 with output_folder(sys.argv[1], FORMAT, False):
     open(sys.argv[1] + "/manifest.json", "w").write('{"format": "simgen-dataset"}')
     print("held", flush=True)

@@ -20,6 +20,8 @@ from simgen.cli import main
 
 from scene_copies import copy_scene
 
+pytestmark = [pytest.mark.generate, pytest.mark.slow]  # renders datasets with simgen
+
 SECONDS, SEED = "2", "5"
 FILES = ["manifest.json", "camera.json", "trapezoids.json", "site_map.png", "site_map.json", "calibration.parquet",
          "gt.parquet", "detections.parquet", "video.mp4", "mot/gt.txt"]  # fmt: skip

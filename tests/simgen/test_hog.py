@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import json
+import re
+from importlib.metadata import version
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -111,5 +113,23 @@ def test_generate_without_opencv_hog_is_one_clear_line(tmp_path, capsys, monkeyp
     assert main(["generate", str(SCENES / "scene1"), "--out", str(out), "--seconds", "1", "--seed", "0",
                  "--detectors", "segmentation,hog"]) == 2
     err = capsys.readouterr().err
-    assert len(err.strip().splitlines()) == 1 and "hog" in err and "opencv-contrib-python-headless" in err, err
+    assert len(err.strip().splitlines()) == 1 and err.startswith("simgen: error: --detectors: hog: "), err  # the flag
+    assert REPAIR in err and "install.sh" not in err, err
     assert not out.exists()
+
+
+REPAIR = f"pip install --force-reinstall --no-deps opencv-contrib-python-headless=={version('opencv-contrib-python-headless')}"
+
+
+def test_hog_from_scene_toml_names_the_key(tmp_path, monkeypatch):
+    import cv2
+
+    from simgen.scene import ConfigError, load_scene
+
+    monkeypatch.delattr(cv2, "HOGDescriptor", raising=False)
+    folder = copy_scene(tmp_path)
+    toml = folder / "scene.toml"
+    toml.write_text(re.sub(r"(?m)^detectors = .*$", 'detectors = ["segmentation", "hog"]', toml.read_text()))
+    with pytest.raises(ConfigError) as refused:
+        load_scene(folder)
+    assert str(refused.value).startswith("scene.toml: detection.detectors: hog: ") and REPAIR in str(refused.value)

@@ -18,6 +18,8 @@ from simgen.truth import silhouette_outlines
 
 from scene_copies import SCENES
 
+pytestmark = pytest.mark.generate  # renders frames with MuJoCo
+
 HERE = Path(__file__).resolve().parent
 
 

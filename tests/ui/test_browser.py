@@ -28,6 +28,8 @@ from selenium.webdriver.support.ui import Select, WebDriverWait
 from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer
 
+pytestmark = [pytest.mark.browser, pytest.mark.slow, pytest.mark.generate]  # Chromium pages over a rendered dataset
+
 # Without these, chromium tries to reach the network at start (refused on a machine without one).
 CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                   "--disable-background-networking", "--disable-component-update", "--disable-sync",
