@@ -10,7 +10,7 @@ from importlib.metadata import PackageNotFoundError, distribution
 from packaging.requirements import Requirement  # pip's and pytest's dependency
 from packaging.utils import canonicalize_name
 
-EXTRAS = ("dask", "hog", "test")  # scripts/install.sh's
+EXTRAS = ("dask", "hog", "supervision", "test")  # scripts/install.sh's
 
 
 def wanted(requirement: Requirement, extras: tuple[str, ...]) -> bool:
