@@ -25,6 +25,7 @@ from homocal.geometry import (
     validate_quad,
 )
 from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius
+from homocal.watch import OnlineCalibrator
 
 __all__ = [
     "ColumnModel",
@@ -34,6 +35,7 @@ __all__ = [
     "HorizonCorrector",
     "HybridCorrector",
     "LeastChangeCorrector",
+    "OnlineCalibrator",
     "PedestrianCorrector",
     "PersonBoxes",
     "PinholeCamera",

@@ -16,8 +16,9 @@ from homocal.correctors import cli as corrector_cli
 from homocal.files import OutputFolderError, os_message
 from homocal.study import advise as study_advise, cli as study_cli, report as study_report, sweep as study_sweep
 from homocal.ui import cli as ui_cli
+from homocal.watch import cli as watch_cli
 
-SUBCOMMANDS = (corrector_cli, study_cli, study_sweep, study_report, study_advise, ui_cli)
+SUBCOMMANDS = (corrector_cli, study_cli, study_sweep, study_report, study_advise, ui_cli, watch_cli)
 
 
 class _Parser(argparse.ArgumentParser):
