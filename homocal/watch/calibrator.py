@@ -10,7 +10,8 @@ with the sigma of the median box, given once (one person, one height: their boxe
 
 Estimate: over the last WINDOW_PEOPLE people of the current stretch, the Huber M-estimate of the horizon row
 (psi clipping standardised residuals at +-CLIP) with a scale s (the median absolute standardised residual /
-0.6745, so a wrong prior sd or extra pixel noise is absorbed) and its sandwich 1-sigma (``robust_location``).
+0.6745, at least 1: a prior sd too small or extra pixel noise is absorbed) and its sandwich 1-sigma
+(``robust_location``).
 
 Change test: a two-sided CUSUM (Page 1954) on each new person's standardised residual against the estimate,
 z = (v - mu) / sqrt(s^2 sigma^2 + sigma_mu^2), clipped at +-CLIP (the estimate's own psi) and scaled to
@@ -173,20 +174,22 @@ class OnlineCalibrator:
         self._last_frame = frame
         t = frame / self.fps
         ids = self._linker.link(frame, boxes) if track_ids is None else np.asarray(track_ids, dtype=np.int64)
-        f, cy = self.K[1, 1], self.K[1, 2]
-        rows, slope = implied_horizon_rows(boxes[:, 3], boxes[:, 1], f, cy, self.camera_height_m, self.height_mean_m)
-        pixel_sd = self.height_mean_m * BOX_SIGMA_PX / (boxes[:, 3] - boxes[:, 1])
-        sigmas = np.abs(slope) * np.hypot(self.height_sd_m, pixel_sd)
+        tracks = self._tracks
+        for key in ids.tolist():  # every box keeps its track alive; only tracks yet to give a person are measured
+            tracks.setdefault(key, [frame, [], []])[0] = frame
+        todo = np.array([i for i, key in enumerate(ids.tolist()) if tracks[key][1] is not None], dtype=np.int64)
+        b = boxes[todo]
+        rows, slope = implied_horizon_rows(b[:, 3], b[:, 1], self.K[1, 1], self.K[1, 2], self.camera_height_m,
+                                           self.height_mean_m)
+        sigmas = np.abs(slope) * np.hypot(self.height_sd_m, self.height_mean_m * BOX_SIGMA_PX / (b[:, 3] - b[:, 1]))
         usable = np.isfinite(rows) & np.isfinite(sigmas) & (sigmas > 0)
         if self.image_size is not None:
-            usable &= ~_on_border(boxes, self.image_size)
+            usable &= ~_on_border(b, self.image_size)
         people = []
         for i in np.flatnonzero(usable):
-            track = self._tracks.setdefault(int(ids[i]), [frame, [], []])
-            if track[1] is None:
-                track[0] = frame
+            track = tracks[int(ids[todo[i]])]
+            if track[1] is None:  # a second box of the same track in this frame gave it
                 continue
-            track[0] = frame
             track[1].append(rows[i])
             track[2].append(sigmas[i])
             if len(track[1]) == PERSON_BOXES:
@@ -253,12 +256,14 @@ def robust_location(people) -> tuple[float, float, float]:
     change test's, sum psi((v_i - row) / (s sigma_i)) = 0 (so the test's increments have mean 0 on a steady
     camera whatever the residuals' skew), by iteratively reweighted least squares (20 rounds from the median; a
     person's weight psi(r) / r / sigma_i). From MIN_PEOPLE people on, the scale s is the median absolute
-    standardised residual / 0.6745 and the 1-sigma the sandwich s sqrt(sum psi^2) / sum (psi' / sigma_i);
-    before, s = 1 (the prior's) and the 1-sigma sqrt(n) / sum (1 / sigma_i)."""
+    standardised residual / 0.6745, at least 1 (a sigma model that overstates some people's spread, such as
+    the pixel term of boxes without pixel noise, would otherwise shrink s and overstate the others' residuals:
+    false alarms), and the 1-sigma the sandwich s sqrt(sum psi^2) / sum (psi' / sigma_i); before, s = 1 (the
+    prior's) and the 1-sigma sqrt(n) / sum (1 / sigma_i)."""
     v = np.array([p[1] for p in people])
     s = np.array([p[2] for p in people])
     mu = float(np.median(v))
-    scale = max(float(np.median(np.abs(v - mu) / s)) / 0.6745, 1e-3) if len(v) >= MIN_PEOPLE else 1.0
+    scale = max(float(np.median(np.abs(v - mu) / s)) / 0.6745, 1.0) if len(v) >= MIN_PEOPLE else 1.0
     for _ in range(20):
         r = np.abs(v - mu) / (scale * s)
         weight = np.minimum(1.0, CLIP / np.maximum(r, 1e-12)) / s
