@@ -5,7 +5,7 @@ The people are simgen's walkers (simgen.agents.Crowd: the same routes, speeds, w
 rendered dataset of the same scene and seed). Each frame, every body's geoms (capsules: segment ends and
 radii) give the points ``body_points``: the segment ends moved by +-radius along x and z (world). A camera,
 a PinholeCamera whose tilt is the scene's plus ``tilt_deg(t)``, projects them (``boxes_of``): a person's box is
-their bounding box in homocal's pixel edges snapped to whole pixels (edges at half-integers, as a segmentation
+the box of the pixels whose centres their bounding box covers (edges at half-integers, as a segmentation
 mask's box), clipped to the image; a box wholly outside the image is not given. Not modelled: occlusion
 between people and by props, detector noise and misses: a best case of the segmentation detector.
 """
@@ -40,8 +40,7 @@ def boxes_of(camera: PinholeCamera, points: np.ndarray) -> tuple[np.ndarray, np.
     w, h = camera.width, camera.height
     uv = camera.project(points.reshape(-1, 3)).reshape(len(points), -1, 2)
     lo, hi = np.fmin.reduce(uv, axis=1), np.fmax.reduce(uv, axis=1)  # NaN: wholly behind the camera
-    xyxy = np.clip(np.column_stack([np.floor(lo + 0.5) - 0.5, np.ceil(hi - 0.5) + 0.5]), -0.5,
-                   [w - 0.5, h - 0.5, w - 0.5, h - 0.5])
+    xyxy = np.clip(np.column_stack([np.ceil(lo) - 0.5, np.floor(hi) + 0.5]), -0.5, [w - 0.5, h - 0.5, w - 0.5, h - 0.5])
     with np.errstate(invalid="ignore"):
         seen = (xyxy[:, 2] > xyxy[:, 0]) & (xyxy[:, 3] > xyxy[:, 1])
     return xyxy[seen], seen
