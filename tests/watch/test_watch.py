@@ -184,6 +184,17 @@ def test_watch_and_apply_at(tmp_path, capsys, monkeypatch):
         got = np.loadtxt(tmp_path / f"at{at}.csv", delimiter=",", skiprows=1, usecols=(2, 3))
         assert np.allclose(got, load_corrector(stretch).transform_points(uv))
     late, early = (np.loadtxt(tmp_path / f"at{a}.csv", delimiter=",", skiprows=1, usecols=(2, 3)) for a in (150, 50))
+    (tmp_path / "timed.csv").write_text("u,v,t\n" + "".join(f"{float(u)!r},{float(v)!r},{t}\n" for (u, v), t in zip(uv, (150, 50, 150))))
+    r = homocal_main("apply", "out", "--points", "timed.csv", "-o", "timed_out.csv", cwd=tmp_path, capsys=capsys,
+                     monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    timed = np.loadtxt(tmp_path / "timed_out.csv", delimiter=",", skiprows=1, usecols=(3, 4))
+    assert np.allclose(timed, [late[0], early[1], late[2]])
+    for points, message in (("feet.csv", "give --at SECONDS or a t column"), ("nan_t.csv", "t is not a finite number")):
+        (tmp_path / "nan_t.csv").write_text("u,v,t\n600,400,nan\n")
+        r = homocal_main("apply", "out", "--points", points, "-o", "x.csv", cwd=tmp_path, capsys=capsys,
+                         monkeypatch=monkeypatch)
+        assert r.returncode == 2 and message in r.stderr and r.stderr.count("\n") == 1, r.stderr
     assert np.all(np.abs(late[:, 1] - ground[:, 1]) / ground[:, 1] < 0.03)
     assert np.abs(early[-1, 1] - ground[-1, 1]) / ground[-1, 1] > 0.1
 
