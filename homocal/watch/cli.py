@@ -101,6 +101,9 @@ def handle_watch(args: argparse.Namespace) -> int:
                 run.update(frame, xyxy, ids)
         except KeyboardInterrupt:
             ended = "interrupted"
+        except UnicodeDecodeError as e:
+            error = ValueError(f"{args.boxes}: not UTF-8 text ({e.reason} at byte {e.start} of a line)")
+            ended = f"stopped: {error}"
         except ValueError as e:
             ended, error = f"stopped: {e}", e
         finally:

@@ -201,7 +201,8 @@ def test_watch_and_apply_at(tmp_path, capsys, monkeypatch):
 
 def stdin_run(tmp_path, capsys, monkeypatch, text, out="out"):
     flags = write_inputs(tmp_path, [])
-    monkeypatch.setattr("sys.stdin", io.StringIO(text))
+    monkeypatch.setattr("sys.stdin", io.TextIOWrapper(io.BytesIO(text if isinstance(text, bytes) else text.encode()),
+                                                      encoding="utf-8"))
     return homocal_main("watch", *flags, "--boxes", "-", "--out", out, cwd=tmp_path, capsys=capsys, monkeypatch=monkeypatch)
 
 
@@ -225,11 +226,13 @@ def test_watch_reads_standard_input_and_drops_a_cut_last_line(tmp_path, capsys, 
     ("5,1,1,20,40,1\n", "frame 5 after frame 99: boxes must come in time order"),
     ("300,nan,1,20,40,1\n", "a value is not a finite number"),
     ("300,1,1,20\n", "not 6 numbers"),
+    (b"300,1,1,20,40,\xff\n", "not UTF-8 text"),
 ])
 def test_watch_stops_at_bad_standard_input_with_whole_files(tmp_path, capsys, monkeypatch, tail, message):
-    r = stdin_run(tmp_path, capsys, monkeypatch, csv_text(stream(20, seed=7)) + tail)
+    text = csv_text(stream(20, seed=7))
+    r = stdin_run(tmp_path, capsys, monkeypatch, text.encode() + tail if isinstance(tail, bytes) else text + tail)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and message in r.stderr, r.stderr
-    assert r.stderr.startswith("homocal: error: standard input, line ")
+    assert r.stderr.startswith("homocal: error: standard input, line ") or "UTF-8" in r.stderr
     assert json.loads((tmp_path / "out/watch.json").read_text())["ended"].startswith("stopped: ")
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["corrections", "horizon.parquet", "moves.json",
                                                                      "watch.json"]
