@@ -27,7 +27,7 @@ def body_points(scene: Scene, seed: int, seconds: float, fps: float) -> Iterator
     """Yield (frame, points (A, P, 3) metres, agent ids (A,)) for frames 0 .. seconds * fps - 1 of the scene's
     walkers (seed as ``simgen generate --seed``), at t = frame / fps."""
     crowd = Crowd(scene, seed, seconds)
-    for frame in range(int(round(seconds * fps))):
+    for frame in range(round(seconds * fps)):
         state = crowd.state(frame / fps)
         ends, radii = state.segments, state.radii[:, :, None, None]  # (A, G, 2, 3), (A, G, 1, 1)
         points = np.stack([ends + radii * np.array(d) for d in CORNERS], axis=2).reshape(len(ends), -1, 3)

@@ -15,16 +15,16 @@ Estimate: over the last WINDOW_PEOPLE people of the current stretch, the Huber M
 
 Change test: a two-sided CUSUM (Page 1954) on each new person's standardised residual against the estimate,
 z = (v - mu) / sqrt(s^2 sigma^2 + sigma_mu^2), clipped at +-CLIP (the estimate's own psi) and scaled to
-unit variance under the normal (u = psi(z) / SD_CLIPPED): S+ = max(0, S+ + u - k), S- = max(0, S- - u - k), k = CUSUM_K (the
-optimal reference for a shift of 2k = 1 sd per person). A move is declared when S+ or S- exceeds h, where h
+unit variance under the normal (u = psi(z) / SD_CLIPPED): S+ = max(0, S+ + u - k), S- = max(0, S- - u - k),
+k = CUSUM_K (the optimal reference for a shift of 2k = 1 sd per person). A move is declared when S+ or S- exceeds h, where h
 gives a mean of ``arl0_people`` people between false alarms on a steady camera by Siegmund's approximation
-of a one-sided CUSUM's ARL (normal increments, Siegmund 1985, "Sequential analysis", eq. 2.56;
-two sides: half of it): ARL0 = (exp(2 k b) - 2 k b - 1) / (2 k^2) / 2, b = h + 1.166 (``cusum_threshold``).
-People join the estimate's window only while both statistics are at 0; those seen since (at most
-WINDOW_PEOPLE, the oldest then join) wait: on a move, the people since the alarming statistic's last 0 (its
-change point estimate) start the new stretch, whose estimate starts from them; the test re-arms at
-MIN_PEOPLE people. Memory: WINDOW_PEOPLE people in the window and as many waiting, the live tracks of the
-last LINK_GAP frames: bounded whatever the stream's length; work per box is constant.
+of a one-sided CUSUM's run length (normal increments; Siegmund 1985, "Sequential analysis"; two sides:
+half of it): ARL0 = (exp(2 k b) - 2 k b - 1) / (2 k^2) / 2, b = h + 1.166 (``cusum_threshold``).
+Each person is tested against the estimate of the people before it, then joins it (a self-starting CUSUM,
+as Hawkins 1987). At a move, the people since the alarming statistic's last 0 (its change point estimate)
+start the new stretch, whose estimate starts from them; the test re-arms at MIN_PEOPLE people. Memory: the
+last WINDOW_PEOPLE people of the stretch and the live tracks of the last LINK_GAP frames (at most MAX_TRACKS):
+bounded whatever the stream's length; work per box is constant.
 
 A gap in the stream longer than LINK_GAP frames ends every track (a person seen again is a new person): a gap
 is a gap, the estimate and the test go on; a move during a gap is found from the people after it.
@@ -37,13 +37,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from homocal.correctors.pedestrians import (BORDER_PX, DEFAULT_HEIGHT_MEAN_M, DEFAULT_HEIGHT_SD_M, LINK_GAP,
-                                            OUTLIER_SIGMAS, PedestrianCorrector, _on_border,
-                                            implied_horizon_rows)
+from homocal.correctors.pedestrians import (
+    DEFAULT_HEIGHT_MEAN_M,
+    DEFAULT_HEIGHT_SD_M,
+    LINK_GAP,
+    OUTLIER_SIGMAS,
+    PedestrianCorrector,
+    _on_border,
+    implied_horizon_rows,
+)
 from homocal.geometry import ViewTransformer
 from homocal.geometry.boxes import TrackLinker
 
-WINDOW_PEOPLE = 200  # people in the sliding estimate (and at most as many waiting for the test): the memory bound
+WINDOW_PEOPLE = 200  # people in the sliding estimate: the memory bound
 MIN_PEOPLE = 20  # people a stretch needs before its estimate is tested
 PERSON_BOXES = 5  # a person's observation: the median of its first this many usable boxes
 BOX_SIGMA_PX = 1.0  # a box edge's error, px (the per-box sigma's pixel term)

@@ -24,8 +24,13 @@ import pyarrow.parquet as pq
 from homocal.arguments import number, xy_pair
 from homocal.boxes import CSV_COLUMNS, CSV_CONVENTION, MAX_LINE_CHARS, read_boxes
 from homocal.correctors.cli import _camera_json
-from homocal.correctors.pedestrians import (DEFAULT_HEIGHT_MEAN_M, DEFAULT_HEIGHT_SD_M, PedestrianCorrector,
-                                            camera_height_from_homography, focal_from_homography)
+from homocal.correctors.pedestrians import (
+    DEFAULT_HEIGHT_MEAN_M,
+    DEFAULT_HEIGHT_SD_M,
+    PedestrianCorrector,
+    camera_height_from_homography,
+    focal_from_homography,
+)
 from homocal.files import create_temporary, output_folder, write_json_atomic
 from homocal.geometry import ViewTransformer
 from homocal.geometry.boxes import box_edges

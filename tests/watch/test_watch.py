@@ -8,14 +8,22 @@ import math
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-
 from cli_run import homocal_main
+
 from homocal.correctors.base import load_corrector
 from homocal.correctors.pedestrians import implied_heights, implied_horizon_rows
 from homocal.geometry import PinholeCamera
 from homocal.geometry.boxes import TrackLinker, link_tracks
 from homocal.watch import OnlineCalibrator
-from homocal.watch.calibrator import (CUSUM_K, MIN_PEOPLE, PERSON_BOXES, WINDOW_PEOPLE, cusum_arl0, cusum_threshold)
+from homocal.watch.calibrator import (
+    CLIP,
+    CUSUM_K,
+    MIN_PEOPLE,
+    SD_CLIPPED,
+    WINDOW_PEOPLE,
+    cusum_arl0,
+    cusum_threshold,
+)
 
 CAM = PinholeCamera()  # 1280x720, 95 degrees, 4 m high, tilted 15 degrees down
 FPS = 5
@@ -84,6 +92,12 @@ def test_track_linker_keeps_only_live_tracks():
     assert list(link_tracks(frames, xyxy)[:4]) == [0, 1, 0, 1]
 
 
+def test_clipped_sd_is_the_clipped_normal_sd():
+    z = np.linspace(-12, 12, 240_001)
+    density = np.exp(-z * z / 2) / math.sqrt(2 * math.pi)
+    assert math.isclose(SD_CLIPPED ** 2, float(np.sum(np.minimum(z * z, CLIP ** 2) * density) * (z[1] - z[0])), rel_tol=1e-6)
+
+
 @pytest.mark.parametrize("arl0", [50, 1000, 20_000])
 def test_cusum_threshold_inverts_siegmund(arl0):
     assert math.isclose(cusum_arl0(cusum_threshold(arl0)), arl0, rel_tol=1e-9)
@@ -115,7 +129,7 @@ def test_steady_camera_tracks_its_horizon_in_bounded_memory():
 
 @pytest.mark.parametrize("change, at", [(1.0, 100.0), (-2.0, 100.0), (0.5, 150.0)])
 def test_a_tilt_step_is_one_move_with_the_new_horizon(change, at):
-    cal, states = run(stream(300, tilt=lambda t: change if t >= at else 0.0, seed=2))
+    _, states = run(stream(300, tilt=lambda t: change if t >= at else 0.0, seed=2))
     moves = [s.move for s in states if s.move]
     assert len(moves) == 1
     m = moves[0]
@@ -129,7 +143,7 @@ def test_a_tilt_step_is_one_move_with_the_new_horizon(change, at):
 def test_a_gap_is_not_a_move_and_ends_every_track():
     frames = list(stream(200, seed=4))
     gap = [(f + (3000 if f >= 500 else 0), b, i + (10_000 if f >= 500 else 0)) for f, b, i in frames]
-    cal, states = run(gap)
+    _, states = run(gap)
     assert not any(s.move for s in states)
     assert states[500].t_s == (500 + 3000) / FPS
 
