@@ -6,7 +6,7 @@ per stretch between moves, as ``homocal fit --method pedestrians`` writes them; 
 picks the stretch). Each file is written whole (a temporary, then a rename): moves.json at each move, a
 stretch's correction every MIN_PEOPLE people and when it ends, horizon.parquet in row groups of ROW_GROUP rows
 to a temporary renamed when the stream ends (end of file, Ctrl-C or SIGTERM: an endless stream is stopped so)
-or stops at bad input (one line naming it, exit 2, every file written so far whole).
+or stops at bad input or past MAX_MOVES moves (one line naming it, exit 2, every file written so far whole).
 """
 from __future__ import annotations
 
@@ -38,6 +38,7 @@ from homocal.watch.calibrator import DEFAULT_ARL0_PEOPLE, MIN_PEOPLE, OnlineCali
 from homocal.watch.folder import MARKER, TOOL
 
 ROW_GROUP = 4096  # horizon.parquet rows held before they are written
+MAX_MOVES = 10_000  # moves (and stretches) one run records at most: past it the run stops
 HORIZON_COLUMNS = ("t_s", "person_row_px", "person_sigma_px", "horizon_row_px", "horizon_sigma_px", "n_people",
                    "stretch_start_s", "cusum_up", "cusum_down", "threshold")
 
@@ -147,6 +148,8 @@ class _Run:
         state = cal.update(frame, xyxy, ids)
         self.boxes += len(xyxy)
         if state.move is not None:
+            if len(self.moves) == MAX_MOVES:
+                raise ValueError(f"more than {MAX_MOVES:,} moves: the camera is not steady enough to watch")
             m = state.move
             if m.n_before >= 3:
                 self._save(self.stretch_start, m.horizon_before, m.sigma_before, m.n_before)
