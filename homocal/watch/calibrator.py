@@ -54,7 +54,7 @@ MIN_PEOPLE = 20  # people a stretch needs before its estimate is tested
 PERSON_BOXES = 5  # a person's observation: the median of its first this many usable boxes
 BOX_SIGMA_PX = 1.0  # a box edge's error, px (the per-box sigma's pixel term)
 CUSUM_K = 0.5  # the CUSUM's reference value, sd: optimal for a shift of 2 k = 1 sd per person
-DEFAULT_ARL0_PEOPLE = 20_000  # mean people between false alarms (about 13 h at scene1's 1,500 people an hour)
+DEFAULT_ARL0_PEOPLE = 20_000  # mean people between false alarms (about 14 h at scene1's 1,400 people an hour)
 CLIP = OUTLIER_SIGMAS  # sd: Huber's psi of the estimate and the test clips standardised residuals here
 MAX_TRACKS = 10_000  # live tracks with given ids at most (a stream naming more at once is refused)
 
