@@ -35,6 +35,7 @@ from homocal.geometry import (
     validate_quad,
 )
 from homocal.uncertainty import ground_uncertainty, max_trustworthy_range, sigma_radius
+from homocal.watch import OnlineCalibrator
 
 __all__ = [
     "__version__",
@@ -46,6 +47,7 @@ __all__ = [
     "HybridCorrector",
     "LeastChangeCorrector",
     "Lens",
+    "OnlineCalibrator",
     "PedestrianCorrector",
     "PersonBoxes",
     "PinholeCamera",

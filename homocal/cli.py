@@ -19,9 +19,10 @@ from homocal.lens import cli as lens_cli
 from homocal.measure import cli as measure_cli
 from homocal.study import advise as study_advise, cli as study_cli, report as study_report, sweep as study_sweep
 from homocal.ui import cli as ui_cli
+from homocal.watch import cli as watch_cli
 
 SUBCOMMANDS = (corrector_cli, study_cli, study_sweep, study_report, study_advise, ui_cli, lens_cli, measure_cli,
-               examples_cli)
+               watch_cli, examples_cli)
 
 
 class _Parser(argparse.ArgumentParser):

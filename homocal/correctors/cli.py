@@ -28,6 +28,7 @@ from homocal.files import check_output_file, csv_header, json_format, read_point
 from homocal.geometry import MAX_COORDINATE, CameraModel, ViewTransformer, read_trapezoid_file
 from homocal.geometry.lens import undistort_input
 from homocal.uncertainty import max_trustworthy_range, sigma_radius, straight_ahead_column
+from homocal.watch.folder import correction_at, load_stretches, watch_corrections
 
 LEAST_CHANGE = {k: LeastChangeCorrector().get_params()[k] for k in LEAST_CHANGE_PRIORS}  # fit's prior flags, defaults
 TRUST_TOLERANCE_M = 0.5  # homocal fit reports how far the 1-sigma error stays under this
@@ -139,7 +140,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "apply", help="map image foot points to corrected ground positions", epilog=APPLY_FORMATS,
         formatter_class=fmt, description="Map image foot points to corrected ground positions with a fitted correction.",
     )
-    apply.add_argument("correction", type=Path, metavar="CORRECTION.json", help="written by homocal fit")
+    apply.add_argument("correction", type=Path, metavar="CORRECTION.json", help="written by homocal fit, or a homocal "
+                       "watch folder (with --at, or a t column in FEET.csv: the stretch of that time)")
+    apply.add_argument("--at", type=number(float, 0), metavar="SECONDS", help="a watch folder's stretch at this time")
     apply.add_argument("--points", required=True, type=Path, metavar="FEET.csv", help="image foot points u,v")
     apply.add_argument("-o", "--out", required=True, type=Path, metavar="CORRECTED.csv",
                        help="the CSV to write; - writes it to stdout (the summary line then goes to stderr)")
@@ -244,8 +247,24 @@ def _flag_message(message: str) -> str:
 
 
 def handle_apply(args: argparse.Namespace) -> int:
-    corrector = load_corrector(args.correction)
-    fields, rows, cols, lines = read_points_csv(args.points, ("u", "v"), finite=False)
+    fields, rows, cols, lines = read_points_csv(args.points, ("u", "v"), finite=False,
+                                                optional=("t",) if args.correction.is_dir() else ())
+    if args.correction.is_dir():
+        stretches = watch_corrections(args.correction)
+        if args.at is None and "t" not in cols:
+            raise ValueError(f"{args.correction} is a watch folder: give --at SECONDS or a t column in {args.points}")
+        t = np.full(len(rows), args.at) if args.at is not None else cols["t"]
+        bad = np.flatnonzero(~(np.abs(t) <= 1e12))
+        if bad.size:
+            raise ValueError(f"{args.points}, line {lines[bad[0]]}: t is not a finite number of seconds")
+        which = correction_at(stretches, t)
+        correctors = load_stretches(args.correction)
+        corrector = correctors[int(np.bincount(which, minlength=len(correctors)).argmax())]
+    else:
+        if args.at is not None:
+            raise ValueError(f"--at: for a homocal watch folder, not the file {args.correction}")
+        corrector = load_corrector(args.correction)
+        correctors, which = [corrector], np.zeros(len(rows), np.int64)
     to_stdout = str(args.out) == "-"
     if not to_stdout:
         check_output_file(args.out, lambda p: (csv_header(p) or [])[-4:] == list(APPLIED),
@@ -253,11 +272,13 @@ def handle_apply(args: argparse.Namespace) -> int:
     q = np.column_stack([cols["u"], cols["v"]])
     bad_input = ~(np.abs(q) <= MAX_COORDINATE).all(axis=1)  # nan, inf, or an overflow
     q[bad_input] = np.nan
-    if corrector.lens_ is not None:  # the camera's pixels -> the undistorted image the correction maps
-        q = corrector.lens_.undistort_points(q)
-        bad_input |= np.isnan(q).any(axis=1)  # beyond the lens's fold
-    xy = corrector.transform_points(q)
-    sigma = sigma_radius(corrector.ground_uncertainty(q, args.click_sigma_px, args.point_sigma_px))
+    xy, sigma = np.full((len(q), 2), np.nan), np.full(len(q), np.nan)
+    for k in np.unique(which):
+        rows_k, lens = which == k, correctors[k].lens_
+        q_k = q[rows_k] if lens is None else lens.undistort_points(q[rows_k])  # the undistorted image it maps
+        bad_input[rows_k] |= np.isnan(q_k).any(axis=1) & ~np.isnan(q[rows_k]).any(axis=1)  # beyond the lens's fold
+        xy[rows_k] = correctors[k].transform_points(q_k)
+        sigma[rows_k] = sigma_radius(correctors[k].ground_uncertainty(q_k, args.click_sigma_px, args.point_sigma_px))
     status = np.where(bad_input, "bad_input", np.where(np.isnan(xy).any(axis=1), "beyond_horizon", "ok"))
     out_fields = [f for f in fields if f not in APPLIED] + list(APPLIED)
     buffer = io.StringIO()

@@ -102,6 +102,29 @@ def _heights(beta_f: np.ndarray, beta_t: np.ndarray, tilt: float, camera_height_
     return h, dh
 
 
+def implied_horizon_rows(foot_rows: np.ndarray, head_rows: np.ndarray, focal_px: float, cy: float,
+                         camera_height_m: float, height_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per box, the horizon row (N,) px at which a person of height_m metres spans rows head_rows .. foot_rows
+    (N,) px, and its change per metre of the person's height (N,) px/m: the inverse of implied_heights. With
+    t = tan(tilt), a = (v_t - cy) / f, b = (v_f - cy) / f and r = 1 - height_m / h_c, H(tilt) = height_m is
+    tan(tilt + beta_t) = r tan(tilt + beta_f), a quadratic (r a - b) t^2 + (1 - a b - r + r a b) t + (a - r b) = 0
+    whose root of smallest tilt with the foot in front (0 < tilt + beta_f < 90 degrees) is the one on H's
+    decreasing branch (module docstring); the row is cy - f t, its slope -f sec^2(tilt) / (dH/dtilt).
+    NaN where no tilt gives that height."""
+    a, b = ((np.asarray(v, float) - cy) / focal_px for v in (head_rows, foot_rows))
+    r = 1.0 - height_m / camera_height_m
+    qa, qb, qc = r * a - b, 1.0 - a * b - r + r * a * b, a - r * b
+    disc = np.sqrt(np.where(qb * qb - 4 * qa * qc >= 0, qb * qb - 4 * qa * qc, np.nan))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        roots = np.stack([(-qb - disc) / (2 * qa), (-qb + disc) / (2 * qa)])
+    (r0, r1), (v0, v1) = roots, (roots + b > 0) & (roots * b < 1)
+    t = np.where(v0 & ~(v1 & (r1 < r0)), r0, np.where(v1, r1, np.nan))
+    dh = _heights(np.arctan(b), np.arctan(a), np.arctan(t), camera_height_m)[1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = -focal_px * (1.0 + t * t) / dh
+    return cy - focal_px * t, slope
+
+
 def horizon_row(tilt: float, focal_px: float, cy: float) -> float:
     """The horizon's image row v_h = cy - f tan(tilt), px, of a camera tilted ``tilt`` radians down (roll 0)."""
     return cy - focal_px * math.tan(tilt)
@@ -372,6 +395,27 @@ class PedestrianCorrector(Corrector):
         other._set_transformer()
         other.error_before_ = other.error_after_ = other.calibration_improvement_ = math.nan
         return other
+
+    def from_horizon(self, transformer: ViewTransformer, horizon_row_px: float, horizon_sigma_px: float, K: np.ndarray,
+                     camera_height_m: float, n_people: int, camera_origin=(0.0, 0.0)) -> PedestrianCorrector:
+        """Set up as fit would from a horizon row (px, with its 1-sigma) found elsewhere from n_people people (each
+        one box: homocal.watch.OnlineCalibrator's estimate), with K and the camera height given and no check
+        points. Returns self; ValueError naming the argument for bad input."""
+        if not isinstance(transformer, ViewTransformer):
+            raise TypeError(f"transformer: expected a homocal.ViewTransformer, got {type(transformer).__name__}")
+        K = np.asarray(K, dtype=np.float64)
+        self.focal_px_, self.principal_point_ = float(K[1, 1]), (float(K[0, 2]), float(K[1, 2]))
+        self.focal_source_ = self.camera_height_source_ = "given"
+        self.camera_height_m_ = _check_camera_height(camera_height_m)
+        self.horizon_row_ = number(horizon_row_px, "horizon_row_px")
+        self.horizon_sigma_px_ = number(horizon_sigma_px, "horizon_sigma_px", minimum=0)
+        self.mean_sensitivity_px_per_cm_ = math.nan
+        self.n_boxes_ = self.n_people_ = self.n_people_used_ = integer(n_people, "n_people", MIN_PEOPLE, 2**62)
+        self.n_border_ = self.n_outliers_ = 0
+        self.base_transformer_, self.camera_origin_ = transformer, check_camera_origin(camera_origin)
+        self._set_transformer()
+        self._check_points(None, None)
+        return self
 
     @property
     def K(self) -> np.ndarray:

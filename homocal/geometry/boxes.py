@@ -74,29 +74,51 @@ def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def link_tracks(frames: np.ndarray, xyxy: np.ndarray, min_iou: float = 0.3, max_gap: int = 5) -> np.ndarray:
     """Track ids (N,) int64, 0, 1, ... in order of first appearance, for boxes xyxy (N, 4) in video frames
-    frames (N,) int: frame by frame in increasing order, each box continues the track whose last box (at most
-    max_gap frames earlier) overlaps it most, greedily (highest IoU first; ties: lower box index, then lower
-    track id), one box per track and frame, IoU >= min_iou; any other box starts a track. A simple linker of
-    detections (no motion model): enough to count people once rather than once per frame."""
+    frames (N,) int: frame by frame in increasing order, ``TrackLinker.link`` (one box per track and frame,
+    IoU >= min_iou, boxes at most max_gap frames apart). A simple linker of detections (no motion model):
+    enough to count people once rather than once per frame."""
     frames = np.asarray(frames, dtype=np.int64)
     ids = np.full(len(frames), -1, dtype=np.int64)
-    last_box, last_frame = np.empty((len(frames), 4)), np.empty(len(frames), dtype=np.int64)  # per track id
-    tracks = 0  # track ids so far
+    linker = TrackLinker(min_iou, max_gap)
     order = np.argsort(frames, kind="stable")
     numbers, first = np.unique(frames[order], return_index=True)
     for frame, rows in zip(numbers, np.split(order, first[1:])):
-        live = np.flatnonzero(frame - last_frame[:tracks] <= max_gap)
-        iou = box_iou(xyxy[rows], last_box[live])
+        ids[rows] = linker.link(int(frame), xyxy[rows])
+    return ids
+
+
+class TrackLinker:
+    """Boxes linked into tracks frame by frame, as they come (link_tracks over a stream): each box continues the
+    live track (last box at most max_gap frames earlier) whose last box overlaps it most, greedily (highest IoU
+    first; ties: lower box index, then lower track id), one box per track and frame, IoU >= min_iou; any other
+    box starts a track (ids 0, 1, ... in order of first appearance). Only live tracks are kept: memory is
+    bounded by the boxes of the last max_gap frames."""
+
+    def __init__(self, min_iou: float = 0.3, max_gap: int = 5) -> None:
+        self.min_iou, self.max_gap = min_iou, max_gap
+        self.tracks = 0  # track ids given so far
+        self._ids, self._boxes, self._frames = np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros(0, np.int64)
+
+    def link(self, frame: int, xyxy: np.ndarray) -> np.ndarray:
+        """Track ids (M,) int64 of the boxes xyxy (M, 4) of video frame ``frame`` (not before the last one)."""
+        live = np.flatnonzero(frame - self._frames <= self.max_gap)
+        ids = np.full(len(xyxy), -1, dtype=np.int64)
+        iou = box_iou(xyxy, self._boxes[live])
         taken = set()
         for flat in np.argsort(-iou, axis=None, kind="stable"):
             i, j = divmod(int(flat), len(live))
-            if iou[i, j] < min_iou:
+            if iou[i, j] < self.min_iou:
                 break
-            if ids[rows[i]] < 0 and live[j] not in taken:
-                ids[rows[i]] = live[j]
+            if ids[i] < 0 and live[j] not in taken:
+                ids[i] = self._ids[live[j]]
                 taken.add(live[j])
-        new = rows[ids[rows] < 0]
-        ids[new] = tracks + np.arange(len(new))
-        tracks += len(new)
-        last_box[ids[rows]], last_frame[ids[rows]] = xyxy[rows], frame
-    return ids
+        new = ids < 0
+        ids[new] = self.tracks + np.arange(int(new.sum()))
+        self.tracks += int(new.sum())
+        keep = np.setdiff1d(live, list(taken))  # live tracks not continued in this frame
+        self._ids = np.concatenate([self._ids[keep], ids])
+        self._boxes = np.concatenate([self._boxes[keep], np.asarray(xyxy, float).reshape(-1, 4)])
+        self._frames = np.concatenate([self._frames[keep], np.full(len(ids), frame, np.int64)])
+        order = np.argsort(self._ids, kind="stable")  # live tracks in id order (the ties' rule)
+        self._ids, self._boxes, self._frames = self._ids[order], self._boxes[order], self._frames[order]
+        return ids

@@ -13,7 +13,7 @@ from homocal.progress import show_progress
 from cli_run import homocal_main
 from test_cli import GROUND, IMAGE, REF_G, REF_Q, work  # noqa: F401 (work is a fixture)
 
-WRITERS = ("fit", "apply", "study", "sweep", "report", "ui", "advise", "lens", "measure")
+WRITERS = ("fit", "apply", "study", "sweep", "report", "ui", "advise", "lens", "measure", "watch")
 
 
 def subparsers() -> dict[str, argparse.ArgumentParser]:

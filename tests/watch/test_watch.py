@@ -1,0 +1,271 @@
+"""homocal.watch: the per-box implied horizon, the CUSUM's threshold, OnlineCalibrator on synthetic streams from a
+PinholeCamera whose tilt changes, and the homocal watch / apply --at commands."""
+import dataclasses
+import io
+import json
+import math
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from cli_run import homocal_main
+
+from homocal.correctors.base import load_corrector
+from homocal.correctors.pedestrians import implied_heights, implied_horizon_rows
+from homocal.geometry import PinholeCamera
+from homocal.geometry.boxes import TrackLinker, link_tracks
+from homocal.watch import OnlineCalibrator
+from homocal.watch.calibrator import (
+    CLIP,
+    CUSUM_K,
+    MIN_PEOPLE,
+    SD_CLIPPED,
+    WINDOW_PEOPLE,
+    cusum_arl0,
+    cusum_threshold,
+)
+
+CAM = PinholeCamera()  # 1280x720, 95 degrees, 4 m high, tilted 15 degrees down
+FPS = 5
+GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])
+
+
+def stream(seconds, tilt=lambda t: 0.0, rate=1.5, seed=0, noise_px=0.3):
+    """Frames (frame, xyxy (N, 4) homocal edges, track ids) of people 1.70 +- 0.07 m tall standing 1 s each at
+    random places 8-45 m ahead, arriving at ``rate`` a second, seen by CAM tilted tilt(t) degrees further down;
+    their foot and head points projected exactly, each box edge plus normal noise of noise_px."""
+    rng = np.random.default_rng(seed)
+    n = int(seconds * rate)
+    start = np.sort(rng.uniform(0, seconds - 1, n))
+    xy = np.column_stack([rng.uniform(-6, 6, n), rng.uniform(8, 45, n)])
+    height = rng.normal(1.70, 0.07, n)
+    for frame in range(int(seconds * FPS)):
+        t = frame / FPS
+        cam = dataclasses.replace(CAM, tilt_deg=CAM.tilt_deg + tilt(t))
+        on = np.flatnonzero((start <= t) & (t < start + 1))
+        foot = cam.project(np.column_stack([xy[on], np.zeros(len(on))]))
+        head = cam.project(np.column_stack([xy[on], height[on]]))
+        half = 0.25 * cam.focal_px / xy[on, 1]
+        boxes = np.column_stack([foot[:, 0] - half, head[:, 1], foot[:, 0] + half, foot[:, 1]])
+        yield frame, boxes + rng.normal(0, noise_px, boxes.shape), on
+
+
+def horizon(tilt_deg):
+    return dataclasses.replace(CAM, tilt_deg=CAM.tilt_deg + tilt_deg).horizon_row
+
+
+def run(frames, **kwargs):
+    cal = OnlineCalibrator(CAM.K, 4.0, FPS, (CAM.width, CAM.height), 1.70, 0.07, **kwargs)
+    states = [cal.update(f, b, i) for f, b, i in frames]
+    return cal, states
+
+
+def test_implied_horizon_rows_inverts_implied_heights():
+    rng = np.random.default_rng(1)
+    for tilt_deg in (5.0, 15.0, 40.0):
+        cam = dataclasses.replace(CAM, tilt_deg=tilt_deg)
+        xy = np.column_stack([rng.uniform(-5, 5, 50), rng.uniform(6, 60, 50)])
+        h = rng.uniform(1.4, 2.0, 50)
+        foot, head = (cam.project(np.column_stack([xy, z])) for z in (np.zeros(50), h))
+        rows, slope = implied_horizon_rows(foot[:, 1], head[:, 1], cam.focal_px, cam.K[1, 2], 4.0, h)
+        assert np.allclose(rows, cam.horizon_row, atol=1e-6)
+        tilt = np.arctan((cam.K[1, 2] - rows) / cam.focal_px)  # the rows' tilts give the heights back
+        back = [implied_heights(foot[i:i + 1, 1], head[i:i + 1, 1], tilt[i], cam.focal_px, cam.K[1, 2], 4.0)[0]
+                for i in range(50)]
+        assert np.allclose(back, h, rtol=1e-9)
+        up, _ = implied_horizon_rows(foot[:, 1], head[:, 1], cam.focal_px, cam.K[1, 2], 4.0, h + 1e-5)
+        assert np.allclose(slope, (up - rows) / 1e-5, rtol=1e-3)
+    # a box from row 10 to row 700 is a person of more than 1.7 m under a 4 m camera at every tilt
+    assert np.isnan(implied_horizon_rows(np.array([700.0]), np.array([10.0]), CAM.focal_px, CAM.K[1, 2], 4.0, 1.7)).all()
+
+
+def test_track_linker_keeps_only_live_tracks():
+    linker = TrackLinker(max_gap=5)
+    box = np.array([[0.0, 0.0, 10.0, 20.0]])
+    ids = [int(linker.link(f, box + [3 * f, 0, 3 * f, 0])[0]) for f in range(10)]  # one walker
+    assert ids == [0] * 10
+    for f in range(10, 1000):  # a new person every frame, far apart: all but the last 6 frames' dropped
+        linker.link(f, box + [100 * f, 0, 100 * f, 0])
+    assert len(linker._ids) <= 6
+    frames = np.repeat(np.arange(50), 2)
+    xyxy = np.tile(box, (100, 1)) + np.column_stack([frames * 2.0, np.tile([0, 500], 50), frames * 2.0, np.tile([0, 500], 50)])
+    assert list(link_tracks(frames, xyxy)[:4]) == [0, 1, 0, 1]
+
+
+def test_clipped_sd_is_the_clipped_normal_sd():
+    z = np.linspace(-12, 12, 240_001)
+    density = np.exp(-z * z / 2) / math.sqrt(2 * math.pi)
+    assert math.isclose(SD_CLIPPED ** 2, float(np.sum(np.minimum(z * z, CLIP ** 2) * density) * (z[1] - z[0])), rel_tol=1e-6)
+
+
+@pytest.mark.parametrize("arl0", [50, 1000, 20_000])
+def test_cusum_threshold_inverts_siegmund(arl0):
+    assert math.isclose(cusum_arl0(cusum_threshold(arl0)), arl0, rel_tol=1e-9)
+
+
+def test_siegmund_arl_against_simulation():
+    """The two-sided CUSUM on N(0, 1) increments runs cusum_arl0(h) steps on average (Monte Carlo, 4000 runs:
+    the mean's standard error is about 1.6 %; Siegmund's approximation is within a few % at these h)."""
+    h, runs = cusum_threshold(200), 4000
+    rng = np.random.default_rng(3)
+    up, down, alive, length = np.zeros(runs), np.zeros(runs), np.ones(runs, bool), np.zeros(runs)
+    for step in range(1, 20_000):
+        z = rng.standard_normal(runs)
+        up, down = np.maximum(0, up + z - CUSUM_K), np.maximum(0, down - z - CUSUM_K)
+        fired = alive & ((up > h) | (down > h))
+        length[fired], alive = step, alive & ~fired
+        if not alive.any():
+            break
+    assert abs(length.mean() / 200 - 1) < 0.1
+
+
+def test_steady_camera_tracks_its_horizon_in_bounded_memory():
+    cal, states = run(stream(300))
+    assert [s.move for s in states if s.move] == []
+    last = states[-1]
+    assert last.n_people == WINDOW_PEOPLE and len(cal._people) == WINDOW_PEOPLE and len(cal._tracks) <= 10
+    assert abs(last.horizon_row - horizon(0)) < 4 * last.horizon_sigma_px < 2.0
+
+
+@pytest.mark.parametrize("change, at", [(1.0, 100.0), (-2.0, 100.0), (0.5, 150.0)])
+def test_a_tilt_step_is_one_move_with_the_new_horizon(change, at):
+    _, states = run(stream(300, tilt=lambda t: change if t >= at else 0.0, seed=2))
+    moves = [s.move for s in states if s.move]
+    assert len(moves) == 1
+    m = moves[0]
+    assert at - 10 <= m.t_s <= at + 10 and at < m.detected_s < at + 60
+    assert m.direction == (-1 if change > 0 else 1)  # looking further down lifts the horizon
+    assert abs(m.horizon_before - horizon(0)) < 4 * m.sigma_before
+    assert abs(states[-1].horizon_row - horizon(change)) < 4 * states[-1].horizon_sigma_px
+    assert states[-1].stretch_start_s == m.t_s
+
+
+def test_a_gap_is_not_a_move_and_ends_every_track():
+    frames = list(stream(200, seed=4))
+    gap = [(f + (3000 if f >= 500 else 0), b, i + (10_000 if f >= 500 else 0)) for f, b, i in frames]
+    _, states = run(gap)
+    assert not any(s.move for s in states)
+    assert states[500].t_s == (500 + 3000) / FPS
+
+
+@pytest.mark.parametrize("frame, box, message", [
+    (5, [[0, 0, 10, 10]], "frame 5 after frame 9: boxes must come in time order"),
+    (10, [[0, np.nan, 10, 10]], "not finite or is upside down"),
+    (10, [[0, 20, 10, 10]], "not finite or is upside down"),
+])
+def test_bad_boxes_are_refused(frame, box, message):
+    cal = OnlineCalibrator(CAM.K, 4.0, FPS)
+    cal.update(9, np.zeros((0, 4)))
+    with pytest.raises(ValueError, match=message.replace("(", r"\(")):
+        cal.update(frame, np.array(box, float))
+
+
+# ---- the commands ------------------------------------------------------------------------------
+def write_inputs(folder, frames):
+    """trap.json (CAM's true trapezoid), camera.json and boxes.csv (corner pixels) of the frames."""
+    img = CAM.project_ground(GROUND)
+    (folder / "trap.json").write_text(json.dumps({"image": img.tolist(), "map": GROUND.tolist()}))
+    (folder / "camera.json").write_text(json.dumps({"width": CAM.width, "height": CAM.height, "K": CAM.K.tolist()}))
+    lines = ["frame,x1,y1,x2,y2,track_id"]
+    for f, boxes, ids in frames:
+        lines += [f"{f},{float(b[0]) + 0.5!r},{float(b[1]) + 0.5!r},{float(b[2]) + 0.5!r},{float(b[3]) + 0.5!r},{i}" for b, i in zip(boxes, ids)]
+    (folder / "boxes.csv").write_text("\n".join(lines) + "\n")
+    return ["--trapezoid", "trap.json", "--camera-json", "camera.json", "--camera-height", "4", "--fps", str(FPS),
+            "--height-mean", "1.70", "--height-sd", "0.07"]
+
+
+def test_watch_and_apply_at(tmp_path, capsys, monkeypatch):
+    flags = write_inputs(tmp_path, stream(200, tilt=lambda t: 1.0 if t >= 100 else 0.0, seed=5))
+    r = homocal_main("watch", *flags, "--boxes", "boxes.csv", "--out", "out", cwd=tmp_path, capsys=capsys,
+                     monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    moves = json.loads((tmp_path / "out/moves.json").read_text())["moves"]
+    assert len(moves) == 1 and 90 <= moves[0]["t_s"] <= 110
+    stretches = sorted((tmp_path / "out/corrections").glob("*.json"), key=lambda p: float(p.stem))
+    assert [float(p.stem) for p in stretches] == [0.0, moves[0]["t_s"]]
+    table = pq.read_table(tmp_path / "out/horizon.parquet")
+    assert table.num_rows == json.loads((tmp_path / "out/watch.json").read_text())["people"] > 2 * MIN_PEOPLE
+    assert table.column("stretch_start_s").to_pylist()[-1] == moves[0]["t_s"]
+    # ground points seen by the moved camera: the late stretch maps them back, the early one does not
+    moved = dataclasses.replace(CAM, tilt_deg=CAM.tilt_deg + 1.0)
+    ground = np.array([[0.0, 10.0], [2.0, 30.0], [-3.0, 45.0]])
+    uv = moved.project_ground(ground)
+    (tmp_path / "feet.csv").write_text("u,v\n" + "".join(f"{float(u)!r},{float(v)!r}\n" for u, v in uv))
+    for at, stretch in ((150, stretches[1]), (50, stretches[0])):
+        r = homocal_main("apply", "out", "--at", str(at), "--points", "feet.csv", "-o", f"at{at}.csv", cwd=tmp_path,
+                         capsys=capsys, monkeypatch=monkeypatch)
+        assert r.returncode == 0, r.stderr
+        got = np.loadtxt(tmp_path / f"at{at}.csv", delimiter=",", skiprows=1, usecols=(2, 3))
+        assert np.allclose(got, load_corrector(stretch).transform_points(uv))
+    late, early = (np.loadtxt(tmp_path / f"at{a}.csv", delimiter=",", skiprows=1, usecols=(2, 3)) for a in (150, 50))
+    (tmp_path / "timed.csv").write_text("u,v,t\n" + "".join(f"{float(u)!r},{float(v)!r},{t}\n" for (u, v), t in zip(uv, (150, 50, 150))))
+    r = homocal_main("apply", "out", "--points", "timed.csv", "-o", "timed_out.csv", cwd=tmp_path, capsys=capsys,
+                     monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    timed = np.loadtxt(tmp_path / "timed_out.csv", delimiter=",", skiprows=1, usecols=(3, 4))
+    assert np.allclose(timed, [late[0], early[1], late[2]])
+    for points, message in (("feet.csv", "give --at SECONDS or a t column"), ("nan_t.csv", "t is not a finite number")):
+        (tmp_path / "nan_t.csv").write_text("u,v,t\n600,400,nan\n")
+        r = homocal_main("apply", "out", "--points", points, "-o", "x.csv", cwd=tmp_path, capsys=capsys,
+                         monkeypatch=monkeypatch)
+        assert r.returncode == 2 and message in r.stderr and r.stderr.count("\n") == 1, r.stderr
+    assert np.all(np.abs(late[:, 1] - ground[:, 1]) / ground[:, 1] < 0.03)
+    assert np.abs(early[-1, 1] - ground[-1, 1]) / ground[-1, 1] > 0.1
+
+
+def stdin_run(tmp_path, capsys, monkeypatch, text, out="out"):
+    flags = write_inputs(tmp_path, [])
+    monkeypatch.setattr("sys.stdin", io.TextIOWrapper(io.BytesIO(text if isinstance(text, bytes) else text.encode()),
+                                                      encoding="utf-8"))
+    return homocal_main("watch", *flags, "--boxes", "-", "--out", out, cwd=tmp_path, capsys=capsys, monkeypatch=monkeypatch)
+
+
+def csv_text(frames):
+    return "frame,x1,y1,x2,y2,track_id\n" + "".join(
+        f"{f},{float(b[0]) + 0.5!r},{float(b[1]) + 0.5!r},{float(b[2]) + 0.5!r},{float(b[3]) + 0.5!r},{i}\n" for f, boxes, ids in frames
+        for b, i in zip(boxes, ids))
+
+
+def test_watch_reads_standard_input_and_drops_a_cut_last_line(tmp_path, capsys, monkeypatch):
+    text = csv_text(stream(60, seed=6))
+    r = stdin_run(tmp_path, capsys, monkeypatch, text + "300,3.5,17")
+    assert r.returncode == 0, r.stderr
+    assert "line" in r.stderr and "cut short at the end of the stream; dropped" in r.stderr
+    watch = json.loads((tmp_path / "out/watch.json").read_text())
+    assert watch["ended"] == "end of stream"
+    assert pq.read_table(tmp_path / "out/horizon.parquet").num_rows >= MIN_PEOPLE
+
+
+@pytest.mark.parametrize("tail, message", [
+    ("5,1,1,20,40,1\n", "frame 5 after frame 99: boxes must come in time order"),
+    ("300,nan,1,20,40,1\n", "a value is not a finite number"),
+    ("300,1,1,20\n", "not 6 numbers"),
+    (b"300,1,1,20,40,\xff\n", "not UTF-8 text"),
+])
+def test_watch_stops_at_bad_standard_input_with_whole_files(tmp_path, capsys, monkeypatch, tail, message):
+    text = csv_text(stream(20, seed=7))
+    r = stdin_run(tmp_path, capsys, monkeypatch, text.encode() + tail if isinstance(tail, bytes) else text + tail)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and message in r.stderr, r.stderr
+    assert r.stderr.startswith("homocal: error: standard input, line ") or "UTF-8" in r.stderr
+    assert json.loads((tmp_path / "out/watch.json").read_text())["ended"].startswith("stopped: ")
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["corrections", "horizon.parquet", "moves.json",
+                                                                     "watch.json"]
+    pq.read_table(tmp_path / "out/horizon.parquet")
+
+
+def test_watch_refuses_a_file_out_of_time_order_before_writing(tmp_path, capsys, monkeypatch):
+    flags = write_inputs(tmp_path, [])
+    (tmp_path / "boxes.csv").write_text("frame,x1,y1,x2,y2\n3,1,1,20,40\n2,1,1,20,40\n")
+    r = homocal_main("watch", *flags, "--boxes", "boxes.csv", "--out", "out", cwd=tmp_path, capsys=capsys,
+                     monkeypatch=monkeypatch)
+    assert r.returncode == 2 and "boxes out of time order" in r.stderr and r.stderr.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+
+
+def test_apply_at_needs_a_watch_folder(tmp_path, capsys, monkeypatch):
+    write_inputs(tmp_path, [])
+    (tmp_path / "feet.csv").write_text("u,v\n600,400\n")
+    (tmp_path / "c.json").write_text("{}")
+    r = homocal_main("apply", "c.json", "--at", "3", "--points", "feet.csv", "-o", "x.csv", cwd=tmp_path,
+                     capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 2 and "--at: for a homocal watch folder" in r.stderr
