@@ -68,7 +68,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "the CUSUM threshold follows)")
     p.add_argument("--camera-origin", type=xy_pair, default=(0.0, 0.0), metavar="X,Y",
                    help="ground point under the camera, metres (default 0,0)")
-    p.add_argument("--out", required=True, type=Path, metavar="DIR", help="a new output folder")
+    p.add_argument("-o", "--out", required=True, type=Path, metavar="DIR", help="a new output folder")
     p.set_defaults(handler=handle_watch)
 
 
