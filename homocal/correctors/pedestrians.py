@@ -38,7 +38,8 @@ for scene1's segmentation boxes), carry little.
 Uncertainty: the sandwich variance of the M-estimate over the people (tracks), sigma_theta^2 =
 sigma^2 sum psi^2 H'^2 / (sum psi' H'^2)^2, as a horizon row sigma f sec^2(theta) sigma_theta (px); and the
 horizon's shift per centimetre of error in the prior mean (dtheta / dmu = sum psi' H' / sum psi' H'^2),
-which no number of people reduces. Without track ids, boxes in frames up to LINK_GAP apart are linked into
+which no number of people reduces: the prior mean's own uncertainty sigma_mu (height_mean_sigma_m) adds
+f sec^2(theta) |dtheta / dmu| sigma_mu in quadrature to the horizon's sigma. Without track ids, boxes in frames up to LINK_GAP apart are linked into
 tracks by box overlap (``homocal.geometry.boxes.link_tracks``); without frames either, every box counts as
 an independent person and the uncertainty is understated.
 
@@ -60,6 +61,7 @@ from homocal.correctors.serialization import float_or_none, integer, number
 from homocal.geometry import ViewTransformer, apply_homography, as_points
 from homocal.geometry.boxes import box_edges, link_tracks
 from homocal.geometry.camera import tilt_homography
+from homocal.study.options import Number, Option, OptionError
 
 # Adult heights, metres: NCD-RisC 2016 (eLife 5:e13410, "A century of trends in adult human height"), as
 # summarised by Our World in Data: the global mean of adults born in 1996 is 171 cm for men and 159 cm for
@@ -67,6 +69,12 @@ from homocal.geometry.camera import tilt_homography
 # sd sqrt(0.07^2 + 0.06^2) = 0.09 m.
 DEFAULT_HEIGHT_MEAN_M = 1.65
 DEFAULT_HEIGHT_SD_M = 0.09
+# The prior mean's own 1-sigma uncertainty, metres: the people in one view are not the world's adults. Country
+# means of adult men range from 160 to 183 cm and of women from 150 to 170 cm (NCD-RisC 2016, eLife 5:e13410);
+# a street's mix of men and women moves an equal mix's mean by up to 6 cm; shoes add 2-3 cm; walking people's
+# boxes are shorter than their standing heights (about 5 cm on simgen's people, docs/pedestrians.md). Together
+# about +-5 cm on the mean of a population one has not measured: DEFAULT_HEIGHT_MEAN_SIGMA_M.
+DEFAULT_HEIGHT_MEAN_SIGMA_M = 0.05
 OUTLIER_SIGMAS = 3.0  # a box whose implied height is farther than this many prior sds from the mean is an outlier
 HUBER_K = 1.345  # Huber's constant (95 % efficiency at the normal)
 MAX_ROUNDS = 20  # inlier-set rounds of fit_tilt at most
@@ -74,9 +82,24 @@ MIN_PEOPLE = 3  # fewer inlier people (tracks) than this is refused
 MAX_OUTLIER_SHARE = 0.5  # more outlier boxes, or people, than this share of those used is refused (PedestrianCorrector.fit)
 LINK_GAP = 5  # frames: boxes this many frames apart at most are linked into one track
 BORDER_PX = 1.0  # a box whose edge is within this of the image border is cut by it and not used
-MAX_CAMERA_HEIGHT_M = 100.0
+MIN_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M = 0.5, 100.0  # below half a metre no box of a standing person fits
 MODELS = ("camera", "rotation")  # PedestrianCorrector's corrected mappings (its docstring); the first is the default
 GRID = 128  # tilt grid of the median start over its 90 degree range (then bisection)
+SETTINGS = {
+    "height_mean_m": Option("--height-mean", Number(0.5, 2.5), "the people's mean height (the default: adults, "
+                            "docs/pedestrians.md)", metavar="M", unit="m"),
+    "height_sd_m": Option("--height-sd", Number(0.01, 0.625), "the spread of the people's heights (at most a "
+                          "quarter of the mean)", metavar="M", unit="m"),
+    "height_mean_sigma_m": Option("--height-mean-sigma", Number(0.0, 0.5), "the 1-sigma uncertainty of the people's "
+                                  "mean height (0: known exactly), part of the horizon's and every point's error "
+                                  "bars", metavar="M", unit="m"),
+    "camera_height_m": Option("--camera-height", Number(MIN_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M), "the camera's "
+                              "height over the ground", metavar="M", unit="m", none="from the clicked trapezoid with K"),
+}
+"""The settings of a pedestrian fit, each declared once (homocal.study.options.Option: flag, bounds, unit, help):
+PedestrianCorrector's checks (an OptionError names the parameter), homocal fit's flags and their error
+messages, and the page's fields derive from it. The first three are constructor parameters, camera_height_m
+fit's."""
 
 
 def implied_heights(foot_rows: np.ndarray, head_rows: np.ndarray, tilt: float, focal_px: float, cy: float,
@@ -227,6 +250,9 @@ class PedestrianCorrector(Corrector):
     Args:
         height_mean_m, height_sd_m: the prior of the people's heights, metres (default: adults, NCD-RisC 2016,
             DEFAULT_HEIGHT_MEAN_M and DEFAULT_HEIGHT_SD_M).
+        height_mean_sigma_m: the 1-sigma uncertainty of height_mean_m itself, metres (DEFAULT_HEIGHT_MEAN_SIGMA_M:
+            its sources are at its declaration; 0 for a mean measured on these people): part of
+            horizon_sigma_px_ and of ground_uncertainty. Bounds: SETTINGS.
         model: the corrected mapping (``transformer_``: the image trapezoid that maps with it onto the clicked
             map trapezoid, whose site-map frame is kept):
             "camera" (the default): the camera's own ground mapping (K, the camera height, the fitted tilt,
@@ -242,9 +268,10 @@ class PedestrianCorrector(Corrector):
     Fit with ``fit(transformer, xyxy, convention=..., ...)``.
 
     Attributes after fit (or load): horizon_row_ (the fitted horizon, px at the principal column),
-    clicked_horizon_row_, horizon_sigma_px_ (its 1-sigma uncertainty from the people's spread and number),
-    mean_sensitivity_px_per_cm_ (the horizon's move, px, per cm the prior mean is off: not reduced by more
-    people), tilt_deg_, rotation_deg_ (delta), focal_px_, principal_point_ (cx, cy), camera_height_m_,
+    clicked_horizon_row_, horizon_sigma_px_ (its 1-sigma uncertainty: horizon_sigma_people_px_, from the
+    people's spread and number, and height_mean_sigma_m times the horizon's move per metre of the prior mean,
+    in quadrature), mean_sensitivity_px_per_cm_ (the horizon's move, px, per cm the prior mean is off: not
+    reduced by more people), tilt_deg_, rotation_deg_ (delta), focal_px_, principal_point_ (cx, cy), camera_height_m_,
     yaw_deg_ (model "camera"; NaN for "rotation"), focal_source_ and camera_height_source_ ("given" or
     "clicked mapping"), n_boxes_, n_border_ (cut by the image border, not used), n_outliers_ (beyond
     OUTLIER_SIGMAS), n_people_ (tracks), n_people_used_, transformer_, m, plus those of ``Corrector``
@@ -252,21 +279,18 @@ class PedestrianCorrector(Corrector):
     """
 
     method = "pedestrians"
-    param_names = ("height_mean_m", "height_sd_m", "model")
+    param_names = ("height_mean_m", "height_sd_m", "model", "height_mean_sigma_m")
 
     def __init__(self, height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
-                 model: str = "camera") -> None:
+                 model: str = "camera", height_mean_sigma_m: float = DEFAULT_HEIGHT_MEAN_SIGMA_M) -> None:
         if model not in MODELS:
             raise ValueError(f"model {model!r}: expected one of {', '.join(MODELS)}")
         self.model = model
-        mean, sd = (float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else math.nan
-                    for x in (height_mean_m, height_sd_m))
-        if not 0.5 <= mean <= 2.5:
-            raise ValueError(f"height_mean_m must be a number of metres in [0.5, 2.5], got {height_mean_m!r}")
-        if not 0.01 <= sd <= mean / 4:
-            raise ValueError(f"height_sd_m must be in [0.01, height_mean_m / 4] m (people's heights spread), got "
-                             f"{height_sd_m!r}")
-        self.height_mean_m, self.height_sd_m = mean, sd
+        self.height_mean_m, self.height_sd_m, self.height_mean_sigma_m = (
+            float(SETTINGS[name].check(name, value)) for name, value in (("height_mean_m", height_mean_m), ("height_sd_m", height_sd_m),
+                                ("height_mean_sigma_m", height_mean_sigma_m)))
+        if self.height_sd_m > self.height_mean_m / 4:
+            raise OptionError("height_sd_m", height_sd_m, f"expected at most height_mean_m / 4 = {self.height_mean_m / 4:g} m")
 
     def fit(self, transformer: ViewTransformer, xyxy: np.ndarray, *, convention: str, frames: np.ndarray | None = None,
             track_ids: np.ndarray | None = None, camera_height_m: float | None = None, K: np.ndarray | None = None,
@@ -318,10 +342,14 @@ class PedestrianCorrector(Corrector):
             principal, focal, self.focal_source_ = (float(K[0, 2]), float(K[1, 2])), float(K[1, 1]), "given"
         self.focal_px_, self.principal_point_ = focal, principal
         if camera_height_m is None:
-            camera_height_m, self.camera_height_source_ = camera_height_from_homography(transformer.m, self.K), "clicked mapping"
+            self.camera_height_source_ = "clicked mapping"
+            try:
+                self.camera_height_m_ = _check_camera_height(camera_height_from_homography(transformer.m, self.K))
+            except OptionError as e:
+                raise ValueError(f"the clicked mapping implies a camera height of {e.value:.3g} m, "
+                                 f"{e.expected.removeprefix('expected ')}: give camera_height_m") from None
         else:
-            self.camera_height_source_ = "given"
-        self.camera_height_m_ = _check_camera_height(camera_height_m)
+            self.camera_height_source_, self.camera_height_m_ = "given", _check_camera_height(camera_height_m)
         clicked_row = float(transformer.horizon_row(principal[0]))
         if not (edges[:, 3] > transformer.horizon_row((edges[:, 0] + edges[:, 2]) / 2)).any():
             raise ValueError(f"xyxy: all {n} boxes have their bottom edge on or above the clicked mapping's horizon "
@@ -338,8 +366,9 @@ class PedestrianCorrector(Corrector):
         self.camera_origin_ = check_camera_origin(camera_origin)
         self.horizon_row_ = horizon_row(fit["tilt"], focal, principal[1])
         secant2 = 1.0 + math.tan(fit["tilt"]) ** 2
-        self.horizon_sigma_px_ = focal * secant2 * fit["tilt_sigma"]
+        self.horizon_sigma_people_px_ = focal * secant2 * fit["tilt_sigma"]
         self.mean_sensitivity_px_per_cm_ = abs(focal * secant2 * fit["mean_sensitivity"]) / 100.0
+        self._set_horizon_sigma()
         self.n_boxes_, self.n_border_ = n, int(border.sum())
         self.n_outliers_ = int(used.sum() - fit["inlier_boxes"].sum())
         self.n_people_, self.n_people_used_ = len(np.unique(tracks[used])), fit["n_people"]
@@ -375,6 +404,12 @@ class PedestrianCorrector(Corrector):
         """(3, 3) the intrinsics the fit used."""
         f, (cx, cy) = self.focal_px_, self.principal_point_
         return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+
+    def _set_horizon_sigma(self) -> None:
+        """horizon_sigma_px_: the people's sigma and the prior mean's (height_mean_sigma_m times the horizon's move
+        per metre of it) added in quadrature; the people's alone where the sensitivity is unknown (NaN)."""
+        prior = self.mean_sensitivity_px_per_cm_ * 100.0 * self.height_mean_sigma_m
+        self.horizon_sigma_px_ = math.hypot(self.horizon_sigma_people_px_, prior if math.isfinite(prior) else 0.0)
 
     def _set_transformer(self) -> None:
         """clicked_horizon_row_, tilt_deg_, rotation_deg_, yaw_deg_ and transformer_ from the base transformer, K,
@@ -458,8 +493,9 @@ class PedestrianCorrector(Corrector):
         return obj
 
     def _fitted_state(self) -> dict:
-        sigma = self.horizon_sigma_px_
+        sigma, people = self.horizon_sigma_px_, self.horizon_sigma_people_px_
         return {"horizon_row": self.horizon_row_, "horizon_sigma_px": sigma if math.isfinite(sigma) else None,
+                "horizon_sigma_people_px": people if math.isfinite(people) else None,
                 "mean_sensitivity_px_per_cm": float_or_none(self.mean_sensitivity_px_per_cm_),
                 "focal_px": self.focal_px_, "principal_point": list(self.principal_point_),
                 "focal_source": self.focal_source_, "camera_height_m": self.camera_height_m_,
@@ -478,10 +514,12 @@ class PedestrianCorrector(Corrector):
             raise ValueError(f"field fitted.principal_point: expected [cx, cy], got {pp!r}")
         self.principal_point_ = tuple(number(x, "fitted.principal_point") for x in pp)
         self.horizon_row_ = number(state["horizon_row"], "fitted.horizon_row")
-        sigma = state["horizon_sigma_px"]
-        self.horizon_sigma_px_ = math.inf if sigma is None else number(sigma, "fitted.horizon_sigma_px", minimum=0)
         sens = state["mean_sensitivity_px_per_cm"]
         self.mean_sensitivity_px_per_cm_ = math.nan if sens is None else number(sens, "fitted.mean_sensitivity_px_per_cm", minimum=0)
+        key = "horizon_sigma_people_px" if "horizon_sigma_people_px" in state else "horizon_sigma_px"  # older files: the people's
+        sigma = state[key]
+        self.horizon_sigma_people_px_ = math.inf if sigma is None else number(sigma, f"fitted.{key}", minimum=0)
+        self._set_horizon_sigma()
         for key in ("focal_source", "camera_height_source"):
             if state[key] not in ("given", "clicked mapping"):
                 raise ValueError(f"field fitted.{key}: expected 'given' or 'clicked mapping', got {state[key]!r}")
@@ -509,10 +547,10 @@ def _check_boxes(xyxy, convention: str) -> np.ndarray:
         raise ValueError("xyxy: no boxes")
     bad = np.flatnonzero(~(np.abs(edges) <= 1e9).all(axis=1))
     if bad.size:
-        raise ValueError(f"xyxy[{bad[0]}] = {np.asarray(xyxy)[bad[0]].tolist()} is not finite (or beyond 1e9 px)")
+        raise ValueError(f"xyxy: box {bad[0]} (from 0) = {np.asarray(xyxy)[bad[0]].tolist()} is not finite (or beyond 1e9 px)")
     bad = np.flatnonzero(~((edges[:, 3] > edges[:, 1]) & (edges[:, 2] > edges[:, 0])))
     if bad.size:
-        raise ValueError(f"xyxy[{bad[0]}] = {np.asarray(xyxy)[bad[0]].tolist()} is upside down or empty (needs "
+        raise ValueError(f"xyxy: box {bad[0]} (from 0) = {np.asarray(xyxy)[bad[0]].tolist()} is upside down or empty (needs "
                          "x1 < x2 and y1 < y2: y1 the top edge, y2 the bottom edge, image rows counted down)")
     return edges
 
@@ -536,10 +574,8 @@ def _check_image_size(image_size) -> tuple[int, int] | None:
 
 
 def _check_camera_height(value) -> float:
-    h = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else math.nan
-    if not 0 < h <= MAX_CAMERA_HEIGHT_M:
-        raise ValueError(f"camera_height_m must be in (0, {MAX_CAMERA_HEIGHT_M:g}] m, got {value!r}")
-    return h
+    """camera_height_m as a float within SETTINGS' bounds; OptionError naming camera_height_m otherwise."""
+    return float(SETTINGS["camera_height_m"].check("camera_height_m", value))
 
 
 def _on_border(edges: np.ndarray, size: tuple[int, int]) -> np.ndarray:

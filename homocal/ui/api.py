@@ -22,6 +22,7 @@ import numpy as np
 from homocal.correctors.base import MAX_REFERENCE_POINTS, Corrector, load_corrector
 from homocal.correctors.catalogue import Method, fit_note, get_method, method_of, quality
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
+from homocal.correctors.pedestrians import SETTINGS as PEDESTRIAN_SETTINGS
 from homocal.correctors.serialization import float_or_none
 from homocal.files import read_json, read_points_csv, write_json_atomic, write_text_atomic
 from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, signed_area, validate_quad
@@ -111,14 +112,14 @@ def _complete_transformer(session: Session, req: dict) -> ViewTransformer:
 
 def method_request(req: dict) -> tuple[Method, dict]:
     """The request's method (the catalogue's name) and the settings the page gives it: seed (an integer in
-    [0, 2**64)), threshold (percent, [0, 100]), height_mean_m and height_sd_m (metres: the constructor checks
-    them), homocal fit's defaults if absent."""
+    [0, 2**64)), threshold (percent, [0, 100]), the pedestrian settings (PEDESTRIAN_SETTINGS' names, bounds and
+    units; the constructor checks them), homocal fit's defaults if absent."""
     method = get_method(req.get("method"))
     seed = _number(req, "seed", 0, 0, MAX_SEED)
     if seed != int(seed):
         raise ValueError(f"seed: expected an integer, got {req.get('seed')!r}")
     page = {"seed": int(req.get("seed", 0)), "threshold": _number(req, "threshold", DEFAULT_THRESHOLD, 0, 100),
-            **{k: _number(req, k, 1.0, -math.inf, math.inf) for k in ("height_mean_m", "height_sd_m") if req.get(k) is not None}}
+            **{k: req[k] for k in PEDESTRIAN_SETTINGS if req.get(k) is not None}}
     return method, {k: v for k, v in page.items() if k in method.settings}
 
 
@@ -158,7 +159,7 @@ def _box_settings(session: Session, req: dict) -> dict:
     elif detector is not None:
         raise ValueError(f"detector: {session.boxes.name} has no detectors to choose from")
     height = req.get("camera_height_m")
-    height = None if height is None else _number(req, "camera_height_m", 0, -math.inf, math.inf)
+    height = None if height is None else PEDESTRIAN_SETTINGS["camera_height_m"].check("camera_height_m", height)
     boxes = session.person_boxes(detector)
     return {"detector": detector, "camera_height_m": height, "boxes": boxes,
             "image_size": boxes.image_size or session.frame_size, "K": boxes.K}
@@ -297,10 +298,10 @@ def save(session: Session, req: dict) -> dict:
         camera = {"width": width, "height": height, **({} if K is None else {"K": K.tolist()})}
         detector, camera_height = box_settings["detector"], box_settings["camera_height_m"]
         given = {"--detector": None if detector is None else shlex.quote(detector),
-                 "--camera-height": None if camera_height is None else repr(camera_height)}
+                 PEDESTRIAN_SETTINGS["camera_height_m"].flag: None if camera_height is None else repr(camera_height)}
         flags = [f"--boxes {shlex.quote(str(session.boxes))}", *(f"{k} {v}" for k, v in given.items() if v is not None),
-                 f"--camera-json {shlex.quote(str(paths[3]))}", f"--height-mean {params['height_mean_m']!r}",
-                 f"--height-sd {params['height_sd_m']!r}"]
+                 f"--camera-json {shlex.quote(str(paths[3]))}",
+                 *(f"{PEDESTRIAN_SETTINGS[k].flag} {params[k]!r}" for k in method.settings)]
     write_json_atomic(paths[0], {"image": image.tolist(), "map": map_px.tolist(), "site_map": site})
     write_text_atomic(paths[1], buffer.getvalue())
     corrector.save(paths[2])

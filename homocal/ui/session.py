@@ -12,6 +12,8 @@ import numpy as np
 from homocal.boxes import PersonBoxes, read_boxes, read_detections_table
 from homocal.correctors.catalogue import DEFAULT_METHOD, METHODS
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
+from homocal.correctors.pedestrians import SETTINGS as PEDESTRIAN_SETTINGS
+from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.dataset import load_dataset
 from homocal.geometry import SiteMap
 
@@ -59,9 +61,19 @@ class Session:
             "box_methods": [name for name, m in METHODS.items() if m.evidence == "boxes"],  # fitted from boxes
             "boxes": None if self.boxes is None else {"file": str(self.boxes), "detectors": list(self.detectors),
                                                       "camera_height_m": self.camera_height_m},
+            "box_settings": box_settings(),
             "default_method": DEFAULT_METHOD,
             "threshold": DEFAULT_THRESHOLD,
         }
+
+
+def box_settings() -> list[dict]:
+    """The page's fields of a fit from boxes, one per PedestrianCorrector setting (its declaration: name, the id of
+    its field (the flag without dashes), bounds, unit, help, and its default; None: what none means)."""
+    defaults = PedestrianCorrector().get_params()
+    return [{"name": name, "id": opt.flag.lstrip("-"), "low": opt.kind.low, "high": opt.kind.high, "unit": opt.unit,
+             "help": opt.help, "default": defaults.get(name), "none": opt.none}
+            for name, opt in PEDESTRIAN_SETTINGS.items()]
 
 
 def from_files(frame: Path, site_map_image: Path, site_map: SiteMap, camera_origin, out_dir: Path,

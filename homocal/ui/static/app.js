@@ -62,7 +62,7 @@ function fitRequest() {
                 seed: number("seed"), threshold: number("threshold") };
   if (fromBoxes(req.method)) {  // the session's boxes file: the page names a detector of it, never a path
     if (S.info.boxes.detectors.length) req.detector = $("detector").value;
-    if ($("camera-height").value !== "") req.camera_height_m = number("camera-height");
+    for (const s of S.info.box_settings) if ($(s.id).value !== "") req[s.name] = number(s.id);
   }
   return req;
 }
@@ -528,7 +528,7 @@ function bind() {
   $("ellipse-scale").addEventListener("change", render);
   $("show-corrected").addEventListener("change", render);
   $("method").addEventListener("change", () => { $("boxes-fields").hidden = !fromBoxes($("method").value); invalidateFit(); render(); });
-  for (const id of ["detector", "camera-height"]) $(id).addEventListener("change", () => { invalidateFit(); render(); });
+  $("detector").addEventListener("change", () => { invalidateFit(); render(); });
   $("use-hand-placed").onclick = () => { S.trap = JSON.parse(JSON.stringify(S.info.dataset.hand_placed)); changeTrapezoid(null); };
   $("use-calibration").onclick = () => {
     S.points = S.info.dataset.calibration.map((p) => ({ u: p[0], v: p[1], x: p[2], y: p[3] }));
@@ -556,6 +556,15 @@ async function start() {
   $("method").value = S.info.default_method;
   $("threshold").value = S.info.threshold;
   if (S.info.dataset) { $("use-hand-placed").hidden = false; $("use-calibration").hidden = false; }
+  for (const s of S.info.box_settings) {  // one field per PedestrianCorrector setting, from its declaration
+    const input = Object.assign(document.createElement("input"), {
+      id: s.id, className: "num", type: "number", step: "0.01", min: s.low, max: s.high, title: s.help,
+      placeholder: s.default === null ? "" : String(s.default) });
+    input.addEventListener("change", () => { invalidateFit(); render(); });
+    const label = document.createElement("label");
+    label.append(`${s.id.replace(/-/g, " ")} `, input, ` ${s.unit}${s.default === null ? ` (empty: ${s.none})` : ""} `);
+    $("box-settings").append(label);
+  }
   if (S.info.boxes) {
     $("detector").replaceChildren(...S.info.boxes.detectors.map((d) => new Option(d)));  // names from the file: text, never HTML
     if (S.info.boxes.detectors.includes("segmentation")) $("detector").value = "segmentation";
