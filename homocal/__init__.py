@@ -17,6 +17,7 @@ from homocal.boxes import PersonBoxes, read_boxes
 from homocal.dataset import Dataset, load_dataset
 from homocal.error_model import ColumnModel, column_model, first_order_error, horizon_shift, quadratic_error
 from homocal.geometry import (
+    Lens,
     PinholeCamera,
     SiteMap,
     ViewTransformer,
@@ -34,6 +35,7 @@ __all__ = [
     "HorizonCorrector",
     "HybridCorrector",
     "LeastChangeCorrector",
+    "Lens",
     "PedestrianCorrector",
     "PersonBoxes",
     "PinholeCamera",

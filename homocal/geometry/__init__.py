@@ -1,4 +1,4 @@
-"""Geometry: the pinhole camera model, homographies from trapezoids, site-map units, box foot points."""
+"""Geometry: the pinhole camera model, the lens (distortion), homographies from trapezoids, site-map units, box foot points."""
 from homocal.geometry.boxes import BOX_CONVENTIONS, box_bottom_points
 from homocal.geometry.camera import PinholeCamera
 from homocal.geometry.homography import (
@@ -12,11 +12,13 @@ from homocal.geometry.homography import (
     signed_area,
     validate_quad,
 )
+from homocal.geometry.lens import Lens
 from homocal.geometry.sitemap import SiteMap
 from homocal.geometry.trapezoid_file import read_trapezoid_file
 
 __all__ = [
     "BOX_CONVENTIONS",
+    "Lens",
     "MAX_COORDINATE",
     "PinholeCamera",
     "SiteMap",
