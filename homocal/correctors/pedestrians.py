@@ -61,6 +61,7 @@ from homocal.correctors.serialization import float_or_none, integer, number
 from homocal.geometry import ViewTransformer, apply_homography, as_points
 from homocal.geometry.boxes import box_edges, link_tracks
 from homocal.geometry.camera import tilt_homography
+from homocal.geometry.lens import Lens
 from homocal.study.options import Number, Option, OptionError
 
 # Adult heights, metres: NCD-RisC 2016 (eLife 5:e13410, "A century of trends in adult human height"), as
@@ -85,6 +86,9 @@ BORDER_PX = 1.0  # a box whose edge is within this of the image border is cut by
 MIN_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M = 0.5, 100.0  # below half a metre no box of a standing person fits
 MODELS = ("camera", "rotation")  # PedestrianCorrector's corrected mappings (its docstring); the first is the default
 GRID = 128  # tilt grid of the median start over its 90 degree range (then bisection)
+ROLL_SPREAD = 0.1  # roll is estimated (estimate_roll) when the used people's foot columns' interquartile range spans this share of the image width
+MAX_ROLL_DEG = 10.0  # a fitted roll beyond this is refused (a camera on a pole is rolled a degree or two)
+DIFF_STEP = 1e-7  # radians: central-difference step of the people's heights in fit_tilt_roll
 SETTINGS = {
     "height_mean_m": Option("--height-mean", Number(0.5, 2.5), "the people's mean height (the default: adults, "
                             "docs/pedestrians.md)", metavar="M", unit="m"),
@@ -244,6 +248,79 @@ def fit_tilt(foot_rows: np.ndarray, head_rows: np.ndarray, tracks: np.ndarray, f
     return {"tilt": tilt, "tilt_sigma": tilt_sigma, "mean_sensitivity": sensitivity, "inlier_boxes": inliers,
             "n_people": len(people), "rounds": rounds}
 
+def derolled_rows(points: np.ndarray, roll: float, principal: tuple[float, float]) -> np.ndarray:
+    """Rows (N,) of image points (N, 2) px as the camera turned back by ``roll`` radians about its optical axis sees
+    them (the image rotated by -roll about the principal point (cx, cy); square pixels):
+    -sin(roll) (u - cx) + cos(roll) (v - cy) + cy. Roll 0: the rows themselves."""
+    c, s = math.cos(roll), math.sin(roll)
+    return principal[1] - s * (points[:, 0] - principal[0]) + c * (points[:, 1] - principal[1])
+
+
+def roll_homography(K: np.ndarray, roll: float) -> np.ndarray:
+    """(3, 3) image homography K R_z(roll) K^-1: the image rotated by ``roll`` radians about the principal point
+    (x right, y down; fx = fy), as rolling the camera by -roll moves it. roll_homography(K, -roll) takes a rolled
+    camera's image to the unrolled one's (derolled_rows)."""
+    c, s = math.cos(roll), math.sin(roll)
+    return K @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.linalg.inv(K)
+
+
+def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_px: float,
+                  principal: tuple[float, float], camera_height_m: float, mean_m: float, sd_m: float,
+                  start: dict) -> dict:
+    """The camera's tilt and roll together from people's foot and head points (N, 2) px (undistorted), tracks
+    (N,), the focal length, principal point, camera height and height prior (fit_tilt's), from fit_tilt's result
+    ``start`` (roll 0): each person's implied height (the median of its inlier boxes') is a function of (tilt,
+    roll) through the derolled rows (derolled_rows) of its foot and head; the Huber score
+    sum_j psi((H_j - mu) / sigma) grad H_j = 0 is solved by Newton (grad H by central differences, DIFF_STEP), the
+    inlier set updated as in fit_tilt until it no longer changes. Uncertainty: the sandwich covariance
+    sigma^2 A^-1 (sum psi^2 grad H grad H^T) A^-1, A = sum psi' grad H grad H^T; the prior mean's effect
+    d(tilt, roll) / dmu = A^-1 sum psi' grad H.
+    Returns a dict: tilt, roll (radians), cov (2, 2) radians^2 (people), sensitivity (2,) radians per metre,
+    inlier_boxes (N,) bool, n_people, rounds. ValueError as fit_tilt, or for a roll beyond MAX_ROLL_DEG."""
+    inliers, beta = start["inlier_boxes"], np.array([start["tilt"], 0.0])
+
+    def box_heights(b: np.ndarray, f: np.ndarray, h: np.ndarray) -> np.ndarray:
+        rows = [np.arctan((derolled_rows(x, b[1], principal) - principal[1]) / focal_px) for x in (f, h)]
+        return _heights(rows[0], rows[1], b[0], camera_height_m)[0]
+
+    for rounds in range(1, MAX_ROUNDS + 1):
+        people, labels, counts = np.unique(tracks[inliers], return_inverse=True, return_counts=True)
+        if len(people) < MIN_PEOPLE:
+            raise ValueError(f"only {len(people)} people (tracks) have a box whose implied height is within "
+                             f"{OUTLIER_SIGMAS:g} sd of {mean_m:g} m: need at least {MIN_PEOPLE}")
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        f_in, h_in = foot[inliers], head[inliers]
+
+        def people_heights(b: np.ndarray) -> np.ndarray:
+            hb = box_heights(b, f_in, h_in)
+            return _group_medians(hb, hb, labels, starts, counts)[0]
+
+        def gradient(b: np.ndarray) -> np.ndarray:  # (P, 2) dH / d(tilt, roll)
+            return np.column_stack([(people_heights(b + e) - people_heights(b - e)) / (2 * DIFF_STEP)
+                                    for e in (np.array([DIFF_STEP, 0.0]), np.array([0.0, DIFF_STEP]))])
+
+        for _ in range(MAX_ROUNDS):
+            psi, dpsi = _huber((people_heights(beta) - mean_m) / sd_m)
+            J = gradient(beta)
+            step = -sd_m * np.linalg.lstsq((J * dpsi[:, None]).T @ J, J.T @ psi, rcond=None)[0]
+            beta = beta + step
+            if np.abs(step).max() < 1e-12:
+                break
+        if abs(math.degrees(beta[1])) > MAX_ROLL_DEG:
+            raise ValueError(f"the people imply a roll of {math.degrees(beta[1]):.1f} degrees, beyond "
+                             f"{MAX_ROLL_DEG:g}: are these boxes of standing people?")
+        new = np.abs(box_heights(beta, foot, head) - mean_m) <= OUTLIER_SIGMAS * sd_m
+        if np.array_equal(new, inliers):
+            break
+        inliers = new
+    psi, dpsi = _huber((people_heights(beta) - mean_m) / sd_m)
+    J = gradient(beta)
+    A_inv = np.linalg.pinv((J * dpsi[:, None]).T @ J)
+    cov = sd_m**2 * A_inv @ ((J * (psi * psi)[:, None]).T @ J) @ A_inv
+    return {"tilt": float(beta[0]), "roll": float(beta[1]), "cov": cov, "sensitivity": A_inv @ (J.T @ dpsi),
+            "inlier_boxes": inliers, "n_people": len(people), "rounds": rounds}
+
+
 class PedestrianCorrector(Corrector):
     """The clicked mapping corrected from people's boxes, with no reference point (module docstring).
 
@@ -279,13 +356,16 @@ class PedestrianCorrector(Corrector):
     """
 
     method = "pedestrians"
-    param_names = ("height_mean_m", "height_sd_m", "model", "height_mean_sigma_m")
+    param_names = ("height_mean_m", "height_sd_m", "model", "height_mean_sigma_m", "estimate_roll")
 
     def __init__(self, height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
-                 model: str = "camera", height_mean_sigma_m: float = DEFAULT_HEIGHT_MEAN_SIGMA_M) -> None:
+                 model: str = "camera", height_mean_sigma_m: float = DEFAULT_HEIGHT_MEAN_SIGMA_M,
+                 estimate_roll: bool = False) -> None:
         if model not in MODELS:
             raise ValueError(f"model {model!r}: expected one of {', '.join(MODELS)}")
-        self.model = model
+        if not isinstance(estimate_roll, bool):
+            raise ValueError(f"estimate_roll must be True or False, got {estimate_roll!r}")
+        self.model, self.estimate_roll = model, estimate_roll
         self.height_mean_m, self.height_sd_m, self.height_mean_sigma_m = (
             float(SETTINGS[name].check(name, value)) for name, value in (("height_mean_m", height_mean_m), ("height_sd_m", height_sd_m),
                                 ("height_mean_sigma_m", height_mean_sigma_m)))
@@ -296,7 +376,7 @@ class PedestrianCorrector(Corrector):
             track_ids: np.ndarray | None = None, camera_height_m: float | None = None, K: np.ndarray | None = None,
             image_size: tuple[int, int] | None = None, image_points: np.ndarray | None = None,
             ground_points: np.ndarray | None = None, camera_origin=(0.0, 0.0),
-            max_outlier_share: float = MAX_OUTLIER_SHARE) -> PedestrianCorrector:
+            max_outlier_share: float = MAX_OUTLIER_SHARE, lens: Lens | None = None) -> PedestrianCorrector:
         """Fit from people's boxes.
 
         Args:
@@ -314,6 +394,10 @@ class PedestrianCorrector(Corrector):
                 used by the fit, their mean errors before and after are error_before_ and error_after_.
             max_outlier_share: the largest share of outlier boxes, and of rejected people, a fit accepts (1: none
                 refused, to measure what a refused fit reaches; research/pedestrians.py --accept-outliers).
+            lens: the camera's lens (homocal.geometry.Lens, the same K): the boxes' foot and head points (their
+                bottom and top edges' centres) are undistorted (Lens.undistort_points) before the fit; the
+                transformer, the check points and the corrected mapping are then in undistorted pixels. None:
+                a pinhole (the points as given).
         Returns self. ValueError naming the argument for bad input, and for a fit that cannot be trusted: fewer
         than MIN_PEOPLE inlier people, or more than max_outlier_share of the used boxes or of the people
         outliers (the median start and the inlier rounds break down there: HOG boxes gave a horizon 82 px off
@@ -351,7 +435,7 @@ class PedestrianCorrector(Corrector):
         else:
             self.camera_height_source_, self.camera_height_m_ = "given", _check_camera_height(camera_height_m)
         clicked_row = float(transformer.horizon_row(principal[0]))
-        if not (edges[:, 3] > transformer.horizon_row((edges[:, 0] + edges[:, 2]) / 2)).any():
+        if not (edges[:, 3] > transformer.horizon_row((edges[:, 0] + edges[:, 2]) / 2)).any():  # roughly, in any lens
             raise ValueError(f"xyxy: all {n} boxes have their bottom edge on or above the clicked mapping's horizon "
                              f"(row {clicked_row:.1f} at the principal column): none stands on its ground")
         border = np.zeros(n, bool) if size is None else _on_border(edges, size)
@@ -359,12 +443,25 @@ class PedestrianCorrector(Corrector):
             raise ValueError(f"xyxy: all {n} boxes touch the {size[0]}x{size[1]} image's border (cut by it)")
         if tracks is None:
             tracks = np.arange(n) if frames is None else link_tracks(frames, edges, max_gap=LINK_GAP)
-        used = ~border
-        fit = fit_tilt(edges[used, 3], edges[used, 1], tracks[used], focal, principal[1], self.camera_height_m_,
+        middle = (edges[:, 0] + edges[:, 2]) / 2
+        foot, head = np.column_stack([middle, edges[:, 3]]), np.column_stack([middle, edges[:, 1]])
+        if lens is not None:
+            foot, head = lens.undistort_points(foot), lens.undistort_points(head)  # NaN beyond the lens' fold
+        used = ~border & np.isfinite(foot).all(axis=1) & np.isfinite(head).all(axis=1)
+        fit = fit_tilt(foot[used, 1], head[used, 1], tracks[used], focal, principal[1], self.camera_height_m_,
                        self.height_mean_m, self.height_sd_m)
+        spread = np.subtract(*np.percentile(foot[used, 0], [75, 25])) if used.any() else 0.0
+        self.roll_estimated_ = bool(self.estimate_roll and size is not None and spread >= ROLL_SPREAD * size[0])
+        self.roll_deg_, self.tilt_roll_cov_, self.tilt_roll_sensitivity_ = 0.0, None, None
+        if self.roll_estimated_:
+            fit = fit_tilt_roll(foot[used], head[used], tracks[used], focal, principal, self.camera_height_m_,
+                                self.height_mean_m, self.height_sd_m, fit)
+            self.roll_deg_ = math.degrees(fit["roll"])
+            self.tilt_roll_cov_, self.tilt_roll_sensitivity_ = fit["cov"], fit["sensitivity"]
+            fit["tilt_sigma"], fit["mean_sensitivity"] = math.sqrt(fit["cov"][0, 0]), fit["sensitivity"][0]
         self.base_transformer_ = transformer
         self.camera_origin_ = check_camera_origin(camera_origin)
-        self.horizon_row_ = horizon_row(fit["tilt"], focal, principal[1])
+        self.horizon_row_ = principal[1] + (horizon_row(fit["tilt"], focal, principal[1]) - principal[1]) / math.cos(fit["roll"] if self.roll_estimated_ else 0.0)
         secant2 = 1.0 + math.tan(fit["tilt"]) ** 2
         self.horizon_sigma_people_px_ = focal * secant2 * fit["tilt_sigma"]
         self.mean_sensitivity_px_per_cm_ = abs(focal * secant2 * fit["mean_sensitivity"]) / 100.0
@@ -400,10 +497,37 @@ class PedestrianCorrector(Corrector):
         return other
 
     @property
+    def roll_sigma_deg_(self) -> float:
+        """The fitted roll's 1-sigma uncertainty, degrees (the people's and the prior mean's); NaN when roll was not
+        estimated."""
+        if not self.roll_estimated_:
+            return math.nan
+        s = self.tilt_roll_sensitivity_
+        return math.degrees(math.sqrt(self.tilt_roll_cov_[1, 1] + (self.height_mean_sigma_m * s[1]) ** 2))
+
+    @property
     def K(self) -> np.ndarray:
         """(3, 3) the intrinsics the fit used."""
         f, (cx, cy) = self.focal_px_, self.principal_point_
         return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+
+    def _set_roll_state(self, roll) -> None:
+        """roll_estimated_, roll_deg_, tilt_roll_cov_, tilt_roll_sensitivity_ from the fitted state's "roll" (None:
+        not estimated, as files written without it); ValueError for what fit could not write."""
+        self.roll_estimated_, self.roll_deg_, self.tilt_roll_cov_, self.tilt_roll_sensitivity_ = False, 0.0, None, None
+        if roll is None:
+            return
+        try:
+            deg = number(roll["deg"], "fitted.roll.deg")
+            cov = np.array(roll["tilt_roll_cov_rad2"], dtype=np.float64)
+            sens = np.array(roll["tilt_roll_sensitivity_rad_per_m"], dtype=np.float64)
+        except (KeyError, TypeError, ValueError) as e:
+            raise ValueError(f"field fitted.roll: expected deg, tilt_roll_cov_rad2 and tilt_roll_sensitivity_rad_per_m ({e})") from None
+        if not (abs(deg) <= MAX_ROLL_DEG and cov.shape == (2, 2) and sens.shape == (2,) and np.isfinite(cov).all()
+                and np.isfinite(sens).all() and np.allclose(cov, cov.T) and (np.linalg.eigvalsh(cov) >= -1e-18).all()):
+            raise ValueError(f"field fitted.roll: expected |deg| <= {MAX_ROLL_DEG:g}, a symmetric (2, 2) covariance "
+                             "and (2,) sensitivities, all finite")
+        self.roll_estimated_, self.roll_deg_, self.tilt_roll_cov_, self.tilt_roll_sensitivity_ = True, deg, cov, sens
 
     def _set_horizon_sigma(self) -> None:
         """horizon_sigma_px_: the people's sigma and the prior mean's (height_mean_sigma_m times the horizon's move
@@ -419,14 +543,15 @@ class PedestrianCorrector(Corrector):
         f, (cx, cy) = self.focal_px_, self.principal_point_
         base = self.base_transformer_
         self.clicked_horizon_row_ = float(base.horizon_row(cx))
-        tilt = math.atan((cy - self.horizon_row_) / f)
+        roll = math.radians(self.roll_deg_)
+        tilt = math.atan((cy - self.horizon_row_) * math.cos(roll) / f)
         delta = math.atan((cy - self.clicked_horizon_row_) / f) - tilt
         self.tilt_deg_, self.rotation_deg_ = math.degrees(tilt), math.degrees(delta)
         source = apply_homography(tilt_homography(self.K, -delta), base.source)  # the clicked corners turned back
         self.yaw_deg_ = math.nan
         if self.model == "camera":
             level = self.K @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, self.camera_height_m_], [0.0, 1.0, 0.0]])
-            camera = np.linalg.inv(level) @ tilt_homography(self.K, -tilt)  # image -> ground, the camera's frame
+            camera = np.linalg.inv(level) @ tilt_homography(self.K, -tilt) @ roll_homography(self.K, -roll)  # image -> ground
             w, t = apply_homography(camera, source), base.target - self.camera_origin_
             yaw = float(np.angle(np.sum((t[:, 0] + 1j * t[:, 1]) * np.conj(w[:, 0] + 1j * w[:, 1]))))
             turn = np.array([[math.cos(yaw), -math.sin(yaw), self.camera_origin_[0]],
@@ -464,15 +589,20 @@ class PedestrianCorrector(Corrector):
         q = as_points(image_points, "image_points")
         cov = super().ground_uncertainty(q, click_sigma_px, point_sigma_px, map_sigma_px)
         f, cy = self.focal_px_, self.principal_point_[1]
-        tilt = math.atan((cy - self.horizon_row_) / f)
+        roll = math.radians(self.roll_deg_)
+        tilt = math.atan((cy - self.horizon_row_) * math.cos(roll) / f)
         step = 1e-6
-        moved = []
-        for sign in (1.0, -1.0):  # the tilt moved by +-step: the corrected mapping's rotation by -+step
-            G = tilt_homography(self.K, -sign * step)
-            moved.append(apply_homography(self.m @ G, q))
-        J = (moved[0] - moved[1]) / (2 * step)
-        tilt_sigma = self.horizon_sigma_px_ / (f * (1.0 + math.tan(tilt) ** 2))
-        return cov + tilt_sigma**2 * J[:, :, None] * J[:, None, :]
+        turns = {"tilt": lambda e: roll_homography(self.K, roll) @ tilt_homography(self.K, -e) @ roll_homography(self.K, -roll),
+                 "roll": lambda e: roll_homography(self.K, -e)}  # the camera's tilt or roll moved by e, as the mapping sees it
+        J = np.stack([(apply_homography(self.m @ turn(step), q) - apply_homography(self.m @ turn(-step), q)) / (2 * step)
+                      for turn in turns.values()], axis=-1)  # (N, 2, 2): d(x, y) / d(tilt, roll)
+        if self.roll_estimated_:
+            s = self.tilt_roll_sensitivity_
+            angles = self.tilt_roll_cov_ + self.height_mean_sigma_m**2 * np.outer(s, s)
+        else:
+            tilt_sigma = self.horizon_sigma_px_ / (f * (1.0 + math.tan(tilt) ** 2))
+            angles = np.diag([tilt_sigma**2, 0.0])
+        return cov + J @ angles @ np.swapaxes(J, 1, 2)
 
     # ---- JSON ----------------------------------------------------------------------------------
     def to_dict(self) -> dict:
@@ -501,7 +631,10 @@ class PedestrianCorrector(Corrector):
                 "focal_source": self.focal_source_, "camera_height_m": self.camera_height_m_,
                 "camera_height_source": self.camera_height_source_, "n_boxes": self.n_boxes_,
                 "n_border": self.n_border_, "n_outliers": self.n_outliers_, "n_people": self.n_people_,
-                "n_people_used": self.n_people_used_}
+                "n_people_used": self.n_people_used_,
+                "roll": None if not self.roll_estimated_ else {
+                    "deg": self.roll_deg_, "tilt_roll_cov_rad2": self.tilt_roll_cov_.tolist(),
+                    "tilt_roll_sensitivity_rad_per_m": self.tilt_roll_sensitivity_.tolist()}}
 
     def _set_fitted_state(self, state: dict) -> None:
         """Check what fit could have produced: finite numbers, a focal length > 0, a camera height in bounds,
@@ -533,6 +666,7 @@ class PedestrianCorrector(Corrector):
         self.n_outliers_ = integer(state["n_outliers"], "fitted.n_outliers", 0, self.n_boxes_ - self.n_border_)
         self.n_people_ = integer(state["n_people"], "fitted.n_people", 1, self.n_boxes_ - self.n_border_)
         self.n_people_used_ = integer(state["n_people_used"], "fitted.n_people_used", MIN_PEOPLE, self.n_people_)
+        self._set_roll_state(state.get("roll"))
         try:
             self._set_transformer()
         except ValueError as e:
