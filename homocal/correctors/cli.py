@@ -116,9 +116,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                      f"(default {DEFAULT_DETECTOR})")
     defaults = PedestrianCorrector().get_params()
     for name, opt in PEDESTRIAN_SETTINGS.items():
-        default = opt.none if name not in defaults else opt.to_text(defaults[name])
+        default = opt.none if defaults.get(name) is None else opt.to_text(defaults[name])
         fit.add_argument(opt.flag, dest=name, type=flag_type(opt), metavar=opt.metavar,
-                         help=f"pedestrians: {opt.help}, {opt.unit}, {opt.kind.describe()[9:]} (default: {default})")
+                         help=f"pedestrians: {opt.help}: {opt.expected()} (default: {default})")
     fit.add_argument("--camera-json", type=Path, metavar="CAMERA.json", help="pedestrians: the image size and "
                      "intrinsics K (see below; default: those beside the boxes file)")
     fit.set_defaults(handler=handle_fit)

@@ -5,7 +5,7 @@ a tilt error of the clicked trapezoid is exactly an image rotation: if its corne
 G = K R_x(delta) K^-1 (``homocal.geometry.camera.tilt_homography``), the true mapping is H_clicked . G. The
 people in view fix delta once the camera's height and the people's height distribution are known.
 
-Camera model (``homocal.geometry.camera``: pinhole, square pixels, roll 0, focal length f, principal row cy,
+Camera model (``homocal.geometry.camera``: pinhole, square pixels, roll 0 (below: Roll), focal length f, principal row cy,
 optical centre h_c above a flat ground, tilted theta below the horizontal). Image row v is the plane through
 the optical centre and the camera's horizontal x-axis, inclined theta + beta(v) below the horizontal,
 beta(v) = atan((v - cy) / f); the horizon is the row v_h = cy - f tan(theta). A person standing at forward
@@ -43,6 +43,12 @@ f sec^2(theta) |dtheta / dmu| sigma_mu in quadrature to the horizon's sigma. Wit
 tracks by box overlap (``homocal.geometry.boxes.link_tracks``); without frames either, every box counts as
 an independent person and the uncertainty is understated.
 
+Roll (``fit_tilt_roll``, PedestrianCorrector(estimate_roll=True)): a camera rolled by phi about its optical
+axis sees the unrolled camera's image rotated by phi about the principal point, so the same heights hold for
+the rows of the foot and head points turned back by -phi (``derolled_rows``); tilt and roll are fitted
+together when the people's foot columns spread over ROLL_SPREAD of the image width. Lens distortion: the
+boxes' foot and head points are undistorted first (``homocal.geometry.Lens``).
+
 What it takes from the clicked mapping: nothing for theta when K and h_c are given. Without K: the focal
 length from the clicked homography (``focal_from_homography``: principal point at the image centre, square
 pixels, zero skew); without h_c: the camera height from its decomposition with K
@@ -62,7 +68,7 @@ from homocal.geometry import ViewTransformer, apply_homography, as_points
 from homocal.geometry.boxes import box_edges, link_tracks
 from homocal.geometry.camera import tilt_homography
 from homocal.geometry.lens import Lens
-from homocal.study.options import Number, Option, OptionError
+from homocal.study.options import Number, Option, OptionError, YesNo
 
 # Adult heights, metres: NCD-RisC 2016 (eLife 5:e13410, "A century of trends in adult human height"), as
 # summarised by Our World in Data: the global mean of adults born in 1996 is 171 cm for men and 159 cm for
@@ -97,13 +103,15 @@ SETTINGS = {
     "height_mean_sigma_m": Option("--height-mean-sigma", Number(0.0, 0.5), "the 1-sigma uncertainty of the people's "
                                   "mean height (0: known exactly), part of the horizon's and every point's error "
                                   "bars", metavar="M", unit="m"),
+    "estimate_roll": Option("--estimate-roll", YesNo(), "fit the camera's "
+                            "roll with its tilt (the horizon as a line) when the people spread across the image",
+                            metavar="{yes,no}"),
     "camera_height_m": Option("--camera-height", Number(MIN_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M), "the camera's "
                               "height over the ground", metavar="M", unit="m", none="from the clicked trapezoid with K"),
 }
 """The settings of a pedestrian fit, each declared once (homocal.study.options.Option: flag, bounds, unit, help):
 PedestrianCorrector's checks (an OptionError names the parameter), homocal fit's flags and their error
-messages, and the page's fields derive from it. The first three are constructor parameters, camera_height_m
-fit's."""
+messages, and the page's fields derive from it. All but camera_height_m (fit's) are constructor parameters."""
 
 
 def implied_heights(foot_rows: np.ndarray, head_rows: np.ndarray, tilt: float, focal_px: float, cy: float,
@@ -189,6 +197,16 @@ def _group_medians(values: np.ndarray, slopes: np.ndarray, labels: np.ndarray, s
     return 0.5 * (values[lo] + values[hi]), 0.5 * (slopes[lo] + slopes[hi])
 
 
+def _people(tracks: np.ndarray, mean_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(people, labels, starts, counts) of the inlier boxes' tracks (M,) (np.unique's, with each group's start in
+    label order: _group_medians' arguments); ValueError for fewer than MIN_PEOPLE people."""
+    people, labels, counts = np.unique(tracks, return_inverse=True, return_counts=True)
+    if len(people) < MIN_PEOPLE:
+        raise ValueError(f"only {len(people)} people (tracks) have a box whose implied height is within "
+                         f"{OUTLIER_SIGMAS:g} sd of {mean_m:g} m: need at least {MIN_PEOPLE}")
+    return people, labels, np.concatenate([[0], np.cumsum(counts)[:-1]]), counts
+
+
 def fit_tilt(foot_rows: np.ndarray, head_rows: np.ndarray, tracks: np.ndarray, focal_px: float, cy: float,
              camera_height_m: float, mean_m: float, sd_m: float) -> dict:
     """The camera's tilt from people's boxes (module docstring, Fit and Uncertainty).
@@ -221,11 +239,7 @@ def fit_tilt(foot_rows: np.ndarray, head_rows: np.ndarray, tracks: np.ndarray, f
         if inliers is not None and np.array_equal(new, inliers):
             break
         inliers = new
-        people, labels, counts = np.unique(tracks[inliers], return_inverse=True, return_counts=True)
-        if len(people) < MIN_PEOPLE:
-            raise ValueError(f"only {len(people)} people (tracks) have a box whose implied height is within "
-                             f"{OUTLIER_SIGMAS:g} sd of {mean_m:g} m: need at least {MIN_PEOPLE}")
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        people, labels, starts, counts = _people(tracks[inliers], mean_m)
         bf, bt = beta_f[inliers], beta_t[inliers]
 
         def people_heights(t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -284,11 +298,7 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
         return _heights(rows[0], rows[1], b[0], camera_height_m)[0]
 
     for rounds in range(1, MAX_ROUNDS + 1):
-        people, labels, counts = np.unique(tracks[inliers], return_inverse=True, return_counts=True)
-        if len(people) < MIN_PEOPLE:
-            raise ValueError(f"only {len(people)} people (tracks) have a box whose implied height is within "
-                             f"{OUTLIER_SIGMAS:g} sd of {mean_m:g} m: need at least {MIN_PEOPLE}")
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        people, labels, starts, counts = _people(tracks[inliers], mean_m)
         f_in, h_in = foot[inliers], head[inliers]
 
         def people_heights(b: np.ndarray) -> np.ndarray:
@@ -330,6 +340,8 @@ class PedestrianCorrector(Corrector):
         height_mean_sigma_m: the 1-sigma uncertainty of height_mean_m itself, metres (DEFAULT_HEIGHT_MEAN_SIGMA_M:
             its sources are at its declaration; 0 for a mean measured on these people): part of
             horizon_sigma_px_ and of ground_uncertainty. Bounds: SETTINGS.
+        estimate_roll: fit the camera's roll with its tilt (fit_tilt_roll) when the people's foot columns spread
+            over ROLL_SPREAD of the image width (image_size given); otherwise, and by default, roll 0.
         model: the corrected mapping (``transformer_``: the image trapezoid that maps with it onto the clicked
             map trapezoid, whose site-map frame is kept):
             "camera" (the default): the camera's own ground mapping (K, the camera height, the fitted tilt,
@@ -351,7 +363,10 @@ class PedestrianCorrector(Corrector):
     reduced by more people), tilt_deg_, rotation_deg_ (delta), focal_px_, principal_point_ (cx, cy), camera_height_m_,
     yaw_deg_ (model "camera"; NaN for "rotation"), focal_source_ and camera_height_source_ ("given" or
     "clicked mapping"), n_boxes_, n_border_ (cut by the image border, not used), n_outliers_ (beyond
-    OUTLIER_SIGMAS), n_people_ (tracks), n_people_used_, transformer_, m, plus those of ``Corrector``
+    OUTLIER_SIGMAS), n_people_ (tracks), n_people_used_, roll_estimated_, roll_deg_ (0 unless estimated; the
+    horizon's slope in the image is tan(roll)), roll_sigma_deg_ (NaN unless estimated), tilt_roll_cov_ and
+    tilt_roll_sensitivity_ (the people's 2x2 covariance of (tilt, roll), rad^2, and their move per metre of the
+    prior mean; None unless estimated), transformer_, m, plus those of ``Corrector``
     (error_before_ and error_after_ on check points if fit had them, else NaN).
     """
 
@@ -363,9 +378,7 @@ class PedestrianCorrector(Corrector):
                  estimate_roll: bool = False) -> None:
         if model not in MODELS:
             raise ValueError(f"model {model!r}: expected one of {', '.join(MODELS)}")
-        if not isinstance(estimate_roll, bool):
-            raise ValueError(f"estimate_roll must be True or False, got {estimate_roll!r}")
-        self.model, self.estimate_roll = model, estimate_roll
+        self.model, self.estimate_roll = model, SETTINGS["estimate_roll"].check("estimate_roll", estimate_roll)
         self.height_mean_m, self.height_sd_m, self.height_mean_sigma_m = (
             float(SETTINGS[name].check(name, value)) for name, value in (("height_mean_m", height_mean_m), ("height_sd_m", height_sd_m),
                                 ("height_mean_sigma_m", height_mean_sigma_m)))

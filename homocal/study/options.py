@@ -113,6 +113,27 @@ class Words:
 
 
 @dataclass(frozen=True)
+class YesNo:
+    """True or False, written yes or no."""
+
+    def describe(self) -> str:
+        return "yes or no"
+
+    def check(self, value: Any) -> Any:
+        if not isinstance(value, bool):
+            raise ValueError
+        return value
+
+    def from_text(self, text: str) -> Any:
+        if text not in ("yes", "no"):
+            raise ValueError
+        return text == "yes"
+
+    def to_text(self, value: Any) -> str:
+        return "yes" if value else "no"
+
+
+@dataclass(frozen=True)
 class Parsed:
     """A value kept parsed in StudyParams and written as text in study.json (e.g. perturb.ShiftSpec): parse(text)
     gives it (a ValueError saying what it expects), str() gives its text; check takes it parsed, as text or as

@@ -52,6 +52,11 @@ def _number(req: dict, key: str, default: float, low: float, high: float) -> flo
     return float(value)
 
 
+def _flag_text(value) -> str:
+    """A setting's value as a command line takes it back exactly: yes or no, or the number's repr."""
+    return ("yes" if value else "no") if isinstance(value, bool) else repr(value)
+
+
 def _points(value, name: str, width: int, most: int | None = None) -> np.ndarray:
     """A list of points of ``width`` finite numbers within +/-MAX_COORDINATE each, as (N, width) float64."""
     if not isinstance(value, list) or (most is not None and len(value) > most):
@@ -301,7 +306,7 @@ def save(session: Session, req: dict) -> dict:
                  PEDESTRIAN_SETTINGS["camera_height_m"].flag: None if camera_height is None else repr(camera_height)}
         flags = [f"--boxes {shlex.quote(str(session.boxes))}", *(f"{k} {v}" for k, v in given.items() if v is not None),
                  f"--camera-json {shlex.quote(str(paths[3]))}",
-                 *(f"{PEDESTRIAN_SETTINGS[k].flag} {params[k]!r}" for k in method.settings)]
+                 *(f"{PEDESTRIAN_SETTINGS[k].flag} {_flag_text(params[k])}" for k in method.settings)]
     write_json_atomic(paths[0], {"image": image.tolist(), "map": map_px.tolist(), "site_map": site})
     write_text_atomic(paths[1], buffer.getvalue())
     corrector.save(paths[2])

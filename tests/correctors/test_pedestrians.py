@@ -28,9 +28,9 @@ from homocal.correctors.pedestrians import (
     roll_homography,
 )
 from homocal.geometry import PinholeCamera, ViewTransformer, apply_homography
-from homocal.geometry.lens import Lens
 from homocal.geometry.boxes import box_edges, link_tracks
 from homocal.geometry.camera import tilt_homography
+from homocal.geometry.lens import Lens
 from homocal.study.perturb import tilt_shift
 from homocal.uncertainty import ground_uncertainty
 

@@ -392,6 +392,8 @@ def _bad_pedestrian_inputs():
         ("height sd 0", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--height-sd", "0"], "argument --height-sd: expected a number in"),
         ("height sd above a quarter of the mean", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--height-sd", "0.5"],
          "argument --height-sd: expected at most height_mean_m / 4 = 0.4125 m, got 0.5"),
+        ("estimate roll not yes or no", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--estimate-roll", "1"],
+         "argument --estimate-roll: expected yes or no, got '1'"),
         ("height mean sigma negative", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--height-mean-sigma", "-1"],
          "argument --height-mean-sigma: expected a number in [0, 0.5] (m), got '-1'"),
         ("height mean nan", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--height-mean", "nan"],

@@ -62,7 +62,10 @@ function fitRequest() {
                 seed: number("seed"), threshold: number("threshold") };
   if (fromBoxes(req.method)) {  // the session's boxes file: the page names a detector of it, never a path
     if (S.info.boxes.detectors.length) req.detector = $("detector").value;
-    for (const s of S.info.box_settings) if ($(s.id).value !== "") req[s.name] = number(s.id);
+    for (const s of S.info.box_settings) {
+      if (s.low === null) req[s.name] = $(s.id).checked;  // yes or no
+      else if ($(s.id).value !== "") req[s.name] = number(s.id);
+    }
   }
   return req;
 }
@@ -557,12 +560,13 @@ async function start() {
   $("threshold").value = S.info.threshold;
   if (S.info.dataset) { $("use-hand-placed").hidden = false; $("use-calibration").hidden = false; }
   for (const s of S.info.box_settings) {  // one field per PedestrianCorrector setting, from its declaration
-    const input = Object.assign(document.createElement("input"), {
-      id: s.id, className: "num", type: "number", step: "0.01", min: s.low, max: s.high, title: s.help,
-      placeholder: s.default === null ? "" : String(s.default) });
+    const input = Object.assign(document.createElement("input"), s.low === null
+      ? { id: s.id, type: "checkbox", checked: s.default === true, title: s.help }
+      : { id: s.id, className: "num", type: "number", step: "0.01", min: s.low, max: s.high, title: s.help,
+          placeholder: s.default === null ? "" : String(s.default) });
     input.addEventListener("change", () => { invalidateFit(); render(); });
     const label = document.createElement("label");
-    label.append(`${s.id.replace(/-/g, " ")} `, input, ` ${s.unit}${s.default === null ? ` (empty: ${s.none})` : ""} `);
+    label.append(`${s.id.replace(/-/g, " ")} `, input, ` ${s.unit}${s.none ? ` (empty: ${s.none})` : ""} `);
     $("box-settings").append(label);
   }
   if (S.info.boxes) {
