@@ -5,8 +5,8 @@ a tilt error of the clicked trapezoid is exactly an image rotation: if its corne
 G = K R_x(delta) K^-1 (``homocal.geometry.camera.tilt_homography``), the true mapping is H_clicked . G. The
 people in view fix delta once the camera's height and the people's height distribution are known.
 
-Camera model (``homocal.geometry.camera``: pinhole, square pixels, roll 0 (below: Roll), focal length f, principal row cy,
-optical centre h_c above a flat ground, tilted theta below the horizontal). Image row v is the plane through
+Camera model (``homocal.geometry.camera``: pinhole, square pixels, roll 0 (below: Roll), focal length f,
+principal row cy, optical centre h_c above a flat ground, tilted theta below the horizontal). Image row v is the plane through
 the optical centre and the camera's horizontal x-axis, inclined theta + beta(v) below the horizontal,
 beta(v) = atan((v - cy) / f); the horizon is the row v_h = cy - f tan(theta). A person standing at forward
 distance Y (world y) whose box has its bottom edge (the nearest sole) on row v_f and its top edge (the top of
@@ -39,9 +39,9 @@ Uncertainty: the sandwich variance of the M-estimate over the people (tracks), s
 sigma^2 sum psi^2 H'^2 / (sum psi' H'^2)^2, as a horizon row sigma f sec^2(theta) sigma_theta (px); and the
 horizon's shift per centimetre of error in the prior mean (dtheta / dmu = sum psi' H' / sum psi' H'^2),
 which no number of people reduces: the prior mean's own uncertainty sigma_mu (height_mean_sigma_m) adds
-f sec^2(theta) |dtheta / dmu| sigma_mu in quadrature to the horizon's sigma. Without track ids, boxes in frames up to LINK_GAP apart are linked into
-tracks by box overlap (``homocal.geometry.boxes.link_tracks``); without frames either, every box counts as
-an independent person and the uncertainty is understated.
+f sec^2(theta) |dtheta / dmu| sigma_mu in quadrature to the horizon's sigma. Without track ids, boxes in
+frames up to LINK_GAP apart are linked into tracks by box overlap (``homocal.geometry.boxes.link_tracks``);
+without frames either, every box counts as an independent person and the uncertainty is understated.
 
 Roll (``fit_tilt_roll``, PedestrianCorrector(estimate_roll=True)): a camera rolled by phi about its optical
 axis sees the unrolled camera's image rotated by phi about the principal point, so the same heights hold for
@@ -92,7 +92,7 @@ BORDER_PX = 1.0  # a box whose edge is within this of the image border is cut by
 MIN_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M = 0.5, 100.0  # below half a metre no box of a standing person fits
 MODELS = ("camera", "rotation")  # PedestrianCorrector's corrected mappings (its docstring); the first is the default
 GRID = 128  # tilt grid of the median start over its 90 degree range (then bisection)
-ROLL_SPREAD = 0.1  # roll is estimated (estimate_roll) when the used people's foot columns' interquartile range spans this share of the image width
+ROLL_SPREAD = 0.1  # estimate_roll fits roll when the people's foot columns' interquartile range spans this share of the width
 MAX_ROLL_DEG = 10.0  # a fitted roll beyond this is refused (a camera on a pole is rolled a degree or two)
 DIFF_STEP = 1e-7  # radians: central-difference step of the people's heights in fit_tilt_roll
 SETTINGS = {
@@ -364,7 +364,8 @@ class PedestrianCorrector(Corrector):
     yaw_deg_ (model "camera"; NaN for "rotation"), focal_source_ and camera_height_source_ ("given" or
     "clicked mapping"), n_boxes_, n_border_ (cut by the image border, not used), n_outliers_ (beyond
     OUTLIER_SIGMAS), n_people_ (tracks), n_people_used_, roll_estimated_, roll_deg_ (0 unless estimated; the
-    horizon's slope in the image is tan(roll)), roll_sigma_deg_ (NaN unless estimated), tilt_roll_cov_ and
+    horizon's slope in the image is tan(roll_deg_): simgen's camera.json roll_deg is -roll_deg_), roll_sigma_deg_
+    (NaN unless estimated), tilt_roll_cov_ and
     tilt_roll_sensitivity_ (the people's 2x2 covariance of (tilt, roll), rad^2, and their move per metre of the
     prior mean; None unless estimated), transformer_, m, plus those of ``Corrector``
     (error_before_ and error_after_ on check points if fit had them, else NaN).
