@@ -26,8 +26,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from homocal.files import read_points_csv
-from homocal.geometry.boxes import box_edges, undistort_boxes
+from homocal.files import check_input_file, read_points_csv
+from homocal.geometry.boxes import MAX_BOXES_PER_FRAME, box_edges, undistort_boxes
 from homocal.geometry.camera_file import read_camera
 from homocal.geometry.lens import Lens
 
@@ -35,8 +35,12 @@ if TYPE_CHECKING:
     import pyarrow as pa  # pyarrow loads where a Parquet file is read (a cheap ``import homocal``)
 
 MOT_COLUMNS = (9, 10)
-MAX_MOT_BYTES = 2**28
-"""The largest MOT file read (256 MiB, some 4 million lines): read_mot refuses more, and streams beyond it."""
+MAX_BOXES_BYTES = 2**28
+"""The largest boxes file read, of any kind (256 MiB, some 4 million MOT lines): read_boxes refuses a larger
+file before reading it, read_mot a larger file or stream."""
+MAX_BOXES = 2**21
+"""The most boxes a file gives (2,097,152: a MOT, CSV or Parquet file with more rows is refused, as read so
+far, or from the Parquet metadata); with MAX_BOXES_PER_FRAME in a frame (homocal.geometry.boxes)."""
 MAX_LINE_CHARS = 1024
 """The longest line read_mot reads (a MOT line has ten numbers): it reads lines in pieces of this bound."""
 MOT_OFFSET = 1.5
@@ -57,10 +61,10 @@ def read_mot(path: str | os.PathLike, frames_total: int | None = None, size: tup
     and whose edges lie within one image width / height of it (when size (width, height) is given); conf in
     [0, 1] (MOTChallenge itself does not bound conf, "the detection confidence"; MOT17's DPM files hold raw SVM
     scores such as -0.3 or 2.3, but detections.parquet's score is in [0, 1]: map raw scores into it first).
-    Blank lines are skipped. The file is read in lines of at most MAX_LINE_CHARS and MAX_MOT_BYTES in all (a
+    Blank lines are skipped. The file is read in lines of at most MAX_LINE_CHARS, MAX_BOXES_BYTES and MAX_BOXES lines in all (a
     stream such as /dev/zero too).
     """
-    if os.path.isfile(path) and os.path.getsize(path) > MAX_MOT_BYTES:
+    if os.path.isfile(path) and os.path.getsize(path) > MAX_BOXES_BYTES:
         raise _too_large(path)
     try:
         with open(path, encoding="utf-8-sig") as f:  # tolerates a byte-order mark
@@ -75,7 +79,7 @@ def read_mot(path: str | os.PathLike, frames_total: int | None = None, size: tup
 
 def _bounded_lines(path, f):
     """The lines of the open text file ``f``, read in pieces: ValueError at a line longer than MAX_LINE_CHARS or
-    past MAX_MOT_BYTES characters in all."""
+    past MAX_BOXES_BYTES characters in all."""
     total = 0
     for number in itertools.count(1):
         line = f.readline(MAX_LINE_CHARS + 1)
@@ -84,13 +88,13 @@ def _bounded_lines(path, f):
         total += len(line)
         if len(line) > MAX_LINE_CHARS:
             raise ValueError(f"{path}: line {number}: longer than {MAX_LINE_CHARS} characters; not a MOTChallenge file")
-        if total > MAX_MOT_BYTES:
+        if total > MAX_BOXES_BYTES:
             raise _too_large(path)
         yield line
 
 
 def _too_large(path) -> ValueError:
-    return ValueError(f"{path}: larger than {MAX_MOT_BYTES >> 20} MiB (import-mot's bound); split it by frame")
+    return ValueError(f"{path}: larger than {MAX_BOXES_BYTES >> 20} MiB (the most a boxes file holds); split it by frame")
 
 
 def _parse_mot(path, f, frames_total: int | None, size: tuple[int, int] | None) -> tuple[list, list, list, list]:
@@ -99,6 +103,9 @@ def _parse_mot(path, f, frames_total: int | None, size: tuple[int, int] | None) 
     for number, line in enumerate(f, start=1):
         if not line.strip():
             continue
+        if len(frames) == MAX_BOXES:
+            raise ValueError(f"{path}: line {number}: more than {MAX_BOXES:,} boxes (the most a boxes file holds); "
+                             "split it by frame")
         fields = line.split(",")
         if len(fields) not in MOT_COLUMNS:
             raise ValueError(f"{path}: line {number}: expected 9 or 10 comma-separated values, got {len(fields)}")
@@ -173,15 +180,15 @@ def read_boxes(path: str | os.PathLike, detector: str | None = None, lens: Lens 
       the tracks), boxes as supervision's Detections.xyxy of YOLO-like models give them (convention
       "corners": pixel corners at integers), frames 0-based.
 
-    ValueError naming the file (and line or row) for anything else: a missing file, another extension, a
-    detector for a file that is not Parquet, a detector with no rows, no boxes, a value that is not a finite
-    number, a frame or track id that is not an integer >= 0, a box upside down or empty (read_mot refuses a
-    width or height <= 0; PedestrianCorrector.fit checks every box again), a lens whose image size is not the
-    file's, a box beyond the lens's fold, no lens for a detections.parquet whose camera.json has a distortion.
+    ValueError naming the file (and line or row) for anything else: a missing file, a folder or a device
+    (check_input_file), a file larger than MAX_BOXES_BYTES or with more than MAX_BOXES boxes, another
+    extension, a detector for a file that is not Parquet, a detector with no rows, no boxes, a value that is not
+    a finite number, a frame or track id that is not an integer >= 0, a box upside down or empty (read_mot
+    refuses a width or height <= 0; PedestrianCorrector.fit checks every box again), more than
+    MAX_BOXES_PER_FRAME boxes in a frame, a lens whose image size is not the file's, a box beyond the lens's
+    fold, no lens for a detections.parquet whose camera.json has a distortion.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such file")
+    path = check_input_file(path, MAX_BOXES_BYTES)
     kind = path.suffix.lower()
     if detector is not None and kind != ".parquet":
         raise ValueError(f"{path}: a detector name is for a dataset's detections.parquet, not a {kind or 'bare'} file")
@@ -193,6 +200,11 @@ def read_boxes(path: str | os.PathLike, detector: str | None = None, lens: Lens 
         boxes = _read_csv_boxes(path)
     else:
         raise ValueError(f"{path}: expected a MOTChallenge .txt, a detections .parquet or a .csv of frame,x1,y1,x2,y2")
+    numbers, counts = np.unique(boxes.frames, return_counts=True)
+    crowded = np.flatnonzero(counts > MAX_BOXES_PER_FRAME)
+    if crowded.size:
+        raise ValueError(f"{path}: frame {numbers[crowded[0]]} has {counts[crowded[0]]:,} boxes, more than "
+                         f"{MAX_BOXES_PER_FRAME:,} (the most per frame homocal reads)")
     if lens is None:  # boxes.lens here: the lens of the camera.json beside a detections.parquet (_read_detections)
         if boxes.lens is not None and not boxes.lens.is_identity:
             raise ValueError(f"{path}: the camera.json beside it has a lens distortion: give that lens (homocal fit "
@@ -225,11 +237,15 @@ def _read_mot_boxes(path: Path) -> PersonBoxes:
 
 
 def read_detections_table(path: str | os.PathLike, columns: list[str]) -> pa.Table:
-    """The ``columns`` of a detections.parquet; ValueError naming the file when it is not one."""
+    """The ``columns`` of a detections.parquet; ValueError naming the file when it is not one or has more than
+    MAX_BOXES rows (its metadata says, before any is read)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     try:
+        rows = pq.read_metadata(path).num_rows
+        if rows > MAX_BOXES:
+            raise ValueError(f"{path}: {rows:,} rows, more than {MAX_BOXES:,} (the most a boxes file holds)")
         return pq.read_table(path, columns=columns)
     except (pa.ArrowException, OSError) as e:
         raise ValueError(f"{path}: not a detections.parquet ({(str(e).splitlines() or [type(e).__name__])[0]})") from None
@@ -257,7 +273,8 @@ def _read_detections(path: Path, detector: str) -> PersonBoxes:
 
 
 def _read_csv_boxes(path: Path) -> PersonBoxes:
-    _, _, cols, lines = read_points_csv(path, CSV_COLUMNS, finite=True, optional=("track_id",))
+    _, _, cols, lines = read_points_csv(path, CSV_COLUMNS, finite=True, most=MAX_BOXES, optional=("track_id",),
+                                        keep_rows=False)
     if not lines:
         raise ValueError(f"{path}: no boxes (a header line, then one row per box: {','.join(CSV_COLUMNS)})")
     for name in ("frame", "track_id"):

@@ -11,6 +11,7 @@ import re
 import secrets
 import socket
 import time
+from array import array
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -112,14 +113,26 @@ class OutputFolder:
                 tmp.unlink()
 
 
-def read_json(path: str | Path, max_bytes: int | None = None) -> dict:
-    """Read a JSON object from path; ValueError (naming the file) if it is missing, unreadable, larger than
-    max_bytes (when given) or not an object."""
+def check_input_file(path: str | Path, max_bytes: int | None = None) -> Path:
+    """``path`` as a Path if it is a regular file (a symlink to one counts) of at most ``max_bytes`` bytes;
+    otherwise ValueError naming the file and what it is: no such file, a folder, not a regular file (a device
+    such as /dev/zero, a pipe, a socket), or larger than the bound (refused before any byte is read)."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise ValueError(f"{path}: no such file")
+    if path.is_dir():
+        raise ValueError(f"{path}: is a folder, not a file")
+    if not path.is_file():
+        raise ValueError(f"{path}: not a regular file (a device, a pipe or a socket)")
     if max_bytes is not None and path.stat().st_size > max_bytes:
-        raise ValueError(f"{path}: larger than {max_bytes} bytes: not a file of this kind")
+        raise ValueError(f"{path}: larger than {max_bytes / 2**20:g} MiB ({path.stat().st_size:,} bytes), the most read")
+    return path
+
+
+def read_json(path: str | Path, max_bytes: int | None = None) -> dict:
+    """Read a JSON object from path; ValueError (naming the file) if it is missing, not a regular file, larger
+    than max_bytes, unreadable or not an object (check_input_file)."""
+    path = check_input_file(path, max_bytes)
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as e:
@@ -307,28 +320,32 @@ def _lock(lock: Path, create: bool) -> int | None:
 
 # ---- input tables ---------------------------------------------------------------------------
 def read_points_csv(
-    path: str | Path, required: tuple[str, ...], finite: bool, most: int | None = None, optional: tuple[str, ...] = ()
+    path: str | Path, required: tuple[str, ...], finite: bool, most: int | None = None, optional: tuple[str, ...] = (),
+    max_bytes: int | None = None, keep_rows: bool = True,
 ) -> tuple[list[str], list[dict[str, str]], dict[str, np.ndarray], list[int]]:
     """Read a CSV of points with a header line (``homocal fit``'s REF.csv, ``apply``'s FEET.csv); return (column
-    names, rows as dicts of text, the ``required`` columns and those of ``optional`` the header has as (N,)
-    float64, the line number of each row).
+    names, rows as dicts of text (none kept unless ``keep_rows``: a large table's numbers alone), the
+    ``required`` columns and those of ``optional`` the header has as (N,) float64, the line number of each row).
 
-    ValueError naming the file (and line) for: a missing file or column, a column name given twice, text that
-    is not UTF-8, a row of the wrong length, a value that is not a number (or not finite, if ``finite``), more
-    than ``most`` rows (the file is read no further).
+    ValueError naming the file (and line) for: a missing file, a folder, a device, a file larger than
+    ``max_bytes`` (check_input_file), a missing column, a column name given twice, text that is not UTF-8 or
+    not CSV (a NUL byte, a field beyond csv's limit), a row of the wrong length, a value that is not a number
+    (or not finite, if ``finite``), more than ``most`` rows (the file is read no further).
     """
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"{path}: no such file")
+    path = check_input_file(path, max_bytes)
     try:
         with path.open(newline="", encoding="utf-8-sig") as f:
-            return _read_points(csv.reader(f), path, required, finite, most, optional)
+            reader = csv.reader(f)
+            try:
+                return _read_points(reader, path, required, finite, most, optional, keep_rows)
+            except csv.Error as e:
+                raise ValueError(f"{path}, line {reader.line_num + 1}: not a CSV file ({e})") from None
     except UnicodeDecodeError as e:
         raise ValueError(f"{path}: not UTF-8 text ({e})") from None
 
 
 def _read_points(reader, path: Path, required: tuple[str, ...], finite: bool, most: int | None,
-                 optional: tuple[str, ...]):
+                 optional: tuple[str, ...], keep_rows: bool):
     header = [name.strip() for name in next(reader, [])]
     twice = sorted({name for name in header if header.count(name) > 1})
     if twice:
@@ -338,11 +355,11 @@ def _read_points(reader, path: Path, required: tuple[str, ...], finite: bool, mo
         raise ValueError(f"{path}: missing column(s) {', '.join(missing)} in the header line "
                          f"(found: {', '.join(header) or 'nothing'}; expected {','.join(required)})")
     required = required + tuple(c for c in optional if c in header)
-    rows, values, lines = [], {c: [] for c in required}, []
+    rows, values, lines = [], {c: array("d") for c in required}, array("q")
     for fields in reader:
         if not fields:
             continue
-        if most is not None and len(rows) == most:
+        if most is not None and len(lines) == most:
             raise ValueError(f"{path}, line {reader.line_num}: more than {most:,} points (the most this command takes)")
         if len(fields) != len(header):
             raise ValueError(f"{path}, line {reader.line_num}: {len(fields)} fields, the header has {len(header)}")
@@ -355,6 +372,7 @@ def _read_points(reader, path: Path, required: tuple[str, ...], finite: bool, mo
             if finite and not math.isfinite(value):
                 raise ValueError(f"{path}, line {reader.line_num}: column {c}: {row[c]!r} is not a finite number")
             values[c].append(value)
-        rows.append(row)
+        if keep_rows:
+            rows.append(row)
         lines.append(reader.line_num)
-    return header, rows, {c: np.array(v, dtype=np.float64) for c, v in values.items()}, lines
+    return header, rows, {c: np.array(v, dtype=np.float64) for c, v in values.items()}, lines.tolist()

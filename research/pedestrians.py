@@ -27,7 +27,7 @@ Per variant: the corrector is fitted from the detector's boxes of the first --se
 mount_height_m, as a user who knows both; --estimate-camera: neither, the focal length and the camera height
 from each variant's clicked mapping). Per row:
   - the horizon error after the fit (fitted minus true row at the principal column, px): RMS, max |.|, and
-    the fit's own 1-sigma (median); with K and the camera height given it does not depend on the variant;
+    the fit's own 1-sigma from the people alone (horizon_sigma_people_px_, median); with K and the camera height given it does not depend on the variant;
   - the path improvement 100 (E_before - E_after) / E_before over the study's test points (StudyScene; E the
     mean of the study's --metric errors, homocal.study.shards.path_errors): positive share, median, 1st
     percentile, share below -100 % and failures over the variants, by the study's own statistics
@@ -168,7 +168,7 @@ def variant_rows(scene: StudyScene, params: StudyParams, ds: Dataset, xyxy: np.n
         rel_after = float(np.mean(relative_range_errors(after_points[near], scene.test_ground[near], o)))
         rows.append(row | {"path": 100 * (tables.path_before - after) / tables.path_before,
                            "rel_after": math.inf if math.isnan(rel_after) else rel_after,
-                           "horizon_error": corrector.horizon_row_ - scene.true_horizon_row, "sigma": corrector.horizon_sigma_px_,
+                           "horizon_error": corrector.horizon_row_ - scene.true_horizon_row, "sigma": corrector.horizon_sigma_people_px_,
                            "people_used": corrector.n_people_used_, "tracks": corrector.n_people_, "boxes": corrector.n_boxes_,
                            "outlier_boxes": corrector.n_outliers_, "border_boxes": corrector.n_border_})
     return rows
@@ -253,7 +253,7 @@ def end_to_end(path: str, kind: str, args) -> dict:
     after = relative_range_errors(loaded.transform_points(feet[keep]), ground[keep], np.zeros(2))
     before = relative_range_errors(clicked.transform_points(feet[keep]), ground[keep], np.zeros(2))
     return {"dataset": ds.name, "trapezoid": kind, "model": args.model, "K_given": args.give_k, "prior": [args.height_mean, args.height_sd], "clicked_horizon_above_true_px": true_row - corrector.clicked_horizon_row_,
-            "horizon_error_px": corrector.horizon_row_ - true_row, "horizon_sigma_px": corrector.horizon_sigma_px_,
+            "horizon_error_px": corrector.horizon_row_ - true_row, "horizon_sigma_px": corrector.horizon_sigma_people_px_,
             "focal_px": corrector.focal_px_, "true_focal_px": float(K[1, 1]), "points": int(keep.sum()),
             "median_rel_range_error_before": float(np.median(before) * 100),
             "median_rel_range_error_after": float(np.median(after) * 100), "people_used": corrector.n_people_used_}

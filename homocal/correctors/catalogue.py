@@ -26,6 +26,7 @@ from homocal.correctors.descent import DescentCorrector
 from homocal.correctors.horizon import HorizonCorrector
 from homocal.correctors.hybrid import HybridCorrector
 from homocal.correctors.least_change import LeastChangeCorrector
+from homocal.correctors.pedestrians import SETTINGS as PEDESTRIAN_SETTINGS
 from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.correctors.regression import RegressionCorrector
 
@@ -61,8 +62,9 @@ def _hybrid_note(c: HybridCorrector) -> str:
 def _pedestrians_note(c: PedestrianCorrector) -> str:
     return (f" Boxes: {c.n_boxes_} read, {c.n_border_} cut by the image border, {c.n_outliers_} outliers; people "
             f"(tracks): {c.n_people_used_} of {c.n_people_} used. Horizon row {c.horizon_row_:.2f} +- "
-            f"{c.horizon_sigma_px_:.2f} px (1 sigma; clicked {c.clicked_horizon_row_:.2f}), and "
-            f"{c.mean_sensitivity_px_per_cm_:.2f} px more per cm the prior mean height is off.")
+            f"{c.horizon_sigma_px_:.2f} px (1 sigma: the people's {c.horizon_sigma_people_px_:.2f} px and "
+            f"{c.mean_sensitivity_px_per_cm_:.2f} px per cm of the prior mean's {100 * c.height_mean_sigma_m:g} cm; "
+            f"clicked {c.clicked_horizon_row_:.2f}).")
 
 
 @dataclass(frozen=True)
@@ -122,7 +124,7 @@ CATALOGUE = (  # the study's columns in its order, then the methods it does not 
            "descent otherwise (Section 7)", settings=("threshold", "seed"), note=_hybrid_note),
     Method("pedestrians", None, PedestrianCorrector, "beyond the paper: the camera's tilt from people's boxes and "
            "their height distribution, with no reference point (docs/pedestrians.md)",
-           settings=("height_mean_m", "height_sd_m"), evidence="boxes", note=_pedestrians_note),
+           settings=tuple(k for k in PEDESTRIAN_SETTINGS if k in PedestrianCorrector.param_names), evidence="boxes", note=_pedestrians_note),
 )
 METHODS: dict[str, Method] = {m.name: m for m in CATALOGUE}
 DEFAULT_METHOD = "least-change"  # fit's, advise's and the page's default: near the best in every study setting

@@ -9,7 +9,6 @@ import argparse
 import csv
 import io
 import math
-import re
 import sys
 import warnings
 from pathlib import Path
@@ -22,21 +21,21 @@ from homocal.correctors.base import MAX_REFERENCE_POINTS, load_corrector
 from homocal.correctors.catalogue import DEFAULT_METHOD, LEAST_CHANGE_PRIORS, METHODS, fit_note, label, quality
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.least_change import LeastChangeCorrector
-from homocal.correctors.pedestrians import DEFAULT_HEIGHT_MEAN_M, DEFAULT_HEIGHT_SD_M
+from homocal.correctors.pedestrians import SETTINGS as PEDESTRIAN_SETTINGS
+from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.correctors.serialization import FORMAT
 from homocal.files import check_output_file, csv_header, json_format, read_points_csv, write_text_atomic
 from homocal.geometry import MAX_COORDINATE, CameraModel, ViewTransformer, read_trapezoid_file
 from homocal.geometry.lens import undistort_input
+from homocal.study.options import OptionError, flag_type
 from homocal.uncertainty import max_trustworthy_range, sigma_radius, straight_ahead_column
 from homocal.watch.folder import correction_at, load_stretches, watch_corrections
 
 LEAST_CHANGE = {k: LeastChangeCorrector().get_params()[k] for k in LEAST_CHANGE_PRIORS}  # fit's prior flags, defaults
 TRUST_TOLERANCE_M = 0.5  # homocal fit reports how far the 1-sigma error stays under this
 APPLIED = ("x", "y", "sigma_m", "status")  # the columns homocal apply adds (last in its output)
-BOX_FLAGS = {"boxes": "--boxes", "detector": "--detector", "camera_height": "--camera-height",
-             "height_mean": "--height-mean", "height_sd": "--height-sd"}
-LIBRARY_FLAGS = {"camera_height_m": "--camera-height", "height_mean_m": "--height-mean", "height_sd_m": "--height-sd",
-                 "image_size": "--camera-json's width, height", "K": "--camera-json's K"}  # PedestrianCorrector's parameters
+BOX_FLAGS = {"boxes": "--boxes", "detector": "--detector",
+             **{name: opt.flag for name, opt in PEDESTRIAN_SETTINGS.items()}}  # fit's flags of --method pedestrians
 
 FIT_FORMATS = """\
 TRAP.json, the trapezoid (vertices in the order TL, TR, BR, BL as seen in the image):
@@ -126,12 +125,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                      "detections.parquet or a .csv (see below)")
     fit.add_argument("--detector", metavar="NAME", help=f"pedestrians: the detector's rows of a detections.parquet "
                      f"(default {DEFAULT_DETECTOR})")
-    fit.add_argument("--camera-height", type=float, metavar="M", help="pedestrians: the camera's height over the "
-                     "ground, metres (default: from the clicked trapezoid with K)")
-    fit.add_argument("--height-mean", type=float, metavar="M", help="pedestrians: the people's mean height, metres "
-                     f"(default {DEFAULT_HEIGHT_MEAN_M:g}, adults: docs/pedestrians.md)")
-    fit.add_argument("--height-sd", type=float, metavar="M", help="pedestrians: the people's height spread, metres "
-                     f"(default {DEFAULT_HEIGHT_SD_M:g})")
+    defaults = PedestrianCorrector().get_params()
+    for name, opt in PEDESTRIAN_SETTINGS.items():
+        default = opt.none if defaults.get(name) is None else opt.to_text(defaults[name])
+        fit.add_argument(opt.flag, dest=name, type=flag_type(opt), metavar=opt.metavar,
+                         help=f"pedestrians: {opt.help}: {opt.expected()} (default: {default})")
     fit.add_argument("--camera-json", type=Path, metavar="CAMERA.json", help=CAMERA_JSON_HELP + "; it is saved "
                      "with the correction. Pedestrians: its image size and K (default: those beside the boxes file)")
     fit.set_defaults(handler=handle_fit)
@@ -211,39 +209,42 @@ def _fit_from_points(args: argparse.Namespace, method, transformer: ViewTransfor
 def _fit_from_boxes(args: argparse.Namespace, method, transformer: ViewTransformer, points: np.ndarray | None,
                     camera: CameraModel | None):
     """The fitted PedestrianCorrector of fit's flags (boxes undistorted with the camera's lens) and a phrase naming
-    its evidence; ValueError (a library parameter's name replaced by its flag, see LIBRARY_FLAGS) for bad input
-    or an untrustworthy fit."""
+    its evidence; ValueError naming the flag (or --boxes / --points) for bad input or an untrustworthy fit."""
     try:
-        corrector = method.make(height_mean_m=args.height_mean, height_sd_m=args.height_sd)
-    except ValueError as e:
-        raise ValueError(_flag_message(str(e))) from None
-    boxes = read_boxes(args.boxes, args.detector, None if camera is None else camera.lens)
-    size, K = boxes.image_size, boxes.K
-    if camera is not None:
-        size, K = camera.image_size, camera.K
-    check = {} if points is None else {"image_points": points[:, :2], "ground_points": points[:, 2:]}
-    try:
+        corrector = method.make(**{k: getattr(args, k) for k in method.settings})
+        boxes = _read_boxes(args, None if camera is None else camera.lens)
+        size, K = boxes.image_size, boxes.K
+        source = f"--boxes {args.boxes}'s folder"
+        if camera is not None:
+            size, K = camera.image_size, camera.K
+            source = f"--camera-json {args.camera_json}"
+        check = {} if points is None else {"image_points": points[:, :2], "ground_points": points[:, 2:]}
         corrector.fit(transformer, boxes.xyxy, convention="homocal", frames=boxes.frames, track_ids=boxes.track_ids,
-                      camera_height_m=args.camera_height, K=K, image_size=size, camera_origin=args.camera_origin,
+                      camera_height_m=args.camera_height_m, K=K, image_size=size, camera_origin=args.camera_origin,
                       **check)
+    except OptionError as e:  # a value within its own bounds that does not fit another (the sd and the mean)
+        raise ValueError(f"argument {PEDESTRIAN_SETTINGS[e.name].flag}: {e.expected}, got {e.value!r}") from None
     except ValueError as e:
-        if str(e).startswith("K and image_size"):
+        message = str(e)
+        if message.startswith("--"):  # already naming its flag (the boxes and camera readers')
+            raise
+        if message.startswith("K and image_size"):
             raise ValueError(f"--camera-json: needed ({args.boxes} gives neither the image size nor K)") from None
-        message = _flag_message(str(e))
-        if re.search(r"\b(image_points|ground_points)\b", message):  # the check points'
-            raise ValueError(f"{args.points}: {message}") from None
-        raise ValueError(message if message.startswith("--") else f"{args.boxes}: {message}") from None
+        if message.startswith(("K:", "image_size:")):  # the camera's, from --camera-json or the boxes' folder
+            raise ValueError(f"{source}: {message}") from None
+        if message.startswith(("image_points", "ground_points", "need at least 3 calibration")):  # the check points'
+            raise ValueError(f"--points {args.points}: {message}") from None
+        raise ValueError(f"--boxes {args.boxes}: {message.removeprefix('xyxy: ')}") from None
     checked = "" if points is None else f", checked on {len(points)} reference points"
     return corrector, f"{corrector.n_boxes_} boxes of {args.boxes}{checked}"
 
 
-def _flag_message(message: str) -> str:
-    """A PedestrianCorrector error with each library parameter named by its flag (LIBRARY_FLAGS); xyxy[i] is
-    box i of --boxes (counted from 0)."""
-    message = re.sub(r"\bxyxy\[(\d+)\]", r"box \1 (from 0)", message)
-    message = re.sub(r"^xyxy: ", "", message)
-    return re.sub(r"\b(" + "|".join(sorted(LIBRARY_FLAGS, key=len, reverse=True)) + r")\b",
-                  lambda m: LIBRARY_FLAGS[m.group(1)], message)
+def _read_boxes(args: argparse.Namespace, lens):
+    """read_boxes of --boxes (and --detector), undistorted with lens; its ValueError naming the flag."""
+    try:
+        return read_boxes(args.boxes, args.detector, lens)
+    except ValueError as e:
+        raise ValueError(f"--boxes {e}") from None
 
 
 def handle_apply(args: argparse.Namespace) -> int:

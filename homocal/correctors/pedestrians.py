@@ -5,8 +5,8 @@ a tilt error of the clicked trapezoid is exactly an image rotation: if its corne
 G = K R_x(delta) K^-1 (``homocal.geometry.camera.tilt_homography``), the true mapping is H_clicked . G. The
 people in view fix delta once the camera's height and the people's height distribution are known.
 
-Camera model (``homocal.geometry.camera``: pinhole, square pixels, roll 0, focal length f, principal row cy,
-optical centre h_c above a flat ground, tilted theta below the horizontal). Image row v is the plane through
+Camera model (``homocal.geometry.camera``: pinhole, square pixels, roll 0 (below: Roll), focal length f,
+principal row cy, optical centre h_c above a flat ground, tilted theta below the horizontal). Image row v is the plane through
 the optical centre and the camera's horizontal x-axis, inclined theta + beta(v) below the horizontal,
 beta(v) = atan((v - cy) / f); the horizon is the row v_h = cy - f tan(theta). A person standing at forward
 distance Y (world y) whose box has its bottom edge (the nearest sole) on row v_f and its top edge (the top of
@@ -38,9 +38,16 @@ for scene1's segmentation boxes), carry little.
 Uncertainty: the sandwich variance of the M-estimate over the people (tracks), sigma_theta^2 =
 sigma^2 sum psi^2 H'^2 / (sum psi' H'^2)^2, as a horizon row sigma f sec^2(theta) sigma_theta (px); and the
 horizon's shift per centimetre of error in the prior mean (dtheta / dmu = sum psi' H' / sum psi' H'^2),
-which no number of people reduces. Without track ids, boxes in frames up to LINK_GAP apart are linked into
-tracks by box overlap (``homocal.geometry.boxes.link_tracks``); without frames either, every box counts as
-an independent person and the uncertainty is understated.
+which no number of people reduces: the prior mean's own uncertainty sigma_mu (height_mean_sigma_m) adds
+f sec^2(theta) |dtheta / dmu| sigma_mu in quadrature to the horizon's sigma. Without track ids, boxes in
+frames up to LINK_GAP apart are linked into tracks by box overlap (``homocal.geometry.boxes.link_tracks``);
+without frames either, every box counts as an independent person and the uncertainty is understated.
+
+Roll (``fit_tilt_roll``, PedestrianCorrector(estimate_roll=True)): a camera rolled by phi about its optical
+axis sees the unrolled camera's image rotated by phi about the principal point, so the same heights hold for
+the rows of the foot and head points turned back by -phi (``derolled_rows``); tilt and roll are fitted
+together when the people's foot columns spread over ROLL_SPREAD of the image width. Lens distortion: the
+boxes' foot and head points are undistorted first (``homocal.geometry.Lens``).
 
 What it takes from the clicked mapping: nothing for theta when K and h_c are given. Without K: the focal
 length from the clicked homography (``focal_from_homography``: principal point at the image centre, square
@@ -60,6 +67,8 @@ from homocal.correctors.serialization import float_or_none, integer, number
 from homocal.geometry import ViewTransformer, apply_homography, as_points
 from homocal.geometry.boxes import box_edges, link_tracks
 from homocal.geometry.camera import tilt_homography
+from homocal.geometry.lens import Lens
+from homocal.study.options import Number, Option, OptionError, YesNo
 
 # Adult heights, metres: NCD-RisC 2016 (eLife 5:e13410, "A century of trends in adult human height"), as
 # summarised by Our World in Data: the global mean of adults born in 1996 is 171 cm for men and 159 cm for
@@ -67,6 +76,12 @@ from homocal.geometry.camera import tilt_homography
 # sd sqrt(0.07^2 + 0.06^2) = 0.09 m.
 DEFAULT_HEIGHT_MEAN_M = 1.65
 DEFAULT_HEIGHT_SD_M = 0.09
+# The prior mean's own 1-sigma uncertainty, metres: the people in one view are not the world's adults. Country
+# means of adult men range from 160 to 183 cm and of women from 150 to 170 cm (NCD-RisC 2016, eLife 5:e13410);
+# a street's mix of men and women moves an equal mix's mean by up to 6 cm; shoes add 2-3 cm; walking people's
+# boxes are shorter than their standing heights (about 5 cm on simgen's people, docs/pedestrians.md). Together
+# about +-5 cm on the mean of a population one has not measured: DEFAULT_HEIGHT_MEAN_SIGMA_M.
+DEFAULT_HEIGHT_MEAN_SIGMA_M = 0.05
 OUTLIER_SIGMAS = 3.0  # a box whose implied height is farther than this many prior sds from the mean is an outlier
 HUBER_K = 1.345  # Huber's constant (95 % efficiency at the normal)
 MAX_ROUNDS = 20  # inlier-set rounds of fit_tilt at most
@@ -74,9 +89,29 @@ MIN_PEOPLE = 3  # fewer inlier people (tracks) than this is refused
 MAX_OUTLIER_SHARE = 0.5  # more outlier boxes, or people, than this share of those used is refused (PedestrianCorrector.fit)
 LINK_GAP = 5  # frames: boxes this many frames apart at most are linked into one track
 BORDER_PX = 1.0  # a box whose edge is within this of the image border is cut by it and not used
-MAX_CAMERA_HEIGHT_M = 100.0
+MIN_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M = 0.5, 100.0  # below half a metre no box of a standing person fits
 MODELS = ("camera", "rotation")  # PedestrianCorrector's corrected mappings (its docstring); the first is the default
 GRID = 128  # tilt grid of the median start over its 90 degree range (then bisection)
+ROLL_SPREAD = 0.1  # estimate_roll fits roll when the people's foot columns' interquartile range spans this share of the width
+MAX_ROLL_DEG = 10.0  # a fitted roll beyond this is refused (a camera on a pole is rolled a degree or two)
+DIFF_STEP = 1e-7  # radians: central-difference step of the people's heights in fit_tilt_roll
+SETTINGS = {
+    "height_mean_m": Option("--height-mean", Number(0.5, 2.5), "the people's mean height (the default: adults, "
+                            "docs/pedestrians.md)", metavar="M", unit="m"),
+    "height_sd_m": Option("--height-sd", Number(0.01, 0.625), "the spread of the people's heights (at most a "
+                          "quarter of the mean)", metavar="M", unit="m"),
+    "height_mean_sigma_m": Option("--height-mean-sigma", Number(0.0, 0.5), "the 1-sigma uncertainty of the people's "
+                                  "mean height (0: known exactly), part of the horizon's and every point's error "
+                                  "bars", metavar="M", unit="m"),
+    "estimate_roll": Option("--estimate-roll", YesNo(), "fit the camera's "
+                            "roll with its tilt (the horizon as a line) when the people spread across the image",
+                            metavar="{yes,no}"),
+    "camera_height_m": Option("--camera-height", Number(MIN_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M), "the camera's "
+                              "height over the ground", metavar="M", unit="m", none="from the clicked trapezoid with K"),
+}
+"""The settings of a pedestrian fit, each declared once (homocal.study.options.Option: flag, bounds, unit, help):
+PedestrianCorrector's checks (an OptionError names the parameter), homocal fit's flags and their error
+messages, and the page's fields derive from it. All but camera_height_m (fit's) are constructor parameters."""
 
 
 def implied_heights(foot_rows: np.ndarray, head_rows: np.ndarray, tilt: float, focal_px: float, cy: float,
@@ -185,6 +220,16 @@ def _group_medians(values: np.ndarray, slopes: np.ndarray, labels: np.ndarray, s
     return 0.5 * (values[lo] + values[hi]), 0.5 * (slopes[lo] + slopes[hi])
 
 
+def _people(tracks: np.ndarray, mean_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(people, labels, starts, counts) of the inlier boxes' tracks (M,) (np.unique's, with each group's start in
+    label order: _group_medians' arguments); ValueError for fewer than MIN_PEOPLE people."""
+    people, labels, counts = np.unique(tracks, return_inverse=True, return_counts=True)
+    if len(people) < MIN_PEOPLE:
+        raise ValueError(f"only {len(people)} people (tracks) have a box whose implied height is within "
+                         f"{OUTLIER_SIGMAS:g} sd of {mean_m:g} m: need at least {MIN_PEOPLE}")
+    return people, labels, np.concatenate([[0], np.cumsum(counts)[:-1]]), counts
+
+
 def fit_tilt(foot_rows: np.ndarray, head_rows: np.ndarray, tracks: np.ndarray, focal_px: float, cy: float,
              camera_height_m: float, mean_m: float, sd_m: float) -> dict:
     """The camera's tilt from people's boxes (module docstring, Fit and Uncertainty).
@@ -217,11 +262,7 @@ def fit_tilt(foot_rows: np.ndarray, head_rows: np.ndarray, tracks: np.ndarray, f
         if inliers is not None and np.array_equal(new, inliers):
             break
         inliers = new
-        people, labels, counts = np.unique(tracks[inliers], return_inverse=True, return_counts=True)
-        if len(people) < MIN_PEOPLE:
-            raise ValueError(f"only {len(people)} people (tracks) have a box whose implied height is within "
-                             f"{OUTLIER_SIGMAS:g} sd of {mean_m:g} m: need at least {MIN_PEOPLE}")
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        people, labels, starts, counts = _people(tracks[inliers], mean_m)
         bf, bt = beta_f[inliers], beta_t[inliers]
 
         def people_heights(t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -244,12 +285,86 @@ def fit_tilt(foot_rows: np.ndarray, head_rows: np.ndarray, tracks: np.ndarray, f
     return {"tilt": tilt, "tilt_sigma": tilt_sigma, "mean_sensitivity": sensitivity, "inlier_boxes": inliers,
             "n_people": len(people), "rounds": rounds}
 
+def derolled_rows(points: np.ndarray, roll: float, principal: tuple[float, float]) -> np.ndarray:
+    """Rows (N,) of image points (N, 2) px as the camera turned back by ``roll`` radians about its optical axis sees
+    them (the image rotated by -roll about the principal point (cx, cy); square pixels):
+    -sin(roll) (u - cx) + cos(roll) (v - cy) + cy. Roll 0: the rows themselves."""
+    c, s = math.cos(roll), math.sin(roll)
+    return principal[1] - s * (points[:, 0] - principal[0]) + c * (points[:, 1] - principal[1])
+
+
+def roll_homography(K: np.ndarray, roll: float) -> np.ndarray:
+    """(3, 3) image homography K R_z(roll) K^-1: the image rotated by ``roll`` radians about the principal point
+    (x right, y down; fx = fy), as rolling the camera by -roll moves it. roll_homography(K, -roll) takes a rolled
+    camera's image to the unrolled one's (derolled_rows)."""
+    c, s = math.cos(roll), math.sin(roll)
+    return K @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.linalg.inv(K)
+
+
+def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_px: float,
+                  principal: tuple[float, float], camera_height_m: float, mean_m: float, sd_m: float,
+                  start: dict) -> dict:
+    """The camera's tilt and roll together from people's foot and head points (N, 2) px (undistorted), tracks
+    (N,), the focal length, principal point, camera height and height prior (fit_tilt's), from fit_tilt's result
+    ``start`` (roll 0): each person's implied height (the median of its inlier boxes') is a function of (tilt,
+    roll) through the derolled rows (derolled_rows) of its foot and head; the Huber score
+    sum_j psi((H_j - mu) / sigma) grad H_j = 0 is solved by Newton (grad H by central differences, DIFF_STEP), the
+    inlier set updated as in fit_tilt until it no longer changes. Uncertainty: the sandwich covariance
+    sigma^2 A^-1 (sum psi^2 grad H grad H^T) A^-1, A = sum psi' grad H grad H^T; the prior mean's effect
+    d(tilt, roll) / dmu = A^-1 sum psi' grad H.
+    Returns a dict: tilt, roll (radians), cov (2, 2) radians^2 (people), sensitivity (2,) radians per metre,
+    inlier_boxes (N,) bool, n_people, rounds. ValueError as fit_tilt, or for a roll beyond MAX_ROLL_DEG."""
+    inliers, beta = start["inlier_boxes"], np.array([start["tilt"], 0.0])
+
+    def box_heights(b: np.ndarray, f: np.ndarray, h: np.ndarray) -> np.ndarray:
+        rows = [np.arctan((derolled_rows(x, b[1], principal) - principal[1]) / focal_px) for x in (f, h)]
+        return _heights(rows[0], rows[1], b[0], camera_height_m)[0]
+
+    for rounds in range(1, MAX_ROUNDS + 1):
+        people, labels, starts, counts = _people(tracks[inliers], mean_m)
+        f_in, h_in = foot[inliers], head[inliers]
+
+        def people_heights(b: np.ndarray) -> np.ndarray:
+            hb = box_heights(b, f_in, h_in)
+            return _group_medians(hb, hb, labels, starts, counts)[0]
+
+        def gradient(b: np.ndarray) -> np.ndarray:  # (P, 2) dH / d(tilt, roll)
+            return np.column_stack([(people_heights(b + e) - people_heights(b - e)) / (2 * DIFF_STEP)
+                                    for e in (np.array([DIFF_STEP, 0.0]), np.array([0.0, DIFF_STEP]))])
+
+        for _ in range(MAX_ROUNDS):
+            psi, dpsi = _huber((people_heights(beta) - mean_m) / sd_m)
+            J = gradient(beta)
+            step = -sd_m * np.linalg.lstsq((J * dpsi[:, None]).T @ J, J.T @ psi, rcond=None)[0]
+            beta = beta + step
+            if np.abs(step).max() < 1e-12:
+                break
+        if abs(math.degrees(beta[1])) > MAX_ROLL_DEG:
+            raise ValueError(f"the people imply a roll of {math.degrees(beta[1]):.1f} degrees, beyond "
+                             f"{MAX_ROLL_DEG:g}: are these boxes of standing people?")
+        new = np.abs(box_heights(beta, foot, head) - mean_m) <= OUTLIER_SIGMAS * sd_m
+        if np.array_equal(new, inliers):
+            break
+        inliers = new
+    psi, dpsi = _huber((people_heights(beta) - mean_m) / sd_m)
+    J = gradient(beta)
+    A_inv = np.linalg.pinv((J * dpsi[:, None]).T @ J)
+    cov = sd_m**2 * A_inv @ ((J * (psi * psi)[:, None]).T @ J) @ A_inv
+    return {"tilt": float(beta[0]), "roll": float(beta[1]), "cov": cov, "sensitivity": A_inv @ (J.T @ dpsi),
+            "inlier_boxes": inliers, "n_people": len(people), "rounds": rounds}
+
+
 class PedestrianCorrector(Corrector):
     """The clicked mapping corrected from people's boxes, with no reference point (module docstring).
 
     Args:
         height_mean_m, height_sd_m: the prior of the people's heights, metres (default: adults, NCD-RisC 2016,
             DEFAULT_HEIGHT_MEAN_M and DEFAULT_HEIGHT_SD_M).
+        height_mean_sigma_m: the 1-sigma uncertainty of height_mean_m itself, metres (DEFAULT_HEIGHT_MEAN_SIGMA_M:
+            its sources are at its declaration; 0 for a mean measured on these people): part of
+            horizon_sigma_px_ and of ground_uncertainty. Bounds: SETTINGS.
+        estimate_roll: fit the camera's roll with its tilt (fit_tilt_roll) when the people's foot columns spread
+            over ROLL_SPREAD of the image width (image_size given); otherwise, and by default, roll 0.
         model: the corrected mapping (``transformer_``: the image trapezoid that maps with it onto the clicked
             map trapezoid, whose site-map frame is kept):
             "camera" (the default): the camera's own ground mapping (K, the camera height, the fitted tilt,
@@ -265,38 +380,40 @@ class PedestrianCorrector(Corrector):
     Fit with ``fit(transformer, xyxy, convention=..., ...)``.
 
     Attributes after fit (or load): horizon_row_ (the fitted horizon, px at the principal column),
-    clicked_horizon_row_, horizon_sigma_px_ (its 1-sigma uncertainty from the people's spread and number),
-    mean_sensitivity_px_per_cm_ (the horizon's move, px, per cm the prior mean is off: not reduced by more
-    people), tilt_deg_, rotation_deg_ (delta), focal_px_, principal_point_ (cx, cy), camera_height_m_,
+    clicked_horizon_row_, horizon_sigma_px_ (its 1-sigma uncertainty: horizon_sigma_people_px_, from the
+    people's spread and number, and height_mean_sigma_m times the horizon's move per metre of the prior mean,
+    in quadrature), mean_sensitivity_px_per_cm_ (the horizon's move, px, per cm the prior mean is off: not
+    reduced by more people), tilt_deg_, rotation_deg_ (delta), focal_px_, principal_point_ (cx, cy), camera_height_m_,
     yaw_deg_ (model "camera"; NaN for "rotation"), focal_source_ and camera_height_source_ ("given" or
     "clicked mapping"), n_boxes_, n_border_ (cut by the image border, not used), n_outliers_ (beyond
-    OUTLIER_SIGMAS), n_people_ (tracks), n_people_used_, transformer_, m, plus those of ``Corrector``
-    (error_before_ and error_after_ on check points if fit had them, else NaN). After fit only (not saved):
-    box_status_ (N,) str, each box's part in the fit: "used", "outlier" or "border".
+    OUTLIER_SIGMAS), n_people_ (tracks), n_people_used_, roll_estimated_, roll_deg_ (0 unless estimated; the
+    horizon's slope in the image is tan(roll_deg_): simgen's camera.json roll_deg is -roll_deg_), roll_sigma_deg_
+    (NaN unless estimated), tilt_roll_cov_ and tilt_roll_sensitivity_ (the people's 2x2 covariance of (tilt,
+    roll), rad^2, and their move per metre of the prior mean; None unless estimated), transformer_, m, plus those
+    of ``Corrector`` (error_before_ and error_after_ on check points if fit had them, else NaN). After fit only
+    (not saved): box_status_ (N,) str, each box's part in the fit: "used", "outlier" or "border".
     """
 
     method = "pedestrians"
-    param_names = ("height_mean_m", "height_sd_m", "model")
+    param_names = ("height_mean_m", "height_sd_m", "model", "height_mean_sigma_m", "estimate_roll")
 
     def __init__(self, height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
-                 model: str = "camera") -> None:
+                 model: str = "camera", height_mean_sigma_m: float = DEFAULT_HEIGHT_MEAN_SIGMA_M,
+                 estimate_roll: bool = False) -> None:
         if model not in MODELS:
             raise ValueError(f"model {model!r}: expected one of {', '.join(MODELS)}")
-        self.model = model
-        mean, sd = (float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else math.nan
-                    for x in (height_mean_m, height_sd_m))
-        if not 0.5 <= mean <= 2.5:
-            raise ValueError(f"height_mean_m must be a number of metres in [0.5, 2.5], got {height_mean_m!r}")
-        if not 0.01 <= sd <= mean / 4:
-            raise ValueError(f"height_sd_m must be in [0.01, height_mean_m / 4] m (people's heights spread), got "
-                             f"{height_sd_m!r}")
-        self.height_mean_m, self.height_sd_m = mean, sd
+        self.model, self.estimate_roll = model, SETTINGS["estimate_roll"].check("estimate_roll", estimate_roll)
+        self.height_mean_m, self.height_sd_m, self.height_mean_sigma_m = (
+            float(SETTINGS[name].check(name, value)) for name, value in (("height_mean_m", height_mean_m), ("height_sd_m", height_sd_m),
+                                ("height_mean_sigma_m", height_mean_sigma_m)))
+        if self.height_sd_m > self.height_mean_m / 4:
+            raise OptionError("height_sd_m", height_sd_m, f"expected at most height_mean_m / 4 = {self.height_mean_m / 4:g} m")
 
     def fit(self, transformer: ViewTransformer, xyxy: np.ndarray, *, convention: str, frames: np.ndarray | None = None,
             track_ids: np.ndarray | None = None, camera_height_m: float | None = None, K: np.ndarray | None = None,
             image_size: tuple[int, int] | None = None, image_points: np.ndarray | None = None,
             ground_points: np.ndarray | None = None, camera_origin=(0.0, 0.0),
-            max_outlier_share: float = MAX_OUTLIER_SHARE) -> PedestrianCorrector:
+            max_outlier_share: float = MAX_OUTLIER_SHARE, lens: Lens | None = None) -> PedestrianCorrector:
         """Fit from people's boxes.
 
         Args:
@@ -314,6 +431,10 @@ class PedestrianCorrector(Corrector):
                 used by the fit, their mean errors before and after are error_before_ and error_after_.
             max_outlier_share: the largest share of outlier boxes, and of rejected people, a fit accepts (1: none
                 refused, to measure what a refused fit reaches; research/pedestrians.py --accept-outliers).
+            lens: the camera's lens (homocal.geometry.Lens, the same K): the boxes' foot and head points (their
+                bottom and top edges' centres) are undistorted (Lens.undistort_points) before the fit; the
+                transformer, the check points and the corrected mapping are then in undistorted pixels. None:
+                a pinhole (the points as given).
         Returns self. ValueError naming the argument for bad input, and for a fit that cannot be trusted: fewer
         than MIN_PEOPLE inlier people, or more than max_outlier_share of the used boxes or of the people
         outliers (the median start and the inlier rounds break down there: HOG boxes gave a horizon 82 px off
@@ -342,12 +463,16 @@ class PedestrianCorrector(Corrector):
             principal, focal, self.focal_source_ = (float(K[0, 2]), float(K[1, 2])), float(K[1, 1]), "given"
         self.focal_px_, self.principal_point_ = focal, principal
         if camera_height_m is None:
-            camera_height_m, self.camera_height_source_ = camera_height_from_homography(transformer.m, self.K), "clicked mapping"
+            self.camera_height_source_ = "clicked mapping"
+            try:
+                self.camera_height_m_ = _check_camera_height(camera_height_from_homography(transformer.m, self.K))
+            except OptionError as e:
+                raise ValueError(f"the clicked mapping implies a camera height of {e.value:.3g} m, "
+                                 f"{e.expected.removeprefix('expected ')}: give camera_height_m") from None
         else:
-            self.camera_height_source_ = "given"
-        self.camera_height_m_ = _check_camera_height(camera_height_m)
+            self.camera_height_source_, self.camera_height_m_ = "given", _check_camera_height(camera_height_m)
         clicked_row = float(transformer.horizon_row(principal[0]))
-        if not (edges[:, 3] > transformer.horizon_row((edges[:, 0] + edges[:, 2]) / 2)).any():
+        if not (edges[:, 3] > transformer.horizon_row((edges[:, 0] + edges[:, 2]) / 2)).any():  # roughly, in any lens
             raise ValueError(f"xyxy: all {n} boxes have their bottom edge on or above the clicked mapping's horizon "
                              f"(row {clicked_row:.1f} at the principal column): none stands on its ground")
         border = np.zeros(n, bool) if size is None else _on_border(edges, size)
@@ -355,15 +480,29 @@ class PedestrianCorrector(Corrector):
             raise ValueError(f"xyxy: all {n} boxes touch the {size[0]}x{size[1]} image's border (cut by it)")
         if tracks is None:
             tracks = np.arange(n) if frames is None else link_tracks(frames, edges, max_gap=LINK_GAP)
-        used = ~border
-        fit = fit_tilt(edges[used, 3], edges[used, 1], tracks[used], focal, principal[1], self.camera_height_m_,
+        middle = (edges[:, 0] + edges[:, 2]) / 2
+        foot, head = np.column_stack([middle, edges[:, 3]]), np.column_stack([middle, edges[:, 1]])
+        if lens is not None:
+            foot, head = lens.undistort_points(foot), lens.undistort_points(head)  # NaN beyond the lens' fold
+        used = ~border & np.isfinite(foot).all(axis=1) & np.isfinite(head).all(axis=1)
+        fit = fit_tilt(foot[used, 1], head[used, 1], tracks[used], focal, principal[1], self.camera_height_m_,
                        self.height_mean_m, self.height_sd_m)
+        spread = np.subtract(*np.percentile(foot[used, 0], [75, 25])) if used.any() else 0.0
+        self.roll_estimated_ = bool(self.estimate_roll and size is not None and spread >= ROLL_SPREAD * size[0])
+        self.roll_deg_, self.tilt_roll_cov_, self.tilt_roll_sensitivity_ = 0.0, None, None
+        if self.roll_estimated_:
+            fit = fit_tilt_roll(foot[used], head[used], tracks[used], focal, principal, self.camera_height_m_,
+                                self.height_mean_m, self.height_sd_m, fit)
+            self.roll_deg_ = math.degrees(fit["roll"])
+            self.tilt_roll_cov_, self.tilt_roll_sensitivity_ = fit["cov"], fit["sensitivity"]
+            fit["tilt_sigma"], fit["mean_sensitivity"] = math.sqrt(fit["cov"][0, 0]), fit["sensitivity"][0]
         self.base_transformer_ = transformer
         self.camera_origin_ = check_camera_origin(camera_origin)
-        self.horizon_row_ = horizon_row(fit["tilt"], focal, principal[1])
+        self.horizon_row_ = principal[1] + (horizon_row(fit["tilt"], focal, principal[1]) - principal[1]) / math.cos(fit["roll"] if self.roll_estimated_ else 0.0)
         secant2 = 1.0 + math.tan(fit["tilt"]) ** 2
-        self.horizon_sigma_px_ = focal * secant2 * fit["tilt_sigma"]
+        self.horizon_sigma_people_px_ = focal * secant2 * fit["tilt_sigma"]
         self.mean_sensitivity_px_per_cm_ = abs(focal * secant2 * fit["mean_sensitivity"]) / 100.0
+        self._set_horizon_sigma()
         self.n_boxes_, self.n_border_ = n, int(border.sum())
         self.n_outliers_ = int(used.sum() - fit["inlier_boxes"].sum())
         self.box_status_ = np.where(border, "border", "outlier")
@@ -408,8 +547,10 @@ class PedestrianCorrector(Corrector):
         self.focal_source_ = self.camera_height_source_ = "given"
         self.camera_height_m_ = _check_camera_height(camera_height_m)
         self.horizon_row_ = number(horizon_row_px, "horizon_row_px")
-        self.horizon_sigma_px_ = number(horizon_sigma_px, "horizon_sigma_px", minimum=0)
-        self.mean_sensitivity_px_per_cm_ = math.nan
+        self.horizon_sigma_people_px_ = number(horizon_sigma_px, "horizon_sigma_px", minimum=0)
+        self.mean_sensitivity_px_per_cm_ = math.nan  # the estimate's sigma is all there is: horizon_sigma_px_ is it
+        self._set_horizon_sigma()
+        self._set_roll_state(None)
         self.n_boxes_ = self.n_people_ = self.n_people_used_ = integer(n_people, "n_people", MIN_PEOPLE, 2**62)
         self.n_border_ = self.n_outliers_ = 0
         self.base_transformer_, self.camera_origin_ = transformer, check_camera_origin(camera_origin)
@@ -418,10 +559,43 @@ class PedestrianCorrector(Corrector):
         return self
 
     @property
+    def roll_sigma_deg_(self) -> float:
+        """The fitted roll's 1-sigma uncertainty, degrees (the people's and the prior mean's); NaN when roll was not
+        estimated."""
+        if not self.roll_estimated_:
+            return math.nan
+        s = self.tilt_roll_sensitivity_
+        return math.degrees(math.sqrt(self.tilt_roll_cov_[1, 1] + (self.height_mean_sigma_m * s[1]) ** 2))
+
+    @property
     def K(self) -> np.ndarray:
         """(3, 3) the intrinsics the fit used."""
         f, (cx, cy) = self.focal_px_, self.principal_point_
         return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+
+    def _set_roll_state(self, roll) -> None:
+        """roll_estimated_, roll_deg_, tilt_roll_cov_, tilt_roll_sensitivity_ from the fitted state's "roll" (None:
+        not estimated, as files written without it); ValueError for what fit could not write."""
+        self.roll_estimated_, self.roll_deg_, self.tilt_roll_cov_, self.tilt_roll_sensitivity_ = False, 0.0, None, None
+        if roll is None:
+            return
+        try:
+            deg = number(roll["deg"], "fitted.roll.deg")
+            cov = np.array(roll["tilt_roll_cov_rad2"], dtype=np.float64)
+            sens = np.array(roll["tilt_roll_sensitivity_rad_per_m"], dtype=np.float64)
+        except (KeyError, TypeError, ValueError) as e:
+            raise ValueError(f"field fitted.roll: expected deg, tilt_roll_cov_rad2 and tilt_roll_sensitivity_rad_per_m ({e})") from None
+        if not (abs(deg) <= MAX_ROLL_DEG and cov.shape == (2, 2) and sens.shape == (2,) and np.isfinite(cov).all()
+                and np.isfinite(sens).all() and np.allclose(cov, cov.T) and (np.linalg.eigvalsh(cov) >= -1e-18).all()):
+            raise ValueError(f"field fitted.roll: expected |deg| <= {MAX_ROLL_DEG:g}, a symmetric (2, 2) covariance "
+                             "and (2,) sensitivities, all finite")
+        self.roll_estimated_, self.roll_deg_, self.tilt_roll_cov_, self.tilt_roll_sensitivity_ = True, deg, cov, sens
+
+    def _set_horizon_sigma(self) -> None:
+        """horizon_sigma_px_: the people's sigma and the prior mean's (height_mean_sigma_m times the horizon's move
+        per metre of it) added in quadrature; the people's alone where the sensitivity is unknown (NaN)."""
+        prior = self.mean_sensitivity_px_per_cm_ * 100.0 * self.height_mean_sigma_m
+        self.horizon_sigma_px_ = math.hypot(self.horizon_sigma_people_px_, prior if math.isfinite(prior) else 0.0)
 
     def _set_transformer(self) -> None:
         """clicked_horizon_row_, tilt_deg_, rotation_deg_, yaw_deg_ and transformer_ from the base transformer, K,
@@ -431,14 +605,15 @@ class PedestrianCorrector(Corrector):
         f, (cx, cy) = self.focal_px_, self.principal_point_
         base = self.base_transformer_
         self.clicked_horizon_row_ = float(base.horizon_row(cx))
-        tilt = math.atan((cy - self.horizon_row_) / f)
+        roll = math.radians(self.roll_deg_)
+        tilt = math.atan((cy - self.horizon_row_) * math.cos(roll) / f)
         delta = math.atan((cy - self.clicked_horizon_row_) / f) - tilt
         self.tilt_deg_, self.rotation_deg_ = math.degrees(tilt), math.degrees(delta)
         source = apply_homography(tilt_homography(self.K, -delta), base.source)  # the clicked corners turned back
         self.yaw_deg_ = math.nan
         if self.model == "camera":
             level = self.K @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, self.camera_height_m_], [0.0, 1.0, 0.0]])
-            camera = np.linalg.inv(level) @ tilt_homography(self.K, -tilt)  # image -> ground, the camera's frame
+            camera = np.linalg.inv(level) @ tilt_homography(self.K, -tilt) @ roll_homography(self.K, -roll)  # image -> ground
             w, t = apply_homography(camera, source), base.target - self.camera_origin_
             yaw = float(np.angle(np.sum((t[:, 0] + 1j * t[:, 1]) * np.conj(w[:, 0] + 1j * w[:, 1]))))
             turn = np.array([[math.cos(yaw), -math.sin(yaw), self.camera_origin_[0]],
@@ -476,15 +651,20 @@ class PedestrianCorrector(Corrector):
         q = as_points(image_points, "image_points")
         cov = super().ground_uncertainty(q, click_sigma_px, point_sigma_px, map_sigma_px)
         f, cy = self.focal_px_, self.principal_point_[1]
-        tilt = math.atan((cy - self.horizon_row_) / f)
+        roll = math.radians(self.roll_deg_)
+        tilt = math.atan((cy - self.horizon_row_) * math.cos(roll) / f)
         step = 1e-6
-        moved = []
-        for sign in (1.0, -1.0):  # the tilt moved by +-step: the corrected mapping's rotation by -+step
-            G = tilt_homography(self.K, -sign * step)
-            moved.append(apply_homography(self.m @ G, q))
-        J = (moved[0] - moved[1]) / (2 * step)
-        tilt_sigma = self.horizon_sigma_px_ / (f * (1.0 + math.tan(tilt) ** 2))
-        return cov + tilt_sigma**2 * J[:, :, None] * J[:, None, :]
+        turns = {"tilt": lambda e: roll_homography(self.K, roll) @ tilt_homography(self.K, -e) @ roll_homography(self.K, -roll),
+                 "roll": lambda e: roll_homography(self.K, -e)}  # the camera's tilt or roll moved by e, as the mapping sees it
+        J = np.stack([(apply_homography(self.m @ turn(step), q) - apply_homography(self.m @ turn(-step), q)) / (2 * step)
+                      for turn in turns.values()], axis=-1)  # (N, 2, 2): d(x, y) / d(tilt, roll)
+        if self.roll_estimated_:
+            s = self.tilt_roll_sensitivity_
+            angles = self.tilt_roll_cov_ + self.height_mean_sigma_m**2 * np.outer(s, s)
+        else:
+            tilt_sigma = self.horizon_sigma_px_ / (f * (1.0 + math.tan(tilt) ** 2))
+            angles = np.diag([tilt_sigma**2, 0.0])
+        return cov + J @ angles @ np.swapaxes(J, 1, 2)
 
     # ---- JSON ----------------------------------------------------------------------------------
     def to_dict(self) -> dict:
@@ -505,14 +685,18 @@ class PedestrianCorrector(Corrector):
         return obj
 
     def _fitted_state(self) -> dict:
-        sigma = self.horizon_sigma_px_
+        sigma, people = self.horizon_sigma_px_, self.horizon_sigma_people_px_
         return {"horizon_row": self.horizon_row_, "horizon_sigma_px": sigma if math.isfinite(sigma) else None,
+                "horizon_sigma_people_px": people if math.isfinite(people) else None,
                 "mean_sensitivity_px_per_cm": float_or_none(self.mean_sensitivity_px_per_cm_),
                 "focal_px": self.focal_px_, "principal_point": list(self.principal_point_),
                 "focal_source": self.focal_source_, "camera_height_m": self.camera_height_m_,
                 "camera_height_source": self.camera_height_source_, "n_boxes": self.n_boxes_,
                 "n_border": self.n_border_, "n_outliers": self.n_outliers_, "n_people": self.n_people_,
-                "n_people_used": self.n_people_used_}
+                "n_people_used": self.n_people_used_,
+                "roll": None if not self.roll_estimated_ else {
+                    "deg": self.roll_deg_, "tilt_roll_cov_rad2": self.tilt_roll_cov_.tolist(),
+                    "tilt_roll_sensitivity_rad_per_m": self.tilt_roll_sensitivity_.tolist()}}
 
     def _set_fitted_state(self, state: dict) -> None:
         """Check what fit could have produced: finite numbers, a focal length > 0, a camera height in bounds,
@@ -525,10 +709,12 @@ class PedestrianCorrector(Corrector):
             raise ValueError(f"field fitted.principal_point: expected [cx, cy], got {pp!r}")
         self.principal_point_ = tuple(number(x, "fitted.principal_point") for x in pp)
         self.horizon_row_ = number(state["horizon_row"], "fitted.horizon_row")
-        sigma = state["horizon_sigma_px"]
-        self.horizon_sigma_px_ = math.inf if sigma is None else number(sigma, "fitted.horizon_sigma_px", minimum=0)
         sens = state["mean_sensitivity_px_per_cm"]
         self.mean_sensitivity_px_per_cm_ = math.nan if sens is None else number(sens, "fitted.mean_sensitivity_px_per_cm", minimum=0)
+        key = "horizon_sigma_people_px" if "horizon_sigma_people_px" in state else "horizon_sigma_px"  # older files: the people's
+        sigma = state[key]
+        self.horizon_sigma_people_px_ = math.inf if sigma is None else number(sigma, f"fitted.{key}", minimum=0)
+        self._set_horizon_sigma()
         for key in ("focal_source", "camera_height_source"):
             if state[key] not in ("given", "clicked mapping"):
                 raise ValueError(f"field fitted.{key}: expected 'given' or 'clicked mapping', got {state[key]!r}")
@@ -542,6 +728,7 @@ class PedestrianCorrector(Corrector):
         self.n_outliers_ = integer(state["n_outliers"], "fitted.n_outliers", 0, self.n_boxes_ - self.n_border_)
         self.n_people_ = integer(state["n_people"], "fitted.n_people", 1, self.n_boxes_ - self.n_border_)
         self.n_people_used_ = integer(state["n_people_used"], "fitted.n_people_used", MIN_PEOPLE, self.n_people_)
+        self._set_roll_state(state.get("roll"))
         try:
             self._set_transformer()
         except ValueError as e:
@@ -556,10 +743,10 @@ def _check_boxes(xyxy, convention: str) -> np.ndarray:
         raise ValueError("xyxy: no boxes")
     bad = np.flatnonzero(~(np.abs(edges) <= 1e9).all(axis=1))
     if bad.size:
-        raise ValueError(f"xyxy[{bad[0]}] = {np.asarray(xyxy)[bad[0]].tolist()} is not finite (or beyond 1e9 px)")
+        raise ValueError(f"xyxy: box {bad[0]} (from 0) = {np.asarray(xyxy)[bad[0]].tolist()} is not finite (or beyond 1e9 px)")
     bad = np.flatnonzero(~((edges[:, 3] > edges[:, 1]) & (edges[:, 2] > edges[:, 0])))
     if bad.size:
-        raise ValueError(f"xyxy[{bad[0]}] = {np.asarray(xyxy)[bad[0]].tolist()} is upside down or empty (needs "
+        raise ValueError(f"xyxy: box {bad[0]} (from 0) = {np.asarray(xyxy)[bad[0]].tolist()} is upside down or empty (needs "
                          "x1 < x2 and y1 < y2: y1 the top edge, y2 the bottom edge, image rows counted down)")
     return edges
 
@@ -583,10 +770,8 @@ def _check_image_size(image_size) -> tuple[int, int] | None:
 
 
 def _check_camera_height(value) -> float:
-    h = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else math.nan
-    if not 0 < h <= MAX_CAMERA_HEIGHT_M:
-        raise ValueError(f"camera_height_m must be in (0, {MAX_CAMERA_HEIGHT_M:g}] m, got {value!r}")
-    return h
+    """camera_height_m as a float within SETTINGS' bounds; OptionError naming camera_height_m otherwise."""
+    return float(SETTINGS["camera_height_m"].check("camera_height_m", value))
 
 
 def _on_border(edges: np.ndarray, size: tuple[int, int]) -> np.ndarray:

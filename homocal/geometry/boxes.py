@@ -19,8 +19,13 @@ camera (PinholeCamera()), straight ahead, 0.02 m at 10 m, 0.09 m at 20 m, 0.33 m
 """
 from __future__ import annotations
 
+import heapq
+
 import numpy as np
 
+MAX_BOXES_PER_FRAME = 500
+"""The most boxes of one video frame that homocal reads (homocal.boxes.read_boxes) and links into tracks
+(link_tracks): a crowd at MOT20's densest holds a few hundred people per frame."""
 BOX_CONVENTIONS = {"corners": (-0.5, -0.5, -0.5, -0.5), "indices": (-0.5, -0.5, 0.5, 0.5), "homocal": (0.0, 0.0, 0.0, 0.0)}
 
 
@@ -64,19 +69,32 @@ def undistort_boxes(edges: np.ndarray, lens) -> np.ndarray:
 
 
 def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Intersection over union (N, M) of boxes a (N, 4) and b (M, 4), edges (x1, y1, x2, y2) in one convention."""
-    w = np.clip(np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0]), 0, None)
-    h = np.clip(np.minimum(a[:, None, 3], b[None, :, 3]) - np.maximum(a[:, None, 1], b[None, :, 1]), 0, None)
+    """Intersection over union (N, M) of boxes a (N, 4) and b (M, 4) (any shape ending in 4 is read as rows of
+    four), edges (x1, y1, x2, y2) in one convention. A box's width and height are max(0, x2 - x1) and
+    max(0, y2 - y1): an empty (zero-area) or upside-down box has area 0, so its IoU with any box is 0 (0 also
+    where both are empty: the union is 0). NaN coordinates give NaN."""
+    return _iou(np.reshape(np.asarray(a, dtype=np.float64), (-1, 1, 4)),
+                np.reshape(np.asarray(b, dtype=np.float64), (1, -1, 4)))
+
+
+def _iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """box_iou of boxes a (..., 4) and b (..., 4), broadcast against each other."""
+    w = np.clip(np.minimum(a[..., 2], b[..., 2]) - np.maximum(a[..., 0], b[..., 0]), 0.0, None)
+    h = np.clip(np.minimum(a[..., 3], b[..., 3]) - np.maximum(a[..., 1], b[..., 1]), 0.0, None)
     inter = w * h
-    area = lambda x: (x[:, 2] - x[:, 0]) * (x[:, 3] - x[:, 1])  # noqa: E731
-    return inter / (area(a)[:, None] + area(b)[None, :] - inter)
+    area = lambda x: np.clip(x[..., 2] - x[..., 0], 0.0, None) * np.clip(x[..., 3] - x[..., 1], 0.0, None)  # noqa: E731
+    union = area(a) + area(b) - inter
+    return np.divide(inter, union, out=np.where(np.isnan(union), np.nan, 0.0), where=union > 0)
 
 
 def link_tracks(frames: np.ndarray, xyxy: np.ndarray, min_iou: float = 0.3, max_gap: int = 5) -> np.ndarray:
-    """Track ids (N,) int64, 0, 1, ... in order of first appearance, for boxes xyxy (N, 4) in video frames
-    frames (N,) int: frame by frame in increasing order, ``TrackLinker.link`` (one box per track and frame,
-    IoU >= min_iou, boxes at most max_gap frames apart). A simple linker of detections (no motion model):
-    enough to count people once rather than once per frame."""
+    """Track ids (N,) int64, 0, 1, ... in order of first appearance, for boxes xyxy (N, 4) (finite) in video
+    frames frames (N,) int: frame by frame in increasing order, ``TrackLinker.link`` (one box per track and frame,
+    IoU >= min_iou > 0, boxes at most max_gap frames apart). A simple linker of detections (no motion model):
+    enough to count people once rather than once per frame. Bounded by design: ValueError naming the first frame
+    with more than MAX_BOXES_PER_FRAME boxes; see TrackLinker for the cost per frame."""
+    if not min_iou > 0:
+        raise ValueError(f"min_iou must be > 0 (boxes that do not overlap are never linked), got {min_iou!r}")
     frames = np.asarray(frames, dtype=np.int64)
     ids = np.full(len(frames), -1, dtype=np.int64)
     linker = TrackLinker(min_iou, max_gap)
@@ -100,25 +118,70 @@ class TrackLinker:
         self._ids, self._boxes, self._frames = np.zeros(0, np.int64), np.zeros((0, 4)), np.zeros(0, np.int64)
 
     def link(self, frame: int, xyxy: np.ndarray) -> np.ndarray:
-        """Track ids (M,) int64 of the boxes xyxy (M, 4) of video frame ``frame`` (not before the last one)."""
-        live = np.flatnonzero(frame - self._frames <= self.max_gap)
+        """Track ids (M,) int64 of the boxes xyxy (M, 4) of video frame ``frame`` (not before the last one), at most
+        MAX_BOXES_PER_FRAME of them. Only the pairs whose columns overlap are compared (``_overlapping``): memory
+        and time per frame are at most O(max_gap MAX_BOXES_PER_FRAME^2) (every box on one spot), near
+        O(MAX_BOXES_PER_FRAME) for people spread across the image."""
+        xyxy = np.asarray(xyxy, float).reshape(-1, 4)
+        if len(xyxy) > MAX_BOXES_PER_FRAME:
+            raise ValueError(f"frames: frame {frame} has {len(xyxy):,} boxes, more than {MAX_BOXES_PER_FRAME:,} (the "
+                             "most per frame linked into tracks)")
+        live = np.flatnonzero(frame - self._frames <= self.max_gap)  # in track id order (the ties' rule)
         ids = np.full(len(xyxy), -1, dtype=np.int64)
-        iou = box_iou(xyxy, self._boxes[live])
-        taken = set()
-        for flat in np.argsort(-iou, axis=None, kind="stable"):
-            i, j = divmod(int(flat), len(live))
-            if iou[i, j] < self.min_iou:
-                break
-            if ids[i] < 0 and live[j] not in taken:
-                ids[i] = self._ids[live[j]]
-                taken.add(live[j])
+        i, j = _overlapping(xyxy, self._boxes[live])
+        iou = _iou(xyxy[i], self._boxes[live[j]])
+        keep = iou >= self.min_iou
+        box, track = greedy_pairs(i[keep], j[keep], iou[keep], len(live))
+        ids[box] = self._ids[live[track]]
         new = ids < 0
         ids[new] = self.tracks + np.arange(int(new.sum()))
         self.tracks += int(new.sum())
-        keep = np.setdiff1d(live, list(taken))  # live tracks not continued in this frame
+        keep = np.setdiff1d(live, live[track])  # live tracks not continued in this frame
         self._ids = np.concatenate([self._ids[keep], ids])
-        self._boxes = np.concatenate([self._boxes[keep], np.asarray(xyxy, float).reshape(-1, 4)])
+        self._boxes = np.concatenate([self._boxes[keep], xyxy])
         self._frames = np.concatenate([self._frames[keep], np.full(len(ids), frame, np.int64)])
-        order = np.argsort(self._ids, kind="stable")  # live tracks in id order (the ties' rule)
+        order = np.argsort(self._ids, kind="stable")
         self._ids, self._boxes, self._frames = self._ids[order], self._boxes[order], self._frames[order]
         return ids
+
+
+def _overlapping(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(i, j) (P,) intp: every pair of boxes a[i] (N, 4), b[j] (M, 4) whose columns can overlap (b's left edge
+    within (a's left edge - b's widest width, a's right edge)), a superset of the pairs with IoU > 0, by a sort
+    of b's left edges and two binary searches per box of a."""
+    if len(a) == 0 or len(b) == 0:
+        return np.zeros(0, np.intp), np.zeros(0, np.intp)
+    order = np.argsort(b[:, 0], kind="stable")
+    left = b[order, 0]
+    lo = np.searchsorted(left, a[:, 0] - np.max(b[:, 2] - b[:, 0]), side="right")
+    counts = np.maximum(np.searchsorted(left, a[:, 2], side="left") - lo, 0)
+    i = np.repeat(np.arange(len(a)), counts)
+    offsets = np.arange(len(i)) - np.repeat(np.cumsum(counts) - counts, counts)
+    return i, order[np.repeat(lo, counts) + offsets]
+
+
+def greedy_pairs(rows: np.ndarray, cols: np.ndarray, scores: np.ndarray, n_cols: int) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, cols) (P,) of the greedy one-to-one matching of candidate pairs (rows, cols, scores) (K,): taken in
+    order of decreasing score (ties: lower row, then lower column) while both are free. Each row's candidates
+    sorted once; a heap holds each free row's best candidate whose column was free when it was pushed (a stale
+    one moves on to its row's next free column by one vectorised search): O(K log K) time, O(K) memory."""
+    order = np.lexsort((cols, -scores, rows))
+    rows, cols, scores = rows[order], cols[order], scores[order]
+    firsts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]]) if len(rows) else np.zeros(0, np.intp)
+    ends = dict(zip(rows[firsts].tolist(), np.r_[firsts[1:], len(rows)].tolist()))
+    taken = np.zeros(n_cols, bool)
+    heap = [(-scores[s], int(rows[s]), int(cols[s]), int(s)) for s in firsts]
+    heapq.heapify(heap)
+    pairs = []
+    while heap:
+        _, r, c, s = heapq.heappop(heap)
+        if not taken[c]:
+            taken[c] = True
+            pairs.append((r, c))
+            continue
+        free = np.flatnonzero(~taken[cols[s + 1:ends[r]]])
+        if free.size:
+            s += 1 + int(free[0])
+            heapq.heappush(heap, (-scores[s], r, int(cols[s]), s))
+    pairs = np.array(pairs, dtype=np.intp).reshape(-1, 2)
+    return pairs[:, 0], pairs[:, 1]

@@ -8,7 +8,7 @@ from homocal.dataset import calibration_source
 from homocal.progress import add_progress_option, show_progress
 from homocal.study.engine import dry_run_counts, run_study
 from homocal.study.inputs import OPTIONS, StudyParams, preset_params
-from homocal.study.options import DEFAULT_PRESET, PRESETS, Option, OptionError, preset_values
+from homocal.study.options import DEFAULT_PRESET, PRESETS, OptionError, flag_type, preset_values
 
 
 def add_study_options(p: argparse.ArgumentParser, sweep: bool = False) -> None:
@@ -39,16 +39,6 @@ def option_help(name: str) -> str:
     default = opt.to_text(getattr(preset_params(DEFAULT_PRESET), name))
     return (f"{opt.help} ({opt.unit + '; ' if opt.unit else ''}default: the preset's, {default} in {DEFAULT_PRESET}"
             f"{'; none: ' + opt.none if opt.none else ''})")
-
-
-def flag_type(opt: Option):
-    """The argparse type of an option's flag: its from_text, refusals as argparse errors naming the flag."""
-    def parse(text: str):
-        try:
-            return opt.from_text(text)
-        except ValueError as e:
-            raise argparse.ArgumentTypeError(str(e)) from None
-    return parse
 
 
 def params_from_args(args: argparse.Namespace, **override) -> StudyParams:

@@ -12,12 +12,14 @@ Adding an option: one ``option(...)`` field in StudyParams, plus the code that u
 """
 from __future__ import annotations
 
+import argparse
 import math
 import numbers
 from dataclasses import MISSING, dataclass, field, fields
 from typing import Any, Callable
 
 from homocal.arguments import range_text, within
+
 
 @dataclass(frozen=True)
 class Preset:
@@ -108,6 +110,27 @@ class Words:
 
     def to_text(self, value: Any) -> str:
         return value
+
+
+@dataclass(frozen=True)
+class YesNo:
+    """True or False, written yes or no."""
+
+    def describe(self) -> str:
+        return "yes or no"
+
+    def check(self, value: Any) -> Any:
+        if not isinstance(value, bool):
+            raise ValueError
+        return value
+
+    def from_text(self, text: str) -> Any:
+        if text not in ("yes", "no"):
+            raise ValueError
+        return text == "yes"
+
+    def to_text(self, value: Any) -> str:
+        return "yes" if value else "no"
 
 
 @dataclass(frozen=True)
@@ -228,6 +251,16 @@ class Option:
     def to_json(self, value: Any) -> Any:
         """value as study.json holds it."""
         return value if value is None else getattr(self.kind, "to_json", lambda v: v)(value)
+
+
+def flag_type(opt: Option):
+    """The argparse type of an option's flag: its from_text, refusals as argparse errors naming the flag."""
+    def parse(text: str):
+        try:
+            return opt.from_text(text)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+    return parse
 
 
 def option(default: Any = MISSING, *, default_factory: Any = MISSING, **declaration) -> Any:

@@ -22,6 +22,7 @@ import numpy as np
 from homocal.correctors.base import MAX_REFERENCE_POINTS, Corrector, load_corrector
 from homocal.correctors.catalogue import Method, fit_note, get_method, method_of, quality
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
+from homocal.correctors.pedestrians import SETTINGS as PEDESTRIAN_SETTINGS
 from homocal.correctors.serialization import float_or_none
 from homocal.files import read_json, read_points_csv, write_json_atomic, write_text_atomic
 from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, signed_area, validate_quad
@@ -50,6 +51,11 @@ def _number(req: dict, key: str, default: float, low: float, high: float) -> flo
     if not low <= value <= high:
         raise ValueError(f"{key}: expected a number in [{low:g}, {high:g}], got {value!r}")
     return float(value)
+
+
+def _flag_text(value) -> str:
+    """A setting's value as a command line takes it back exactly: yes or no, or the number's repr."""
+    return ("yes" if value else "no") if isinstance(value, bool) else repr(value)
 
 
 def _points(value, name: str, width: int, most: int | None = None) -> np.ndarray:
@@ -113,14 +119,14 @@ def _complete_transformer(session: Session, req: dict) -> ViewTransformer:
 
 def method_request(req: dict) -> tuple[Method, dict]:
     """The request's method (the catalogue's name) and the settings the page gives it: seed (an integer in
-    [0, 2**64)), threshold (percent, [0, 100]), height_mean_m and height_sd_m (metres: the constructor checks
-    them), homocal fit's defaults if absent."""
+    [0, 2**64)), threshold (percent, [0, 100]), the pedestrian settings (PEDESTRIAN_SETTINGS' names, bounds and
+    units; the constructor checks them), homocal fit's defaults if absent."""
     method = get_method(req.get("method"))
     seed = _number(req, "seed", 0, 0, MAX_SEED)
     if seed != int(seed):
         raise ValueError(f"seed: expected an integer, got {req.get('seed')!r}")
     page = {"seed": int(req.get("seed", 0)), "threshold": _number(req, "threshold", DEFAULT_THRESHOLD, 0, 100),
-            **{k: _number(req, k, 1.0, -math.inf, math.inf) for k in ("height_mean_m", "height_sd_m") if req.get(k) is not None}}
+            **{k: req[k] for k in PEDESTRIAN_SETTINGS if req.get(k) is not None}}
     return method, {k: v for k, v in page.items() if k in method.settings}
 
 
@@ -162,7 +168,7 @@ def _box_settings(session: Session, req: dict) -> dict:
     elif detector is not None:
         raise ValueError(f"detector: {session.boxes.name} has no detectors to choose from")
     height = req.get("camera_height_m")
-    height = None if height is None else _number(req, "camera_height_m", 0, -math.inf, math.inf)
+    height = None if height is None else PEDESTRIAN_SETTINGS["camera_height_m"].check("camera_height_m", height)
     boxes = session.person_boxes(detector)
     return {"detector": detector, "camera_height_m": height, "boxes": boxes,
             "image_size": boxes.image_size or session.frame_size, "K": boxes.K}
@@ -317,10 +323,10 @@ def save(session: Session, req: dict) -> dict:
                   **({} if session.lens is None else {"distortion": session.lens.distortion.tolist()})}
         detector, camera_height = box_settings["detector"], box_settings["camera_height_m"]
         given = {"--detector": None if detector is None else shlex.quote(detector),
-                 "--camera-height": None if camera_height is None else repr(camera_height)}
+                 PEDESTRIAN_SETTINGS["camera_height_m"].flag: None if camera_height is None else repr(camera_height)}
         flags = [f"--boxes {shlex.quote(str(session.boxes))}", *(f"{k} {v}" for k, v in given.items() if v is not None),
-                 f"--camera-json {shlex.quote(str(paths[3]))}", f"--height-mean {params['height_mean_m']!r}",
-                 f"--height-sd {params['height_sd_m']!r}"]
+                 f"--camera-json {shlex.quote(str(paths[3]))}",
+                 *(f"{PEDESTRIAN_SETTINGS[k].flag} {_flag_text(params[k])}" for k in method.settings)]
     size = {} if session.lens is None else {"image_size": list(session.frame_size)}  # checked against the lens's
     write_json_atomic(paths[0], {"image": image.tolist(), "map": map_px.tolist(), "site_map": site, **size})
     write_text_atomic(paths[1], buffer.getvalue())

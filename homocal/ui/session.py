@@ -12,6 +12,8 @@ import numpy as np
 from homocal.boxes import PersonBoxes, read_boxes, read_detections_table
 from homocal.correctors.catalogue import DEFAULT_METHOD, METHODS
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
+from homocal.correctors.pedestrians import SETTINGS as PEDESTRIAN_SETTINGS
+from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.dataset import load_dataset
 from homocal.geometry.lens import undistort_input
 from homocal.geometry import Lens, SiteMap
@@ -63,9 +65,21 @@ class Session:
             "settings": {name: list(m.settings) for name, m in METHODS.items()},  # the page's fields per method
             "boxes": None if self.boxes is None else {"file": str(self.boxes), "detectors": list(self.detectors),
                                                       "camera_height_m": self.camera_height_m},
+            "box_settings": box_settings(),
             "default_method": DEFAULT_METHOD,
             "threshold": DEFAULT_THRESHOLD,
         }
+
+
+def box_settings() -> list[dict]:
+    """The page's fields of a fit from boxes, one per PedestrianCorrector setting (its declaration: name, the id of
+    its field (the flag without dashes), bounds (None: a yes-or-no setting, a checkbox), unit, help, and its
+    default; None: what none means)."""
+    defaults = PedestrianCorrector().get_params()
+    return [{"name": name, "id": opt.flag.lstrip("-"), "low": getattr(opt.kind, "low", None),  # None: yes or no
+             "high": getattr(opt.kind, "high", None), "unit": opt.unit,
+             "help": opt.help, "default": defaults.get(name), "none": opt.none}
+            for name, opt in PEDESTRIAN_SETTINGS.items()]
 
 
 def from_files(frame: Path, site_map_image: Path, site_map: SiteMap, camera_origin, out_dir: Path,

@@ -4,39 +4,21 @@ from __future__ import annotations
 import numpy as np
 import pyarrow as pa
 
+from homocal.geometry.boxes import box_iou, greedy_pairs
+
 TIE_TOLERANCE_S = 1e-9
 """Two time gaps that differ by at most this many seconds are a tie; ties go to the earlier sample."""
-
-
-def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Intersection over union of (N, 4) and (M, 4) boxes (x1, y1, x2, y2) -> (N, M); 0 where both are empty."""
-    a, b = np.reshape(a, (-1, 1, 4)), np.reshape(b, (1, -1, 4))
-    iw = np.clip(np.minimum(a[..., 2], b[..., 2]) - np.maximum(a[..., 0], b[..., 0]), 0.0, None)
-    ih = np.clip(np.minimum(a[..., 3], b[..., 3]) - np.maximum(a[..., 1], b[..., 1]), 0.0, None)
-    inter = iw * ih
-    area_a = (a[..., 2] - a[..., 0]) * (a[..., 3] - a[..., 1])
-    area_b = (b[..., 2] - b[..., 0]) * (b[..., 3] - b[..., 1])
-    union = area_a + area_b - inter
-    return np.divide(inter, union, out=np.zeros_like(inter), where=union > 0)
 
 
 def greedy_assign(score: np.ndarray, min_score: float) -> tuple[np.ndarray, np.ndarray]:
     """One-to-one pairs from an (N, M) score matrix, best score first.
 
     Pairs with score >= min_score are taken in order of decreasing score (ties: lower row, then
-    lower column) while both their row and column are free. Deterministic.
-    Returns (rows, cols), each (P,) intp, in the order taken.
+    lower column) while both their row and column are free (homocal.geometry.boxes.greedy_pairs).
+    Deterministic. Returns (rows, cols), each (P,) intp, in the order taken.
     """
     rows, cols = np.nonzero(score >= min_score)
-    order = np.lexsort((cols, rows, -score[rows, cols]))
-    taken_rows, taken_cols, pairs = set(), set(), []
-    for r, c in zip(rows[order].tolist(), cols[order].tolist()):
-        if r not in taken_rows and c not in taken_cols:
-            taken_rows.add(r)
-            taken_cols.add(c)
-            pairs.append((r, c))
-    pairs = np.array(pairs, dtype=np.intp).reshape(-1, 2)
-    return pairs[:, 0], pairs[:, 1]
+    return greedy_pairs(rows, cols, score[rows, cols], score.shape[1])
 
 
 def associate(xyxy: np.ndarray, ref_ids: np.ndarray, ref_xyxy: np.ndarray, min_iou: float) -> np.ndarray:

@@ -228,7 +228,7 @@ def test_windows_measure_every_disjoint_window_and_their_spread(datasets):
     ("no out", ["--study", "{s0}", "-o", ""], 2, "--study needs -o OUT"),
     ("both modes", ["{dataset}", "--study", "{s0}"], 2, "give DATASET ... or --study STUDY"),
     ("dataset flag", ["--study", "{s0}", "--variants", "3"], 2, "--variants: not with --study"),
-    ("prior", ["--study", "{s0}", "--height-sd", "0"], 2, "argument --height-mean/--height-sd: height_sd_m must be"),
+    ("prior", ["--study", "{s0}", "--height-sd", "0"], 2, "argument --height-mean/--height-sd: height_sd_m 0.0: expected a number in [0.01, 0.625] (m)"),
 ])
 def test_pedestrians_bad_input_is_one_line(case, args, code, message, studies, tiny_dataset, tmp_path, capsys):
     """Each bad input: its exit code, the last stderr line naming it, nothing on stdout, no report folder made

@@ -133,10 +133,14 @@ def test_pedestrians_fit_from_the_launch_boxes(boxes_server):
     """The page's fit is the library's on read_boxes of the launch's file (image size: the frame's); the fitted
     horizon it draws is the camera's, the clicked one 16 px above it; the points only check the fit."""
     from homocal import PedestrianCorrector, read_boxes
+    from homocal.correctors.pedestrians import SETTINGS as PEDESTRIAN_SETTINGS
 
     info = json.loads(urllib.request.urlopen(boxes_server.address + "api/session", timeout=10).read())
     assert "pedestrians" in info["methods"] and info["box_methods"] == ["pedestrians"]
     assert info["boxes"] == {"file": str(boxes_server.session.boxes), "detectors": [], "camera_height_m": None}
+    assert [(s["name"], s["id"], s["low"], s["high"]) for s in info["box_settings"]] == [
+        (name, opt.flag[2:], getattr(opt.kind, "low", None), getattr(opt.kind, "high", None))
+        for name, opt in PEDESTRIAN_SETTINGS.items()]  # declared once
     trap = tilted_trapezoid()
     status, fit = post(boxes_server, "api/fit", request(trapezoid=trap, method="pedestrians", points=[],
                                                         camera_height_m=4.0))
@@ -165,18 +169,20 @@ def test_pedestrians_fit_from_the_launch_boxes(boxes_server):
 
 @pytest.mark.parametrize("fields,message", [
     ({"detector": "segmentation"}, "detector: boxes.csv has no detectors to choose from"),
-    ({"camera_height_m": 0}, "camera_height_m must be in (0, 100] m"),
-    ({"camera_height_m": 1e6}, "camera_height_m must be in (0, 100] m"),
-    ({"camera_height_m": "4"}, "camera_height_m: expected a finite number"),
-    ({"height_sd_m": 0}, "height_sd_m must be in [0.01"),
-    ({"height_sd_m": 1.0}, "height_sd_m must be in [0.01"),
-    ({"height_sd_m": "0.1"}, "height_sd_m: expected a finite number"),
-    ({"height_mean_m": 20}, "height_mean_m must be a number of metres in [0.5, 2.5]"),
-    ({"height_mean_m": True}, "height_mean_m: expected a finite number"),
-    ({"height_mean_m": float("nan")}, "height_mean_m: expected a finite number"),
-    ({"camera_height_m": float("inf")}, "camera_height_m: expected a finite number"),
-    ({"height_mean_m": [1.7]}, "height_mean_m: expected a finite number"),
-    ({"camera_height_m": True}, "camera_height_m: expected a finite number"),
+    ({"camera_height_m": 0}, "camera_height_m 0: expected a number in [0.5, 100] (m) or none"),
+    ({"camera_height_m": 1e-9}, "camera_height_m 1e-09: expected a number in [0.5, 100] (m) or none"),
+    ({"camera_height_m": 1e6}, "camera_height_m 1000000.0: expected a number in [0.5, 100] (m) or none"),
+    ({"camera_height_m": "4"}, "camera_height_m '4': expected a number in [0.5, 100] (m) or none"),
+    ({"height_sd_m": 0}, "height_sd_m 0: expected a number in [0.01, 0.625] (m)"),
+    ({"height_sd_m": 0.5}, "height_sd_m 0.5: expected at most height_mean_m / 4 = 0.4125 m"),
+    ({"height_sd_m": "0.1"}, "height_sd_m '0.1': expected a number in [0.01, 0.625] (m)"),
+    ({"height_mean_m": 20}, "height_mean_m 20: expected a number in [0.5, 2.5] (m)"),
+    ({"height_mean_m": True}, "height_mean_m True: expected a number"),
+    ({"height_mean_m": float("nan")}, "height_mean_m nan: expected a number"),
+    ({"height_mean_sigma_m": -0.1}, "height_mean_sigma_m -0.1: expected a number in [0, 0.5] (m)"),
+    ({"camera_height_m": float("inf")}, "camera_height_m inf: expected a number"),
+    ({"height_mean_m": [1.7]}, "height_mean_m [1.7]: expected a number"),
+    ({"camera_height_m": True}, "camera_height_m True: expected a number"),
     ({"detector": 3}, "detector: boxes.csv has no detectors to choose from"),
     ({"boxes": "/etc/passwd", "camera_height_m": 40.0}, "no tilt makes the median"),  # a path in a request is not read
 ])  # fmt: skip

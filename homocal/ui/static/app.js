@@ -65,7 +65,10 @@ function fitRequest() {
   }
   if (fromBoxes(req.method)) {  // the session's boxes file: the page names a detector of it, never a path
     if (S.info.boxes.detectors.length) req.detector = $("detector").value;
-    if ($("camera-height").value !== "") req.camera_height_m = number("camera-height");
+    for (const s of S.info.box_settings) {
+      if (s.low === null) req[s.name] = $(s.id).checked;  // yes or no
+      else if ($(s.id).value !== "") req[s.name] = number(s.id);
+    }
   }
   return req;
 }
@@ -639,7 +642,7 @@ function bind() {
   $("show-corrected").addEventListener("change", () => render());
   $("show-boxes").addEventListener("change", () => render());
   $("method").addEventListener("change", () => { showMethodFields(); invalidateFit(); render(); });
-  for (const id of ["detector", "camera-height", "seed", "threshold", "height_mean_m", "height_sd_m"]) {
+  for (const id of ["detector", "seed", "threshold"]) {
     $(id).addEventListener("change", () => { invalidateFit(); render(); });
   }
   $("use-hand-placed").onclick = () => { S.trap = JSON.parse(JSON.stringify(S.info.dataset.hand_placed)); changeTrapezoid(null); };
@@ -678,6 +681,16 @@ async function start() {
   $("threshold").value = S.info.threshold;
   showMethodFields();
   if (S.info.dataset) { $("use-hand-placed").hidden = false; $("use-calibration").hidden = false; }
+  for (const s of S.info.box_settings) {  // one field per PedestrianCorrector setting, from its declaration
+    const input = Object.assign(document.createElement("input"), s.low === null
+      ? { id: s.id, type: "checkbox", checked: s.default === true, title: s.help }
+      : { id: s.id, className: "num", type: "number", step: "0.01", min: s.low, max: s.high, title: s.help,
+          placeholder: s.default === null ? "" : String(s.default) });
+    input.addEventListener("change", () => { invalidateFit(); render(); });
+    const label = document.createElement("label");
+    label.append(`${s.id.replace(/-/g, " ")} `, input, ` ${s.unit}${s.none ? ` (empty: ${s.none})` : ""} `);
+    $("box-settings").append(label);
+  }
   if (S.info.boxes) {
     $("detector").replaceChildren(...S.info.boxes.detectors.map((d) => new Option(d)));  // names from the file: text, never HTML
     if (S.info.boxes.detectors.includes("segmentation")) $("detector").value = "segmentation";
