@@ -17,6 +17,8 @@ from simgen.cli import main
 
 from scene_copies import SCENES
 
+pytestmark = [pytest.mark.generate, pytest.mark.slow]  # killed and resumed simgen runs
+
 
 def _tree(root: Path) -> dict[str, bytes]:
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
@@ -61,7 +63,6 @@ import sys, time
 from homocal.files import output_folder
 from simgen.dataset import FORMAT
 
-pytestmark = [pytest.mark.generate, pytest.mark.slow]  # killed and resumed simgen runs
 with output_folder(sys.argv[1], FORMAT, False):
     open(sys.argv[1] + "/manifest.json", "w").write('{"format": "simgen-dataset"}')
     print("held", flush=True)

@@ -406,7 +406,7 @@ def test_fields_follow_the_method(page):
     d = page
     for name, method in METHODS.items():
         Select(d.find_element(By.ID, "method")).select_by_visible_text(name)
-        for setting in ("seed", "threshold", "height_mean_m", "height_sd_m"):  # each field's id is its setting
+        for setting in ("seed", "threshold"):  # each field's id is its setting (the pedestrians': inside boxes-fields)
             assert d.find_element(By.ID, setting).is_displayed() == (setting in method.settings), (name, setting)
         assert d.find_element(By.ID, "boxes-fields").is_displayed() == (method.evidence == "boxes"), name
 
