@@ -95,7 +95,7 @@ LENS = {"K": CAM.K.tolist(), "distortion": BARREL, "image_size": [1280, 720]}
     (json.dumps(LENS).replace("-0.2", "NaN"), "distortion: contains NaN or inf"),
     ("[1, 2]", "expected a JSON object"),
     ("{", "not a JSON file"),
-    (" " * (MAX_CAMERA_BYTES + 1) + "{}", f"larger than {MAX_CAMERA_BYTES} bytes"),
+    (" " * (MAX_CAMERA_BYTES + 1) + "{}", f"larger than {MAX_CAMERA_BYTES / 2**20:g} MiB"),
 ])
 def test_bad_camera_files(tmp_path, content, message):
     path = write(tmp_path, content)

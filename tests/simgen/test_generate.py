@@ -169,7 +169,7 @@ MOT_BAD = [
     ("-o and a dataset", MOT_LINE.encode(), "yolo", ["-o", "OUT"], "give the dataset folder once"),
     ("a line of a megabyte", b"1," * 500_000 + b"\n", "yolo", [], "det.txt: line 1: longer than 1024 characters"),
     ("/dev/zero", "/dev/zero", "yolo", [], "/dev/zero: line 1: longer than 1024 characters"),
-    ("over 256 MiB", "sparse", "yolo", [], "det.txt: larger than 256 MiB (import-mot's bound)"),
+    ("over 256 MiB", "sparse", "yolo", [], "det.txt: larger than 256 MiB (the most a boxes file holds)"),
     ("bad line", (MOT_LINE + "2,-1,ten,10,5,20,0.9,-1,-1,-1\n").encode(), "yolo", [], "det.txt: line 2: not a number"),
     ("no file", None, "yolo", [], "missing.txt: No such file"),
     ("empty file", b"", "yolo", [], "det.txt: no detections"),
