@@ -23,12 +23,15 @@ from homocal.correctors.base import MAX_REFERENCE_POINTS, Corrector, load_correc
 from homocal.correctors.catalogue import Method, fit_note, get_method, method_of, quality
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.pedestrians import SETTINGS as PEDESTRIAN_SETTINGS
+from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.correctors.serialization import float_or_none
 from homocal.files import read_json, read_points_csv, write_json_atomic, write_text_atomic
 from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, signed_area, validate_quad
 from homocal.ui import overlay
 from homocal.ui.errorbars import error_bars
 from homocal.ui.session import Session, undistorted
+from homocal.watch import OnlineCalibrator
+from homocal.watch.calibrator import PERSON_BOXES, by_frame, camera_of
 
 TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE = "trapezoid.json", "reference_points.csv", "correction.json"
 CAMERA_FILE = "camera_intrinsics.json"  # Save's --camera-json of a fit from boxes (not camera.json: a dataset's)
@@ -36,6 +39,7 @@ MAX_SIGMA_PX = 100.0  # the error bars' sigmas (pixels): a clicking error beyond
 MAX_TOLERANCE_M = 1e6
 MAX_SEED = 2**64 - 1
 MAX_DRAWN_BOXES = 5000  # people's boxes a fit answers for the page to draw (every k-th beyond it)
+MAX_PLOT_POINTS = 2000  # points of each curve of the horizon over time the page is sent (every k-th beyond it)
 
 
 class Refused(Exception):
@@ -261,6 +265,65 @@ def drawn_boxes(xyxy: np.ndarray, status: np.ndarray) -> dict:
     return {**out, "total": len(xyxy), "step": step}
 
 
+def _watched(session: Session, req: dict) -> dict:
+    """Run homocal.watch's OnlineCalibrator over the session's boxes (of the request's detector, at its camera
+    height and height prior, K and the camera height as homocal watch takes them: watch.camera_of), in time order at
+    the session's fps. Returns {"states": [State per frame], "moves": [Move], "stretches": [(start_s, horizon row,
+    1-sigma px, people)] (as homocal watch's corrections/: each stretch's estimate when it ended, the last one's
+    at the end of the boxes; stretches of fewer than 3 people left out), "K", "camera_height_m", "prior"
+    (height_mean_m, height_sd_m), "transformer"}."""
+    if session.fps is None:
+        raise ValueError(f"fps: {session.boxes.name if session.boxes else 'the boxes'} does not say its frame rate: "
+                         "start homocal ui with --fps")
+    transformer = _complete_transformer(session, req)
+    settings = _box_settings(session, req)
+    prior = PedestrianCorrector(**{k: req[k] for k in ("height_mean_m", "height_sd_m") if req.get(k) is not None})
+    K, height = camera_of(transformer, settings["image_size"], settings["K"], settings["camera_height_m"])
+    calibrator = OnlineCalibrator(K, height, session.fps, settings["image_size"], prior.height_mean_m,
+                                  prior.height_sd_m)
+    boxes = settings["boxes"]
+    states = [calibrator.update(*frame) for frame in by_frame(boxes.frames, boxes.xyxy, boxes.track_ids,
+                                                              str(session.boxes))]
+    moves = [s.move for s in states if s.move is not None]
+    stretches = [(start, m.horizon_before, m.sigma_before, m.n_before)
+                 for start, m in zip([0.0] + [m.t_s for m in moves], moves)]
+    if states:
+        last = states[-1]
+        stretches.append((last.stretch_start_s, last.horizon_row, last.horizon_sigma_px, last.n_people))
+    return {"states": states, "moves": moves, "stretches": [s for s in stretches if s[3] >= 3], "K": K,
+            "camera_height_m": height, "prior": prior, "transformer": transformer}
+
+
+def watch(session: Session, req: dict) -> dict:
+    """The camera's horizon over time from the session's boxes (``_watched``: the request as a pedestrians fit's),
+    for the page's time plot: "people" {"t": s, "row": px} (each person's implied horizon row), "estimate" {"t",
+    "row", "sigma"} (the running estimate and its 1-sigma after each person), each at most MAX_PLOT_POINTS (every
+    k-th beyond), "moves" (Move.to_dict), "stretches" [{"start_s", "horizon_row", "sigma_px", "n_people"}],
+    "clicked_row" (the clicked mapping's horizon row) and "column" (the principal column all rows are at),
+    undistorted pixels; "summary" in words."""
+    run = _watched(session, req)
+    people = [(s.t_s, row) for s in run["states"] for row in s.person_rows]
+    estimate = [(s.t_s, s.horizon_row, s.horizon_sigma_px) for s in run["states"] if s.person_rows]
+    if not people:
+        raise ValueError(f"{session.boxes.name}: no person gave a horizon row (each needs {PERSON_BOXES} boxes off "
+                         "the border, standing below the horizon)")
+
+    def thinned(rows: list) -> dict:
+        step = max(1, math.ceil(len(rows) / MAX_PLOT_POINTS))
+        rows = rows[::step] + ([rows[-1]] if (len(rows) - 1) % step else [])
+        return dict(zip(("t", "row", "sigma"), ([float_or_none(v) for v in col] for col in zip(*rows))))
+
+    cx = float(run["K"][0, 2])
+    moves, stretches = run["moves"], run["stretches"]
+    return {"people": thinned(people), "estimate": thinned(estimate), "moves": [m.to_dict() for m in moves],
+            "stretches": [{"start_s": a, "horizon_row": b, "sigma_px": c, "n_people": n} for a, b, c, n in stretches],
+            "clicked_row": float(run["transformer"].horizon_row(cx)), "column": cx,
+            "summary": f"{len(people)} people over {run['states'][-1].t_s:.1f} s: {len(moves)} move"
+                       f"{'' if len(moves) == 1 else 's'} detected" + "".join(
+                           f"; at {m.t_s:.1f} s the horizon row went {m.horizon_before:.1f} -> {m.horizon_after:.1f} px"
+                           for m in moves)}
+
+
 def locate(session: Session, req: dict) -> dict:
     """The ground position of one image point with its 1-sigma error ellipse ("errorbars", the clicked
     trapezoid's) and, given a fitted "correction", its corrected position with the correction's own error
@@ -383,4 +446,4 @@ def load(session: Session, req: dict) -> dict:
     return out
 
 
-ENDPOINTS = {"view": view, "fit": fit, "locate": locate, "save": save, "load": load}
+ENDPOINTS = {"view": view, "fit": fit, "watch": watch, "locate": locate, "save": save, "load": load}

@@ -17,6 +17,7 @@ from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.dataset import load_dataset
 from homocal.geometry.lens import undistort_input
 from homocal.geometry import Lens, SiteMap
+from homocal.measure.cli import MAX_FPS, file_fps
 
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
 
@@ -37,6 +38,7 @@ class Session:
     boxes: Path | None = None  # the boxes file of --boxes (or a dataset's detections.parquet), resolved
     detectors: tuple[str, ...] = ()  # the detectors of a detections.parquet boxes file (the page picks one)
     camera_height_m: float | None = None  # the page's default camera height (a dataset's mount height)
+    fps: float | None = None  # frames per second of the boxes' video (--fps, else its folder's): the watch's time
     lens: Lens | None = None  # the camera's lens (--camera-json, a dataset's camera.json); None: a pinhole's pixels
     camera_file: Path | None = None  # the file the lens came from (Save's command names it)
     written: dict[Path, tuple] = field(default_factory=dict)  # the identity (api._identity) of each file this
@@ -64,7 +66,7 @@ class Session:
             "box_methods": [name for name, m in METHODS.items() if m.evidence == "boxes"],  # fitted from boxes
             "settings": {name: list(m.settings) for name, m in METHODS.items()},  # the page's fields per method
             "boxes": None if self.boxes is None else {"file": str(self.boxes), "detectors": list(self.detectors),
-                                                      "camera_height_m": self.camera_height_m},
+                                                      "camera_height_m": self.camera_height_m, "fps": self.fps},
             "box_settings": box_settings(),
             "default_method": DEFAULT_METHOD,
             "threshold": DEFAULT_THRESHOLD,
@@ -83,16 +85,27 @@ def box_settings() -> list[dict]:
 
 
 def from_files(frame: Path, site_map_image: Path, site_map: SiteMap, camera_origin, out_dir: Path,
-               frame_index: int = 0, boxes: Path | None = None) -> Session:
+               frame_index: int = 0, boxes: Path | None = None, fps: float | None = None) -> Session:
     """A session from a frame (an image, or a video's frame ``frame_index``) and a site-map image, with the
-    boxes file ``boxes`` (homocal.read_boxes's three kinds) when given."""
+    boxes file ``boxes`` (homocal.read_boxes's three kinds) when given, at ``fps`` frames per second (None: the
+    rate its folder says, homocal.measure.cli.file_fps, if any)."""
     frame_png, frame_size = read_frame(frame, frame_index)
     map_png, map_size = _png(cv2.imread(str(site_map_image), cv2.IMREAD_COLOR), site_map_image)
     session = Session(frame_png, frame_size, map_png, map_size, site_map, np.asarray(camera_origin, float),
                       _folder(out_dir), f"{frame.name} on {site_map_image.name}")
     if boxes is not None:
         session.boxes, session.detectors = _boxes_file(boxes)
+        session.fps = fps if fps is not None else _folder_fps(session.boxes)
     return session
+
+
+def _folder_fps(boxes: Path) -> float | None:
+    """The frame rate the boxes file's folder says (file_fps), None if it says none or one out of (0, MAX_FPS]."""
+    try:
+        fps = float(file_fps(boxes))
+    except (TypeError, ValueError):
+        return None
+    return fps if 0 < fps <= MAX_FPS else None
 
 
 def _boxes_file(path: Path) -> tuple[Path, tuple[str, ...]]:
@@ -106,13 +119,14 @@ def _boxes_file(path: Path) -> tuple[Path, tuple[str, ...]]:
     return path.resolve(), tuple(sorted(names))
 
 
-def from_dataset(path: Path, out_dir: Path, frame_index: int = 0, boxes: Path | None = None) -> Session:
+def from_dataset(path: Path, out_dir: Path, frame_index: int = 0, boxes: Path | None = None,
+                 fps: float | None = None) -> Session:
     """A session from a simgen dataset folder (data_schema.md): video.mp4, site_map.png / .json,
     trapezoids.json (hand_placed), calibration.parquet (the detected foot points of the calibration objects),
     the boxes of detections.parquet (or of ``boxes``) and the camera's mount height."""
     ds = load_dataset(path)
     session = from_files(path / "video.mp4", path / "site_map.png", ds.site_map, ds.camera_origin, out_dir,
-                         frame_index, path / "detections.parquet" if boxes is None else boxes)
+                         frame_index, path / "detections.parquet" if boxes is None else boxes, fps)
     session.camera_height_m = ds.camera.mount_height_m
     use_lens(session, ds.camera.lens, path / "camera.json")
     image, ground, _ = ds.calibration_points(source="segmentation")

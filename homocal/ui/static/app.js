@@ -18,6 +18,7 @@ const S = {
   fit: null,           // last /api/fit answer, null when out of date
   fitStale: null,      // the previous fit's summary, shown struck through
   probe: null,         // {u, v, answer}
+  watch: null,         // last /api/watch answer (the horizon over time), null when out of date
   message: null,       // {text, kind: "error" | "warn" | "info", topic}: the status line (see say)
 };
 const images = { frame: new Image(), map: new Image() };
@@ -63,12 +64,16 @@ function fitRequest() {
   for (const key of S.info.settings[req.method]) {  // a setting's field has the setting's name as its id
     if ($(key) && $(key).value !== "") req[key] = number(key);
   }
-  if (fromBoxes(req.method)) {  // the session's boxes file: the page names a detector of it, never a path
-    if (S.info.boxes.detectors.length) req.detector = $("detector").value;
-    for (const s of S.info.box_settings) {
-      if (s.low === null) req[s.name] = $(s.id).checked;  // yes or no
-      else if ($(s.id).value !== "") req[s.name] = number(s.id);
-    }
+  return fromBoxes(req.method) ? { ...req, ...boxRequest() } : req;
+}
+
+// The session's boxes file: the page names a detector of it, never a path; the pedestrian settings' fields.
+function boxRequest() {
+  const req = {};
+  if (S.info.boxes.detectors.length) req.detector = $("detector").value;
+  for (const s of S.info.box_settings) {
+    if (s.low === null) req[s.name] = $(s.id).checked;  // yes or no
+    else if ($(s.id).value !== "") req[s.name] = number(s.id);
   }
   return req;
 }
@@ -117,6 +122,7 @@ function dragView() {  // at most one light request in flight while a corner is 
 function invalidateFit() {
   if (S.fit) S.fitStale = S.fit.summary;
   S.fit = null;
+  S.watch = null;
   clearTopic("fit", "files");  // what they said was of the inputs before this change
 }
 
@@ -164,7 +170,7 @@ let drawn = null;  // {frame: {...}, map: {...}} of the last render (newDrawn)
 
 function newDrawn() {
   const one = () => ({ pending: [], taken: [], labels: [], hidden: [], ellipses: [], boxes: { used: 0, outlier: 0, border: 0 } });
-  return { frame: one(), map: one() };
+  return { frame: one(), map: one(), plot: { people: 0, moves: [], band: 0, references: [] } };
 }
 
 function polyline(ctx, name, pts, close) {
@@ -273,6 +279,7 @@ function render(keepTable) {
   window.homocalUI.drawn = drawn;
   renderFrame();
   renderMap();
+  renderPlot();
   renderPanels(keepTable);
   showMessage();
 }
@@ -374,6 +381,69 @@ function renderMap() {
     if (own) drawEllipses(ctx, "map", own, "map", own.points.map(groundToMap), "#ff9d2e", "probe");
   }
   placeLabels(ctx, "map");
+}
+
+// The horizon over time (/api/watch): time (s) across, the horizon row (px, down as in the image) up the side;
+// each person's implied row (dots), the estimate with its 1-sigma band, the detected moves (vertical lines at
+// their change points), the clicked horizon and a fitted one (horizontal lines). Records what it drew in drawn.plot.
+const PLOT_MARGIN = { left: 52, right: 10, top: 8, bottom: 20 };
+function renderPlot() {
+  const w = S.watch;
+  $("plot-box").hidden = !w;
+  if (!w) return;
+  const c = $("timeplot"), r = c.getBoundingClientRect(), ctx = c.getContext("2d"), d = drawn.plot;
+  c.width = Math.round(r.width); c.height = Math.round(r.height);
+  ctx.clearRect(0, 0, c.width, c.height);
+  const fitted = S.fit && S.fit.correction.fitted && S.fit.correction.fitted.horizon_row;
+  const refs = [[w.clicked_row, "#ff5050", "clicked"]].concat(typeof fitted === "number" ? [[fitted, "#ff9d2e", "fitted"]] : []);
+  const finite = (v) => v !== null && Number.isFinite(v);
+  const e = w.estimate, band = e.t.map((t, i) => [t, e.row[i], e.sigma[i]]).filter((p) => finite(p[1]) && finite(p[2]));
+  // rows shown: the band and the references, with room around them (people beyond are left out: clipped)
+  const rows = band.flatMap(([, v, s]) => [v - s, v + s]).concat(refs.map((x) => x[0]));
+  const pad = Math.max(5, (Math.max(...rows) - Math.min(...rows)) * 0.3);
+  const lo = Math.min(...rows) - pad, hi = Math.max(...rows) + pad, t1 = Math.max(...w.people.t, 1e-9);
+  const X = (t) => PLOT_MARGIN.left + (c.width - PLOT_MARGIN.left - PLOT_MARGIN.right) * t / t1;
+  const Y = (v) => PLOT_MARGIN.top + (c.height - PLOT_MARGIN.top - PLOT_MARGIN.bottom) * (v - lo) / (hi - lo);
+  ctx.font = "11px sans-serif"; ctx.fillStyle = "#aaa"; ctx.textAlign = "right";
+  for (const v of [lo + pad, (lo + hi) / 2, hi - pad]) ctx.fillText(v.toFixed(1), PLOT_MARGIN.left - 4, Y(v) + 4);
+  ctx.textAlign = "center";
+  for (let k = 0; k <= 4; k++) ctx.fillText((t1 * k / 4).toFixed(0) + (k === 4 ? " s" : ""), X(t1 * k / 4), c.height - 5);
+  ctx.textAlign = "left";
+  ctx.fillText(`horizon row (px at column ${w.column.toFixed(0)})`, PLOT_MARGIN.left + 4, PLOT_MARGIN.top + 10);
+  ctx.save(); ctx.beginPath();
+  ctx.rect(PLOT_MARGIN.left, PLOT_MARGIN.top, c.width - PLOT_MARGIN.left - PLOT_MARGIN.right, c.height - PLOT_MARGIN.top - PLOT_MARGIN.bottom);
+  ctx.clip();
+  if (band.length) {  // the 1-sigma band, then the estimate
+    ctx.fillStyle = "rgba(159,211,255,0.3)"; ctx.beginPath();
+    band.forEach(([t, v, s], i) => (i ? ctx.lineTo(X(t), Y(v - s)) : ctx.moveTo(X(t), Y(v - s))));
+    band.slice().reverse().forEach(([t, v, s]) => ctx.lineTo(X(t), Y(v + s)));
+    ctx.closePath(); ctx.fill();
+    style(ctx, "#9fd3ff", 1.5); ctx.beginPath();
+    band.forEach(([t, v], i) => (i ? ctx.lineTo(X(t), Y(v)) : ctx.moveTo(X(t), Y(v)))); ctx.stroke();
+    d.band = band.length;
+  }
+  ctx.fillStyle = "rgba(230,230,230,0.8)";
+  w.people.t.forEach((t, i) => { ctx.fillRect(X(t) - 1.5, Y(w.people.row[i]) - 1.5, 3, 3); });
+  d.people = w.people.t.length;
+  for (const [v, color, name] of refs) {
+    style(ctx, color, 1.5, [6, 4]); ctx.beginPath(); ctx.moveTo(X(0), Y(v)); ctx.lineTo(X(t1), Y(v)); ctx.stroke();
+    d.references.push({ name, y: Y(v) });
+  }
+  for (const m of w.moves) {
+    style(ctx, "#ff4fd8", 2); ctx.beginPath(); ctx.moveTo(X(m.t_s), PLOT_MARGIN.top); ctx.lineTo(X(m.t_s), c.height - PLOT_MARGIN.bottom); ctx.stroke();
+    ctx.fillStyle = "#ff4fd8"; ctx.fillText(`move ${m.t_s.toFixed(1)} s`, X(m.t_s) + 3, c.height - PLOT_MARGIN.bottom - 4);
+    d.moves.push({ t_s: m.t_s, x: X(m.t_s) });
+  }
+  ctx.restore();
+}
+
+async function doWatch() {
+  try {
+    S.watch = await api("watch", { ...viewRequest(), ...boxRequest() });
+    $("watch-summary").textContent = S.watch.summary;
+    clearTopic("watch");
+  } catch (e) { S.watch = null; say(e.message, "error", "watch"); }
+  render();
 }
 
 // ---- panels -----------------------------------------------------------------------------------------
@@ -620,6 +690,7 @@ function bind() {
   $("clear-trapezoid").onclick = () => { S.trap = { image: [], map: [] }; changeTrapezoid(null); };
   $("clear-points").onclick = () => { S.points = []; invalidateFit(); render(); };
   $("fit").onclick = doFit;
+  $("watch").onclick = doWatch;
   $("save").onclick = doSave;
   $("load").onclick = doLoad;
   $("points-table").addEventListener("change", (e) => {
@@ -697,6 +768,7 @@ async function start() {
     $("detector").hidden = !S.info.boxes.detectors.length;
     if (S.info.boxes.camera_height_m !== null) $("camera-height").value = S.info.boxes.camera_height_m;
     $("boxes-file").textContent = S.info.boxes.file;
+    $("watch-fields").hidden = false;
   }
   await Promise.all(["frame", "map"].map((name) => new Promise((resolve, reject) => {
     images[name].onload = resolve; images[name].onerror = () => reject(new Error(`cannot load /${name}.png`));
