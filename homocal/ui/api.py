@@ -29,7 +29,7 @@ from homocal.files import read_json, read_points_csv, write_json_atomic, write_t
 from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, signed_area, validate_quad
 from homocal.ui import overlay
 from homocal.ui.errorbars import error_bars
-from homocal.ui.session import Session, undistorted
+from homocal.ui.session import Session, to_frame, undistorted
 from homocal.watch import OnlineCalibrator
 from homocal.watch.calibrator import PERSON_BOXES, by_frame, camera_of
 
@@ -251,17 +251,25 @@ def fit(session: Session, req: dict) -> dict:
         "corrected_grid": overlay.ground_grid(overlay.sample_mapping(corrector.transform_points, transformer, w, h,
                                                                      session.lens), _camera_origin(req)),
         "horizon": overlay.through_lens(overlay.horizon_segment(corrector.mapping, w, h), session.lens),
-        "boxes": None if box_settings is None else drawn_boxes(box_settings["boxes"].xyxy, corrector.box_status_),
+        "boxes": None if box_settings is None else drawn_boxes(session, box_settings["boxes"].xyxy, corrector.box_status_),
         "correction": corrector.to_dict(),
     }
 
 
-def drawn_boxes(xyxy: np.ndarray, status: np.ndarray) -> dict:
-    """The boxes (N, 4) x1, y1, x2, y2 px a fit from boxes read, by their part in it (status (N,): "used",
-    "outlier", "border"), for the page to draw: {"used": [[x1, y1, x2, y2], ...], "outlier": [...], "border":
-    [...], "total": N, "step": k}: every k-th box of each kind, at most MAX_DRAWN_BOXES in all."""
+def drawn_boxes(session: Session, xyxy: np.ndarray, status: np.ndarray) -> dict:
+    """The boxes (N, 4) x1, y1, x2, y2 px (the session's undistorted pixels) a fit from boxes read, by their part in
+    it (status (N,): "used", "outlier", "border"), for the page to draw on the frame: {"used": [outline, ...],
+    "outlier": [...], "border": [...], "total": N, "step": k}, each outline the box's 4 corners and 4 side
+    midpoints (from the top-left, clockwise) in the frame's pixels (through the session's lens: the bottom
+    midpoint is the foot point the file gave); every k-th box of each kind, at most MAX_DRAWN_BOXES in all."""
     step = max(1, math.ceil(len(xyxy) / MAX_DRAWN_BOXES))
-    out = {kind: np.round(xyxy[status == kind][::step], 1).tolist() for kind in ("used", "outlier", "border")}
+    out = {}
+    for kind in ("used", "outlier", "border"):
+        x1, y1, x2, y2 = xyxy[status == kind][::step].T
+        xc, yc = (x1 + x2) / 2, (y1 + y2) / 2
+        outline = np.stack([np.column_stack(p) for p in ((x1, y1), (xc, y1), (x2, y1), (x2, yc), (x2, y2), (xc, y2),
+                                                         (x1, y2), (x1, yc))], axis=1)  # (n, 8, 2)
+        out[kind] = np.round(to_frame(session, outline.reshape(-1, 2)), 1).reshape(-1, 8, 2).tolist()
     return {**out, "total": len(xyxy), "step": step}
 
 

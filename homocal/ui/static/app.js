@@ -264,10 +264,7 @@ function drawBoxes(ctx) {
   if (!boxes || !$("show-boxes").checked) return;
   for (const [kind, [color, dash]] of Object.entries(BOX_STYLES)) {
     style(ctx, color, kind === "outlier" ? 1.5 : 1, dash);
-    boxes[kind].forEach(([x1, y1, x2, y2]) => {
-      const a = toScreen("frame", [x1, y1]), b = toScreen("frame", [x2, y2]);
-      ctx.strokeRect(a[0], a[1], b[0] - a[0], b[1] - a[1]);
-    });
+    boxes[kind].forEach((outline) => polyline(ctx, "frame", outline, true));  // the frame's pixels
     drawn.frame.boxes[kind] = boxes[kind].length;
   }
 }
