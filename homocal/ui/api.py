@@ -27,13 +27,15 @@ from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.correctors.serialization import float_or_none
 from homocal.files import read_json, read_points_csv, write_json_atomic, write_text_atomic
 from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, signed_area, validate_quad
+from homocal.lens.lines import DEFAULT_HFOV_DEG, DEFAULT_TERMS, TERMS, check_lines, fit_lines, intrinsics
 from homocal.ui import overlay
 from homocal.ui.errorbars import error_bars
-from homocal.ui.session import Session, to_frame, undistorted
+from homocal.ui.session import Session, to_frame, undistorted, use_lens
 from homocal.watch import OnlineCalibrator
 from homocal.watch.calibrator import PERSON_BOXES, by_frame, camera_of
 
 TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE = "trapezoid.json", "reference_points.csv", "correction.json"
+LINES_FILE, LENS_FILE = "lines.json", "lens.json"  # the line tool's: homocal lens --lines LINES_FILE -o LENS_FILE
 CAMERA_FILE = "camera_intrinsics.json"  # Save's --camera-json of a fit from boxes (not camera.json: a dataset's)
 MAX_SIGMA_PX = 100.0  # the error bars' sigmas (pixels): a clicking error beyond this is no click
 MAX_TOLERANCE_M = 1e6
@@ -332,6 +334,71 @@ def watch(session: Session, req: dict) -> dict:
                            for m in moves)}
 
 
+def lens(session: Session, req: dict) -> dict:
+    """Fit the lens that makes the request's "lines" (polylines [[u, v], ...] of the frame's pixels, along edges
+    straight in the world) straight, as ``homocal lens --lines`` does (homocal.lens.lines: check_lines, fit_lines
+    with "terms" (default DEFAULT_TERMS) and the focal length of "hfov_deg" (default DEFAULT_HFOV_DEG)), and use it
+    for the session from now on (use_lens: every click, box and overlay goes through it). Answers the lens, the
+    fit's diagnostics ("fit": lens.json's) and a summary."""
+    terms = req.get("terms", DEFAULT_TERMS)
+    if terms not in TERMS:
+        raise ValueError(f"terms: expected one of {', '.join(TERMS)}, got {terms!r}")
+    hfov = _number(req, "hfov_deg", DEFAULT_HFOV_DEG, 1, 179)
+    try:
+        size, lines = check_lines(list(session.frame_size), req.get("lines"))
+        fit = fit_lines(size, lines, intrinsics(size, hfov), terms)
+    except ValueError as e:
+        raise ValueError(f"lines: {e}") from None
+    use_lens(session, fit.lens, session.out_dir / LENS_FILE)
+    session.lines_fit = {"lines": [line.tolist() for line in lines], "terms": terms, "hfov_deg": hfov, "fit": fit}
+    k1, k2, p1, p2, k3 = fit.lens.distortion
+    return {"lens": fit.lens.to_dict(), "fit": fit.to_json()["fit"],
+            "summary": f"{fit.lines} lines, {fit.points} points: straightness RMS {fit.rms_before_px:.2f} px before, "
+                       f"{fit.rms_after_px:.2f} px after; k1 {k1:.4f} +- {fit.sigma[0]:.4f}, k2 {k2:.4f}, f "
+                       f"{fit.lens.K[0, 0]:.1f} px; the frame's corner moves {fit.corner_displacement_px:.1f} px"}
+
+
+def _lens_files(session: Session) -> tuple[list, dict]:
+    """The paths of LINES_FILE and LENS_FILE with their contents, for a lens fitted from the page's lines (none
+    otherwise), and the ``homocal lens --lines`` command that writes the same lens.json from LINES_FILE."""
+    if session.lines_fit is None:
+        return [], {}
+    f = session.lines_fit
+    lines_path, lens_path = session.out_dir / LINES_FILE, session.out_dir / LENS_FILE
+    contents = {lines_path: {"image_size": list(session.frame_size), "lines": f["lines"]},
+                lens_path: f["fit"].to_json()}
+    command = (f"homocal lens --lines {shlex.quote(str(lines_path))} -o {shlex.quote(str(lens_path))} "
+               f"--hfov {f['hfov_deg']!r} --terms {f['terms']}")
+    return contents, {"lens_command": command}
+
+
+def _check_replace(session: Session, paths: list, req: dict) -> None:
+    """Refuse to replace a symbolic link (``Refused``), or without "overwrite": true a file this server did not
+    write (or that was replaced since: FileExistsError, the page asks)."""
+    links = [p.name for p in paths if p.is_symlink()]
+    if links:
+        raise Refused(f"{', '.join(links)} in {session.out_dir}: a symbolic link, which Save never replaces "
+                      "(remove it, or save to another folder)")
+    foreign = [p for p in paths if p.exists() and _identity(p) != session.written.get(p)]
+    if foreign and req.get("overwrite") is not True:
+        raise FileExistsError(f"{', '.join(p.name for p in foreign)} already in {session.out_dir} "
+                              "(not written by this homocal ui)")
+
+
+def save_lens(session: Session, req: dict) -> dict:
+    """Write the lines and the lens fitted from them (LINES_FILE, LENS_FILE: the files of ``homocal lens --lines``)
+    to the session's folder, asking before replacing a file this server did not write (as save); answer the
+    files and the command that writes the same lens.json."""
+    contents, command = _lens_files(session)
+    if not contents:
+        raise ValueError("lines: fit the lens from lines first")
+    _check_replace(session, list(contents), req)
+    for path, data in contents.items():
+        write_json_atomic(path, data)
+    session.written.update({p: _identity(p) for p in contents})
+    return {"written": [str(p) for p in contents], "command": command["lens_command"]}
+
+
 def locate(session: Session, req: dict) -> dict:
     """The ground position of one image point with its 1-sigma error ellipse ("errorbars", the clicked
     trapezoid's) and, given a fitted "correction", its corrected position with the correction's own error
@@ -371,14 +438,8 @@ def save(session: Session, req: dict) -> dict:
     image, map_px = trapezoid(req)
     names = (TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE) + ((CAMERA_FILE,) if method.evidence == "boxes" else ())
     paths = [session.out_dir / name for name in names]
-    links = [p.name for p in paths if p.is_symlink()]
-    if links:
-        raise Refused(f"{', '.join(links)} in {session.out_dir}: a symbolic link, which Save never replaces "
-                      "(remove it, or save to another folder)")
-    foreign = [p for p in paths if p.exists() and _identity(p) != session.written.get(p)]
-    if foreign and req.get("overwrite") is not True:
-        raise FileExistsError(f"{', '.join(p.name for p in foreign)} already in {session.out_dir} "
-                              "(not written by this homocal ui)")
+    lens_files, lens_command = _lens_files(session)  # the lens the flags name, when fitted from the page's lines
+    _check_replace(session, paths + list(lens_files), req)
     site = {"scale_px_per_m": session.site_map.scale_px_per_m, "origin_px": list(session.site_map.origin_px)}
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
@@ -404,9 +465,12 @@ def save(session: Session, req: dict) -> dict:
     corrector.save(paths[2])
     if method.evidence == "boxes":
         write_json_atomic(paths[3], camera)
+    for path, data in lens_files.items():
+        write_json_atomic(path, data)
+    paths += list(lens_files)
     session.written.update({p: _identity(p) for p in paths})
     points_flag = f" --points {shlex.quote(str(paths[1]))}" if len(points) else ""
-    return {"written": [str(p) for p in paths], "method": method.name,
+    return {"written": [str(p) for p in paths], "method": method.name, **lens_command,
             "command": f"homocal fit --trapezoid {shlex.quote(str(paths[0]))}{points_flag} --method {method.name} "
                        f"-o CORRECTION.json --camera-origin={','.join(repr(float(x)) for x in corrector.camera_origin_)}"
                        + "".join(" " + f for f in flags)}
@@ -454,4 +518,5 @@ def load(session: Session, req: dict) -> dict:
     return out
 
 
-ENDPOINTS = {"view": view, "fit": fit, "watch": watch, "locate": locate, "save": save, "load": load}
+ENDPOINTS = {"view": view, "fit": fit, "watch": watch, "lens": lens, "save_lens": save_lens, "locate": locate,
+             "save": save, "load": load}

@@ -17,6 +17,8 @@ from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.dataset import load_dataset
 from homocal.geometry.lens import undistort_input
 from homocal.geometry import Lens, SiteMap
+from homocal.lens.lines import DEFAULT_HFOV_DEG, DEFAULT_TERMS
+from homocal.lens.lines import TERMS as LENS_TERMS
 from homocal.measure.cli import MAX_FPS, file_fps
 
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
@@ -41,6 +43,8 @@ class Session:
     fps: float | None = None  # frames per second of the boxes' video (--fps, else its folder's): the watch's time
     lens: Lens | None = None  # the camera's lens (--camera-json, a dataset's camera.json); None: a pinhole's pixels
     camera_file: Path | None = None  # the file the lens came from (Save's command names it)
+    lines_fit: dict | None = None  # the lens fitted from the page's lines: {"lines", "terms", "hfov_deg", "fit"
+    # (homocal.lens.lines.LensFit)}; Save writes its LINES_FILE and LENS_FILE (camera_file)
     written: dict[Path, tuple] = field(default_factory=dict)  # the identity (api._identity) of each file this
     # server wrote: Save replaces those without asking while they are still what it wrote
     boxes_read: dict[str | None, PersonBoxes] = field(default_factory=dict, repr=False)  # person_boxes' reads
@@ -70,6 +74,7 @@ class Session:
             "box_settings": box_settings(),
             "default_method": DEFAULT_METHOD,
             "threshold": DEFAULT_THRESHOLD,
+            "lens_terms": list(LENS_TERMS), "lens_defaults": {"terms": DEFAULT_TERMS, "hfov_deg": DEFAULT_HFOV_DEG},
         }
 
 
@@ -140,13 +145,13 @@ def from_dataset(path: Path, out_dir: Path, frame_index: int = 0, boxes: Path | 
 
 def use_lens(session: Session, lens: Lens | None, camera_file: Path) -> None:
     """Give the session the camera's lens (an identity lens: none, the pixels are a pinhole's); ValueError if its
-    image size is not the frame's."""
-    if lens is None or lens.is_identity:
-        return
-    if lens.image_size != session.frame_size:
+    image size is not the frame's. The boxes are read again through it."""
+    if lens is not None and lens.image_size != session.frame_size:
         raise ValueError(f"{camera_file}: the lens's image size {list(lens.image_size)} differs from the frame's "
                          f"{list(session.frame_size)}")
-    session.lens, session.camera_file = lens, camera_file
+    identity = lens is None or lens.is_identity
+    session.lens, session.camera_file = (None, None) if identity else (lens, camera_file)
+    session.boxes_read.clear()
 
 
 def undistorted(session: Session, points: np.ndarray, name: str) -> np.ndarray:

@@ -19,6 +19,8 @@ const S = {
   fitStale: null,      // the previous fit's summary, shown struck through
   probe: null,         // {u, v, answer}
   watch: null,         // last /api/watch answer (the horizon over time), null when out of date
+  lines: [[]],         // the line tool's polylines ([u, v] frame px), the last one being clicked
+  lens: null,          // last /api/lens answer: the lens fitted from the lines, which the server now uses
   message: null,       // {text, kind: "error" | "warn" | "info", topic}: the status line (see say)
 };
 const images = { frame: new Image(), map: new Image() };
@@ -312,6 +314,12 @@ function renderFrame() {
       if (ring.length) label("frame", alongPolyline(ring, [0.3, 0.5, 0.7]), "trustworthy", "#ff4fd8", 2);
     }
   }
+  S.lines.forEach((line, i) => {  // the line tool's polylines
+    if (!line.length) return;
+    style(ctx, "#b8ff3b", 1.5, [3, 3]); polyline(ctx, "frame", line);
+    line.forEach((p) => dot(ctx, "frame", p, 3, "#b8ff3b", true));
+    label("frame", [line[0]], "L" + i, "#b8ff3b", 4);
+  });
   drawTrapezoid(ctx, "frame", S.trap.image);
   S.points.forEach((p, i) => { dot(ctx, "frame", [p.u, p.v], 5, "#7dff6b", true); label("frame", [[p.u, p.v]], "P" + i, "#7dff6b", 4); });
   if (S.probe) {
@@ -465,10 +473,15 @@ function renderPanels(keepTable) {
                        : "Click a reference point's foot on the frame";
   } else if (S.mode === "probe") {
     prompt = "Click any image point: its ground position and error bar";
+  } else if (S.mode === "lines") {
+    prompt = `Click points along an edge straight in the world (line L${S.lines.length - 1}, 3 or more points); End line for the next`;
   } else {
     prompt = "Click the ground point under the camera on the map";
   }
   $("prompt").textContent = prompt;
+  const clicked = S.lines.filter((l) => l.length);
+  if (clicked.length) $("lines-count").textContent = `${clicked.length} line${clicked.length === 1 ? "" : "s"}, ` +
+    `${clicked.reduce((n, l) => n + l.length, 0)} points`;
 
   const table = $("points-table");
   if (keepTable) table.querySelectorAll(".residual").forEach((td) => { td.textContent = ""; });
@@ -596,6 +609,11 @@ async function clickAt(name, q, exact) {
       clearTopic("probe");
     } catch (e) { say(e.message, "error", "probe"); }
     render();
+  } else if (S.mode === "lines") {
+    if (name !== "frame") { say("straight lines: click them on the frame", "error", "click"); return; }
+    clearTopic("click", "lens");
+    S.lines[S.lines.length - 1].push(q);
+    render();
   } else if (name !== "map") {
     say("camera ground point: click it on the map", "error", "click");
   } else {
@@ -650,9 +668,36 @@ async function doSave() {
       if (!e.exists || !window.confirm(e.message + ". Replace?")) throw e;
       answer = await api("save", { ...request, overwrite: true });
     }
-    $("files-summary").textContent = "wrote " + answer.written.join(", ") + "\nsame as: " + answer.command;
+    $("files-summary").textContent = "wrote " + answer.written.join(", ") + "\nsame as: " +
+      (answer.lens_command ? answer.lens_command + " && " : "") + answer.command;
     say("saved", "info", "files");
   } catch (e) { say(e.message, "error", "files"); }
+}
+
+// Fit the lens from the clicked lines (/api/lens): the server uses it from then on, so the overlays are asked again.
+async function doFitLens() {
+  try {
+    const answer = await api("lens", { lines: S.lines.filter((l) => l.length), terms: $("lens-terms").value,
+                                       hfov_deg: number("lens-hfov") });
+    S.lens = answer;
+    $("lens-summary").textContent = answer.summary;
+    invalidateFit();
+    say("lens fitted: " + answer.summary, "info", "lens");
+    await refreshView();
+  } catch (e) { say(e.message, "error", "lens"); }
+}
+
+async function doSaveLens() {
+  try {
+    let answer;
+    try { answer = await api("save_lens", {}); }
+    catch (e) {
+      if (!e.exists || !window.confirm(e.message + ". Replace?")) throw e;
+      answer = await api("save_lens", { overwrite: true });
+    }
+    $("lens-summary").textContent = "wrote " + answer.written.join(", ") + "\nsame as: " + answer.command;
+    say("saved", "info", "lens");
+  } catch (e) { say(e.message, "error", "lens"); }
 }
 
 async function doLoad() {
@@ -688,6 +733,10 @@ function bind() {
   $("clear-points").onclick = () => { S.points = []; invalidateFit(); render(); };
   $("fit").onclick = doFit;
   $("watch").onclick = doWatch;
+  $("fit-lens").onclick = doFitLens;
+  $("save-lens").onclick = doSaveLens;
+  $("end-line").onclick = () => { if (S.lines[S.lines.length - 1].length) S.lines.push([]); render(); };
+  $("clear-lines").onclick = () => { S.lines = [[]]; clearTopic("lens"); render(); };
   $("save").onclick = doSave;
   $("load").onclick = doLoad;
   $("points-table").addEventListener("change", (e) => {
@@ -747,6 +796,9 @@ async function start() {
   $("method").innerHTML = S.info.methods.map((m) => `<option>${m}</option>`).join("");
   $("method").value = S.info.default_method;
   $("threshold").value = S.info.threshold;
+  $("lens-terms").replaceChildren(...S.info.lens_terms.map((t) => new Option(t)));
+  $("lens-terms").value = S.info.lens_defaults.terms;
+  $("lens-hfov").value = S.info.lens_defaults.hfov_deg;
   showMethodFields();
   if (S.info.dataset) { $("use-hand-placed").hidden = false; $("use-calibration").hidden = false; }
   for (const s of S.info.box_settings) {  // one field per PedestrianCorrector setting, from its declaration
