@@ -33,6 +33,7 @@ from homocal.ui.errorbars import error_bars
 from homocal.ui.session import Session, to_frame, undistorted, use_lens
 from homocal.watch import OnlineCalibrator
 from homocal.watch.calibrator import PERSON_BOXES, by_frame, camera_of
+from homocal.watch.folder import correction_at
 
 TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE = "trapezoid.json", "reference_points.csv", "correction.json"
 LINES_FILE, LENS_FILE = "lines.json", "lens.json"  # the line tool's: homocal lens --lines LINES_FILE -o LENS_FILE
@@ -149,7 +150,9 @@ def _fitted(session: Session, req: dict) -> tuple[Corrector, ViewTransformer, np
     box_settings = None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        if method.evidence == "boxes":
+        if method.evidence == "boxes" and req.get("at_s") is not None:
+            corrector, box_settings = _stretch(session, req)
+        elif method.evidence == "boxes":
             box_settings = _fit_boxes(session, req, corrector, transformer, points)
         else:
             corrector.fit(transformer, points[:, :2], points[:, 2:], _camera_origin(req))
@@ -253,7 +256,8 @@ def fit(session: Session, req: dict) -> dict:
         "corrected_grid": overlay.ground_grid(overlay.sample_mapping(corrector.transform_points, transformer, w, h,
                                                                      session.lens), _camera_origin(req)),
         "horizon": overlay.through_lens(overlay.horizon_segment(corrector.mapping, w, h), session.lens),
-        "boxes": None if box_settings is None else drawn_boxes(session, box_settings["boxes"].xyxy, corrector.box_status_),
+        "boxes": None if box_settings is None or "stretch" in box_settings else drawn_boxes(
+            session, box_settings["boxes"].xyxy, corrector.box_status_),
         "correction": corrector.to_dict(),
     }
 
@@ -302,6 +306,24 @@ def _watched(session: Session, req: dict) -> dict:
         stretches.append((last.stretch_start_s, last.horizon_row, last.horizon_sigma_px, last.n_people))
     return {"states": states, "moves": moves, "stretches": [s for s in stretches if s[3] >= 3], "K": K,
             "camera_height_m": height, "prior": prior, "transformer": transformer}
+
+
+def _stretch(session: Session, req: dict) -> tuple[PedestrianCorrector, dict]:
+    """The correction of the stretch of the session's boxes that time "at_s" (s) falls in (``_watched``; the stretch
+    picked as ``homocal apply WATCH_DIR --at`` picks it: homocal.watch.folder.correction_at), made as homocal watch
+    writes its corrections/<start_s>.json; with the _box_settings it used and "stretch": (start_s, at_s)."""
+    at = _number(req, "at_s", 0, 0, 1e9)
+    run = _watched(session, req)
+    if not run["stretches"]:
+        raise ValueError("at_s: no stretch of the boxes has 3 people yet")
+    picked = correction_at([(s[0], None) for s in run["stretches"]], np.array([at]))[0]
+    start, row, sigma, n = run["stretches"][int(picked)]
+    prior = run["prior"]
+    corrector = PedestrianCorrector(prior.height_mean_m, prior.height_sd_m).from_horizon(
+        run["transformer"], row, sigma if math.isfinite(sigma) else 0.0, run["K"], run["camera_height_m"], n,
+        _camera_origin(req))
+    corrector.lens_ = session.lens
+    return corrector, {**_box_settings(session, req), "stretch": (start, at)}
 
 
 def watch(session: Session, req: dict) -> dict:
@@ -358,11 +380,11 @@ def lens(session: Session, req: dict) -> dict:
                        f"{fit.lens.K[0, 0]:.1f} px; the frame's corner moves {fit.corner_displacement_px:.1f} px"}
 
 
-def _lens_files(session: Session) -> tuple[list, dict]:
+def _lens_files(session: Session) -> tuple[dict, dict]:
     """The paths of LINES_FILE and LENS_FILE with their contents, for a lens fitted from the page's lines (none
     otherwise), and the ``homocal lens --lines`` command that writes the same lens.json from LINES_FILE."""
     if session.lines_fit is None:
-        return [], {}
+        return {}, {}
     f = session.lines_fit
     lines_path, lens_path = session.out_dir / LINES_FILE, session.out_dir / LENS_FILE
     contents = {lines_path: {"image_size": list(session.frame_size), "lines": f["lines"]},
@@ -459,6 +481,13 @@ def save(session: Session, req: dict) -> dict:
         flags = [f"--boxes {shlex.quote(str(session.boxes))}", *(f"{k} {v}" for k, v in given.items() if v is not None),
                  f"--camera-json {shlex.quote(str(paths[3]))}",
                  *(f"{PEDESTRIAN_SETTINGS[k].flag} {_flag_text(params[k])}" for k in method.settings)]
+    stretch = box_settings.get("stretch") if box_settings else None
+    if stretch is not None:  # homocal watch writes it, as the stretch's corrections/<start_s>.json
+        flags = [f for f in flags if not f.startswith(("--estimate-roll", "--height-mean-sigma"))]  # not watch's
+        command = (f"homocal watch --trapezoid {shlex.quote(str(paths[0]))} --fps {session.fps!r} "
+                   f"--camera-origin={','.join(repr(float(x)) for x in corrector.camera_origin_)} -o WATCH_DIR "
+                   + " ".join(flags) + f" (its corrections/{stretch[0]:.2f}.json; homocal apply WATCH_DIR --at "
+                   f"{stretch[1]!r} maps with it)")
     size = {} if session.lens is None else {"image_size": list(session.frame_size)}  # checked against the lens's
     write_json_atomic(paths[0], {"image": image.tolist(), "map": map_px.tolist(), "site_map": site, **size})
     write_text_atomic(paths[1], buffer.getvalue())
@@ -470,6 +499,8 @@ def save(session: Session, req: dict) -> dict:
     paths += list(lens_files)
     session.written.update({p: _identity(p) for p in paths})
     points_flag = f" --points {shlex.quote(str(paths[1]))}" if len(points) else ""
+    if stretch is not None:
+        return {"written": [str(p) for p in paths], "method": method.name, **lens_command, "command": command}
     return {"written": [str(p) for p in paths], "method": method.name, **lens_command,
             "command": f"homocal fit --trapezoid {shlex.quote(str(paths[0]))}{points_flag} --method {method.name} "
                        f"-o CORRECTION.json --camera-origin={','.join(repr(float(x)) for x in corrector.camera_origin_)}"

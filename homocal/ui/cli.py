@@ -17,7 +17,11 @@ Otherwise give --frame, --site-map and --scale. The site map must have map up = 
 camera); a mirrored or upside-down map is refused when its corners are clicked.
 With --boxes FILE (a MOTChallenge .txt, a detections.parquet or a .csv of frame,x1,y1,x2,y2, as homocal fit
 --boxes reads them; a dataset's detections.parquet by default) the page also fits --method pedestrians from
-those people's boxes, and draws the fitted horizon beside the clicked one.
+those people's boxes, and draws the fitted horizon beside the clicked one; "Horizon over time" runs homocal
+watch's calibrator over them at --fps and plots the horizon over time with the detected moves (a click on the
+plot picks the stretch whose correction a pedestrians fit uses).
+The line tool (click mode "straight lines") fits the lens from polylines along straight edges, as homocal lens
+--lines, and uses it from then on; Save lens writes lines.json and lens.json into --out.
 Save writes trapezoid.json, reference_points.csv and correction.json into --out, in the formats of
 homocal fit and homocal apply (for a fit from boxes also camera_intrinsics.json, the image size and K it
 used, as --camera-json), and shows the homocal fit command that writes the same correction from them; it

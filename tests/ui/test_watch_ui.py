@@ -10,7 +10,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import Select
 from test_browser import browser, click, idle, js, ui_server, wait_for  # noqa: F401 (browser: the fixture)
 
 from homocal.geometry import SiteMap
@@ -111,6 +113,18 @@ def test_the_page_draws_the_horizon_over_time(browser, files, tmp_path, name, mo
         assert bool(columns) == bool(moves)  # a magenta line where a move is, nowhere else
         assert all(min(abs(c - m["x"]) for m in plot["moves"]) <= 2 for c in columns)
         assert d.find_element(By.ID, "watch-summary").text.startswith(f"{len(answer['people']['t'])} people over")
+        if moves:  # a click on the plot late in the file picks the last stretch; a fit is then its correction
+            box = d.find_element(By.ID, "timeplot").rect
+            ActionChains(d).move_to_element_with_offset(d.find_element(By.ID, "timeplot"), box["width"] // 2 - 15,
+                                                         0).click().perform()
+            assert js(d, "window.homocalUI.S.at") > answer["moves"][0]["t_s"]
+            assert "Fit with pedestrians uses its correction" in d.find_element(By.ID, "watch-summary").text
+            Select(d.find_element(By.ID, "method")).select_by_visible_text("pedestrians")
+            d.find_element(By.ID, "fit").click()
+            wait_for(d, "window.homocalUI.S.fit !== null")
+            fitted = js(d, "window.homocalUI.S.fit.correction.fitted.horizon_row")
+            assert fitted == pytest.approx(answer["stretches"][-1]["horizon_row"], abs=1e-9)
+            assert [r["name"] for r in js(d, "window.homocalUI.drawn.plot")["references"]] == ["clicked", "fitted"]
         assert [e for e in d.get_log("browser") if e["source"] == "javascript"] == []
 
 
@@ -123,3 +137,30 @@ def magenta_columns(driver) -> list[int]:
           if (Math.abs(d[i] - 255) <= 30 && Math.abs(d[i + 1] - 79) <= 30 && Math.abs(d[i + 2] - 216) <= 30) count[(i / 4) % c.width]++;
         }
         return count.map((n, x) => (n >= 40 ? x : -1)).filter((x) => x >= 0); })()""")
+
+
+def test_a_picked_stretch_is_the_fit_and_save_gives_homocal_watch_s(files, tmp_path):
+    """Fit with at_s: the correction of the stretch at that time (its horizon, not the whole file's); Save writes it
+    and names the homocal watch command whose corrections/<start_s>.json is the same file."""
+    import json
+    import shlex
+    import subprocess
+    import sys
+
+    from test_browser import ENV
+
+    session = from_files(files["frame"], files["map"], SITE, (0.0, 0.0), tmp_path, boxes=files["moved"], fps=FPS)
+    req = {"trapezoid": TRAP, "camera_origin": [0, 0], "camera_height_m": CAM.mount_height_m, "points": [],
+           "method": "pedestrians", **PRIOR}
+    stretches = api.watch(session, req)["stretches"]
+    late = api.fit(session, {**req, "at_s": SECONDS - 1})
+    early = api.fit(session, {**req, "at_s": 10})
+    assert late["correction"]["fitted"]["horizon_row"] == pytest.approx(stretches[1]["horizon_row"], abs=1e-9)
+    assert early["correction"]["fitted"]["horizon_row"] == pytest.approx(stretches[0]["horizon_row"], abs=1e-9)
+    saved = api.save(session, {**req, "at_s": SECONDS - 1})
+    command, note = saved["command"].split(" (its ", 1)
+    assert note.startswith(f"corrections/{stretches[1]['start_s']:.2f}.json")
+    args = [str(tmp_path / "watch") if a == "WATCH_DIR" else a for a in shlex.split(command)]
+    subprocess.run([sys.executable, "-m", "homocal.cli", *args[1:]], check=True, capture_output=True, text=True, env=ENV)
+    theirs = json.loads((tmp_path / "watch" / "corrections" / f"{stretches[1]['start_s']:.2f}.json").read_text())
+    assert theirs == json.loads((tmp_path / "correction.json").read_text())

@@ -21,6 +21,7 @@ const S = {
   watch: null,         // last /api/watch answer (the horizon over time), null when out of date
   lines: [[]],         // the line tool's polylines ([u, v] frame px), the last one being clicked
   lens: null,          // last /api/lens answer: the lens fitted from the lines, which the server now uses
+  at: null,            // the time (s) picked on the time plot: a fit from boxes is that stretch's correction
   message: null,       // {text, kind: "error" | "warn" | "info", topic}: the status line (see say)
 };
 const images = { frame: new Image(), map: new Image() };
@@ -66,6 +67,7 @@ function fitRequest() {
   for (const key of S.info.settings[req.method]) {  // a setting's field has the setting's name as its id
     if ($(key) && $(key).value !== "") req[key] = number(key);
   }
+  if (fromBoxes(req.method) && S.at !== null) req.at_s = S.at;  // the stretch picked on the time plot
   return fromBoxes(req.method) ? { ...req, ...boxRequest() } : req;
 }
 
@@ -124,13 +126,14 @@ function dragView() {  // at most one light request in flight while a corner is 
 function invalidateFit() {
   if (S.fit) S.fitStale = S.fit.summary;
   S.fit = null;
-  S.watch = null;
   clearTopic("fit", "files");  // what they said was of the inputs before this change
 }
 
 // A change of the trapezoid; undo() takes it back if the server refuses it (mirrored map, bad order...).
+function invalidateWatch() { S.watch = null; S.at = null; }  // its inputs changed: the trapezoid, the boxes' settings
+
 async function changeTrapezoid(undo) {
-  invalidateFit();
+  invalidateFit(); invalidateWatch();
   S.probe = null;
   render();
   const reason = await refreshView();
@@ -439,7 +442,25 @@ function renderPlot() {
     ctx.fillStyle = "#ff4fd8"; ctx.fillText(`move ${m.t_s.toFixed(1)} s`, X(m.t_s) + 3, c.height - PLOT_MARGIN.bottom - 4);
     d.moves.push({ t_s: m.t_s, x: X(m.t_s) });
   }
+  if (S.at !== null) {
+    style(ctx, "#33e0ff", 2, [4, 3]); ctx.beginPath(); ctx.moveTo(X(S.at), PLOT_MARGIN.top); ctx.lineTo(X(S.at), c.height - PLOT_MARGIN.bottom); ctx.stroke();
+    d.at = X(S.at);
+  }
   ctx.restore();
+  plotTime = (x) => Math.min(Math.max((x - PLOT_MARGIN.left) / (c.width - PLOT_MARGIN.left - PLOT_MARGIN.right), 0), 1) * t1;
+}
+
+let plotTime = null;  // canvas x -> time (s) of the last plot drawn
+function pickStretch(e) {  // a click on the time plot: the stretch at that time is what a fit from boxes uses
+  if (!S.watch || !plotTime) return;
+  const w = S.watch, t = plotTime(e.clientX - $("timeplot").getBoundingClientRect().left);
+  invalidateFit();
+  S.at = t;
+  const start = w.stretches.filter((s) => s.start_s <= t).pop() || w.stretches[0];
+  $("watch-summary").textContent = w.summary + `\npicked ${t.toFixed(1)} s: ` + (start ?
+    `the stretch from ${start.start_s.toFixed(1)} s (horizon row ${start.horizon_row.toFixed(1)} px); Fit with pedestrians uses its correction` :
+    "no stretch has 3 people yet");
+  render();
 }
 
 async function doWatch() {
@@ -733,6 +754,7 @@ function bind() {
   $("clear-points").onclick = () => { S.points = []; invalidateFit(); render(); };
   $("fit").onclick = doFit;
   $("watch").onclick = doWatch;
+  $("timeplot").addEventListener("click", pickStretch);
   $("fit-lens").onclick = doFitLens;
   $("save-lens").onclick = doSaveLens;
   $("end-line").onclick = () => { if (S.lines[S.lines.length - 1].length) S.lines.push([]); render(); };
@@ -760,7 +782,7 @@ function bind() {
   $("show-boxes").addEventListener("change", () => render());
   $("method").addEventListener("change", () => { showMethodFields(); invalidateFit(); render(); });
   for (const id of ["detector", "seed", "threshold"]) {
-    $(id).addEventListener("change", () => { invalidateFit(); render(); });
+    $(id).addEventListener("change", () => { invalidateFit(); if (id === "detector") invalidateWatch(); render(); });
   }
   $("use-hand-placed").onclick = () => { S.trap = JSON.parse(JSON.stringify(S.info.dataset.hand_placed)); changeTrapezoid(null); };
   $("use-calibration").onclick = () => {
@@ -806,7 +828,7 @@ async function start() {
       ? { id: s.id, type: "checkbox", checked: s.default === true, title: s.help }
       : { id: s.id, className: "num", type: "number", step: "0.01", min: s.low, max: s.high, title: s.help,
           placeholder: s.default === null ? "" : String(s.default) });
-    input.addEventListener("change", () => { invalidateFit(); render(); });
+    input.addEventListener("change", () => { invalidateFit(); invalidateWatch(); render(); });
     const label = document.createElement("label");
     label.append(`${s.id.replace(/-/g, " ")} `, input, ` ${s.unit}${s.none ? ` (empty: ${s.none})` : ""} `);
     $("box-settings").append(label);
