@@ -21,7 +21,7 @@ from homocal.ui.session import from_files
 from simgen.boxstream import body_points, boxes_of
 from simgen.scene import load_scene
 
-pytestmark = pytest.mark.slow  # the stream: ~3 s of simgen's walkers
+slow = pytest.mark.slow  # the stream (files): ~3 s of simgen's walkers
 SCENE = load_scene(Path(__file__).resolve().parents[2] / "simgen" / "scenes" / "scene1")
 CAM = SCENE.camera
 SECONDS, FPS, AT_S, STEP_DEG = 120, 1.0, 60.0, 2.0  # scene1 gives ~60 people in 120 s: 40 before the step
@@ -57,6 +57,7 @@ def watched(files, tmp_path, name: str) -> dict:
                                **PRIOR})
 
 
+@slow
 def test_the_api_gives_the_move_and_the_horizon_over_time(files, tmp_path):
     w = watched(files, tmp_path, "moved")
     before, after = CAM.horizon_row, dataclasses.replace(CAM, tilt_deg=CAM.tilt_deg + STEP_DEG).horizon_row
@@ -73,18 +74,21 @@ def test_the_api_gives_the_move_and_the_horizon_over_time(files, tmp_path):
     assert f"1 move detected; at {m['t_s']:.1f} s" in w["summary"]
 
 
+@slow
 def test_a_steady_camera_shows_no_move(files, tmp_path):
     w = watched(files, tmp_path, "static")
     assert w["moves"] == [] and len(w["stretches"]) == 1
     assert abs(w["stretches"][0]["horizon_row"] - CAM.horizon_row) < 5 * w["stretches"][0]["sigma_px"]
 
 
+@slow
 def test_without_a_frame_rate_the_page_says_so(files, tmp_path):
     session = from_files(files["frame"], files["map"], SITE, (0.0, 0.0), tmp_path, boxes=files["moved"])
     with pytest.raises(ValueError, match="fps: moved.csv does not say its frame rate: start homocal ui with --fps"):
         api.watch(session, {"trapezoid": TRAP, "camera_origin": [0, 0]})
 
 
+@slow
 @pytest.mark.browser
 @pytest.mark.parametrize("name, moves", [("moved", 1), ("static", 0)])
 def test_the_page_draws_the_horizon_over_time(browser, files, tmp_path, name, moves):  # noqa: F811
@@ -139,6 +143,7 @@ def magenta_columns(driver) -> list[int]:
         return count.map((n, x) => (n >= 40 ? x : -1)).filter((x) => x >= 0); })()""")
 
 
+@slow
 def test_a_picked_stretch_is_the_fit_and_save_gives_homocal_watch_s(files, tmp_path):
     """Fit with at_s: the correction of the stretch at that time (its horizon, not the whole file's); Save writes it
     and names the homocal watch command whose corrections/<start_s>.json is the same file."""
@@ -164,3 +169,18 @@ def test_a_picked_stretch_is_the_fit_and_save_gives_homocal_watch_s(files, tmp_p
     subprocess.run([sys.executable, "-m", "homocal.cli", *args[1:]], check=True, capture_output=True, text=True, env=ENV)
     theirs = json.loads((tmp_path / "watch" / "corrections" / f"{stretches[1]['start_s']:.2f}.json").read_text())
     assert theirs == json.loads((tmp_path / "correction.json").read_text())
+
+
+@pytest.mark.parametrize("rows, message", [
+    (["3,100,300,120,360,1", "2,100,300,120,360,1"], "box 1 (from 0) is in frame 2 after frame 3: boxes out of time order"),
+    (["0,100,300,120,100,1"], "boxes.csv, line 2: the box is upside down or empty"),
+])
+def test_bad_boxes_are_one_line(tmp_path, rows, message):
+    """Boxes out of time order (or upside down) are refused with the reader's or the watch's one line."""
+    cv2.imwrite(str(tmp_path / "frame.png"), np.full((CAM.height, CAM.width, 3), 90, np.uint8))
+    cv2.imwrite(str(tmp_path / "map.png"), np.full((800, 400, 3), 60, np.uint8))
+    (tmp_path / "boxes.csv").write_text("frame,x1,y1,x2,y2,track_id\n" + "\n".join(rows) + "\n")
+    session = from_files(tmp_path / "frame.png", tmp_path / "map.png", SITE, (0.0, 0.0), tmp_path,
+                         boxes=tmp_path / "boxes.csv", fps=FPS)
+    with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        api.watch(session, {"trapezoid": TRAP, "camera_origin": [0, 0], "camera_height_m": 4.0})

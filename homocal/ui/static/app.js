@@ -565,7 +565,7 @@ function onDown(name, e) {
   const [sx, sy] = eventPixel(name, e);
   if (e.button === 2 || e.shiftKey) { drag = { name, kind: "pan", last: [sx, sy], moved: false }; return; }
   if (e.button !== 0) return;
-  const hit = handleAt(name, sx, sy);
+  const hit = S.mode === "lines" ? null : handleAt(name, sx, sy);  // a line's point may fall on a corner
   drag = { name, kind: hit ? hit.kind : "click", i: hit ? hit.i : -1, down: [sx, sy], moved: false,
            start: JSON.parse(JSON.stringify({ trap: S.trap, points: S.points })) };
 }
