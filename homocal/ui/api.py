@@ -23,19 +23,26 @@ from homocal.correctors.base import MAX_REFERENCE_POINTS, Corrector, load_correc
 from homocal.correctors.catalogue import Method, fit_note, get_method, method_of, quality
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.pedestrians import SETTINGS as PEDESTRIAN_SETTINGS
+from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.correctors.serialization import float_or_none
 from homocal.files import read_json, read_points_csv, write_json_atomic, write_text_atomic
 from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, signed_area, validate_quad
+from homocal.lens.lines import DEFAULT_HFOV_DEG, DEFAULT_TERMS, TERMS, check_lines, fit_lines, intrinsics
 from homocal.ui import overlay
 from homocal.ui.errorbars import error_bars
-from homocal.ui.session import Session, undistorted
+from homocal.ui.session import Session, to_frame, undistorted, use_lens
+from homocal.watch import OnlineCalibrator
+from homocal.watch.calibrator import PERSON_BOXES, by_frame, camera_of
+from homocal.watch.folder import correction_at
 
 TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE = "trapezoid.json", "reference_points.csv", "correction.json"
+LINES_FILE, LENS_FILE = "lines.json", "lens.json"  # the line tool's: homocal lens --lines LINES_FILE -o LENS_FILE
 CAMERA_FILE = "camera_intrinsics.json"  # Save's --camera-json of a fit from boxes (not camera.json: a dataset's)
 MAX_SIGMA_PX = 100.0  # the error bars' sigmas (pixels): a clicking error beyond this is no click
 MAX_TOLERANCE_M = 1e6
 MAX_SEED = 2**64 - 1
 MAX_DRAWN_BOXES = 5000  # people's boxes a fit answers for the page to draw (every k-th beyond it)
+MAX_PLOT_POINTS = 2000  # points of each curve of the horizon over time the page is sent (every k-th beyond it)
 
 
 class Refused(Exception):
@@ -143,7 +150,9 @@ def _fitted(session: Session, req: dict) -> tuple[Corrector, ViewTransformer, np
     box_settings = None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        if method.evidence == "boxes":
+        if method.evidence == "boxes" and req.get("at_s") is not None:
+            corrector, box_settings = _stretch(session, req)
+        elif method.evidence == "boxes":
             box_settings = _fit_boxes(session, req, corrector, transformer, points)
         else:
             corrector.fit(transformer, points[:, :2], points[:, 2:], _camera_origin(req))
@@ -247,18 +256,169 @@ def fit(session: Session, req: dict) -> dict:
         "corrected_grid": overlay.ground_grid(overlay.sample_mapping(corrector.transform_points, transformer, w, h,
                                                                      session.lens), _camera_origin(req)),
         "horizon": overlay.through_lens(overlay.horizon_segment(corrector.mapping, w, h), session.lens),
-        "boxes": None if box_settings is None else drawn_boxes(box_settings["boxes"].xyxy, corrector.box_status_),
+        "boxes": None if box_settings is None or "stretch" in box_settings else drawn_boxes(
+            session, box_settings["boxes"].xyxy, corrector.box_status_),
         "correction": corrector.to_dict(),
     }
 
 
-def drawn_boxes(xyxy: np.ndarray, status: np.ndarray) -> dict:
-    """The boxes (N, 4) x1, y1, x2, y2 px a fit from boxes read, by their part in it (status (N,): "used",
-    "outlier", "border"), for the page to draw: {"used": [[x1, y1, x2, y2], ...], "outlier": [...], "border":
-    [...], "total": N, "step": k}: every k-th box of each kind, at most MAX_DRAWN_BOXES in all."""
+def drawn_boxes(session: Session, xyxy: np.ndarray, status: np.ndarray) -> dict:
+    """The boxes (N, 4) x1, y1, x2, y2 px (the session's undistorted pixels) a fit from boxes read, by their part in
+    it (status (N,): "used", "outlier", "border"), for the page to draw on the frame: {"used": [outline, ...],
+    "outlier": [...], "border": [...], "total": N, "step": k}, each outline the box's 4 corners and 4 side
+    midpoints (from the top-left, clockwise) in the frame's pixels (through the session's lens: the bottom
+    midpoint is the foot point the file gave); every k-th box of each kind, at most MAX_DRAWN_BOXES in all."""
     step = max(1, math.ceil(len(xyxy) / MAX_DRAWN_BOXES))
-    out = {kind: np.round(xyxy[status == kind][::step], 1).tolist() for kind in ("used", "outlier", "border")}
+    out = {}
+    for kind in ("used", "outlier", "border"):
+        x1, y1, x2, y2 = xyxy[status == kind][::step].T
+        xc, yc = (x1 + x2) / 2, (y1 + y2) / 2
+        outline = np.stack([np.column_stack(p) for p in ((x1, y1), (xc, y1), (x2, y1), (x2, yc), (x2, y2), (xc, y2),
+                                                         (x1, y2), (x1, yc))], axis=1)  # (n, 8, 2)
+        out[kind] = np.round(to_frame(session, outline.reshape(-1, 2)), 1).reshape(-1, 8, 2).tolist()
     return {**out, "total": len(xyxy), "step": step}
+
+
+def _watched(session: Session, req: dict) -> dict:
+    """Run homocal.watch's OnlineCalibrator over the session's boxes (of the request's detector, at its camera
+    height and height prior, K and the camera height as homocal watch takes them: watch.camera_of), in time order at
+    the session's fps. Returns {"states": [State per frame], "moves": [Move], "stretches": [(start_s, horizon row,
+    1-sigma px, people)] (as homocal watch's corrections/: each stretch's estimate when it ended, the last one's
+    at the end of the boxes; stretches of fewer than 3 people left out), "K", "camera_height_m", "prior"
+    (height_mean_m, height_sd_m), "transformer"}."""
+    if session.fps is None:
+        raise ValueError(f"fps: {session.boxes.name if session.boxes else 'the boxes'} does not say its frame rate: "
+                         "start homocal ui with --fps")
+    transformer = _complete_transformer(session, req)
+    settings = _box_settings(session, req)
+    prior = PedestrianCorrector(**{k: req[k] for k in ("height_mean_m", "height_sd_m") if req.get(k) is not None})
+    K, height = camera_of(transformer, settings["image_size"], settings["K"], settings["camera_height_m"])
+    calibrator = OnlineCalibrator(K, height, session.fps, settings["image_size"], prior.height_mean_m,
+                                  prior.height_sd_m)
+    boxes = settings["boxes"]
+    states = [calibrator.update(*frame) for frame in by_frame(boxes.frames, boxes.xyxy, boxes.track_ids,
+                                                              str(session.boxes))]
+    moves = [s.move for s in states if s.move is not None]
+    stretches = [(start, m.horizon_before, m.sigma_before, m.n_before)
+                 for start, m in zip([0.0] + [m.t_s for m in moves], moves)]
+    if states:
+        last = states[-1]
+        stretches.append((last.stretch_start_s, last.horizon_row, last.horizon_sigma_px, last.n_people))
+    return {"states": states, "moves": moves, "stretches": [s for s in stretches if s[3] >= 3], "K": K,
+            "camera_height_m": height, "prior": prior, "transformer": transformer}
+
+
+def _stretch(session: Session, req: dict) -> tuple[PedestrianCorrector, dict]:
+    """The correction of the stretch of the session's boxes that time "at_s" (s) falls in (``_watched``; the stretch
+    picked as ``homocal apply WATCH_DIR --at`` picks it: homocal.watch.folder.correction_at), made as homocal watch
+    writes its corrections/<start_s>.json; with the _box_settings it used and "stretch": (start_s, at_s)."""
+    at = _number(req, "at_s", 0, 0, 1e9)
+    run = _watched(session, req)
+    if not run["stretches"]:
+        raise ValueError("at_s: no stretch of the boxes has 3 people yet")
+    picked = correction_at([(s[0], None) for s in run["stretches"]], np.array([at]))[0]
+    start, row, sigma, n = run["stretches"][int(picked)]
+    prior = run["prior"]
+    corrector = PedestrianCorrector(prior.height_mean_m, prior.height_sd_m).from_horizon(
+        run["transformer"], row, sigma if math.isfinite(sigma) else 0.0, run["K"], run["camera_height_m"], n,
+        _camera_origin(req))
+    corrector.lens_ = session.lens
+    return corrector, {**_box_settings(session, req), "stretch": (start, at)}
+
+
+def watch(session: Session, req: dict) -> dict:
+    """The camera's horizon over time from the session's boxes (``_watched``: the request as a pedestrians fit's),
+    for the page's time plot: "people" {"t": s, "row": px} (each person's implied horizon row), "estimate" {"t",
+    "row", "sigma"} (the running estimate and its 1-sigma after each person), each at most MAX_PLOT_POINTS (every
+    k-th beyond), "moves" (Move.to_dict), "stretches" [{"start_s", "horizon_row", "sigma_px", "n_people"}],
+    "clicked_row" (the clicked mapping's horizon row) and "column" (the principal column all rows are at),
+    undistorted pixels; "summary" in words."""
+    run = _watched(session, req)
+    people = [(s.t_s, row) for s in run["states"] for row in s.person_rows]
+    estimate = [(s.t_s, s.horizon_row, s.horizon_sigma_px) for s in run["states"] if s.person_rows]
+    if not people:
+        raise ValueError(f"{session.boxes.name}: no person gave a horizon row (each needs {PERSON_BOXES} boxes off "
+                         "the border, standing below the horizon)")
+
+    def thinned(rows: list) -> dict:
+        step = max(1, math.ceil(len(rows) / MAX_PLOT_POINTS))
+        rows = rows[::step] + ([rows[-1]] if (len(rows) - 1) % step else [])
+        return dict(zip(("t", "row", "sigma"), ([float_or_none(v) for v in col] for col in zip(*rows))))
+
+    cx = float(run["K"][0, 2])
+    moves, stretches = run["moves"], run["stretches"]
+    return {"people": thinned(people), "estimate": thinned(estimate), "moves": [m.to_dict() for m in moves],
+            "stretches": [{"start_s": a, "horizon_row": b, "sigma_px": c, "n_people": n} for a, b, c, n in stretches],
+            "clicked_row": float(run["transformer"].horizon_row(cx)), "column": cx,
+            "summary": f"{len(people)} people over {run['states'][-1].t_s:.1f} s: {len(moves)} move"
+                       f"{'' if len(moves) == 1 else 's'} detected" + "".join(
+                           f"; at {m.t_s:.1f} s the horizon row went {m.horizon_before:.1f} -> {m.horizon_after:.1f} px"
+                           for m in moves)}
+
+
+def lens(session: Session, req: dict) -> dict:
+    """Fit the lens that makes the request's "lines" (polylines [[u, v], ...] of the frame's pixels, along edges
+    straight in the world) straight, as ``homocal lens --lines`` does (homocal.lens.lines: check_lines, fit_lines
+    with "terms" (default DEFAULT_TERMS) and the focal length of "hfov_deg" (default DEFAULT_HFOV_DEG)), and use it
+    for the session from now on (use_lens: every click, box and overlay goes through it). Answers the lens, the
+    fit's diagnostics ("fit": lens.json's) and a summary."""
+    terms = req.get("terms", DEFAULT_TERMS)
+    if terms not in TERMS:
+        raise ValueError(f"terms: expected one of {', '.join(TERMS)}, got {terms!r}")
+    hfov = _number(req, "hfov_deg", DEFAULT_HFOV_DEG, 1, 179)
+    try:
+        size, lines = check_lines(list(session.frame_size), req.get("lines"))
+        fit = fit_lines(size, lines, intrinsics(size, hfov), terms)
+    except ValueError as e:
+        raise ValueError(f"lines: {e}") from None
+    use_lens(session, fit.lens, session.out_dir / LENS_FILE)
+    session.lines_fit = {"lines": [line.tolist() for line in lines], "terms": terms, "hfov_deg": hfov, "fit": fit}
+    k1, k2, p1, p2, k3 = fit.lens.distortion
+    return {"lens": fit.lens.to_dict(), "fit": fit.to_json()["fit"],
+            "summary": f"{fit.lines} lines, {fit.points} points: straightness RMS {fit.rms_before_px:.2f} px before, "
+                       f"{fit.rms_after_px:.2f} px after; k1 {k1:.4f} +- {fit.sigma[0]:.4f}, k2 {k2:.4f}, f "
+                       f"{fit.lens.K[0, 0]:.1f} px; the frame's corner moves {fit.corner_displacement_px:.1f} px"}
+
+
+def _lens_files(session: Session) -> tuple[dict, dict]:
+    """The paths of LINES_FILE and LENS_FILE with their contents, for a lens fitted from the page's lines (none
+    otherwise), and the ``homocal lens --lines`` command that writes the same lens.json from LINES_FILE."""
+    if session.lines_fit is None:
+        return {}, {}
+    f = session.lines_fit
+    lines_path, lens_path = session.out_dir / LINES_FILE, session.out_dir / LENS_FILE
+    contents = {lines_path: {"image_size": list(session.frame_size), "lines": f["lines"]},
+                lens_path: f["fit"].to_json()}
+    command = (f"homocal lens --lines {shlex.quote(str(lines_path))} -o {shlex.quote(str(lens_path))} "
+               f"--hfov {f['hfov_deg']!r} --terms {f['terms']}")
+    return contents, {"lens_command": command}
+
+
+def _check_replace(session: Session, paths: list, req: dict) -> None:
+    """Refuse to replace a symbolic link (``Refused``), or without "overwrite": true a file this server did not
+    write (or that was replaced since: FileExistsError, the page asks)."""
+    links = [p.name for p in paths if p.is_symlink()]
+    if links:
+        raise Refused(f"{', '.join(links)} in {session.out_dir}: a symbolic link, which Save never replaces "
+                      "(remove it, or save to another folder)")
+    foreign = [p for p in paths if p.exists() and _identity(p) != session.written.get(p)]
+    if foreign and req.get("overwrite") is not True:
+        raise FileExistsError(f"{', '.join(p.name for p in foreign)} already in {session.out_dir} "
+                              "(not written by this homocal ui)")
+
+
+def save_lens(session: Session, req: dict) -> dict:
+    """Write the lines and the lens fitted from them (LINES_FILE, LENS_FILE: the files of ``homocal lens --lines``)
+    to the session's folder, asking before replacing a file this server did not write (as save); answer the
+    files and the command that writes the same lens.json."""
+    contents, command = _lens_files(session)
+    if not contents:
+        raise ValueError("lines: fit the lens from lines first")
+    _check_replace(session, list(contents), req)
+    for path, data in contents.items():
+        write_json_atomic(path, data)
+    session.written.update({p: _identity(p) for p in contents})
+    return {"written": [str(p) for p in contents], "command": command["lens_command"]}
 
 
 def locate(session: Session, req: dict) -> dict:
@@ -300,14 +460,8 @@ def save(session: Session, req: dict) -> dict:
     image, map_px = trapezoid(req)
     names = (TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE) + ((CAMERA_FILE,) if method.evidence == "boxes" else ())
     paths = [session.out_dir / name for name in names]
-    links = [p.name for p in paths if p.is_symlink()]
-    if links:
-        raise Refused(f"{', '.join(links)} in {session.out_dir}: a symbolic link, which Save never replaces "
-                      "(remove it, or save to another folder)")
-    foreign = [p for p in paths if p.exists() and _identity(p) != session.written.get(p)]
-    if foreign and req.get("overwrite") is not True:
-        raise FileExistsError(f"{', '.join(p.name for p in foreign)} already in {session.out_dir} "
-                              "(not written by this homocal ui)")
+    lens_files, lens_command = _lens_files(session)  # the lens the flags name, when fitted from the page's lines
+    _check_replace(session, paths + list(lens_files), req)
     site = {"scale_px_per_m": session.site_map.scale_px_per_m, "origin_px": list(session.site_map.origin_px)}
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
@@ -327,15 +481,27 @@ def save(session: Session, req: dict) -> dict:
         flags = [f"--boxes {shlex.quote(str(session.boxes))}", *(f"{k} {v}" for k, v in given.items() if v is not None),
                  f"--camera-json {shlex.quote(str(paths[3]))}",
                  *(f"{PEDESTRIAN_SETTINGS[k].flag} {_flag_text(params[k])}" for k in method.settings)]
+    stretch = box_settings.get("stretch") if box_settings else None
+    if stretch is not None:  # homocal watch writes it, as the stretch's corrections/<start_s>.json
+        flags = [f for f in flags if not f.startswith(("--estimate-roll", "--height-mean-sigma"))]  # not watch's
+        command = (f"homocal watch --trapezoid {shlex.quote(str(paths[0]))} --fps {session.fps!r} "
+                   f"--camera-origin={','.join(repr(float(x)) for x in corrector.camera_origin_)} -o WATCH_DIR "
+                   + " ".join(flags) + f" (its corrections/{stretch[0]:.2f}.json; homocal apply WATCH_DIR --at "
+                   f"{stretch[1]!r} maps with it)")
     size = {} if session.lens is None else {"image_size": list(session.frame_size)}  # checked against the lens's
     write_json_atomic(paths[0], {"image": image.tolist(), "map": map_px.tolist(), "site_map": site, **size})
     write_text_atomic(paths[1], buffer.getvalue())
     corrector.save(paths[2])
     if method.evidence == "boxes":
         write_json_atomic(paths[3], camera)
+    for path, data in lens_files.items():
+        write_json_atomic(path, data)
+    paths += list(lens_files)
     session.written.update({p: _identity(p) for p in paths})
     points_flag = f" --points {shlex.quote(str(paths[1]))}" if len(points) else ""
-    return {"written": [str(p) for p in paths], "method": method.name,
+    if stretch is not None:
+        return {"written": [str(p) for p in paths], "method": method.name, **lens_command, "command": command}
+    return {"written": [str(p) for p in paths], "method": method.name, **lens_command,
             "command": f"homocal fit --trapezoid {shlex.quote(str(paths[0]))}{points_flag} --method {method.name} "
                        f"-o CORRECTION.json --camera-origin={','.join(repr(float(x)) for x in corrector.camera_origin_)}"
                        + "".join(" " + f for f in flags)}
@@ -383,4 +549,5 @@ def load(session: Session, req: dict) -> dict:
     return out
 
 
-ENDPOINTS = {"view": view, "fit": fit, "locate": locate, "save": save, "load": load}
+ENDPOINTS = {"view": view, "fit": fit, "watch": watch, "lens": lens, "save_lens": save_lens, "locate": locate,
+             "save": save, "load": load}

@@ -6,6 +6,7 @@ from pathlib import Path
 
 from homocal.arguments import CAMERA_JSON_HELP, camera_json, number, xy_pair
 from homocal.geometry import SiteMap
+from homocal.measure.cli import MAX_FPS
 from homocal.ui import session as sessions
 from homocal.ui.server import UIServer
 
@@ -16,7 +17,11 @@ Otherwise give --frame, --site-map and --scale. The site map must have map up = 
 camera); a mirrored or upside-down map is refused when its corners are clicked.
 With --boxes FILE (a MOTChallenge .txt, a detections.parquet or a .csv of frame,x1,y1,x2,y2, as homocal fit
 --boxes reads them; a dataset's detections.parquet by default) the page also fits --method pedestrians from
-those people's boxes, and draws the fitted horizon beside the clicked one.
+those people's boxes, and draws the fitted horizon beside the clicked one; "Horizon over time" runs homocal
+watch's calibrator over them at --fps and plots the horizon over time with the detected moves (a click on the
+plot picks the stretch whose correction a pedestrians fit uses).
+The line tool (click mode "straight lines") fits the lens from polylines along straight edges, as homocal lens
+--lines, and uses it from then on; Save lens writes lines.json and lens.json into --out.
 Save writes trapezoid.json, reference_points.csv and correction.json into --out, in the formats of
 homocal fit and homocal apply (for a fit from boxes also camera_intrinsics.json, the image size and K it
 used, as --camera-json), and shows the homocal fit command that writes the same correction from them; it
@@ -42,6 +47,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     help="ground point under the camera, metres (default 0,0; the page can change it)")
     ui.add_argument("--boxes", type=Path, metavar="BOXES", help="people's boxes for --method pedestrians (default: "
                     "DATASET's detections.parquet)")
+    ui.add_argument("--fps", type=number(float, 0, MAX_FPS, low_open=True), help="frames per second of the boxes' "
+                    "video, for the horizon over time (default: what the boxes file's folder says)")
     ui.add_argument("--camera-json", type=Path, metavar="CAMERA.json", help=CAMERA_JSON_HELP + "; the page draws the "
                     "grid and horizon through it (default: DATASET's camera.json)")
     ui.add_argument("-o", "--out", type=Path, default=Path("."), metavar="DIR",
@@ -55,14 +62,14 @@ def handle_ui(args: argparse.Namespace) -> int:
         extra = [f for f, v in (("--frame", args.frame), ("--site-map", args.site_map), ("--scale", args.scale)) if v]
         if extra:
             raise ValueError(f"give either DATASET or --frame/--site-map/--scale, not both ({', '.join(extra)})")
-        session = sessions.from_dataset(args.dataset, args.out, args.frame_index, args.boxes)
+        session = sessions.from_dataset(args.dataset, args.out, args.frame_index, args.boxes, args.fps)
     else:
         missing = [f for f, v in (("--frame", args.frame), ("--site-map", args.site_map), ("--scale", args.scale))
                    if v is None]
         if missing:
             raise ValueError(f"give a DATASET folder, or --frame, --site-map and --scale (missing {', '.join(missing)})")
         session = sessions.from_files(args.frame, args.site_map, SiteMap(args.scale, args.origin), args.camera_origin,
-                                      args.out, args.frame_index, args.boxes)
+                                      args.out, args.frame_index, args.boxes, args.fps)
     camera = camera_json(args.camera_json)
     if camera is not None:
         sessions.use_lens(session, camera.lens, args.camera_json)

@@ -17,6 +17,9 @@ from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.dataset import load_dataset
 from homocal.geometry.lens import undistort_input
 from homocal.geometry import Lens, SiteMap
+from homocal.lens.lines import DEFAULT_HFOV_DEG, DEFAULT_TERMS
+from homocal.lens.lines import TERMS as LENS_TERMS
+from homocal.measure.cli import MAX_FPS, file_fps
 
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
 
@@ -37,8 +40,11 @@ class Session:
     boxes: Path | None = None  # the boxes file of --boxes (or a dataset's detections.parquet), resolved
     detectors: tuple[str, ...] = ()  # the detectors of a detections.parquet boxes file (the page picks one)
     camera_height_m: float | None = None  # the page's default camera height (a dataset's mount height)
+    fps: float | None = None  # frames per second of the boxes' video (--fps, else its folder's): the watch's time
     lens: Lens | None = None  # the camera's lens (--camera-json, a dataset's camera.json); None: a pinhole's pixels
     camera_file: Path | None = None  # the file the lens came from (Save's command names it)
+    lines_fit: dict | None = None  # the lens fitted from the page's lines: {"lines", "terms", "hfov_deg", "fit"
+    # (homocal.lens.lines.LensFit)}; Save writes its LINES_FILE and LENS_FILE (camera_file)
     written: dict[Path, tuple] = field(default_factory=dict)  # the identity (api._identity) of each file this
     # server wrote: Save replaces those without asking while they are still what it wrote
     boxes_read: dict[str | None, PersonBoxes] = field(default_factory=dict, repr=False)  # person_boxes' reads
@@ -64,10 +70,11 @@ class Session:
             "box_methods": [name for name, m in METHODS.items() if m.evidence == "boxes"],  # fitted from boxes
             "settings": {name: list(m.settings) for name, m in METHODS.items()},  # the page's fields per method
             "boxes": None if self.boxes is None else {"file": str(self.boxes), "detectors": list(self.detectors),
-                                                      "camera_height_m": self.camera_height_m},
+                                                      "camera_height_m": self.camera_height_m, "fps": self.fps},
             "box_settings": box_settings(),
             "default_method": DEFAULT_METHOD,
             "threshold": DEFAULT_THRESHOLD,
+            "lens_terms": list(LENS_TERMS), "lens_defaults": {"terms": DEFAULT_TERMS, "hfov_deg": DEFAULT_HFOV_DEG},
         }
 
 
@@ -83,16 +90,27 @@ def box_settings() -> list[dict]:
 
 
 def from_files(frame: Path, site_map_image: Path, site_map: SiteMap, camera_origin, out_dir: Path,
-               frame_index: int = 0, boxes: Path | None = None) -> Session:
+               frame_index: int = 0, boxes: Path | None = None, fps: float | None = None) -> Session:
     """A session from a frame (an image, or a video's frame ``frame_index``) and a site-map image, with the
-    boxes file ``boxes`` (homocal.read_boxes's three kinds) when given."""
+    boxes file ``boxes`` (homocal.read_boxes's three kinds) when given, at ``fps`` frames per second (None: the
+    rate its folder says, homocal.measure.cli.file_fps, if any)."""
     frame_png, frame_size = read_frame(frame, frame_index)
     map_png, map_size = _png(cv2.imread(str(site_map_image), cv2.IMREAD_COLOR), site_map_image)
     session = Session(frame_png, frame_size, map_png, map_size, site_map, np.asarray(camera_origin, float),
                       _folder(out_dir), f"{frame.name} on {site_map_image.name}")
     if boxes is not None:
         session.boxes, session.detectors = _boxes_file(boxes)
+        session.fps = fps if fps is not None else _folder_fps(session.boxes)
     return session
+
+
+def _folder_fps(boxes: Path) -> float | None:
+    """The frame rate the boxes file's folder says (file_fps), None if it says none or one out of (0, MAX_FPS]."""
+    try:
+        fps = float(file_fps(boxes))
+    except (TypeError, ValueError):
+        return None
+    return fps if 0 < fps <= MAX_FPS else None
 
 
 def _boxes_file(path: Path) -> tuple[Path, tuple[str, ...]]:
@@ -106,13 +124,14 @@ def _boxes_file(path: Path) -> tuple[Path, tuple[str, ...]]:
     return path.resolve(), tuple(sorted(names))
 
 
-def from_dataset(path: Path, out_dir: Path, frame_index: int = 0, boxes: Path | None = None) -> Session:
+def from_dataset(path: Path, out_dir: Path, frame_index: int = 0, boxes: Path | None = None,
+                 fps: float | None = None) -> Session:
     """A session from a simgen dataset folder (data_schema.md): video.mp4, site_map.png / .json,
     trapezoids.json (hand_placed), calibration.parquet (the detected foot points of the calibration objects),
     the boxes of detections.parquet (or of ``boxes``) and the camera's mount height."""
     ds = load_dataset(path)
     session = from_files(path / "video.mp4", path / "site_map.png", ds.site_map, ds.camera_origin, out_dir,
-                         frame_index, path / "detections.parquet" if boxes is None else boxes)
+                         frame_index, path / "detections.parquet" if boxes is None else boxes, fps)
     session.camera_height_m = ds.camera.mount_height_m
     use_lens(session, ds.camera.lens, path / "camera.json")
     image, ground, _ = ds.calibration_points(source="segmentation")
@@ -126,13 +145,13 @@ def from_dataset(path: Path, out_dir: Path, frame_index: int = 0, boxes: Path | 
 
 def use_lens(session: Session, lens: Lens | None, camera_file: Path) -> None:
     """Give the session the camera's lens (an identity lens: none, the pixels are a pinhole's); ValueError if its
-    image size is not the frame's."""
-    if lens is None or lens.is_identity:
-        return
-    if lens.image_size != session.frame_size:
+    image size is not the frame's. The boxes are read again through it."""
+    if lens is not None and lens.image_size != session.frame_size:
         raise ValueError(f"{camera_file}: the lens's image size {list(lens.image_size)} differs from the frame's "
                          f"{list(session.frame_size)}")
-    session.lens, session.camera_file = lens, camera_file
+    identity = lens is None or lens.is_identity
+    session.lens, session.camera_file = (None, None) if identity else (lens, camera_file)
+    session.boxes_read.clear()
 
 
 def undistorted(session: Session, points: np.ndarray, name: str) -> np.ndarray:

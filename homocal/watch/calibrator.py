@@ -44,6 +44,8 @@ from homocal.correctors.pedestrians import (
     OUTLIER_SIGMAS,
     PedestrianCorrector,
     _on_border,
+    camera_height_from_homography,
+    focal_from_homography,
     implied_horizon_rows,
 )
 from homocal.geometry import ViewTransformer
@@ -280,3 +282,35 @@ def robust_location(people) -> tuple[float, float, float]:
     psi, dpsi = np.clip(r, -CLIP, CLIP), (np.abs(r) <= CLIP).astype(float)
     bread = float(np.sum(dpsi / s))
     return mu, (scale * math.sqrt(float(np.sum(psi * psi))) / bread if bread > 0 else math.inf), scale
+
+
+def camera_of(transformer: ViewTransformer, image_size: tuple[int, int] | None, K=None,
+              camera_height_m: float | None = None) -> tuple[np.ndarray, float]:
+    """(K (3, 3), camera height m) a watch uses: those given, else from the clicked mapping: the principal point at
+    the centre of image_size (px) and the focal length of ``focal_from_homography``, the height of
+    ``camera_height_from_homography``. ValueError when neither K nor image_size is given."""
+    if K is None:
+        if image_size is None:
+            raise ValueError("K: needed (neither the image size nor K is known)")
+        principal = (image_size[0] / 2.0 - 0.5, image_size[1] / 2.0 - 0.5)
+        f = focal_from_homography(transformer.m, principal)
+        K = np.array([[f, 0.0, principal[0]], [0.0, f, principal[1]], [0.0, 0.0, 1.0]])
+    K = np.asarray(K, dtype=np.float64)
+    return K, camera_height_m if camera_height_m is not None else camera_height_from_homography(transformer.m, K)
+
+
+def by_frame(frames: np.ndarray, xyxy: np.ndarray, track_ids: np.ndarray | None = None, name: str = "boxes"):
+    """Yield (frame, xyxy (n, 4), track ids (n,) or None) per frame of boxes (frames (N,) int, xyxy (N, 4), track_ids
+    (N,) or None) in time order, as OnlineCalibrator.update takes them; ValueError naming ``name`` before the first
+    frame if a frame goes backwards."""
+    back = np.flatnonzero(np.diff(frames) < 0)
+    if back.size:
+        i = int(back[0]) + 1
+        raise ValueError(f"{name}: box {i} (from 0) is in frame {frames[i]} after frame {frames[i - 1]}: boxes out of "
+                         "time order (sort them by frame)")
+
+    def frames_():
+        starts = np.flatnonzero(np.diff(frames, prepend=-1) != 0)
+        for a, b in zip(starts, list(starts[1:]) + [len(frames)]):
+            yield int(frames[a]), xyxy[a:b], None if track_ids is None else track_ids[a:b]
+    return frames_()

@@ -27,13 +27,11 @@ from homocal.correctors.pedestrians import (
     DEFAULT_HEIGHT_MEAN_M,
     DEFAULT_HEIGHT_SD_M,
     PedestrianCorrector,
-    camera_height_from_homography,
-    focal_from_homography,
 )
 from homocal.files import create_temporary, output_folder, write_json_atomic
 from homocal.geometry import ViewTransformer, read_trapezoid_file
 from homocal.geometry.boxes import box_edges, undistort_boxes
-from homocal.watch.calibrator import DEFAULT_ARL0_PEOPLE, MIN_PEOPLE, OnlineCalibrator
+from homocal.watch.calibrator import DEFAULT_ARL0_PEOPLE, MIN_PEOPLE, OnlineCalibrator, by_frame, camera_of
 from homocal.watch.folder import MARKER, TOOL
 
 ROW_GROUP = 4096  # horizon.parquet rows held before they are written
@@ -81,13 +79,9 @@ def handle_watch(args: argparse.Namespace) -> int:
     stream, size, K = _open_boxes(args, lens)
     if camera is not None:
         size, K = camera.image_size, camera.K
-    if K is None:
-        if size is None:
-            raise ValueError(f"--camera-json: needed ({args.boxes} gives neither the image size nor K)")
-        principal = (size[0] / 2.0 - 0.5, size[1] / 2.0 - 0.5)
-        f = focal_from_homography(transformer.m, principal)
-        K = np.array([[f, 0.0, principal[0]], [0.0, f, principal[1]], [0.0, 0.0, 1.0]])
-    height = args.camera_height if args.camera_height is not None else camera_height_from_homography(transformer.m, K)
+    if K is None and size is None:
+        raise ValueError(f"--camera-json: needed ({args.boxes} gives neither the image size nor K)")
+    K, height = camera_of(transformer, size, K, args.camera_height)
     try:
         calibrator = OnlineCalibrator(K, height, args.fps, size, args.height_mean, args.height_sd, args.arl0_people)
     except ValueError as e:
@@ -199,17 +193,7 @@ def _open_boxes(args, lens=None):
     if args.boxes == "-":
         return ((frame, undistort_boxes(xyxy, lens), ids) for frame, xyxy, ids in _stdin_boxes(sys.stdin)), None, None
     boxes = read_boxes(Path(args.boxes), args.detector, lens)
-    back = np.flatnonzero(np.diff(boxes.frames) < 0)
-    if back.size:
-        i = int(back[0]) + 1
-        raise ValueError(f"{args.boxes}: box {i} (from 0) is in frame {boxes.frames[i]} after frame "
-                         f"{boxes.frames[i - 1]}: boxes out of time order (sort them by frame)")
-
-    def frames():
-        starts = np.flatnonzero(np.diff(boxes.frames, prepend=-1) != 0)
-        for a, b in zip(starts, list(starts[1:]) + [len(boxes.frames)]):
-            yield int(boxes.frames[a]), boxes.xyxy[a:b], None if boxes.track_ids is None else boxes.track_ids[a:b]
-    return frames(), boxes.image_size, boxes.K
+    return by_frame(boxes.frames, boxes.xyxy, boxes.track_ids, args.boxes), boxes.image_size, boxes.K
 
 
 def _stdin_boxes(f):

@@ -82,3 +82,27 @@ def test_clicks_and_points_are_undistorted(session, tmp_path):
 def test_a_lens_of_another_frame_is_refused(session):
     with pytest.raises(ValueError, match=r"lens's image size \[1920, 1080\] differs from the frame's \[1280, 720\]"):
         use_lens(session, Lens(CAM.K, LENS.distortion, (1920, 1080)), "hd.json")
+
+
+def test_boxes_are_drawn_on_the_frame_in_its_pixels(session, tmp_path):
+    """The people's boxes a pedestrians fit read (undistorted before the fit) are drawn through the lens: each
+    outline's bottom midpoint is the foot point the file gave (the distorted frame's)."""
+    rng = np.random.default_rng(1)
+    ground = np.column_stack([rng.uniform(-4, 4, 60), rng.uniform(8, 30, 60)])
+    foot = seen(ground)
+    head = LENS.distort_points(CAM.project(np.column_stack([ground, rng.normal(1.75, 0.07, 60)])))
+    half = 0.25 * CAM.focal_px / ground[:, 1]
+    boxes = np.column_stack([foot[:, 0] - half, head[:, 1], foot[:, 0] + half, foot[:, 1]])  # homocal edges
+    lines = ["frame,x1,y1,x2,y2,track_id"] + [f"0,{','.join(repr(float(x) + 0.5) for x in b)},{i}"
+                                              for i, b in enumerate(boxes)]  # corner pixels
+    (tmp_path / "boxes.csv").write_text("\n".join(lines) + "\n")
+    s = from_files(tmp_path / "frame.png", tmp_path / "map.png", SITE, (0.0, 0.0), session.out_dir,
+                   boxes=tmp_path / "boxes.csv")
+    use_lens(s, LENS, tmp_path / "lens.json")
+    drawn = api.fit(s, {**REQ, "points": [], "method": "pedestrians", "camera_height_m": 4.0})["boxes"]
+    outlines = np.array(drawn["used"] + drawn["outlier"] + drawn["border"])
+    assert outlines.shape == (60, 8, 2)
+    bottom = outlines[:, 5]
+    order = np.argsort(bottom[:, 0])
+    np.testing.assert_allclose(bottom[order], foot[np.argsort(foot[:, 0])], atol=0.06)  # rounded to 0.1 px
+    assert np.abs(opencv_undistort(foot) - foot).max() > 5  # the undistorted feet are elsewhere: the check bites

@@ -18,6 +18,10 @@ const S = {
   fit: null,           // last /api/fit answer, null when out of date
   fitStale: null,      // the previous fit's summary, shown struck through
   probe: null,         // {u, v, answer}
+  watch: null,         // last /api/watch answer (the horizon over time), null when out of date
+  lines: [[]],         // the line tool's polylines ([u, v] frame px), the last one being clicked
+  lens: null,          // last /api/lens answer: the lens fitted from the lines, which the server now uses
+  at: null,            // the time (s) picked on the time plot: a fit from boxes is that stretch's correction
   message: null,       // {text, kind: "error" | "warn" | "info", topic}: the status line (see say)
 };
 const images = { frame: new Image(), map: new Image() };
@@ -63,12 +67,17 @@ function fitRequest() {
   for (const key of S.info.settings[req.method]) {  // a setting's field has the setting's name as its id
     if ($(key) && $(key).value !== "") req[key] = number(key);
   }
-  if (fromBoxes(req.method)) {  // the session's boxes file: the page names a detector of it, never a path
-    if (S.info.boxes.detectors.length) req.detector = $("detector").value;
-    for (const s of S.info.box_settings) {
-      if (s.low === null) req[s.name] = $(s.id).checked;  // yes or no
-      else if ($(s.id).value !== "") req[s.name] = number(s.id);
-    }
+  if (fromBoxes(req.method) && S.at !== null) req.at_s = S.at;  // the stretch picked on the time plot
+  return fromBoxes(req.method) ? { ...req, ...boxRequest() } : req;
+}
+
+// The session's boxes file: the page names a detector of it, never a path; the pedestrian settings' fields.
+function boxRequest() {
+  const req = {};
+  if (S.info.boxes.detectors.length) req.detector = $("detector").value;
+  for (const s of S.info.box_settings) {
+    if (s.low === null) req[s.name] = $(s.id).checked;  // yes or no
+    else if ($(s.id).value !== "") req[s.name] = number(s.id);
   }
   return req;
 }
@@ -121,8 +130,10 @@ function invalidateFit() {
 }
 
 // A change of the trapezoid; undo() takes it back if the server refuses it (mirrored map, bad order...).
+function invalidateWatch() { S.watch = null; S.at = null; }  // its inputs changed: the trapezoid, the boxes' settings
+
 async function changeTrapezoid(undo) {
-  invalidateFit();
+  invalidateFit(); invalidateWatch();
   S.probe = null;
   render();
   const reason = await refreshView();
@@ -164,7 +175,7 @@ let drawn = null;  // {frame: {...}, map: {...}} of the last render (newDrawn)
 
 function newDrawn() {
   const one = () => ({ pending: [], taken: [], labels: [], hidden: [], ellipses: [], boxes: { used: 0, outlier: 0, border: 0 } });
-  return { frame: one(), map: one() };
+  return { frame: one(), map: one(), plot: { people: 0, moves: [], band: 0, references: [] } };
 }
 
 function polyline(ctx, name, pts, close) {
@@ -258,10 +269,7 @@ function drawBoxes(ctx) {
   if (!boxes || !$("show-boxes").checked) return;
   for (const [kind, [color, dash]] of Object.entries(BOX_STYLES)) {
     style(ctx, color, kind === "outlier" ? 1.5 : 1, dash);
-    boxes[kind].forEach(([x1, y1, x2, y2]) => {
-      const a = toScreen("frame", [x1, y1]), b = toScreen("frame", [x2, y2]);
-      ctx.strokeRect(a[0], a[1], b[0] - a[0], b[1] - a[1]);
-    });
+    boxes[kind].forEach((outline) => polyline(ctx, "frame", outline, true));  // the frame's pixels
     drawn.frame.boxes[kind] = boxes[kind].length;
   }
 }
@@ -273,6 +281,7 @@ function render(keepTable) {
   window.homocalUI.drawn = drawn;
   renderFrame();
   renderMap();
+  renderPlot();
   renderPanels(keepTable);
   showMessage();
 }
@@ -308,6 +317,12 @@ function renderFrame() {
       if (ring.length) label("frame", alongPolyline(ring, [0.3, 0.5, 0.7]), "trustworthy", "#ff4fd8", 2);
     }
   }
+  S.lines.forEach((line, i) => {  // the line tool's polylines
+    if (!line.length) return;
+    style(ctx, "#b8ff3b", 1.5, [3, 3]); polyline(ctx, "frame", line);
+    line.forEach((p) => dot(ctx, "frame", p, 3, "#b8ff3b", true));
+    label("frame", [line[0]], "L" + i, "#b8ff3b", 4);
+  });
   drawTrapezoid(ctx, "frame", S.trap.image);
   S.points.forEach((p, i) => { dot(ctx, "frame", [p.u, p.v], 5, "#7dff6b", true); label("frame", [[p.u, p.v]], "P" + i, "#7dff6b", 4); });
   if (S.probe) {
@@ -376,6 +391,87 @@ function renderMap() {
   placeLabels(ctx, "map");
 }
 
+// The horizon over time (/api/watch): time (s) across, the horizon row (px, down as in the image) up the side;
+// each person's implied row (dots), the estimate with its 1-sigma band, the detected moves (vertical lines at
+// their change points), the clicked horizon and a fitted one (horizontal lines). Records what it drew in drawn.plot.
+const PLOT_MARGIN = { left: 52, right: 10, top: 8, bottom: 20 };
+function renderPlot() {
+  const w = S.watch;
+  $("plot-box").hidden = !w;
+  if (!w) return;
+  const c = $("timeplot"), r = c.getBoundingClientRect(), ctx = c.getContext("2d"), d = drawn.plot;
+  c.width = Math.round(r.width); c.height = Math.round(r.height);
+  ctx.clearRect(0, 0, c.width, c.height);
+  const fitted = S.fit && S.fit.correction.fitted && S.fit.correction.fitted.horizon_row;
+  const refs = [[w.clicked_row, "#ff5050", "clicked"]].concat(typeof fitted === "number" ? [[fitted, "#ff9d2e", "fitted"]] : []);
+  const finite = (v) => v !== null && Number.isFinite(v);
+  const e = w.estimate, band = e.t.map((t, i) => [t, e.row[i], e.sigma[i]]).filter((p) => finite(p[1]) && finite(p[2]));
+  // rows shown: the band and the references, with room around them (people beyond are left out: clipped)
+  const rows = band.flatMap(([, v, s]) => [v - s, v + s]).concat(refs.map((x) => x[0]));
+  const pad = Math.max(5, (Math.max(...rows) - Math.min(...rows)) * 0.3);
+  const lo = Math.min(...rows) - pad, hi = Math.max(...rows) + pad, t1 = Math.max(...w.people.t, 1e-9);
+  const X = (t) => PLOT_MARGIN.left + (c.width - PLOT_MARGIN.left - PLOT_MARGIN.right) * t / t1;
+  const Y = (v) => PLOT_MARGIN.top + (c.height - PLOT_MARGIN.top - PLOT_MARGIN.bottom) * (v - lo) / (hi - lo);
+  ctx.font = "11px sans-serif"; ctx.fillStyle = "#aaa"; ctx.textAlign = "right";
+  for (const v of [lo + pad, (lo + hi) / 2, hi - pad]) ctx.fillText(v.toFixed(1), PLOT_MARGIN.left - 4, Y(v) + 4);
+  ctx.textAlign = "center";
+  for (let k = 0; k <= 4; k++) ctx.fillText((t1 * k / 4).toFixed(0) + (k === 4 ? " s" : ""), X(t1 * k / 4), c.height - 5);
+  ctx.textAlign = "left";
+  ctx.fillText(`horizon row (px at column ${w.column.toFixed(0)})`, PLOT_MARGIN.left + 4, PLOT_MARGIN.top + 10);
+  ctx.save(); ctx.beginPath();
+  ctx.rect(PLOT_MARGIN.left, PLOT_MARGIN.top, c.width - PLOT_MARGIN.left - PLOT_MARGIN.right, c.height - PLOT_MARGIN.top - PLOT_MARGIN.bottom);
+  ctx.clip();
+  if (band.length) {  // the 1-sigma band, then the estimate
+    ctx.fillStyle = "rgba(159,211,255,0.3)"; ctx.beginPath();
+    band.forEach(([t, v, s], i) => (i ? ctx.lineTo(X(t), Y(v - s)) : ctx.moveTo(X(t), Y(v - s))));
+    band.slice().reverse().forEach(([t, v, s]) => ctx.lineTo(X(t), Y(v + s)));
+    ctx.closePath(); ctx.fill();
+    style(ctx, "#9fd3ff", 1.5); ctx.beginPath();
+    band.forEach(([t, v], i) => (i ? ctx.lineTo(X(t), Y(v)) : ctx.moveTo(X(t), Y(v)))); ctx.stroke();
+    d.band = band.length;
+  }
+  ctx.fillStyle = "rgba(230,230,230,0.8)";
+  w.people.t.forEach((t, i) => { ctx.fillRect(X(t) - 1.5, Y(w.people.row[i]) - 1.5, 3, 3); });
+  d.people = w.people.t.length;
+  for (const [v, color, name] of refs) {
+    style(ctx, color, 1.5, [6, 4]); ctx.beginPath(); ctx.moveTo(X(0), Y(v)); ctx.lineTo(X(t1), Y(v)); ctx.stroke();
+    d.references.push({ name, y: Y(v) });
+  }
+  for (const m of w.moves) {
+    style(ctx, "#ff4fd8", 2); ctx.beginPath(); ctx.moveTo(X(m.t_s), PLOT_MARGIN.top); ctx.lineTo(X(m.t_s), c.height - PLOT_MARGIN.bottom); ctx.stroke();
+    ctx.fillStyle = "#ff4fd8"; ctx.fillText(`move ${m.t_s.toFixed(1)} s`, X(m.t_s) + 3, c.height - PLOT_MARGIN.bottom - 4);
+    d.moves.push({ t_s: m.t_s, x: X(m.t_s) });
+  }
+  if (S.at !== null) {
+    style(ctx, "#33e0ff", 2, [4, 3]); ctx.beginPath(); ctx.moveTo(X(S.at), PLOT_MARGIN.top); ctx.lineTo(X(S.at), c.height - PLOT_MARGIN.bottom); ctx.stroke();
+    d.at = X(S.at);
+  }
+  ctx.restore();
+  plotTime = (x) => Math.min(Math.max((x - PLOT_MARGIN.left) / (c.width - PLOT_MARGIN.left - PLOT_MARGIN.right), 0), 1) * t1;
+}
+
+let plotTime = null;  // canvas x -> time (s) of the last plot drawn
+function pickStretch(e) {  // a click on the time plot: the stretch at that time is what a fit from boxes uses
+  if (!S.watch || !plotTime) return;
+  const w = S.watch, t = plotTime(e.clientX - $("timeplot").getBoundingClientRect().left);
+  invalidateFit();
+  S.at = t;
+  const start = w.stretches.filter((s) => s.start_s <= t).pop() || w.stretches[0];
+  $("watch-summary").textContent = w.summary + `\npicked ${t.toFixed(1)} s: ` + (start ?
+    `the stretch from ${start.start_s.toFixed(1)} s (horizon row ${start.horizon_row.toFixed(1)} px); Fit with pedestrians uses its correction` :
+    "no stretch has 3 people yet");
+  render();
+}
+
+async function doWatch() {
+  try {
+    S.watch = await api("watch", { ...viewRequest(), ...boxRequest() });
+    $("watch-summary").textContent = S.watch.summary;
+    clearTopic("watch");
+  } catch (e) { S.watch = null; say(e.message, "error", "watch"); }
+  render();
+}
+
 // ---- panels -----------------------------------------------------------------------------------------
 const fmt = (x, d) => (x === null || x === undefined || Number.isNaN(x) ? "-" : x.toFixed(d));
 
@@ -398,10 +494,15 @@ function renderPanels(keepTable) {
                        : "Click a reference point's foot on the frame";
   } else if (S.mode === "probe") {
     prompt = "Click any image point: its ground position and error bar";
+  } else if (S.mode === "lines") {
+    prompt = `Click points along an edge straight in the world (line L${S.lines.length - 1}, 3 or more points); End line for the next`;
   } else {
     prompt = "Click the ground point under the camera on the map";
   }
   $("prompt").textContent = prompt;
+  const clicked = S.lines.filter((l) => l.length);
+  if (clicked.length) $("lines-count").textContent = `${clicked.length} line${clicked.length === 1 ? "" : "s"}, ` +
+    `${clicked.reduce((n, l) => n + l.length, 0)} points`;
 
   const table = $("points-table");
   if (keepTable) table.querySelectorAll(".residual").forEach((td) => { td.textContent = ""; });
@@ -464,7 +565,7 @@ function onDown(name, e) {
   const [sx, sy] = eventPixel(name, e);
   if (e.button === 2 || e.shiftKey) { drag = { name, kind: "pan", last: [sx, sy], moved: false }; return; }
   if (e.button !== 0) return;
-  const hit = handleAt(name, sx, sy);
+  const hit = S.mode === "lines" ? null : handleAt(name, sx, sy);  // a line's point may fall on a corner
   drag = { name, kind: hit ? hit.kind : "click", i: hit ? hit.i : -1, down: [sx, sy], moved: false,
            start: JSON.parse(JSON.stringify({ trap: S.trap, points: S.points })) };
 }
@@ -529,6 +630,11 @@ async function clickAt(name, q, exact) {
       clearTopic("probe");
     } catch (e) { say(e.message, "error", "probe"); }
     render();
+  } else if (S.mode === "lines") {
+    if (name !== "frame") { say("straight lines: click them on the frame", "error", "click"); return; }
+    clearTopic("click", "lens");
+    S.lines[S.lines.length - 1].push(q);
+    render();
   } else if (name !== "map") {
     say("camera ground point: click it on the map", "error", "click");
   } else {
@@ -583,9 +689,36 @@ async function doSave() {
       if (!e.exists || !window.confirm(e.message + ". Replace?")) throw e;
       answer = await api("save", { ...request, overwrite: true });
     }
-    $("files-summary").textContent = "wrote " + answer.written.join(", ") + "\nsame as: " + answer.command;
+    $("files-summary").textContent = "wrote " + answer.written.join(", ") + "\nsame as: " +
+      (answer.lens_command ? answer.lens_command + " && " : "") + answer.command;
     say("saved", "info", "files");
   } catch (e) { say(e.message, "error", "files"); }
+}
+
+// Fit the lens from the clicked lines (/api/lens): the server uses it from then on, so the overlays are asked again.
+async function doFitLens() {
+  try {
+    const answer = await api("lens", { lines: S.lines.filter((l) => l.length), terms: $("lens-terms").value,
+                                       hfov_deg: number("lens-hfov") });
+    S.lens = answer;
+    $("lens-summary").textContent = answer.summary;
+    invalidateFit();
+    say("lens fitted: " + answer.summary, "info", "lens");
+    await refreshView();
+  } catch (e) { say(e.message, "error", "lens"); }
+}
+
+async function doSaveLens() {
+  try {
+    let answer;
+    try { answer = await api("save_lens", {}); }
+    catch (e) {
+      if (!e.exists || !window.confirm(e.message + ". Replace?")) throw e;
+      answer = await api("save_lens", { overwrite: true });
+    }
+    $("lens-summary").textContent = "wrote " + answer.written.join(", ") + "\nsame as: " + answer.command;
+    say("saved", "info", "lens");
+  } catch (e) { say(e.message, "error", "lens"); }
 }
 
 async function doLoad() {
@@ -620,6 +753,12 @@ function bind() {
   $("clear-trapezoid").onclick = () => { S.trap = { image: [], map: [] }; changeTrapezoid(null); };
   $("clear-points").onclick = () => { S.points = []; invalidateFit(); render(); };
   $("fit").onclick = doFit;
+  $("watch").onclick = doWatch;
+  $("timeplot").addEventListener("click", pickStretch);
+  $("fit-lens").onclick = doFitLens;
+  $("save-lens").onclick = doSaveLens;
+  $("end-line").onclick = () => { if (S.lines[S.lines.length - 1].length) S.lines.push([]); render(); };
+  $("clear-lines").onclick = () => { S.lines = [[]]; clearTopic("lens"); render(); };
   $("save").onclick = doSave;
   $("load").onclick = doLoad;
   $("points-table").addEventListener("change", (e) => {
@@ -643,7 +782,7 @@ function bind() {
   $("show-boxes").addEventListener("change", () => render());
   $("method").addEventListener("change", () => { showMethodFields(); invalidateFit(); render(); });
   for (const id of ["detector", "seed", "threshold"]) {
-    $(id).addEventListener("change", () => { invalidateFit(); render(); });
+    $(id).addEventListener("change", () => { invalidateFit(); if (id === "detector") invalidateWatch(); render(); });
   }
   $("use-hand-placed").onclick = () => { S.trap = JSON.parse(JSON.stringify(S.info.dataset.hand_placed)); changeTrapezoid(null); };
   $("use-calibration").onclick = () => {
@@ -679,6 +818,9 @@ async function start() {
   $("method").innerHTML = S.info.methods.map((m) => `<option>${m}</option>`).join("");
   $("method").value = S.info.default_method;
   $("threshold").value = S.info.threshold;
+  $("lens-terms").replaceChildren(...S.info.lens_terms.map((t) => new Option(t)));
+  $("lens-terms").value = S.info.lens_defaults.terms;
+  $("lens-hfov").value = S.info.lens_defaults.hfov_deg;
   showMethodFields();
   if (S.info.dataset) { $("use-hand-placed").hidden = false; $("use-calibration").hidden = false; }
   for (const s of S.info.box_settings) {  // one field per PedestrianCorrector setting, from its declaration
@@ -686,7 +828,7 @@ async function start() {
       ? { id: s.id, type: "checkbox", checked: s.default === true, title: s.help }
       : { id: s.id, className: "num", type: "number", step: "0.01", min: s.low, max: s.high, title: s.help,
           placeholder: s.default === null ? "" : String(s.default) });
-    input.addEventListener("change", () => { invalidateFit(); render(); });
+    input.addEventListener("change", () => { invalidateFit(); invalidateWatch(); render(); });
     const label = document.createElement("label");
     label.append(`${s.id.replace(/-/g, " ")} `, input, ` ${s.unit}${s.none ? ` (empty: ${s.none})` : ""} `);
     $("box-settings").append(label);
@@ -697,6 +839,7 @@ async function start() {
     $("detector").hidden = !S.info.boxes.detectors.length;
     if (S.info.boxes.camera_height_m !== null) $("camera-height").value = S.info.boxes.camera_height_m;
     $("boxes-file").textContent = S.info.boxes.file;
+    $("watch-fields").hidden = false;
   }
   await Promise.all(["frame", "map"].map((name) => new Promise((resolve, reject) => {
     images[name].onload = resolve; images[name].onerror = () => reject(new Error(`cannot load /${name}.png`));
