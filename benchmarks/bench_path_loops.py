@@ -45,7 +45,7 @@ def main() -> None:
     test, n = tables.test, tables.test.shape[1]
     dH = np.zeros(9, np.float32)
     dH[8] = np.float32(1e-4)
-    loops = {"regression_paths (faithful and signed)": (kernels.regression_paths, test, 1e-3, 1e-2, 1e-3, 1e-2),
+    loops = {"regression_path": (kernels.regression_path, test, 1e-3, 1e-2, False),
              "regression_path_intercept": (mk.regression_path_intercept, test, 1e-3, 1e-2, 1e-2),
              "descent_path (also the horizon correction's)": (kernels.descent_path, test, dH)}
     for name, (f, *a) in loops.items():
