@@ -247,8 +247,8 @@ def _edited_correction(edit) -> str:
      "c.json: bad regression correction (field fitted.a: must be >= 0"),
     ("hand-edited NaN b", _edited_correction(lambda d: d["fitted"].update(b=float("nan"))), None, [],
      "c.json: bad regression correction (field fitted.b: expected a finite number"),
-    ("negative click sigma", "ok", None, ["--click-sigma-px", "-1"], "--click-sigma-px: expected a finite number >= 0"),
-    ("NaN point sigma", "ok", None, ["--point-sigma-px", "nan"], "--point-sigma-px: expected a finite number >= 0"),
+    ("negative click sigma", "ok", None, ["--click-sigma-px", "-1"], "--click-sigma-px: must be a finite number >= 0"),
+    ("NaN point sigma", "ok", None, ["--point-sigma-px", "nan"], "--point-sigma-px: must be a finite number >= 0"),
 ])
 def test_bad_apply_input(work, name, correction, feet, extra, message, capsys, monkeypatch):
     if correction == "ok":
