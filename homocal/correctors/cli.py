@@ -143,6 +143,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                        help="sigma_m: clicking error of each trapezoid coordinate, pixels (default 1.5)")
     apply.add_argument("--point-sigma-px", type=number(float, 0), default=1.0, metavar="PX",
                        help="sigma_m: error of each foot point coordinate, pixels (default 1.0)")
+    apply.add_argument("--decimals", type=number(int, 0, 17), metavar="N", help="x, y and sigma_m rounded to N "
+                       "decimals of a metre (3: the millimetre, finer than any error bar of a homography fit); "
+                       "default: every digit of the float")
     apply.set_defaults(handler=handle_apply)
 
 
@@ -298,7 +301,7 @@ def handle_apply(args: argparse.Namespace) -> int:
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(out_fields)
     for row, (x, y), sm, st in zip(rows, xy, sigma, status):
-        row = {**row, "x": repr(float(x)), "y": repr(float(y)), "sigma_m": repr(float(sm)), "status": st}
+        row = {**row, **{k: _metres(v, args.decimals) for k, v in (("x", x), ("y", y), ("sigma_m", sm))}, "status": st}
         writer.writerow([row[f] for f in out_fields])
     if to_stdout:
         sys.stdout.write(buffer.getvalue())
@@ -313,6 +316,11 @@ def handle_apply(args: argparse.Namespace) -> int:
           f"beyond_horizon){bad}; x, y, sigma_m = nan for those. The correction was fitted with {quality(corrector)}.",
           file=sys.stderr if to_stdout else sys.stdout)
     return 0
+
+
+def _metres(value: float, decimals: int | None) -> str:
+    """A length (m) as homocal apply writes it: every digit of the float (repr), or rounded to decimals (--decimals)."""
+    return repr(float(value)) if decimals is None else f"{value:.{decimals}f}"
 
 
 def _line_list(lines: list[int], most: int = 10) -> str:
