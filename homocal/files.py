@@ -210,7 +210,8 @@ def _place_lock(lock: Path) -> None:
 
 
 @contextmanager
-def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "manifest.json") -> Iterator[OutputFolder]:
+def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "manifest.json", resumable: bool = True
+                  ) -> Iterator[OutputFolder]:
     """Create or reopen the output folder ``path`` of ``tool`` and hold its lock for the ``with`` block.
 
     Ownership: a folder is ``tool``'s when the JSON file ``path/marker`` has ``"format": tool`` (e.g.
@@ -226,7 +227,8 @@ def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "mani
       3. The folder is missing, or holds nothing but a lock file of ours (the JSON this function writes; a
          ``.lock`` with other content, even empty, is a user's file: it counts as content and is never taken
          or deleted): a new folder (created with its parents), ``resumed`` False, whatever ``resume`` says.
-      4. Otherwise: without ``resume``, refused ("exists and is not empty"); with ``resume``, refused unless
+      4. Otherwise: without ``resume``, refused ("exists and is not empty", suggesting --resume if the command
+         has it: ``resumable``); with ``resume``, refused unless
          the marker is there with the right format ("not a <tool> output folder"): a folder that is not
          the tool's is never written to.
       5. The lock is taken (``LOCK_EX | LOCK_NB``; ``path/.lock`` placed whole if missing, ``_place_lock``) and
@@ -250,8 +252,8 @@ def output_folder(path: str | Path, tool: str, resume: bool, marker: str = "mani
                         if LOCK_NAME in entries else "")
         resumed = bool(entries)
         if resumed and not resume:
-            raise OutputFolderError(f"{path}: exists and is not empty{foreign_lock} (use --resume to continue it, or "
-                                    "another output folder)")
+            hint = "use --resume to continue it, or another output folder" if resumable else "use another output folder"
+            raise OutputFolderError(f"{path}: exists and is not empty{foreign_lock} ({hint})")
         if resumed and json_format(path / marker) != tool:
             raise OutputFolderError(f"{path}: not a {tool} output folder (no {marker} with format {tool!r}); refused, "
                                     "nothing touched")

@@ -2,7 +2,8 @@
 # Installs everything the project needs on a fresh Debian 12 machine (idempotent):
 # the headless OpenGL libraries MuJoCo renders with (EGL and OSMesa, see data_schema.md),
 # the headless browser the homocal ui test drives (chromium and its driver, tests/ui)
-# and the Python package with its extras (dask, hog, supervision, test) at the versions the suite last passed with
+# and the Python package with all its extras (pyproject.toml's, as scripts/lock.py --extras lists them) at the versions
+# the suite last passed with
 # (constraints.txt, the lock: docs/maintaining.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -16,7 +17,7 @@ if [ -n "$missing" ]; then
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends $missing
 fi
-python3 -m pip install -q --disable-pip-version-check -c constraints.txt -e ".[dask,hog,supervision,test]"
+python3 -m pip install -q --disable-pip-version-check -c constraints.txt -e ".[$(python3 scripts/lock.py --extras)]"
 # opencv-python-headless (a dependency) and opencv-contrib-python-headless (the hog extra, for simgen's hog detector and
 # its tests) install the same cv2 folder, so cv2 is whichever of the two pip wrote last, and OpenCV 5's base build has
 # no HOGDescriptor. Reinstalling contrib alone writes its files (a superset) over the shared ones: both stay

@@ -1,27 +1,35 @@
 """Print the lock file (constraints.txt): name==version of every installed distribution in the dependency closure
-of homocal with the extras scripts/install.sh installs, sorted; homocal itself is left out (docs/maintaining.md).
+of homocal with all its extras (the ones scripts/install.sh installs), sorted; homocal itself is left out
+(docs/maintaining.md). With --extras, print those extras instead, comma-separated (scripts/install.sh's list).
 
     python3 scripts/lock.py > constraints.txt
 """
 from __future__ import annotations
 
+import sys
+import tomllib
 from importlib.metadata import PackageNotFoundError, distribution
-
-from packaging.requirements import Requirement  # pip's and pytest's dependency
-from packaging.utils import canonicalize_name
-
-EXTRAS = ("dask", "hog", "supervision", "test")  # scripts/install.sh's
+from pathlib import Path
 
 
-def wanted(requirement: Requirement, extras: tuple[str, ...]) -> bool:
+def declared_extras() -> tuple[str, ...]:
+    """The extras pyproject.toml declares ([project.optional-dependencies]), in its order: all are installed."""
+    with open(Path(__file__).parent.parent / "pyproject.toml", "rb") as f:
+        return tuple(tomllib.load(f)["project"]["optional-dependencies"])
+
+
+def wanted(requirement, extras: tuple[str, ...]) -> bool:
     """Whether the requirement applies here with the given extras (its marker: Python, platform, extra)."""
     marker = requirement.marker
     return marker is None or any(marker.evaluate({"extra": e}) for e in extras or ("",))
 
 
 def closure(root: str = "homocal") -> dict[str, str]:
-    """{canonical name: installed version} of root's requirements (with EXTRAS for root), recursively."""
-    found, todo = {}, [(root, EXTRAS)]
+    """{canonical name: installed version} of root's requirements (with all its extras), recursively."""
+    from packaging.requirements import Requirement  # pip's and pytest's dependency (not needed for --extras,
+    from packaging.utils import canonicalize_name  # which scripts/install.sh runs before installing anything)
+
+    found, todo = {}, [(root, declared_extras())]
     while todo:
         name, extras = todo.pop()
         for text in distribution(name).requires or []:
@@ -38,7 +46,9 @@ def closure(root: str = "homocal") -> dict[str, str]:
     return found
 
 
-if __name__ == "__main__":
+if __name__ == "__main__" and sys.argv[1:] == ["--extras"]:
+    print(",".join(declared_extras()))
+elif __name__ == "__main__":
     print("# The versions the whole suite last passed with (docs/maintaining.md: the lock file).")
     print("# Written by: python3 scripts/lock.py > constraints.txt")
     for name, version in sorted(closure().items()):

@@ -8,7 +8,7 @@ class's ``Corrector.method``; several entries may share one class, told apart by
 the constructor arguments a user may set (``settings``: fit's flags, the page's fields), what it is fitted
 from (``evidence``: "points", reference points u,v,x,y; "boxes", people's boxes), a one-line description and
 the note fit prints after its summary. To add a method: write its Corrector subclass and add
-one ``Method`` to ``CATALOGUE``.
+one ``Method`` to ``CATALOGUE``; with a study column, its kernel too (homocal.study.kernels.column_kernel).
 
 >>> METHODS["regression-signed"].make()
 RegressionCorrector(signed=True, intercept=False)

@@ -8,7 +8,6 @@ from __future__ import annotations
 import argparse
 import csv
 import io
-import math
 import sys
 import warnings
 from pathlib import Path
@@ -125,11 +124,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                      "detections.parquet or a .csv (see below)")
     fit.add_argument("--detector", metavar="NAME", help=f"pedestrians: the detector's rows of a detections.parquet "
                      f"(default {DEFAULT_DETECTOR})")
-    defaults = PedestrianCorrector().get_params()
-    for name, opt in PEDESTRIAN_SETTINGS.items():
-        default = opt.none if defaults.get(name) is None else opt.to_text(defaults[name])
-        fit.add_argument(opt.flag, dest=name, type=flag_type(opt), metavar=opt.metavar,
-                         help=f"pedestrians: {opt.help}: {opt.expected()} (default: {default})")
+    add_pedestrian_flags(fit, PEDESTRIAN_SETTINGS, "pedestrians: ")
     fit.add_argument("--camera-json", type=Path, metavar="CAMERA.json", help=CAMERA_JSON_HELP + "; it is saved "
                      "with the correction. Pedestrians: its image size and K (default: those beside the boxes file)")
     fit.set_defaults(handler=handle_fit)
@@ -144,11 +139,31 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     apply.add_argument("--points", required=True, type=Path, metavar="FEET.csv", help="image foot points u,v")
     apply.add_argument("-o", "--out", required=True, type=Path, metavar="CORRECTED.csv",
                        help="the CSV to write; - writes it to stdout (the summary line then goes to stderr)")
-    apply.add_argument("--click-sigma-px", type=_sigma, default=1.5, metavar="PX",
+    apply.add_argument("--click-sigma-px", type=number(float, 0), default=1.5, metavar="PX",
                        help="sigma_m: clicking error of each trapezoid coordinate, pixels (default 1.5)")
-    apply.add_argument("--point-sigma-px", type=_sigma, default=1.0, metavar="PX",
+    apply.add_argument("--point-sigma-px", type=number(float, 0), default=1.0, metavar="PX",
                        help="sigma_m: error of each foot point coordinate, pixels (default 1.0)")
+    apply.add_argument("--decimals", type=number(int, 0, 17), metavar="N", help="x, y and sigma_m rounded to N "
+                       "decimals of a metre (3: the millimetre, finer than any error bar of a homography fit); "
+                       "default: every digit of the float")
     apply.set_defaults(handler=handle_apply)
+
+
+def add_pedestrian_flags(parser: argparse.ArgumentParser, names, use: str = "") -> None:
+    """Add the flags of the pedestrian settings ``names`` (PEDESTRIAN_SETTINGS: each one's flag, bounds and help)
+    to parser, dest the setting's name, default None (PedestrianCorrector's default, which the help names; use
+    starts the help): homocal fit's and homocal watch's."""
+    defaults = PedestrianCorrector().get_params()
+    for name in names:
+        opt = PEDESTRIAN_SETTINGS[name]
+        default = opt.none if defaults.get(name) is None else opt.to_text(defaults[name])
+        parser.add_argument(opt.flag, dest=name, type=flag_type(opt), metavar=opt.metavar,
+                            help=f"{use}{opt.help}: {opt.expected()} (default: {default})")
+
+
+def pedestrian_flag_error(e: OptionError) -> ValueError:
+    """A pedestrian setting's OptionError as the one-line error of its flag (add_pedestrian_flags)."""
+    return ValueError(f"argument {PEDESTRIAN_SETTINGS[e.name].flag}: {e.expected}, got {e.value!r}")
 
 
 def handle_fit(args: argparse.Namespace) -> int:
@@ -223,7 +238,7 @@ def _fit_from_boxes(args: argparse.Namespace, method, transformer: ViewTransform
                       camera_height_m=args.camera_height_m, K=K, image_size=size, camera_origin=args.camera_origin,
                       **check)
     except OptionError as e:  # a value within its own bounds that does not fit another (the sd and the mean)
-        raise ValueError(f"argument {PEDESTRIAN_SETTINGS[e.name].flag}: {e.expected}, got {e.value!r}") from None
+        raise pedestrian_flag_error(e) from None
     except ValueError as e:
         message = str(e)
         if message.startswith("--"):  # already naming its flag (the boxes and camera readers')
@@ -286,7 +301,7 @@ def handle_apply(args: argparse.Namespace) -> int:
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(out_fields)
     for row, (x, y), sm, st in zip(rows, xy, sigma, status):
-        row = {**row, "x": repr(float(x)), "y": repr(float(y)), "sigma_m": repr(float(sm)), "status": st}
+        row = {**row, **{k: _metres(v, args.decimals) for k, v in (("x", x), ("y", y), ("sigma_m", sm))}, "status": st}
         writer.writerow([row[f] for f in out_fields])
     if to_stdout:
         sys.stdout.write(buffer.getvalue())
@@ -303,16 +318,11 @@ def handle_apply(args: argparse.Namespace) -> int:
     return 0
 
 
+def _metres(value: float, decimals: int | None) -> str:
+    """A length (m) as homocal apply writes it: every digit of the float (repr), or rounded to decimals (--decimals)."""
+    return repr(float(value)) if decimals is None else f"{value:.{decimals}f}"
+
+
 def _line_list(lines: list[int], most: int = 10) -> str:
     shown = ", ".join(map(str, lines[:most]))
     return shown + (f" and {len(lines) - most} more" if len(lines) > most else "")
-
-
-def _sigma(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of pixels, got {text!r}") from None
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
-    return value

@@ -65,7 +65,7 @@ import numpy as np
 from homocal.correctors.base import Corrector, check_calibration, check_camera_origin, improvement_percent, mean_error
 from homocal.correctors.serialization import float_or_none, integer, number
 from homocal.geometry import ViewTransformer, apply_homography, as_points
-from homocal.geometry.boxes import box_edges, link_tracks
+from homocal.geometry.boxes import box_edges, link_tracks, undistort_boxes
 from homocal.geometry.camera import tilt_homography
 from homocal.geometry.lens import Lens
 from homocal.study.options import Number, Option, OptionError, YesNo
@@ -431,10 +431,11 @@ class PedestrianCorrector(Corrector):
                 used by the fit, their mean errors before and after are error_before_ and error_after_.
             max_outlier_share: the largest share of outlier boxes, and of rejected people, a fit accepts (1: none
                 refused, to measure what a refused fit reaches; research/pedestrians.py --accept-outliers).
-            lens: the camera's lens (homocal.geometry.Lens, the same K): the boxes' foot and head points (their
-                bottom and top edges' centres) are undistorted (Lens.undistort_points) before the fit; the
-                transformer, the check points and the corrected mapping are then in undistorted pixels. None:
-                a pinhole (the points as given).
+            lens: the camera's lens (homocal.geometry.Lens, the same K): the boxes are undistorted
+                (homocal.geometry.undistort_boxes: the foot point and the head row exactly; ValueError naming
+                xyxy for a box beyond the lens's fold) after the border test and the track linking, before the
+                fit; the transformer, the check points and the corrected mapping are then in undistorted pixels.
+                None: a pinhole (the boxes as given).
         Returns self. ValueError naming the argument for bad input, and for a fit that cannot be trusted: fewer
         than MIN_PEOPLE inlier people, or more than max_outlier_share of the used boxes or of the people
         outliers (the median start and the inlier rounds break down there: HOG boxes gave a horizon 82 px off
@@ -480,10 +481,10 @@ class PedestrianCorrector(Corrector):
             raise ValueError(f"xyxy: all {n} boxes touch the {size[0]}x{size[1]} image's border (cut by it)")
         if tracks is None:
             tracks = np.arange(n) if frames is None else link_tracks(frames, edges, max_gap=LINK_GAP)
+        if lens is not None:  # the camera's pixels to the undistorted image, as homocal.boxes.read_boxes does
+            edges = undistort_boxes(edges, lens)
         middle = (edges[:, 0] + edges[:, 2]) / 2
         foot, head = np.column_stack([middle, edges[:, 3]]), np.column_stack([middle, edges[:, 1]])
-        if lens is not None:
-            foot, head = lens.undistort_points(foot), lens.undistort_points(head)  # NaN beyond the lens' fold
         used = ~border & np.isfinite(foot).all(axis=1) & np.isfinite(head).all(axis=1)
         fit = fit_tilt(foot[used, 1], head[used, 1], tracks[used], focal, principal[1], self.camera_height_m_,
                        self.height_mean_m, self.height_sd_m)

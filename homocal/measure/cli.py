@@ -15,7 +15,6 @@ from homocal.arguments import number
 from homocal.boxes import DEFAULT_DETECTOR, read_boxes
 from homocal.correctors.base import load_corrector
 from homocal.correctors.catalogue import label
-from homocal.correctors.cli import _sigma
 from homocal.correctors.serialization import FORMAT
 from homocal.files import check_output_file, json_format, read_json, write_atomic
 from homocal.geometry import read_trapezoid_file
@@ -64,9 +63,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("--pairs", type=Path, metavar="FILE.parquet", help="also write the distances between people here")
     p.add_argument("--accel-psd", type=number(float, 0, 1e6, low_open=True), default=ACCEL_PSD, metavar="Q",
                    help=f"the filter's acceleration spectral density, m^2/s^3 (default {ACCEL_PSD:g})")
-    p.add_argument("--click-sigma-px", type=_sigma, default=1.5, metavar="PX",
+    p.add_argument("--click-sigma-px", type=number(float, 0), default=1.5, metavar="PX",
                    help="clicking error of each trapezoid coordinate, pixels (default 1.5)")
-    p.add_argument("--point-sigma-px", type=_sigma, default=1.0, metavar="PX",
+    p.add_argument("--point-sigma-px", type=number(float, 0), default=1.0, metavar="PX",
                    help="error of each foot point coordinate, pixels (default 1.0)")
     add_progress_option(p)
     p.set_defaults(handler=handle_measure)

@@ -82,8 +82,8 @@ def advise_scene(transformer: ViewTransformer, site_map: SiteMap, positions: np.
     """The StudyScene of a clicked trapezoid taken as the truth: candidate positions (M, 2) and test points
     (N, 2), metres, mapped into the image by transformer.inverse_transform_points; the map quad in site_map's
     pixels (the perturbation moves them). K: the intrinsics are unknown, only the principal column is set (the
-    straight-ahead column, for StudyScene.horizon_row); NaN elsewhere, as no horizon shift is applied. ValueError if a
-    position or test point maps behind the camera."""
+    straight-ahead column, where perturb.base_trapezoid reads the horizon); NaN elsewhere, as no horizon shift is
+    applied. ValueError if a position or test point maps behind the camera."""
     images = []
     for what, ground in (("reference position", positions), ("test point", test_ground)):
         image = transformer.inverse_transform_points(ground)

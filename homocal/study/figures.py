@@ -24,7 +24,7 @@ from homocal.files import write_atomic
 from homocal.geometry import ViewTransformer
 from homocal.study.aggregate import Quantiles, scan
 from homocal.study.metrics import D_METHODS, METHODS, PAPER
-from homocal.study.perturb import base_quad, perturbed_quads
+from homocal.study.perturb import base_trapezoid, perturbed_quads
 
 DPI = 110
 HEADLINE = "path_improvement.png"  # the report's first figure (headline_figure)
@@ -351,8 +351,7 @@ def _variant_quads(ds: Dataset, variants_file: Path, n: int) -> list[tuple[str, 
     if not variants_file.is_file():
         return [hand]
     t = pq.read_table(variants_file).to_pydict()
-    K = ds.camera.K
-    horizon = float(ViewTransformer(ds.trapezoid_image, ds.site_map.to_metres(ds.trapezoid_map)).horizon_row(K[0, 2]))
+    target = ds.site_map.to_metres(ds.trapezoid_map)
     out = []
     for row in range(len(t["variant"])):
         if len(out) == n + 1:
@@ -361,7 +360,7 @@ def _variant_quads(ds: Dataset, variants_file: Path, n: int) -> list[tuple[str, 
         if t["degenerate"][row] or (row > 0 and not offsets.any()):
             continue
         noise = np.array([t[f"click_{k}"][row] for k in range(8)])
-        base = base_quad(ds.trapezoid_image, K, horizon, ds.camera.horizon_row, t["horizon_shift_px"][row], noise)
+        base = base_trapezoid(ds.trapezoid_image, target, ds.camera.K, ds.camera.horizon_row, t["horizon_shift_px"][row], noise)
         name = "base trapezoid (variant 0)" if row == 0 else f"variant {t['variant'][row]}"
         out.append((name, perturbed_quads(base, ds.trapezoid_map, offsets)))
     return out or [hand]

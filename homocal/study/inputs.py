@@ -10,11 +10,11 @@ from homocal.correctors.descent import DescentCorrector
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.least_change import LeastChangeCorrector
 from homocal.dataset import EXACT, calibration_source, load_dataset
-from homocal.geometry import SiteMap, ViewTransformer
+from homocal.geometry import SiteMap
 from homocal.geometry.lens import undistort_input
 from homocal.study.options import (DEFAULT_PRESET, Number, Parsed, Via, Words, declared_options, internal, option,
                                    preset_values)
-from homocal.study.perturb import PERTURBATIONS, ShiftSpec, base_quad, draw_base_error, draw_variant, perturbed_quads
+from homocal.study.perturb import PERTURBATIONS, ShiftSpec, base_trapezoid, draw_base_error, draw_variant, perturbed_quads
 from homocal.study.triples import distance_features, triples
 
 METRICS = ("euclidean", "range")
@@ -186,11 +186,6 @@ class StudyScene:
     image_width: float = float("nan")
     config_hash: str = ""
 
-    @functools.cached_property
-    def horizon_row(self) -> float:
-        """Horizon row (px) of the hand-placed trapezoid's mapping at the principal column."""
-        return float(ViewTransformer(self.image_quad, self.site_map.to_metres(self.map_quad)).horizon_row(self.K[0, 2]))
-
     def variant_offsets(self, params: StudyParams, variant: int) -> tuple[np.ndarray, int]:
         """(offsets (16,), n_perturbed) of the variant (perturb.draw_variant, as params.perturbation reads it) in px
         of this scene's image and site map: its 8 image offsets drawn in px of an image params.image_width px wide
@@ -210,11 +205,11 @@ class StudyScene:
         return perturbed_quads(self.base_image_quad(params, variant), self.map_quad, offsets)
 
     def base_image_quad(self, params: StudyParams, variant: int) -> np.ndarray:
-        """The variant's clicked base image trapezoid (4, 2) px (perturb.base_quad): the hand-placed one, its
+        """The variant's clicked base image trapezoid (4, 2) px (perturb.base_trapezoid): the hand-placed one, its
         horizon put the variant's horizon shift above the true one if params has a horizon shift, plus the
         variant's click noise; the hand-placed one itself by default."""
         eps, noise = draw_base_error(params.seed, self.name, variant, params.horizon_shift, params.click_noise)
-        return base_quad(self.image_quad, self.K, self.horizon_row, self.true_horizon_row, eps, noise)
+        return base_trapezoid(self.image_quad, self.site_map.to_metres(self.map_quad), self.K, self.true_horizon_row, eps, noise)
 
     @functools.cached_property
     def distance_features(self) -> tuple[np.ndarray, np.ndarray]:

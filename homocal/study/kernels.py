@@ -46,7 +46,7 @@ METHODS = STUDY_COLUMNS  # the study's methods, in their shard column order: the
 # run_variant's output columns, in order (the shard schema is derived from them): method m's calibration and
 # path improvements are columns 1 + 2 m and 2 + 2 m
 OUT_COLUMNS = ("cal_before", *(f"{kind}_{m}" for m in METHODS for kind in ("cal", "path")), "hybrid_regression")
-REG, SIG, INT, HOR, LCH, DES, HYB = (1 + 2 * METHODS.index(m) for m in METHODS)  # calibration columns
+CAL = {m: OUT_COLUMNS.index(f"cal_{m}") for m in METHODS}  # method m's calibration column (its path column: the next)
 CHOSE = len(OUT_COLUMNS) - 1
 BEFORE = OUT_COLUMNS.index("cal_before")
 
@@ -425,15 +425,6 @@ def _radial32(test, t, ab):
     return math.sqrt(np.float32(0.0) if q < 0 else q), True
 
 
-@nb.njit(**PATH_JIT)
-def regression_paths(test, af, bf, as_, bs):
-    """Mean test-point error (m) after both regressions (_radial32), in float32 and units of 1/FIXED m, summed
-    exactly (jit.fixed_point_mean: NaN if a point error is not finite); test (rows.TEST_ROWS, N), its rows d, rr,
-    ru2 read."""
-    af, bf, as_, bs = np.float32(af / FIXED), np.float32(bf), np.float32(as_ / FIXED), np.float32(bs)
-    return fixed_point_mean(_radial32, test, (af, bf)), fixed_point_mean(_radial32, test, (as_, bs))
-
-
 @nb.njit(inline="always", **PATH_JIT)
 def _range32(test, t, ab):
     """(e, True): the float32 range error | ||g - o|| - |d + c| | of test point t after the radial correction
@@ -444,10 +435,12 @@ def _range32(test, t, ab):
 
 
 @nb.njit(**PATH_JIT)
-def regression_paths_range(test, af, bf, as_, bs):
-    """As regression_paths, with the range error (_range32); test rows d and dg (||g - o||) read."""
-    af, bf, as_, bs = np.float32(af / FIXED), np.float32(bf), np.float32(as_ / FIXED), np.float32(bs)
-    return fixed_point_mean(_range32, test, (af, bf)), fixed_point_mean(_range32, test, (as_, bs))
+def regression_path(test, a, b, in_range):
+    """Mean test-point error (m) after a regression's radial correction (a, b) (_radial32; in_range its range error,
+    _range32), in float32 and units of 1/FIXED m, summed exactly (jit.fixed_point_mean: NaN if a point error is not
+    finite); test (rows.TEST_ROWS, N), its rows d, rr, ru2 (in_range: d, dg) read."""
+    ab = (np.float32(a / FIXED), np.float32(b))
+    return fixed_point_mean(_range32, test, ab) if in_range else fixed_point_mean(_radial32, test, ab)
 
 
 @nb.njit(inline="always", **PATH_JIT)
@@ -473,7 +466,7 @@ def _homography32(test, t, args):
 def descent_path(test, dH):
     """Mean test-point error (m) of H0 + dH, float32, residual form: with s = t/w0 (H0 s = (p0, 1)) and
     r = p0 - g, H(t) - g = (r + dH01 s - g dH2 s) / (1 + dH2 s). test rows s0, s1, s2, rx, ry, gx, gy read;
-    dH (9,) float32, rows 0-1 in units of 1/FIXED m. Summed as regression_paths; NaN if a point crosses the
+    dH (9,) float32, rows 0-1 in units of 1/FIXED m. Summed as regression_path; NaN if a point crosses the
     horizon."""
     return fixed_point_mean(_homography32, test, (dH,))
 
@@ -507,7 +500,7 @@ def _range_intercept32(test, t, abc):
 
 @nb.njit(**PATH_JIT)
 def regression_path_range(test, a, b, c):
-    """As regression_paths_range for one regression with an intercept, c(d) = a d^2 + b d + c (m)."""
+    """As regression_path (in_range) for one regression with an intercept, c(d) = a d^2 + b d + c (m)."""
     return fixed_point_mean(_range_intercept32, test, (np.float32(a / FIXED), np.float32(b), np.float32(c * FIXED)))
 
 
@@ -560,58 +553,69 @@ def _calibration_error(H, q, g, i, j, k, origin, in_range):
                   mapped_error(H, q, g, k, origin, in_range))
 
 
-@nb.njit(nogil=True, **JIT)
-def run_variant(variant, samples, settings, results):
-    """Every method on every triple of samples (Samples) of one trapezoid variant (Variant), with settings
-    (Settings); writes results (Results): out (S, len(OUT_COLUMNS)) in OUT_COLUMNS order, cal_before (m), then
-    (cal, path) improvement (%) of each of the METHODS, then 1.0 if hybrid chose regression; faithful_ab and
-    signed_ab (S, 2): the two regressions' a, b; quads (S, 8) and evaluations (S,): descent's final trapezoid and
-    its phase-2 evaluations.
+def column_kernel(column, after=()):
+    """Declare the compiled study kernel of the catalogue's study column ``column`` (catalogue.STUDY_COLUMNS):
+    kernel(variant, samples, settings, results, cal, after) writes, for every sample s, results.out[s, cal] and
+    [s, cal + 1], the method's calibration and path improvements (%), and may read the columns out[:, c] of
+    the methods named in ``after`` (their calibration columns, in that order), which run_variant runs first."""
+    def declare(kernel):
+        KERNELS[column] = (nb.njit(nogil=True, **JIT)(kernel), after)
+        return KERNELS[column][0]
+    return declare
 
-    With settings.in_range, errors are range errors | ||g - o|| - ||p - o|| | instead of ||p - g|| (the study's
-    metric; the methods themselves do not change, the hybrid's threshold applies to the metric's improvement).
-    """
-    v0, t0, Bt, H0, F, q, g = variant.v0, variant.t0, variant.Bt, variant.H0, variant.F, variant.q, variant.g
-    cal, test, path_before, origin = variant.cal, variant.test, variant.path_before, variant.origin
-    I, J, K = samples.I, samples.J, samples.K
-    grid, lc, threshold, in_range = settings.descent.grid, settings.least_change, settings.threshold, settings.in_range
-    out, quads = results.out, results.quads
-    table = grid_table(v0, grid, F, q)
-    G, G4 = grid.shape[0], table.shape[1]
-    S = I.shape[0]
-    Lfinal = np.empty(S)
-    seeds = np.empty(S, np.uint64)
-    dH = np.empty(9, np.float32)
-    Hd = np.empty((3, 3))
-    sums = np.empty(G4)
-    z0, zl, Bl = np.concatenate((v0, t0)), np.empty(16), np.empty((3, 3))
-    q3, g3 = np.empty((3, 2)), np.empty((3, 2))
-    for s in range(S):
+
+KERNELS = {}  # study column -> (its compiled kernel, the columns it reads), declared by column_kernel
+
+
+@nb.njit(nogil=True, **JIT)
+def calibration_before(variant, samples, settings, results):
+    """out[s, BEFORE]: the mean calibration error (m) of triple s before correction, in the study's metric."""
+    cal, I, J, K, out = variant.cal, samples.I, samples.J, samples.K, results.out
+    for s in range(I.shape[0]):
         i, j, k = I[s], J[s], K[s]
-        # ---- regression, faithful and signed (eqs. (18)-(24))
-        if in_range:
-            e_before = _mean3(abs(cal[CAL_E_SIGNED, i]), abs(cal[CAL_E_SIGNED, j]), abs(cal[CAL_E_SIGNED, k]))
+        if settings.in_range:
+            out[s, BEFORE] = _mean3(abs(cal[CAL_E_SIGNED, i]), abs(cal[CAL_E_SIGNED, j]), abs(cal[CAL_E_SIGNED, k]))
         else:
-            e_before = _mean3(cal[CAL_E_FAITHFUL, i], cal[CAL_E_FAITHFUL, j], cal[CAL_E_FAITHFUL, k])
+            out[s, BEFORE] = _mean3(cal[CAL_E_FAITHFUL, i], cal[CAL_E_FAITHFUL, j], cal[CAL_E_FAITHFUL, k])
+
+
+@nb.njit(inline="always", **JIT)
+def _regression(variant, samples, in_range, out, col, ab, signed):
+    """The radial regression (eqs. (18)-(24)), faithful or signed, of every sample: its improvements in out[:, col],
+    out[:, col + 1] and its (a, b) in ab (S, 2)."""
+    cal, test, I, J, K = variant.cal, variant.test, samples.I, samples.J, samples.K
+    e = CAL_E_SIGNED if signed else CAL_E_FAITHFUL
+    for s in range(I.shape[0]):
+        i, j, k = I[s], J[s], K[s]
+        a, b, _ = fit_quadratic(cal[CAL_D, i], cal[CAL_D, j], cal[CAL_D, k], cal[e, i], cal[e, j], cal[e, k], not signed)
+        out[s, col] = _improvement(out[s, BEFORE], _mean3(radial_error(cal, i, a, b, in_range), radial_error(cal, j, a, b, in_range),
+                                                           radial_error(cal, k, a, b, in_range)))
+        out[s, col + 1] = _improvement(variant.path_before, regression_path(test, a, b, in_range))
+        ab[s, 0], ab[s, 1] = a, b
+
+
+@column_kernel("regression")
+def regression(variant, samples, settings, results, col, after):
+    """The paper's regression of unsigned errors, clamped (results.faithful_ab)."""
+    _regression(variant, samples, settings.in_range, results.out, col, results.faithful_ab, False)
+
+
+@column_kernel("regression_signed")
+def regression_signed(variant, samples, settings, results, col, after):
+    """The regression of signed range errors (results.signed_ab)."""
+    _regression(variant, samples, settings.in_range, results.out, col, results.signed_ab, True)
+
+
+@column_kernel("regression_intercept")
+def regression_intercept(variant, samples, settings, results, col, after):
+    """The signed regression with an intercept, e = a d^2 + b d + c, exact through the three points."""
+    cal, test, I, J, K, out = variant.cal, variant.test, samples.I, samples.J, samples.K, results.out
+    for s in range(I.shape[0]):
+        i, j, k = I[s], J[s], K[s]
         di, dj, dk = cal[CAL_D, i], cal[CAL_D, j], cal[CAL_D, k]
         ei, ej, ek = cal[CAL_E_SIGNED, i], cal[CAL_E_SIGNED, j], cal[CAL_E_SIGNED, k]
-        af, bf, _ = fit_quadratic(di, dj, dk, cal[CAL_E_FAITHFUL, i], cal[CAL_E_FAITHFUL, j], cal[CAL_E_FAITHFUL, k], True)
-        as_, bs, _ = fit_quadratic(di, dj, dk, ei, ej, ek, False)
-        out[s, BEFORE] = e_before
-        out[s, REG] = _improvement(e_before, _mean3(radial_error(cal, i, af, bf, in_range), radial_error(cal, j, af, bf, in_range),
-                                                    radial_error(cal, k, af, bf, in_range)))
-        out[s, SIG] = _improvement(e_before, _mean3(radial_error(cal, i, as_, bs, in_range), radial_error(cal, j, as_, bs, in_range),
-                                                    radial_error(cal, k, as_, bs, in_range)))
-        if in_range:
-            path_f, path_s = regression_paths_range(test, af, bf, as_, bs)
-        else:
-            path_f, path_s = regression_paths(test, af, bf, as_, bs)
-        out[s, REG + 1], out[s, SIG + 1] = _improvement(path_before, path_f), _improvement(path_before, path_s)
-        results.faithful_ab[s, 0], results.faithful_ab[s, 1] = af, bf
-        results.signed_ab[s, 0], results.signed_ab[s, 1] = as_, bs
-        # ---- regression with an intercept (signed e = a d^2 + b d + c, exact through the three points)
         ai, bi, ci, _ = mk.fit_quadratic_intercept3(di, dj, dk, ei, ej, ek)
-        if in_range:
+        if settings.in_range:
             cal_i = _mean3(abs(ei + di - abs(di + ai * di * di + bi * di + ci)),
                            abs(ej + dj - abs(dj + ai * dj * dj + bi * dj + ci)),
                            abs(ek + dk - abs(dk + ai * dk * dk + bi * dk + ci)))
@@ -620,22 +624,57 @@ def run_variant(variant, samples, settings, results):
             cal_i = _mean3(mk.radial_error_intercept(cal, i, ai, bi, ci), mk.radial_error_intercept(cal, j, ai, bi, ci),
                            mk.radial_error_intercept(cal, k, ai, bi, ci))
             path_i = mk.regression_path_intercept(test, ai, bi, ci)
-        out[s, INT], out[s, INT + 1] = _improvement(e_before, cal_i), _improvement(path_before, path_i)
-        # ---- horizon correction: the least-squares horizon shift (eq. (9)) as a homography
+        out[s, col], out[s, col + 1] = _improvement(out[s, BEFORE], cal_i), _improvement(variant.path_before, path_i)
+
+
+@column_kernel("horizon")
+def horizon(variant, samples, settings, results, col, after):
+    """The horizon correction: the least-squares horizon shift (eq. (9)) as a homography."""
+    H0, q, g, test, I, J, K, out = variant.H0, variant.q, variant.g, variant.test, samples.I, samples.J, samples.K, results.out
+    dH, Hd = np.empty(9, np.float32), np.empty((3, 3))
+    for s in range(I.shape[0]):
+        i, j, k = I[s], J[s], K[s]
         eps, _ = mk.fit_horizon_shift3(H0, q[i, 0], q[i, 1], g[i, 0], g[i, 1], q[j, 0], q[j, 1], g[j, 0], g[j, 1],
                                        q[k, 0], q[k, 1], g[k, 0], g[k, 1])
         mk.horizon_homography_into(H0, eps, Hd)
-        cal_h = _calibration_error(Hd, q, g, i, j, k, origin, in_range)
-        out[s, HOR], out[s, HOR + 1] = _improvement(e_before, cal_h), _improvement(path_before, homography_paths(test, Hd, H0, dH, in_range))
-        # ---- least change: the smallest move of both clicked quads that explains the three points (MAP)
+        cal_h = _calibration_error(Hd, q, g, i, j, k, variant.origin, settings.in_range)
+        out[s, col] = _improvement(out[s, BEFORE], cal_h)
+        out[s, col + 1] = _improvement(variant.path_before, homography_paths(test, Hd, H0, dH, settings.in_range))
+
+
+@column_kernel("least_change")
+def least_change(variant, samples, settings, results, col, after):
+    """Least change: the smallest move of both clicked quads that explains the three points (MAP)."""
+    H0, q, g, test, I, J, K, out = variant.H0, variant.q, variant.g, variant.test, samples.I, samples.J, samples.K, results.out
+    lc, in_range = settings.least_change, settings.in_range
+    dH, Hd = np.empty(9, np.float32), np.empty((3, 3))
+    z0, zl, Bl = np.concatenate((variant.v0, variant.t0)), np.empty(16), np.empty((3, 3))
+    q3, g3 = np.empty((3, 2)), np.empty((3, 2))
+    for s in range(I.shape[0]):
+        i, j, k = I[s], J[s], K[s]
         for t in range(3):
             c = i if t == 0 else (j if t == 1 else k)
             q3[t, 0], q3[t, 1], g3[t, 0], g3[t, 1] = q[c, 0], q[c, 1], g[c, 0], g[c, 1]
         mk.least_change3(z0, q3, g3, lc.click_sigma, lc.map_sigma, lc.point_sigma, lc.iterations, zl, Bl)
         homography_into(zl[:8], Bl, Hd)
-        cal_l = _calibration_error(Hd, q, g, i, j, k, origin, in_range)
-        out[s, LCH], out[s, LCH + 1] = _improvement(e_before, cal_l), _improvement(path_before, homography_paths(test, Hd, H0, dH, in_range))
-        # ---- descent phase 1: the grid cell of least mean loss, first on ties
+        cal_l = _calibration_error(Hd, q, g, i, j, k, variant.origin, in_range)
+        out[s, col] = _improvement(out[s, BEFORE], cal_l)
+        out[s, col + 1] = _improvement(variant.path_before, homography_paths(test, Hd, H0, dH, in_range))
+
+
+@column_kernel("descent")
+def descent(variant, samples, settings, results, col, after):
+    """DescentCorrector: phase 1, the grid cell of least mean loss (first on ties), then phase 2 with LANES samples
+    side by side over the whole variant (descend_lanes: lanes idle only at its end); results.quads and
+    results.evaluations its final trapezoids and phase-2 evaluations."""
+    v0, Bt, H0, F, q, g, test = variant.v0, variant.Bt, variant.H0, variant.F, variant.q, variant.g, variant.test
+    I, J, K, out, quads, grid = samples.I, samples.J, samples.K, results.out, results.quads, settings.descent.grid
+    table = grid_table(v0, grid, F, q)
+    G, S = grid.shape[0], I.shape[0]
+    Lfinal, seeds, sums = np.empty(S), np.empty(S, np.uint64), np.empty(table.shape[1])
+    dH, Hd = np.empty(9, np.float32), np.empty((3, 3))
+    for s in range(S):
+        i, j, k = I[s], J[s], K[s]
         best, gbest = grid_best(table, i, j, k, sums)
         quads[s] = v0
         quads[s, 0] += grid[gbest // G**3]
@@ -644,15 +683,55 @@ def run_variant(variant, samples, settings, results):
         quads[s, 5] += grid[gbest % G]
         Lfinal[s] = best
         seeds[s] = sample_seed_kernel(samples.base, i, j, k)
-    # ---- descent phase 2, LANES samples side by side over the whole variant (lanes idle only at its end)
     descend_lanes(0, S, variant, samples, settings.descent, seeds, quads, results.evaluations, Lfinal)
     for s in range(S):
-        i, j, k = I[s], J[s], K[s]
         homography_into(quads[s], Bt, Hd)
-        cal_d = _calibration_error(Hd, q, g, i, j, k, origin, True) if in_range else Lfinal[s]
-        out[s, DES], out[s, DES + 1] = _improvement(out[s, BEFORE], cal_d), _improvement(path_before, homography_paths(test, Hd, H0, dH, in_range))
-        # ---- hybrid: regression if its calibration improvement reaches the threshold (Section 7)
-        hyb = out[s, REG] >= threshold
-        out[s, HYB] = out[s, REG] if hyb else out[s, DES]
-        out[s, HYB + 1] = out[s, REG + 1] if hyb else out[s, DES + 1]
-        out[s, CHOSE] = 1.0 if hyb else 0.0
+        cal_d = _calibration_error(Hd, q, g, I[s], J[s], K[s], variant.origin, True) if settings.in_range else Lfinal[s]
+        out[s, col] = _improvement(out[s, BEFORE], cal_d)
+        out[s, col + 1] = _improvement(variant.path_before, homography_paths(test, Hd, H0, dH, settings.in_range))
+
+
+@column_kernel("hybrid", after=("regression", "descent"))
+def hybrid(variant, samples, settings, results, col, after):
+    """The hybrid: regression if its calibration improvement reaches the threshold (Section 7), else descent;
+    out[s, CHOSE] 1.0 if it chose regression."""
+    reg, des = after
+    out = results.out
+    for s in range(out.shape[0]):
+        chose = out[s, reg] >= settings.threshold
+        out[s, col] = out[s, reg] if chose else out[s, des]
+        out[s, col + 1] = out[s, reg + 1] if chose else out[s, des + 1]
+        out[s, CHOSE] = 1.0 if chose else 0.0
+
+
+def _run_order():
+    """(kernel, calibration column, the columns it reads) of each METHODS column, in its order; ImportError if a
+    column has no kernel or reads a column not run before it."""
+    missing = [m for m in METHODS if m not in KERNELS]
+    if missing:
+        raise ImportError(f"study columns without a kernel (homocal.study.kernels.column_kernel): {', '.join(missing)}")
+    order = []
+    for n, m in enumerate(METHODS):
+        kernel, after = KERNELS[m]
+        if not set(after) <= set(METHODS[:n]):
+            raise ImportError(f"the study kernel of {m} reads {', '.join(after)}: each must be a study column before it")
+        order.append((kernel, CAL[m], tuple(CAL[a] for a in after)))
+    return tuple(order)
+
+
+RUN_ORDER = _run_order()
+
+
+def run_variant(variant, samples, settings, results):
+    """Every method on every triple of samples (Samples) of one trapezoid variant (Variant), with settings
+    (Settings); writes results (Results): out (S, len(OUT_COLUMNS)) in OUT_COLUMNS order, cal_before (m), then
+    (cal, path) improvement (%) of each of the METHODS, then 1.0 if hybrid chose regression; faithful_ab and
+    signed_ab (S, 2): the two regressions' a, b; quads (S, 8) and evaluations (S,): descent's final trapezoid and
+    its phase-2 evaluations. Each kernel releases the GIL (the engine runs variants side by side).
+
+    With settings.in_range, errors are range errors | ||g - o|| - ||p - o|| | instead of ||p - g|| (the study's
+    metric; the methods themselves do not change, the hybrid's threshold applies to the metric's improvement).
+    """
+    calibration_before(variant, samples, settings, results)
+    for kernel, cal, after in RUN_ORDER:
+        kernel(variant, samples, settings, results, cal, after)

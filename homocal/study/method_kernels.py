@@ -74,7 +74,7 @@ def _radial_intercept32(test, t, abc):
 
 @nb.njit(**PATH_JIT)
 def regression_path_intercept(test, a, b, c):
-    """Mean test-point error (m) after the intercept regression, as kernels.regression_paths (float32, units of
+    """Mean test-point error (m) after the intercept regression, as kernels.regression_path (float32, units of
     1/FIXED m, jit.fixed_point_mean: exact at any size, NaN if a point error is not finite): |r + u c|^2 =
     |r|^2 + c (2 r.u + c), c = a d^2 + b d + c0."""
     return fixed_point_mean(_radial_intercept32, test, (np.float32(a / FIXED), np.float32(b), np.float32(c * FIXED)))

@@ -4,7 +4,7 @@ A variant's image trapezoid is built in three steps, each seeded by (run seed, s
   1. the base error of the clicking (the paper's "residual geometric errors", whose size it never gives):
      the hand-placed trapezoid as it is, or moved so that its horizon lies a chosen number of pixels above
      the true one (``tilt_shift``: the vertices move as a change of the camera's tilt moves them), and
-     Gaussian click noise on the 8 image coordinates (``draw_base_error``, ``base_quad``);
+     Gaussian click noise on the 8 image coordinates (``draw_base_error``, ``base_trapezoid``);
   2. the paper's perturbation: 2 to 16 of the 16 coordinates moved by 0-3 px (``draw_variant``; how the
      0-3 px are drawn is a reading of the paper's sentence, ``PERTURBATIONS``).
 """
@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from homocal.geometry import ViewTransformer
 from homocal.geometry.camera import tilt_homography
 from homocal.keyed_rng import seed_from_key
 
@@ -99,6 +100,15 @@ def base_quad(image: np.ndarray, K: np.ndarray, horizon_row: float, true_row: fl
     horizon true_row (left as it is when shift_px is None, the default), plus click noise (8,) px."""
     moved = image if shift_px is None else tilt_shift(image, K, horizon_row, horizon_row - true_row + shift_px)
     return moved + noise.reshape(4, 2)
+
+
+def base_trapezoid(image: np.ndarray, target: np.ndarray, K: np.ndarray, true_row: float, shift_px: float | None,
+                   noise: np.ndarray) -> np.ndarray:
+    """The clicked base image quad (4, 2) px of a variant (base_quad), from the hand-placed image quad (4, 2) px and
+    its map quad target (4, 2) m, whose mapping gives the horizon row (at the principal column K[0, 2]): the one
+    function the study's engine and its figures build it with."""
+    horizon_row = math.nan if shift_px is None else float(ViewTransformer(image, target).horizon_row(K[0, 2]))
+    return base_quad(image, K, horizon_row, true_row, shift_px, noise)
 
 
 PERTURBATIONS = ("coordinate", "variant", "variant-positive")  # readings of the paper's perturbation (draw_variant)

@@ -23,17 +23,16 @@ import pyarrow.parquet as pq
 
 from homocal.arguments import camera_json, number, xy_pair
 from homocal.boxes import CSV_COLUMNS, CSV_CONVENTION, MAX_LINE_CHARS, read_boxes
-from homocal.correctors.pedestrians import (
-    DEFAULT_HEIGHT_MEAN_M,
-    DEFAULT_HEIGHT_SD_M,
-    PedestrianCorrector,
-)
+from homocal.correctors.cli import add_pedestrian_flags, pedestrian_flag_error
+from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.files import create_temporary, output_folder, write_json_atomic
 from homocal.geometry import ViewTransformer, read_trapezoid_file
 from homocal.geometry.boxes import box_edges, undistort_boxes
+from homocal.study.options import OptionError
 from homocal.watch.calibrator import DEFAULT_ARL0_PEOPLE, MIN_PEOPLE, OnlineCalibrator, by_frame, camera_of
 from homocal.watch.folder import MARKER, TOOL
 
+PRIOR = ("height_mean_m", "height_sd_m")  # the people's height prior: with camera_height_m, watch's pedestrian settings
 ROW_GROUP = 4096  # horizon.parquet rows held before they are written
 MAX_MOVES = 10_000  # moves (and stretches) one run records at most: past it the run stops
 HORIZON_COLUMNS = ("t_s", "person_row_px", "person_sigma_px", "horizon_row_px", "horizon_sigma_px", "n_people",
@@ -55,12 +54,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--fps", required=True, type=number(float, 0, 1000, low_open=True), help="frames per second of the boxes' video")
     p.add_argument("--camera-json", type=Path, metavar="CAMERA.json", help="the image size and intrinsics K (default: "
                    "those beside the boxes file); needed for a CSV or standard input")
-    p.add_argument("--camera-height", type=number(float, 0, 100, low_open=True), metavar="M",
-                   help="the camera's height over the ground, metres (default: from the trapezoid with K)")
-    p.add_argument("--height-mean", type=float, default=DEFAULT_HEIGHT_MEAN_M, metavar="M",
-                   help="the people's mean height, metres (default %(default)g)")
-    p.add_argument("--height-sd", type=float, default=DEFAULT_HEIGHT_SD_M, metavar="M",
-                   help="the people's height spread, metres (default %(default)g)")
+    add_pedestrian_flags(p, ("camera_height_m", *PRIOR))
     p.add_argument("--arl0-people", type=number(float, 10, 1e9), default=DEFAULT_ARL0_PEOPLE, metavar="N",
                    help="mean number of people between false alarms on a steady camera (default %(default)g; "
                         "the CUSUM threshold follows)")
@@ -81,17 +75,17 @@ def handle_watch(args: argparse.Namespace) -> int:
         size, K = camera.image_size, camera.K
     if K is None and size is None:
         raise ValueError(f"--camera-json: needed ({args.boxes} gives neither the image size nor K)")
-    K, height = camera_of(transformer, size, K, args.camera_height)
+    K, height = camera_of(transformer, size, K, args.camera_height_m)
+    prior = {name: getattr(args, name) for name in PRIOR if getattr(args, name) is not None}
     try:
-        calibrator = OnlineCalibrator(K, height, args.fps, size, args.height_mean, args.height_sd, args.arl0_people)
-    except ValueError as e:
-        raise ValueError(str(e).replace("height_mean_m", "--height-mean").replace("height_sd_m", "--height-sd")
-                         .replace("camera_height_m", "--camera-height")) from None
+        calibrator = OnlineCalibrator(K, height, args.fps, size, **prior, arl0_people=args.arl0_people)
+    except OptionError as e:
+        raise pedestrian_flag_error(e) from None
     settings = {"format": TOOL, "boxes": str(args.boxes), "detector": args.detector, "fps": args.fps,
                 "camera_height_m": height, "K": K.tolist(), "image_size": None if size is None else list(size),
-                "height_mean_m": args.height_mean, "height_sd_m": args.height_sd, "arl0_people": args.arl0_people,
-                "threshold": calibrator.threshold}
-    with output_folder(args.out, TOOL, resume=False, marker=MARKER) as folder:
+                "height_mean_m": calibrator.height_mean_m, "height_sd_m": calibrator.height_sd_m,
+                "arl0_people": args.arl0_people, "threshold": calibrator.threshold}
+    with output_folder(args.out, TOOL, resume=False, marker=MARKER, resumable=False) as folder:
         write_json_atomic(folder.marker, {**settings, "ended": None})
         (folder.path / "corrections").mkdir()
         run = _Run(folder.path, calibrator, transformer, args.camera_origin, lens)

@@ -28,7 +28,7 @@ from homocal.correctors.pedestrians import (
     roll_homography,
 )
 from homocal.geometry import PinholeCamera, ViewTransformer, apply_homography
-from homocal.geometry.boxes import box_edges, link_tracks
+from homocal.geometry.boxes import box_edges, link_tracks, undistort_boxes
 from homocal.geometry.camera import tilt_homography
 from homocal.geometry.lens import Lens
 from homocal.study.perturb import tilt_shift
@@ -573,6 +573,17 @@ class TestRollAndLens:
         _, rms_no_lens, median_no_lens = self.fit(1.0, lens=None)
         assert rms < 2.0 < rms_no_roll and median < median_no_roll  # the horizon as a row misses the target
         assert rms < 2.0 < rms_no_lens and median < 2.0 < median_no_lens  # so does a lens ignored
+
+    def test_lens_is_the_command_lines_path(self):
+        """fit(lens=) on the camera's boxes is fit on the boxes undistorted as homocal fit reads them (read_boxes:
+        undistort_boxes), to the bit (no image size: no border test, which reads the camera's pixels in the one
+        and the undistorted image's in the other)."""
+        _, boxes, clicked = self.scene(1.0)
+        args = dict(convention="homocal", track_ids=np.arange(len(boxes)), K=CAM.K, camera_height_m=4.0)
+        own = PedestrianCorrector(1.7, 0.07).fit(clicked, boxes, lens=self.LENS, **args)
+        read = PedestrianCorrector(1.7, 0.07).fit(clicked, undistort_boxes(boxes, self.LENS), **args)
+        assert own.horizon_row_ == read.horizon_row_ and np.array_equal(own.m, read.m)
+        assert own.horizon_row_ != PedestrianCorrector(1.7, 0.07).fit(clicked, boxes, **args).horizon_row_
 
     def test_no_roll_path_unchanged(self):
         """People in a narrow band of columns (here: moved into the middle 10 % of the width): roll is not

@@ -81,6 +81,20 @@ def test_fit_and_apply_match_the_library(work, method, expected):
     assert sorted(p.name for p in work.iterdir()) == ["c.json", "feet.csv", "out.csv", "ref.csv", "trap.json"]
 
 
+def test_apply_rounds_to_the_decimals_asked(work):
+    """--decimals 3: x, y and sigma_m to the millimetre, each the full value rounded (nan stays nan); the input's
+    columns as they were."""
+    assert homocal("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "-o", "c.json", cwd=work).returncode == 0
+    for out, extra in (("full.csv", []), ("mm.csv", ["--decimals", "3"])):
+        assert homocal("apply", "c.json", "--points", "feet.csv", "-o", out, *extra, cwd=work).returncode == 0
+    full, mm = (list(csv.DictReader((work / name).open())) for name in ("full.csv", "mm.csv"))
+    for a, b in zip(full, mm):
+        assert [a[k] for k in ("id", "u", "v", "label", "status")] == [b[k] for k in ("id", "u", "v", "label", "status")]
+        for k in ("x", "y", "sigma_m"):
+            assert b[k] == ("nan" if a[k] == "nan" else f"{round(float(a[k]), 3):.3f}")
+    assert any(len(r["x"].split(".")[1]) > 3 for r in full) and all(len(r["x"].split(".")[1]) == 3 for r in mm[:3])
+
+
 def test_fit_defaults_to_least_change(work):
     """The study's best method on median and failure tail together (README, paper preset) is fit's default."""
     fit = homocal("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "-o", "c.json", cwd=work)
@@ -247,8 +261,8 @@ def _edited_correction(edit) -> str:
      "c.json: bad regression correction (field fitted.a: must be >= 0"),
     ("hand-edited NaN b", _edited_correction(lambda d: d["fitted"].update(b=float("nan"))), None, [],
      "c.json: bad regression correction (field fitted.b: expected a finite number"),
-    ("negative click sigma", "ok", None, ["--click-sigma-px", "-1"], "--click-sigma-px: expected a finite number >= 0"),
-    ("NaN point sigma", "ok", None, ["--point-sigma-px", "nan"], "--point-sigma-px: expected a finite number >= 0"),
+    ("negative click sigma", "ok", None, ["--click-sigma-px", "-1"], "--click-sigma-px: must be a finite number >= 0"),
+    ("NaN point sigma", "ok", None, ["--point-sigma-px", "nan"], "--point-sigma-px: must be a finite number >= 0"),
 ])
 def test_bad_apply_input(work, name, correction, feet, extra, message, capsys, monkeypatch):
     if correction == "ok":

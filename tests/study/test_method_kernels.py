@@ -165,7 +165,7 @@ def test_path_error_sums_are_exact_or_fail(a):
     """Regression's mean path error for a = 1e3 /m (errors up to 2,500 km) is the float64 one; one whose point errors
     overflow float32 or are NaN is not a number (a failed correction), never a clipped value."""
     test, p, g = far_test_table()
-    faithful, signed = kernels.regression_paths(test, a, 0.0, 0.0, 0.0)
+    faithful, signed = kernels.regression_path(test, a, 0.0, False), kernels.regression_path(test, 0.0, 0.0, False)
     d = np.linalg.norm(p - ORIGIN, axis=1)
     expected = np.linalg.norm(p + (p - ORIGIN) * (a * d)[:, None] - g, axis=1).mean()
     if np.isfinite(a) and a < 1e10:

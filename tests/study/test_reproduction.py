@@ -200,11 +200,31 @@ def test_default_base_is_the_hand_placed_trapezoid_and_shift_places_its_horizon(
     trapezoid's own horizon error."""
     scene = StudyScene.from_dataset(datasets[0], StudyParams(n_test=100))
     assert (scene.base_image_quad(StudyParams(), 7) == scene.image_quad).all()
-    assert abs(scene.horizon_row - scene.true_horizon_row) > 0.05  # the hand-placed one has an error of its own
+    hand_row = ViewTransformer(scene.image_quad, scene.site_map.to_metres(scene.map_quad)).horizon_row(scene.K[0, 2])
+    assert abs(hand_row - scene.true_horizon_row) > 0.05  # the hand-placed one has an error of its own
     shifted = scene.base_image_quad(StudyParams(horizon_shift=str(shift)), 7)
     vt = ViewTransformer(shifted, scene.site_map.to_metres(scene.map_quad))
     assert vt.horizon_row(scene.K[0, 2]) == pytest.approx(CAM.horizon_row - shift, abs=0.01)
     assert scene.true_horizon_row == pytest.approx(CAM.horizon_row, abs=1e-9)
+
+
+def test_figures_draw_the_variants_the_engine_runs(datasets, tmp_path):
+    """The error-distance figure's trapezoids, rebuilt from the variants table, are the engine's to the bit (one
+    base trapezoid function), with a horizon shift and click noise."""
+    from homocal.dataset import load_dataset
+    from homocal.study.engine import variants_table
+    from homocal.study.figures import _variant_quads
+    import pyarrow.parquet as pq
+
+    params = StudyParams(n_test=50, n_variants=4, horizon_shift="normal:0:8", click_noise=1.5)
+    scene = StudyScene.from_dataset(datasets[0], params)
+    pq.write_table(variants_table(scene, params, [""] * 5), tmp_path / "variants.parquet")
+    drawn = _variant_quads(load_dataset(datasets[0]), tmp_path / "variants.parquet", 4)
+    assert [name for name, _ in drawn] == ["base trapezoid (variant 0)", *(f"variant {v}" for v in range(1, 5))]
+    for v, (_, quads) in enumerate(drawn):
+        for theirs, ours in zip(quads, scene.variant_quads(params, v)):
+            assert (theirs == ours).all()
+    assert not (drawn[0][1][0] == scene.image_quad).all()  # the shift and the noise moved it
 
 
 def test_lateral_limit_keeps_points_near_the_calibration_line(datasets):

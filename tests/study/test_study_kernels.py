@@ -89,7 +89,7 @@ def test_kernel_agrees_with_correctors(scene, variant, params):
             assert out[s, col] == pytest.approx(ref, abs=1e-5 if corrector is lch else 1e-9)
             ref = improvement(base, corrector.transform_points(q), g, o, params.metric)
             assert out[s, col + 1] == pytest.approx(ref, abs=1e-3)
-        reg_col, des_col, hyb_col = kernels.REG, kernels.DES, kernels.HYB
+        reg_col, des_col, hyb_col = kernels.CAL["regression"], kernels.CAL["descent"], kernels.CAL["hybrid"]
         chose_regression = out[s, reg_col] >= params.threshold
         assert bool(out[s, kernels.CHOSE]) == chose_regression
         if params.metric == "euclidean":
@@ -226,7 +226,7 @@ def test_a_test_point_beyond_the_corrected_horizon_is_a_counted_failure(scene):
                              path_before=float(np.linalg.norm(p - g, axis=1).mean()))
     idx = scene.triples[::7]
     out = run_tables(scene, tables, params, variant, idx).out
-    path, cal = out[:, kernels.HOR + 1].astype(np.float32), out[:, kernels.HOR].astype(np.float32)
+    path, cal = out[:, kernels.CAL["horizon"] + 1].astype(np.float32), out[:, kernels.CAL["horizon"]].astype(np.float32)
     failed = np.isnan(path)
     assert failed.sum() > len(idx) // 2
     image_quad, map_quad = scene.variant_quads(params, variant)
@@ -236,8 +236,8 @@ def test_a_test_point_beyond_the_corrected_horizon_is_a_counted_failure(scene):
         assert np.isnan(hor.transform_points(point)).any() == failed[s]
     # beside the same samples without that test point (no failure)
     clean_out = run_tables(scene, clean, params, variant, idx).out
-    path = np.concatenate([path, clean_out[:, kernels.HOR + 1].astype(np.float32)])
-    cal = np.concatenate([cal, clean_out[:, kernels.HOR].astype(np.float32)])
+    path = np.concatenate([path, clean_out[:, kernels.CAL["horizon"] + 1].astype(np.float32)])
+    cal = np.concatenate([cal, clean_out[:, kernels.CAL["horizon"]].astype(np.float32)])
     finite = np.isfinite(path)
     assert finite.sum() == 2 * len(idx) - failed.sum()
     stats = metrics.method_stats(path, cal)

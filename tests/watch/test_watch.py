@@ -269,3 +269,20 @@ def test_apply_at_needs_a_watch_folder(tmp_path, capsys, monkeypatch):
     r = homocal_main("apply", "c.json", "--at", "3", "--points", "feet.csv", "-o", "x.csv", cwd=tmp_path,
                      capsys=capsys, monkeypatch=monkeypatch)
     assert r.returncode == 2 and "--at: for a homocal watch folder" in r.stderr
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--height-mean", "9"], "argument --height-mean: expected a number in [0.5, 2.5] (m), got '9'"),
+    (["--height-sd", "0.6"], "argument --height-sd: expected at most height_mean_m / 4 = 0.425 m, got 0.6"),
+    (["--camera-height", "1e-9"], "argument --camera-height: expected a number in"),
+    (["--out", "full"], "full: exists and is not empty (use another output folder)"),
+])
+def test_watch_refuses_its_settings_as_fit_does(tmp_path, capsys, monkeypatch, extra, message):
+    """The pedestrian flags are fit's (PEDESTRIAN_SETTINGS' bounds and messages); watch has no --resume."""
+    flags = write_inputs(tmp_path, stream(5, seed=8))
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full/x").write_text("a user's file")
+    r = homocal_main("watch", *flags, "--boxes", "boxes.csv", "--out", "out", *extra, cwd=tmp_path, capsys=capsys,
+                     monkeypatch=monkeypatch)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and message in r.stderr, r.stderr
+    assert not (tmp_path / "out").exists()
