@@ -2,6 +2,7 @@
 supervision's speed recipe (issue 34 item 4; docs/measure.md).
 
     python research/measure_speeds.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--shift 16]
+    python research/measure_speeds.py DATASET [DATASET ...] --spread
     python research/measure_speeds.py DATASET --throughput 10
 
 Per dataset and detector, the clicked trapezoid is the dataset's exact one moved as a tilt error moves it so
@@ -27,6 +28,8 @@ percent of the true speed over boxes whose true speed is at least WALKING_MPS (a
 undefined). Coverage: the share of boxes whose error is inside 1 and 2 times the 1-sigma (positions: |mapped -
 true| <= k sigma_m, the 2D error against the semi-major axis; speeds: |speed - true| <= k speed_sigma_mps).
 
+--spread: each dataset evaluated on its own, its figures (band medians, the 5-50 m 90th percentile, coverage)
+given as mean [min, max] over the datasets.
 --throughput MINUTES: the first dataset's segmentation boxes repeated (frames and track ids shifted) into a
 CSV of MINUTES minutes, then `homocal measure` on it as a subprocess: boxes per second and the child's peak
 resident memory (ru_maxrss).
@@ -152,27 +155,56 @@ def evaluate(paths: list[str], detector: str, shift: float) -> dict:
     return {key: {k: np.concatenate(v) for k, v in p.items()} for key, p in pooled.items()}
 
 
+def cells(p: dict) -> dict:
+    """The table's figures of one method's pooled arrays: per band (median %, median m/s, p90 %, p90 m/s), the
+    inner boxes' (median %, p90 %) and the 1/2-sigma coverage of speeds and positions (%, NaN: none)."""
+    out = {}
+    for lo, hi in BANDS:
+        band = (p["range"] >= lo) & (p["range"] < hi)
+        rel, err = p["rel"][band], p["err"][band]
+        out[(lo, hi)] = ((np.nanmedian(rel), np.median(err), np.nanpercentile(rel, 90), np.percentile(err, 90))
+                         if np.isfinite(rel).any() else None)
+    inside = (p["range"] >= BANDS[-1][0]) & (p["range"] < BANDS[-1][1])
+    rel = p["rel"][inside & p["inner"]]
+    out["inner"] = (np.nanmedian(rel), np.nanpercentile(rel, 90))
+    for name in ("cover", "pos"):
+        hits = [p[f"{name}{k}"][inside] for k in (1, 2)]
+        out[name] = (np.nan, np.nan) if np.isnan(hits[0]).all() else tuple(100 * np.nanmean(h) for h in hits)
+    return out
+
+
 def table(results: dict, detector: str, shift: float) -> str:
     head = " | ".join(f"{lo:g}-{hi:g} m median, p90" for lo, hi in BANDS)
     lines = [f"Speed error, {detector} boxes, horizon {shift:g} px off: |est - true| in % of the true speed "
              f"(m/s in brackets)", "", f"| method | {head} | 5-50 m, 1 s or more from a track's ends | "
              "1/2-sigma speeds | 1/2-sigma positions |", "|---|" + "---:|" * (len(BANDS) + 3)]
     for key, p in results.items():
-        cells = []
-        for lo, hi in BANDS:
-            band = (p["range"] >= lo) & (p["range"] < hi)
-            rel, err = p["rel"][band], p["err"][band]
-            if not np.isfinite(rel).any():
-                cells.append("-")
-                continue
-            cells.append(f"{np.nanmedian(rel):.1f} % ({np.median(err):.2f}), {np.nanpercentile(rel, 90):.1f} % "
-                         f"({np.percentile(err, 90):.2f})")
-        inside = (p["range"] >= BANDS[-1][0]) & (p["range"] < BANDS[-1][1])
-        rel = p["rel"][inside & p["inner"]]
-        cells.append(f"{np.nanmedian(rel):.1f} %, {np.nanpercentile(rel, 90):.1f} %")
-        cover = lambda name: ("-" if np.isnan(p[f"{name}1"][inside]).all() else  # noqa: E731
-                              f"{100 * np.nanmean(p[f'{name}1'][inside]):.0f} / {100 * np.nanmean(p[f'{name}2'][inside]):.0f} %")
-        lines.append(f"| {key} | " + " | ".join(cells) + f" | {cover('cover')} | {cover('pos')} |")
+        c = cells(p)
+        row = ["-" if c[b] is None else f"{c[b][0]:.1f} % ({c[b][1]:.2f}), {c[b][2]:.1f} % ({c[b][3]:.2f})"
+               for b in BANDS]
+        row.append(f"{c['inner'][0]:.1f} %, {c['inner'][1]:.1f} %")
+        row += ["-" if np.isnan(c[name][0]).all() else f"{c[name][0]:.0f} / {c[name][1]:.0f} %" for name in ("cover", "pos")]
+        lines.append(f"| {key} | " + " | ".join(row) + " |")
+    return "\n".join(lines)
+
+
+def spread_table(per_dataset: list[dict], detector: str, shift: float) -> str:
+    """The main figures of each dataset's own table as mean [min, max] over the datasets."""
+    def stat(values) -> str:
+        v = np.asarray(values, float)
+        return "-" if np.isnan(v).all() else f"{np.nanmean(v):.1f} [{np.nanmin(v):.1f}, {np.nanmax(v):.1f}]"
+
+    head = " | ".join(f"{lo:g}-{hi:g} m median" for lo, hi in BANDS)
+    lines = [f"Speed error over {len(per_dataset)} datasets, {detector} boxes, horizon {shift:g} px off: % of the true "
+             "speed, mean [min, max] of the datasets' own figures", "",
+             f"| method | {head} | 5-50 m p90 | 1-sigma speeds | 2-sigma speeds | 1-sigma positions | 2-sigma positions |",
+             "|---|" + "---:|" * (len(BANDS) + 5)]
+    for key in per_dataset[0]:
+        c = [cells(results[key]) for results in per_dataset]
+        row = [stat([np.nan if d[b] is None else d[b][0] for d in c]) for b in BANDS]
+        row.append(stat([np.nan if d[BANDS[-1]] is None else d[BANDS[-1]][2] for d in c]))
+        row += [stat([d[name][k] for d in c]) for name in ("cover", "pos") for k in (0, 1)]
+        lines.append(f"| {key} | " + " | ".join(row) + " |")
     return "\n".join(lines)
 
 
@@ -209,12 +241,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--detectors", default="segmentation,rgb")
     parser.add_argument("--shift", type=float, default=16.0, help="the clicked horizon above the true one, px")
     parser.add_argument("--throughput", type=float, metavar="MINUTES")
+    parser.add_argument("--spread", action="store_true", help="each dataset on its own: mean [min, max] over them")
     args = parser.parse_args(argv)
     if args.throughput:
         print(throughput(args.datasets[0], args.throughput))
         return 0
     for detector in args.detectors.split(","):
-        print(table(evaluate(args.datasets, detector, args.shift), detector, args.shift) + "\n")
+        if args.spread:
+            print(spread_table([evaluate([d], detector, args.shift) for d in args.datasets], detector, args.shift) + "\n")
+        else:
+            print(table(evaluate(args.datasets, detector, args.shift), detector, args.shift) + "\n")
     return 0
 
 
