@@ -14,6 +14,9 @@ are linked into tracks by IoU (homocal's link_tracks) and measured with:
     cv2.perspectiveTransform, the last fps positions kept (a deque of maxlen fps), speed = |newest - oldest| /
     (len / fps), shown once the track has fps / 2 positions (the example uses the road's y only; here the 2D
     distance, as people do not walk along one axis);
+  - with a lens (camera.json's distortion: the lens known, as homocal fit --camera-json has it) the foot points,
+    the clicked trapezoid and the reference points are those of the undistorted image, for the recipe too,
+    and a rolled camera's pedestrians fit estimates the roll (estimate_roll);
   - for each mapping, the clicked trapezoid uncorrected, least change from three reference points (the
     calibration objects nearest 10, 20 and 35 m straight ahead, their segmentation foot points: what a user
     clicks), pedestrians (no point; the default height prior, K and the camera height given), each by
@@ -95,21 +98,28 @@ def truth(ds, detector: str):
     return det.frame.to_numpy(np.int64), xyxy, xy, np.linalg.norm(vel, axis=1), np.linalg.norm(xy - ds.camera_origin, axis=1)
 
 
+def undistorted(ds, points: np.ndarray) -> np.ndarray:
+    """Image points (N, 2) of the dataset (its camera's pixels) in the undistorted image (as given for a pinhole)."""
+    lens = ds.camera.lens
+    return points if lens.is_identity else lens.undistort_points(points)
+
+
 def mappings(ds, detector: str, shift: float, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> dict:
     K, true_row = ds.camera.K, ds.camera.horizon_row
     exact = ds.trapezoids["exact"]
     target = ds.site_map.to_metres(np.asarray(exact["map"], float))
-    image = np.asarray(exact["image"], float)
+    image = undistorted(ds, np.asarray(exact["image"], float))
     row = float(ViewTransformer(image, target).horizon_row(K[0, 2]))
     clicked = ViewTransformer(base_quad(image, K, row, true_row, shift, np.zeros(8)), target)
     q, g, distance = ds.calibration_points("segmentation")
     ahead = np.abs(g[:, 0] - ds.camera_origin[0]) < 1.0
     pick = [np.flatnonzero(ahead)[np.argmin(np.abs(distance[ahead] - r))] for r in REFERENCE_RANGES_M]
-    least = LeastChangeCorrector().fit(clicked, q[pick], g[pick], ds.camera_origin)
-    peds = PedestrianCorrector().fit(clicked, xyxy, convention="homocal", frames=frames, track_ids=ids, K=K,
-                                     camera_height_m=ds.camera.mount_height_m,
-                                     image_size=ds.camera.image_size,
-                                     camera_origin=ds.camera_origin)
+    least = LeastChangeCorrector().fit(clicked, undistorted(ds, q[pick]), g[pick], ds.camera_origin)
+    rolled = bool(abs(ds.camera.horizon[0]) > 1e-9)  # a horizon that is not a row
+    peds = PedestrianCorrector(estimate_roll=rolled).fit(
+        clicked, xyxy, convention="homocal", frames=frames, track_ids=ids, K=K, camera_height_m=ds.camera.mount_height_m,
+        image_size=ds.camera.image_size, camera_origin=ds.camera_origin,
+        lens=None if ds.camera.lens.is_identity else ds.camera.lens)
     return {"uncorrected": clicked, "least change": least, "pedestrians": peds}, clicked
 
 
@@ -122,7 +132,7 @@ def evaluate(paths: list[str], detector: str, shift: float) -> dict:
         fps = float(ds.manifest["fps"])
         frames, xyxy, true_xy, true_speed, rng = truth(ds, detector)
         ids = link_tracks(frames, xyxy)
-        feet = box_bottom_points(xyxy, convention="homocal")
+        feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
         maps, clicked = mappings(ds, detector, shift, frames, xyxy, ids)
         H = cv2.getPerspectiveTransform(clicked.source.astype(np.float32), clicked.target.astype(np.float32))
         sv_xy = cv2.perspectiveTransform(feet.reshape(-1, 1, 2).astype(np.float32), H).reshape(-1, 2).astype(float)

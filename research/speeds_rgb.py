@@ -32,7 +32,7 @@ from homocal.geometry.boxes import link_tracks
 from homocal.measure import TrapezoidMapping, measure_tracks
 from homocal.measure.kalman import kalman_filter
 from homocal.measure.tracks import map_points, track_batches
-from measure_speeds import BANDS, WALKING_MPS, mappings, truth
+from measure_speeds import BANDS, WALKING_MPS, mappings, truth, undistorted
 
 
 GRID_Q = (0.01, 0.1, 0.5)
@@ -85,7 +85,8 @@ def report(path: str, grid: bool) -> None:
     gt = ds.table("gt.parquet").to_pandas()[["agent_id", "step", "u", "v", "y1", "y2"]]
     det_all = ds.table("detections.parquet").to_pandas()
     exact = ds.trapezoids["exact"]
-    exact_map = ViewTransformer(np.asarray(exact["image"], float), ds.site_map.to_metres(np.asarray(exact["map"], float)))
+    exact_map = ViewTransformer(undistorted(ds, np.asarray(exact["image"], float)),
+                                ds.site_map.to_metres(np.asarray(exact["map"], float)))
     print(f"{ds.name} (seed {ds.manifest['seed']}): true horizon row {ds.camera.horizon_row:.1f} px")
     for detector in ("segmentation", "rgb"):
         frames, xyxy, _, true_speed, rng = truth(ds, detector)
@@ -111,7 +112,7 @@ def report(path: str, grid: bool) -> None:
         peds = maps["pedestrians"]
         print(f"    pedestrians' horizon {peds.horizon_row_:.1f} +- {peds.horizon_sigma_px_:.1f} px "
               f"({peds.horizon_row_ - ds.camera.horizon_row:+.1f} px from the true one)")
-        feet = box_bottom_points(xyxy, convention="homocal")
+        feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
         for mapping_name, mapping in (("pedestrians", peds), ("exact", exact_map)):
             for track_name, tracks in (("the linker's", ids), ("the agents' own", np.where(has, agents, -1))):
                 print(f"    smoother, {mapping_name} mapping, {track_name} tracks: median speed error at 5-50 m, "
