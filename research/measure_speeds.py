@@ -2,6 +2,7 @@
 supervision's speed recipe (issue 34 item 4; docs/measure.md).
 
     python research/measure_speeds.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--shift 16]
+    python research/measure_speeds.py DATASET [DATASET ...] --spread
     python research/measure_speeds.py DATASET --throughput 10
 
 Per dataset and detector, the clicked trapezoid is the dataset's exact one moved as a tilt error moves it so
@@ -13,6 +14,9 @@ are linked into tracks by IoU (homocal's link_tracks) and measured with:
     cv2.perspectiveTransform, the last fps positions kept (a deque of maxlen fps), speed = |newest - oldest| /
     (len / fps), shown once the track has fps / 2 positions (the example uses the road's y only; here the 2D
     distance, as people do not walk along one axis);
+  - with a lens (camera.json's distortion: the lens known, as homocal fit --camera-json has it) the foot points,
+    the clicked trapezoid and the reference points are those of the undistorted image, for the recipe too,
+    and a rolled camera's pedestrians fit estimates the roll (estimate_roll);
   - for each mapping, the clicked trapezoid uncorrected, least change from three reference points (the
     calibration objects nearest 10, 20 and 35 m straight ahead, their segmentation foot points: what a user
     clicks), pedestrians (no point; the default height prior, K and the camera height given), each by
@@ -27,6 +31,8 @@ percent of the true speed over boxes whose true speed is at least WALKING_MPS (a
 undefined). Coverage: the share of boxes whose error is inside 1 and 2 times the 1-sigma (positions: |mapped -
 true| <= k sigma_m, the 2D error against the semi-major axis; speeds: |speed - true| <= k speed_sigma_mps).
 
+--spread: each dataset evaluated on its own, its figures (band medians, the 5-50 m 90th percentile, coverage)
+given as mean [min, max] over the datasets.
 --throughput MINUTES: the first dataset's segmentation boxes repeated (frames and track ids shifted) into a
 CSV of MINUTES minutes, then `homocal measure` on it as a subprocess: boxes per second and the child's peak
 resident memory (ru_maxrss).
@@ -92,21 +98,28 @@ def truth(ds, detector: str):
     return det.frame.to_numpy(np.int64), xyxy, xy, np.linalg.norm(vel, axis=1), np.linalg.norm(xy - ds.camera_origin, axis=1)
 
 
+def undistorted(ds, points: np.ndarray) -> np.ndarray:
+    """Image points (N, 2) of the dataset (its camera's pixels) in the undistorted image (as given for a pinhole)."""
+    lens = ds.camera.lens
+    return points if lens.is_identity else lens.undistort_points(points)
+
+
 def mappings(ds, detector: str, shift: float, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> dict:
     K, true_row = ds.camera.K, ds.camera.horizon_row
     exact = ds.trapezoids["exact"]
     target = ds.site_map.to_metres(np.asarray(exact["map"], float))
-    image = np.asarray(exact["image"], float)
+    image = undistorted(ds, np.asarray(exact["image"], float))
     row = float(ViewTransformer(image, target).horizon_row(K[0, 2]))
     clicked = ViewTransformer(base_quad(image, K, row, true_row, shift, np.zeros(8)), target)
     q, g, distance = ds.calibration_points("segmentation")
     ahead = np.abs(g[:, 0] - ds.camera_origin[0]) < 1.0
     pick = [np.flatnonzero(ahead)[np.argmin(np.abs(distance[ahead] - r))] for r in REFERENCE_RANGES_M]
-    least = LeastChangeCorrector().fit(clicked, q[pick], g[pick], ds.camera_origin)
-    peds = PedestrianCorrector().fit(clicked, xyxy, convention="homocal", frames=frames, track_ids=ids, K=K,
-                                     camera_height_m=ds.camera.mount_height_m,
-                                     image_size=ds.camera.image_size,
-                                     camera_origin=ds.camera_origin)
+    least = LeastChangeCorrector().fit(clicked, undistorted(ds, q[pick]), g[pick], ds.camera_origin)
+    rolled = bool(abs(ds.camera.horizon[0]) > 1e-9)  # a horizon that is not a row
+    peds = PedestrianCorrector(estimate_roll=rolled).fit(
+        clicked, xyxy, convention="homocal", frames=frames, track_ids=ids, K=K, camera_height_m=ds.camera.mount_height_m,
+        image_size=ds.camera.image_size, camera_origin=ds.camera_origin,
+        lens=None if ds.camera.lens.is_identity else ds.camera.lens)
     return {"uncorrected": clicked, "least change": least, "pedestrians": peds}, clicked
 
 
@@ -119,7 +132,7 @@ def evaluate(paths: list[str], detector: str, shift: float) -> dict:
         fps = float(ds.manifest["fps"])
         frames, xyxy, true_xy, true_speed, rng = truth(ds, detector)
         ids = link_tracks(frames, xyxy)
-        feet = box_bottom_points(xyxy, convention="homocal")
+        feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
         maps, clicked = mappings(ds, detector, shift, frames, xyxy, ids)
         H = cv2.getPerspectiveTransform(clicked.source.astype(np.float32), clicked.target.astype(np.float32))
         sv_xy = cv2.perspectiveTransform(feet.reshape(-1, 1, 2).astype(np.float32), H).reshape(-1, 2).astype(float)
@@ -152,27 +165,56 @@ def evaluate(paths: list[str], detector: str, shift: float) -> dict:
     return {key: {k: np.concatenate(v) for k, v in p.items()} for key, p in pooled.items()}
 
 
+def cells(p: dict) -> dict:
+    """The table's figures of one method's pooled arrays: per band (median %, median m/s, p90 %, p90 m/s), the
+    inner boxes' (median %, p90 %) and the 1/2-sigma coverage of speeds and positions (%, NaN: none)."""
+    out = {}
+    for lo, hi in BANDS:
+        band = (p["range"] >= lo) & (p["range"] < hi)
+        rel, err = p["rel"][band], p["err"][band]
+        out[(lo, hi)] = ((np.nanmedian(rel), np.median(err), np.nanpercentile(rel, 90), np.percentile(err, 90))
+                         if np.isfinite(rel).any() else None)
+    inside = (p["range"] >= BANDS[-1][0]) & (p["range"] < BANDS[-1][1])
+    rel = p["rel"][inside & p["inner"]]
+    out["inner"] = (np.nanmedian(rel), np.nanpercentile(rel, 90))
+    for name in ("cover", "pos"):
+        hits = [p[f"{name}{k}"][inside] for k in (1, 2)]
+        out[name] = (np.nan, np.nan) if np.isnan(hits[0]).all() else tuple(100 * np.nanmean(h) for h in hits)
+    return out
+
+
 def table(results: dict, detector: str, shift: float) -> str:
     head = " | ".join(f"{lo:g}-{hi:g} m median, p90" for lo, hi in BANDS)
     lines = [f"Speed error, {detector} boxes, horizon {shift:g} px off: |est - true| in % of the true speed "
              f"(m/s in brackets)", "", f"| method | {head} | 5-50 m, 1 s or more from a track's ends | "
              "1/2-sigma speeds | 1/2-sigma positions |", "|---|" + "---:|" * (len(BANDS) + 3)]
     for key, p in results.items():
-        cells = []
-        for lo, hi in BANDS:
-            band = (p["range"] >= lo) & (p["range"] < hi)
-            rel, err = p["rel"][band], p["err"][band]
-            if not np.isfinite(rel).any():
-                cells.append("-")
-                continue
-            cells.append(f"{np.nanmedian(rel):.1f} % ({np.median(err):.2f}), {np.nanpercentile(rel, 90):.1f} % "
-                         f"({np.percentile(err, 90):.2f})")
-        inside = (p["range"] >= BANDS[-1][0]) & (p["range"] < BANDS[-1][1])
-        rel = p["rel"][inside & p["inner"]]
-        cells.append(f"{np.nanmedian(rel):.1f} %, {np.nanpercentile(rel, 90):.1f} %")
-        cover = lambda name: ("-" if np.isnan(p[f"{name}1"][inside]).all() else  # noqa: E731
-                              f"{100 * np.nanmean(p[f'{name}1'][inside]):.0f} / {100 * np.nanmean(p[f'{name}2'][inside]):.0f} %")
-        lines.append(f"| {key} | " + " | ".join(cells) + f" | {cover('cover')} | {cover('pos')} |")
+        c = cells(p)
+        row = ["-" if c[b] is None else f"{c[b][0]:.1f} % ({c[b][1]:.2f}), {c[b][2]:.1f} % ({c[b][3]:.2f})"
+               for b in BANDS]
+        row.append(f"{c['inner'][0]:.1f} %, {c['inner'][1]:.1f} %")
+        row += ["-" if np.isnan(c[name][0]).all() else f"{c[name][0]:.0f} / {c[name][1]:.0f} %" for name in ("cover", "pos")]
+        lines.append(f"| {key} | " + " | ".join(row) + " |")
+    return "\n".join(lines)
+
+
+def spread_table(per_dataset: list[dict], detector: str, shift: float) -> str:
+    """The main figures of each dataset's own table as mean [min, max] over the datasets."""
+    def stat(values) -> str:
+        v = np.asarray(values, float)
+        return "-" if np.isnan(v).all() else f"{np.nanmean(v):.1f} [{np.nanmin(v):.1f}, {np.nanmax(v):.1f}]"
+
+    head = " | ".join(f"{lo:g}-{hi:g} m median" for lo, hi in BANDS)
+    lines = [f"Speed error over {len(per_dataset)} datasets, {detector} boxes, horizon {shift:g} px off: % of the true "
+             "speed, mean [min, max] of the datasets' own figures", "",
+             f"| method | {head} | 5-50 m p90 | 1-sigma speeds | 2-sigma speeds | 1-sigma positions | 2-sigma positions |",
+             "|---|" + "---:|" * (len(BANDS) + 5)]
+    for key in per_dataset[0]:
+        c = [cells(results[key]) for results in per_dataset]
+        row = [stat([np.nan if d[b] is None else d[b][0] for d in c]) for b in BANDS]
+        row.append(stat([np.nan if d[BANDS[-1]] is None else d[BANDS[-1]][2] for d in c]))
+        row += [stat([d[name][k] for d in c]) for name in ("cover", "pos") for k in (0, 1)]
+        lines.append(f"| {key} | " + " | ".join(row) + " |")
     return "\n".join(lines)
 
 
@@ -209,12 +251,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--detectors", default="segmentation,rgb")
     parser.add_argument("--shift", type=float, default=16.0, help="the clicked horizon above the true one, px")
     parser.add_argument("--throughput", type=float, metavar="MINUTES")
+    parser.add_argument("--spread", action="store_true", help="each dataset on its own: mean [min, max] over them")
     args = parser.parse_args(argv)
     if args.throughput:
         print(throughput(args.datasets[0], args.throughput))
         return 0
     for detector in args.detectors.split(","):
-        print(table(evaluate(args.datasets, detector, args.shift), detector, args.shift) + "\n")
+        if args.spread:
+            print(spread_table([evaluate([d], detector, args.shift) for d in args.datasets], detector, args.shift) + "\n")
+        else:
+            print(table(evaluate(args.datasets, detector, args.shift), detector, args.shift) + "\n")
     return 0
 
 
