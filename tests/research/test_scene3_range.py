@@ -46,6 +46,7 @@ def test_known_and_ignored_against_opencv(tmp_path):
     _, ignored = opencv_median_error(path, undistort=False)
     assert got["points"] == points > 200
     assert got["known"] == pytest.approx(known, abs=1e-5) and known < 1e-5  # the exact trapezoid, the lens removed (OpenCV to 1e-6 %)
+    assert abs(got["horizon_below_px"]) < 1e-6  # the exact trapezoid's horizon is the camera's
     assert got["ignored"] == pytest.approx(ignored, abs=1e-5) and ignored > 0.1  # OpenCV's homography agrees to about 1e-6 m
 
 
