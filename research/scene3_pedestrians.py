@@ -1,7 +1,7 @@
 """The pedestrians' correction on a rolled camera with a wide lens, end to end, with no reference point
 (docs/real-camera.md, "The people on scene3").
 
-Run: python research/scene3_pedestrians.py DATASET [--detectors segmentation,rgb] [--height-mean M]
+Run: python research/scene3_pedestrians.py DATASET [--detectors segmentation,rgb] [--height-mean M] [--height-sd M]
          [--estimate-roll yes|no] [--horizon-shift PX]
 
 Per detector, as a user runs it: `homocal fit --method pedestrians --trapezoid DATASET/trapezoids.json --boxes
@@ -58,9 +58,9 @@ def median_range_error(corrector, pixels: np.ndarray, ground: np.ndarray, origin
     return 100 * float(np.median(np.abs(np.hypot(*(mapped - origin).T) - truth) / truth))
 
 
-def run(path: Path, detector: str, height_mean: float | None, estimate_roll: str, shift_px: float | None,
-        folder: Path) -> dict:
-    """Fit with homocal fit (the module docstring) into folder; the figures of the saved correction."""
+def run(path: Path, detector: str, prior: list[str], estimate_roll: str, shift_px: float | None, folder: Path) -> dict:
+    """Fit with homocal fit (the module docstring; prior: its --height-mean and --height-sd flags) into folder; the
+    figures of the saved correction ("refused": True if homocal fit refused the boxes)."""
     ds = load_dataset(path)
     trapezoid = path / "trapezoids.json"
     if shift_px is not None:
@@ -74,9 +74,7 @@ def run(path: Path, detector: str, height_mean: float | None, estimate_roll: str
     out = folder / f"{detector}.json"
     args = ["fit", "--method", "pedestrians", "--trapezoid", str(trapezoid), "--boxes", str(path / "detections.parquet"),
             "--detector", detector, "--camera-json", str(path / "camera.json"), "--estimate-roll", estimate_roll,
-            "--camera-height", str(ds.camera.mount_height_m), "--out", str(out)]
-    if height_mean is not None:
-        args += ["--height-mean", str(height_mean)]
+            "--camera-height", str(ds.camera.mount_height_m), "--out", str(out), *prior]
     with redirect_stdout(None):
         if homocal_main(args) != 0:
             return {"detector": detector, "refused": True}
@@ -98,13 +96,16 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("dataset", type=Path)
     ap.add_argument("--detectors", default="segmentation,rgb")
-    ap.add_argument("--height-mean", type=float, help="the people's mean height (default: homocal fit's)")
+    ap.add_argument("--height-mean", help="the people's mean height, m (default: homocal fit's)")
+    ap.add_argument("--height-sd", help="their standard deviation, m (default: homocal fit's)")
     ap.add_argument("--estimate-roll", choices=("yes", "no"), default="yes")
     ap.add_argument("--horizon-shift", type=float, metavar="PX")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         for detector in args.detectors.split(","):
-            e = run(args.dataset, detector, args.height_mean, args.estimate_roll, args.horizon_shift, Path(tmp))
+            prior = [x for flag, value in (("--height-mean", args.height_mean), ("--height-sd", args.height_sd))
+                     if value is not None for x in (flag, value)]
+            e = run(args.dataset, detector, prior, args.estimate_roll, args.horizon_shift, Path(tmp))
             if e["refused"]:
                 print(f"{args.dataset} {detector}: homocal fit refused the boxes (its message above)")
                 continue
