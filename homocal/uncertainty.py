@@ -68,7 +68,8 @@ def ground_uncertainty(
     transformer's source and image_points are then undistorted pixels, as homocal fit --camera-json makes them):
     click_sigma_px and point_sigma_px are on the frame's pixels, where the clicks and detections err, so each
     undistorted corner and point gets the covariance sigma^2 A A^T, A = inv(lens.distort_jacobian) there (the
-    undistortion's local Jacobian: 1.1-1.5 at the corners of a wide lens's frame), i.e. J_s and J_q times A.
+    undistortion's local Jacobian: it stretches a wide lens's frame up to 2.1 times, docs/real-camera.md), i.e. J_s
+    and J_q times A.
 
     Points on or above the horizon (and those whose differences cross it): NaN covariance. Checked against Monte
     Carlo in tests/homocal/test_uncertainty.py (1-sigma radii within 10 % out to 50 m on the paper's camera).
