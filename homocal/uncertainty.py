@@ -15,6 +15,7 @@ from typing import Callable
 import numpy as np
 
 from homocal.geometry import ViewTransformer, apply_homography, as_points, homography_from_quads
+from homocal.geometry.lens import Lens
 
 STEP = 1e-3  # central-difference step on an image coordinate, pixels (map coordinates: 1e-6 of the map's size)
 
@@ -46,6 +47,7 @@ def ground_uncertainty(
     click_sigma_px: float = 1.5,
     point_sigma_px: float = 1.0,
     map_sigma_px: float = 0.0,
+    lens: Lens | None = None,
 ) -> np.ndarray:
     """First-order covariance (N, 2, 2) of the mapped image points (N, 2) px, in the transformer's target units
     (metres for homocal fit's files).
@@ -62,6 +64,13 @@ def ground_uncertainty(
     ~1e-9 relative (truncation ~ (step / distance to the horizon)^2, rounding ~1e-16 / step), far below the
     first-order approximation's own error.
 
+    lens: the camera's Lens when the trapezoid was clicked and the point detected on its distorted frame (the
+    transformer's source and image_points are then undistorted pixels, as homocal fit --camera-json makes them):
+    click_sigma_px and point_sigma_px are on the frame's pixels, where the clicks and detections err, so each
+    undistorted corner and point gets the covariance sigma^2 A A^T, A = inv(lens.distort_jacobian) there (the
+    undistortion's local Jacobian: it stretches a wide lens's frame up to 2.1 times, docs/real-camera.md), i.e. J_s
+    and J_q times A.
+
     Points on or above the horizon (and those whose differences cross it): NaN covariance. Checked against Monte
     Carlo in tests/homocal/test_uncertainty.py (1-sigma radii within 10 % out to 50 m on the paper's camera).
     """
@@ -75,9 +84,14 @@ def ground_uncertainty(
     xyw = np.column_stack([q, np.ones(len(q))]) @ H.T
     mapped = apply_homography(H, q)
     Jq = (H[None, :2, :2] - mapped[:, :, None] * H[None, 2:3, :2]) / xyw[:, 2, None, None]  # (N, 2, 2)
+    corners = np.broadcast_to(np.eye(2), (4, 2, 2))  # d(undistorted corner) / d(clicked corner)
+    if lens is not None and not lens.is_identity:
+        A = np.linalg.inv(lens.distort_jacobian(np.vstack([source, q])))  # (4 + N, 2, 2) the undistortion's
+        corners, Jq = A[:4], Jq @ A[4:]
     cov = sp**2 * Jq @ Jq.transpose(0, 2, 1)
     if sc > 0:
         Js = _quad_jacobian(source, target, q, 0, STEP)
+        Js = np.einsum("nikj,kjl->nikl", Js.reshape(len(q), 2, 4, 2), corners).reshape(len(q), 2, 8)
         cov += sc**2 * Js @ Js.transpose(0, 2, 1)
     if sm > 0:
         Jt = _quad_jacobian(source, target, q, 1, 1e-6 * max(float(np.ptp(target, axis=0).max()), 1e-300))

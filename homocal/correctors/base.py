@@ -162,8 +162,10 @@ class Corrector:
         image points (N, 2) px: the correction's own error model. Here ``homocal.ground_uncertainty`` of
         ``mapping`` (the paper's eq. (1): click_sigma_px on each of its image corner coordinates, map_sigma_px on
         each map corner coordinate in target units, point_sigma_px on the point); a method that knows more of
-        its own error (PedestrianCorrector: its fitted horizon's) adds it. NaN on or above the horizon."""
-        return ground_uncertainty(self.mapping, image_points, click_sigma_px, point_sigma_px, map_sigma_px)
+        its own error (PedestrianCorrector: its fitted horizon's) adds it. With ``lens_`` the image sigmas are on the
+        camera's distorted frame, propagated through the lens (ground_uncertainty's lens). NaN on or above the
+        horizon."""
+        return ground_uncertainty(self.mapping, image_points, click_sigma_px, point_sigma_px, map_sigma_px, self.lens_)
 
     def _fit(self, q: np.ndarray, p: np.ndarray, g: np.ndarray) -> None:
         """Fit from validated image points q, their mapping p and ground truth g, all (N, 2)."""

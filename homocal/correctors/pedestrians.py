@@ -44,8 +44,9 @@ frames up to LINK_GAP apart are linked into tracks by box overlap (``homocal.geo
 without frames either, every box counts as an independent person and the uncertainty is understated.
 
 Roll (``fit_tilt_roll``, PedestrianCorrector(estimate_roll=True)): a camera rolled by phi about its optical
-axis sees the unrolled camera's image rotated by phi about the principal point, so the same heights hold for
-the rows of the foot and head points turned back by -phi (``derolled_rows``); tilt and roll are fitted
+axis (simgen's camera.json convention, data_schema.md: phi > 0 lowers the camera's right side) sees the unrolled
+camera's image turned by -phi about the principal point, so the same heights hold for the rows of the foot and
+head points turned back by phi (``derolled_rows``); tilt and roll are fitted
 together when the people's foot columns spread over ROLL_SPREAD of the image width. Lens distortion: the
 boxes' foot and head points are undistorted first (``homocal.geometry.Lens``).
 
@@ -286,17 +287,17 @@ def fit_tilt(foot_rows: np.ndarray, head_rows: np.ndarray, tracks: np.ndarray, f
             "n_people": len(people), "rounds": rounds}
 
 def derolled_rows(points: np.ndarray, roll: float, principal: tuple[float, float]) -> np.ndarray:
-    """Rows (N,) of image points (N, 2) px as the camera turned back by ``roll`` radians about its optical axis sees
-    them (the image rotated by -roll about the principal point (cx, cy); square pixels):
-    -sin(roll) (u - cx) + cos(roll) (v - cy) + cy. Roll 0: the rows themselves."""
+    """Rows (N,) of image points (N, 2) px of a camera rolled by ``roll`` radians (camera.json's sign: > 0 lowers
+    its right side) as the same camera unrolled sees them (the image turned by roll about the principal point
+    (cx, cy); square pixels): sin(roll) (u - cx) + cos(roll) (v - cy) + cy. Roll 0: the rows themselves."""
     c, s = math.cos(roll), math.sin(roll)
-    return principal[1] - s * (points[:, 0] - principal[0]) + c * (points[:, 1] - principal[1])
+    return principal[1] + s * (points[:, 0] - principal[0]) + c * (points[:, 1] - principal[1])
 
 
 def roll_homography(K: np.ndarray, roll: float) -> np.ndarray:
-    """(3, 3) image homography K R_z(roll) K^-1: the image rotated by ``roll`` radians about the principal point
-    (x right, y down; fx = fy), as rolling the camera by -roll moves it. roll_homography(K, -roll) takes a rolled
-    camera's image to the unrolled one's (derolled_rows)."""
+    """(3, 3) image homography K R_z(roll) K^-1: the image turned by ``roll`` radians about the principal point
+    (x right, y down; fx = fy). It takes the image of a camera rolled by ``roll`` (camera.json's sign) to the
+    unrolled camera's (derolled_rows); roll_homography(K, -roll) rolls it."""
     c, s = math.cos(roll), math.sin(roll)
     return K @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.linalg.inv(K)
 
@@ -312,7 +313,7 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
     inlier set updated as in fit_tilt until it no longer changes. Uncertainty: the sandwich covariance
     sigma^2 A^-1 (sum psi^2 grad H grad H^T) A^-1, A = sum psi' grad H grad H^T; the prior mean's effect
     d(tilt, roll) / dmu = A^-1 sum psi' grad H.
-    Returns a dict: tilt, roll (radians), cov (2, 2) radians^2 (people), sensitivity (2,) radians per metre,
+    Returns a dict: tilt, roll (radians; roll in camera.json's sign), cov (2, 2) radians^2 (people), sensitivity (2,) radians per metre,
     inlier_boxes (N,) bool, n_people, rounds. ValueError as fit_tilt, or for a roll beyond MAX_ROLL_DEG."""
     inliers, beta = start["inlier_boxes"], np.array([start["tilt"], 0.0])
 
@@ -386,8 +387,8 @@ class PedestrianCorrector(Corrector):
     reduced by more people), tilt_deg_, rotation_deg_ (delta), focal_px_, principal_point_ (cx, cy), camera_height_m_,
     yaw_deg_ (model "camera"; NaN for "rotation"), focal_source_ and camera_height_source_ ("given" or
     "clicked mapping"), n_boxes_, n_border_ (cut by the image border, not used), n_outliers_ (beyond
-    OUTLIER_SIGMAS), n_people_ (tracks), n_people_used_, roll_estimated_, roll_deg_ (0 unless estimated; the
-    horizon's slope in the image is tan(roll_deg_): simgen's camera.json roll_deg is -roll_deg_), roll_sigma_deg_
+    OUTLIER_SIGMAS), n_people_ (tracks), n_people_used_, roll_estimated_, roll_deg_ (0 unless estimated; camera.json's
+    roll_deg: > 0 lowers the camera's right side, the horizon's slope in the image is -tan(roll_deg_)), roll_sigma_deg_
     (NaN unless estimated), tilt_roll_cov_ and tilt_roll_sensitivity_ (the people's 2x2 covariance of (tilt,
     roll), rad^2, and their move per metre of the prior mean; None unless estimated), transformer_, m, plus those
     of ``Corrector`` (error_before_ and error_after_ on check points if fit had them, else NaN). After fit only
@@ -581,14 +582,14 @@ class PedestrianCorrector(Corrector):
         if roll is None:
             return
         try:
-            deg = number(roll["deg"], "fitted.roll.deg")
+            deg = number(roll["roll_deg"], "fitted.roll.roll_deg")
             cov = np.array(roll["tilt_roll_cov_rad2"], dtype=np.float64)
             sens = np.array(roll["tilt_roll_sensitivity_rad_per_m"], dtype=np.float64)
         except (KeyError, TypeError, ValueError) as e:
-            raise ValueError(f"field fitted.roll: expected deg, tilt_roll_cov_rad2 and tilt_roll_sensitivity_rad_per_m ({e})") from None
+            raise ValueError(f"field fitted.roll: expected roll_deg, tilt_roll_cov_rad2 and tilt_roll_sensitivity_rad_per_m ({e})") from None
         if not (abs(deg) <= MAX_ROLL_DEG and cov.shape == (2, 2) and sens.shape == (2,) and np.isfinite(cov).all()
                 and np.isfinite(sens).all() and np.allclose(cov, cov.T) and (np.linalg.eigvalsh(cov) >= -1e-18).all()):
-            raise ValueError(f"field fitted.roll: expected |deg| <= {MAX_ROLL_DEG:g}, a symmetric (2, 2) covariance "
+            raise ValueError(f"field fitted.roll: expected |roll_deg| <= {MAX_ROLL_DEG:g}, a symmetric (2, 2) covariance "
                              "and (2,) sensitivities, all finite")
         self.roll_estimated_, self.roll_deg_, self.tilt_roll_cov_, self.tilt_roll_sensitivity_ = True, deg, cov, sens
 
@@ -614,7 +615,7 @@ class PedestrianCorrector(Corrector):
         self.yaw_deg_ = math.nan
         if self.model == "camera":
             level = self.K @ np.array([[1.0, 0.0, 0.0], [0.0, 0.0, self.camera_height_m_], [0.0, 1.0, 0.0]])
-            camera = np.linalg.inv(level) @ tilt_homography(self.K, -tilt) @ roll_homography(self.K, -roll)  # image -> ground
+            camera = np.linalg.inv(level) @ tilt_homography(self.K, -tilt) @ roll_homography(self.K, roll)  # image -> ground
             w, t = apply_homography(camera, source), base.target - self.camera_origin_
             yaw = float(np.angle(np.sum((t[:, 0] + 1j * t[:, 1]) * np.conj(w[:, 0] + 1j * w[:, 1]))))
             turn = np.array([[math.cos(yaw), -math.sin(yaw), self.camera_origin_[0]],
@@ -655,8 +656,8 @@ class PedestrianCorrector(Corrector):
         roll = math.radians(self.roll_deg_)
         tilt = math.atan((cy - self.horizon_row_) * math.cos(roll) / f)
         step = 1e-6
-        turns = {"tilt": lambda e: roll_homography(self.K, roll) @ tilt_homography(self.K, -e) @ roll_homography(self.K, -roll),
-                 "roll": lambda e: roll_homography(self.K, -e)}  # the camera's tilt or roll moved by e, as the mapping sees it
+        turns = {"tilt": lambda e: roll_homography(self.K, -roll) @ tilt_homography(self.K, -e) @ roll_homography(self.K, roll),
+                 "roll": lambda e: roll_homography(self.K, e)}  # the camera's tilt or roll moved by e, as the mapping sees it
         J = np.stack([(apply_homography(self.m @ turn(step), q) - apply_homography(self.m @ turn(-step), q)) / (2 * step)
                       for turn in turns.values()], axis=-1)  # (N, 2, 2): d(x, y) / d(tilt, roll)
         if self.roll_estimated_:
@@ -696,7 +697,7 @@ class PedestrianCorrector(Corrector):
                 "n_border": self.n_border_, "n_outliers": self.n_outliers_, "n_people": self.n_people_,
                 "n_people_used": self.n_people_used_,
                 "roll": None if not self.roll_estimated_ else {
-                    "deg": self.roll_deg_, "tilt_roll_cov_rad2": self.tilt_roll_cov_.tolist(),
+                    "roll_deg": self.roll_deg_, "tilt_roll_cov_rad2": self.tilt_roll_cov_.tolist(),
                     "tilt_roll_sensitivity_rad_per_m": self.tilt_roll_sensitivity_.tolist()}}
 
     def _set_fitted_state(self, state: dict) -> None:

@@ -150,6 +150,16 @@ class Lens:
         xy[~done] = np.nan
         return self._pixels(xy)
 
+    def distort_jacobian(self, points: np.ndarray) -> np.ndarray:
+        """(N, 2, 2) derivative of distort_points at ideal pinhole pixels (N, 2): d(distorted u, v) / d(u, v), the
+        model's analytic derivative (``_jacobian``, on normalised coordinates) scaled to pixels. Its inverse is
+        undistort_points' derivative at the distorted point: a pixel error of covariance S on the frame is
+        A S A^T in the undistorted image, A = inv(distort_jacobian). The identity for a lens without distortion."""
+        p = as_points(points)
+        (a, b), (c, d) = self._jacobian(self._normalise(p))
+        fx, fy = self.K[0, 0], self.K[1, 1]
+        return np.stack([np.column_stack([a, b * fx / fy]), np.column_stack([c * fy / fx, d])], axis=1)
+
     def to_dict(self) -> dict:
         """{"K", "distortion", "image_size"} as plain lists: lens.json's content."""
         return {"K": self.K.tolist(), "distortion": self.distortion.tolist(), "image_size": list(self.image_size)}

@@ -530,34 +530,44 @@ class TestPriorMeanUncertainty:
 
 class TestRollAndLens:
     """A camera rolled about its axis, seen through a barrel lens: the boxes undistorted (Lens), the horizon as a
-    line (estimate_roll). The people's boxes come from the pinhole projection, rotated about the principal point
-    (the roll) and distorted by Lens.distort_points (cv2.projectPoints' model): independent of the fit."""
+    line (estimate_roll). The people's boxes are PinholeCamera(roll_deg=...)'s projection (camera.json's roll,
+    data_schema.md) distorted by Lens.distort_points (cv2.projectPoints' model), and the true horizon is that
+    camera's horizon line: independent of the fit."""
 
     LENS = Lens(CAM.K, np.array([-0.25, 0.05, 0.0, 0.0, 0.0]), SIZE)
 
     def scene(self, degrees, n=150, seed=0):
-        a, c0 = np.radians(degrees), CAM.K[:2, 2]
-        turn = lambda p: (p - c0) @ np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]]) + c0  # noqa: E731
+        rolled = PinholeCamera(roll_deg=degrees)
         h, _, _, xy = people(n, seed=seed)
-        f = self.LENS.distort_points(turn(CAM.project(np.column_stack([xy, np.zeros(n)]))))
-        t = self.LENS.distort_points(turn(CAM.project(np.column_stack([xy, h]))))
+        f = self.LENS.distort_points(rolled.project(np.column_stack([xy, np.zeros(n)])))
+        t = self.LENS.distort_points(rolled.project(np.column_stack([xy, h])))
         boxes = np.column_stack([np.minimum(f[:, 0], t[:, 0]) - 5, t[:, 1], np.maximum(f[:, 0], t[:, 0]) + 5, f[:, 1]])
-        clicked = ViewTransformer(tilt_shift(turn(CAM.project_ground(GROUND)), CAM.K, CAM.horizon_row, 16.0), GROUND)
-        return turn, boxes, clicked
+        clicked = ViewTransformer(tilt_shift(rolled.project_ground(GROUND), CAM.K, CAM.horizon_row, 16.0), GROUND)
+        return rolled, boxes, clicked
 
     def fit(self, degrees, lens=LENS, estimate_roll=True, seed=0):
-        turn, boxes, clicked = self.scene(degrees, seed=seed)
+        rolled, boxes, clicked = self.scene(degrees, seed=seed)
         c = PedestrianCorrector(1.7, 0.07, estimate_roll=estimate_roll).fit(
             clicked, boxes, convention="homocal", track_ids=np.arange(len(boxes)), K=CAM.K, camera_height_m=4.0,
             image_size=SIZE, lens=lens)
-        a, (cx, cy) = np.radians(degrees), CAM.K[:2, 2]
+        a, b, h = rolled.horizon
+        cx = CAM.K[0, 2]
         u = np.linspace(-0.5, CAM.width - 0.5, 101)
-        true = cy + (CAM.horizon_row - cy) / np.cos(a) + np.tan(a) * (u - cx)  # the rolled horizon line
-        fitted = c.horizon_row_ + np.tan(np.radians(c.roll_deg_)) * (u - cx)
+        true = -(a * u + h) / b  # the rolled camera's horizon line
+        fitted = c.horizon_row_ - np.tan(np.radians(c.roll_deg_)) * (u - cx)
         g = np.stack(np.meshgrid(np.arange(-5.0, 5.1, 2.5), np.arange(5.0, 50.1, 5.0)), -1).reshape(-1, 2)
         r = np.hypot(*g.T)
-        error = np.abs(np.hypot(*c.transform_points(turn(CAM.project_ground(g))).T) - r) / r
+        error = np.abs(np.hypot(*c.transform_points(rolled.project_ground(g)).T) - r) / r
         return c, float(np.sqrt(np.mean((fitted - true) ** 2))), 100 * float(np.median(error))
+
+    @pytest.mark.parametrize("degrees", [1.0, -1.5])
+    def test_roll_has_camera_json_sign(self, degrees):
+        """A camera rolled by camera.json's roll_deg (> 0 lowers its right side: the horizon rises to the right)
+        gives a fitted roll_deg_ of the same sign, within 3 sigma."""
+        c, _, _ = self.fit(degrees)
+        assert c.roll_estimated_ and abs(c.roll_deg_ - degrees) < 3 * c.roll_sigma_deg_ < 1.0
+        a, b, _ = PinholeCamera(roll_deg=degrees).horizon
+        assert np.sign(-a / b) == -np.sign(degrees)  # the horizon's slope dv/du: rows rise (v falls) to the right for > 0
 
     @pytest.mark.parametrize("seed", [0, 1, 2])
     def test_roll_of_one_degree(self, seed):
