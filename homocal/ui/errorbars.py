@@ -23,7 +23,7 @@ def error_bars(session: Session, transformer: ViewTransformer, image_points: np.
     with the session's lens; what it returns as image polylines is in the frame's pixels), and the trustworthy range.
 
     The error model is ``uncertainty`` (a fitted correction's own ``Corrector.ground_uncertainty``, whose
-    mapping is transformer), or ``ground_uncertainty`` of transformer if None. The sigmas are theirs: image
+    mapping is transformer), or ``ground_uncertainty`` of transformer and the session's lens if None. The sigmas are theirs: image
     clicks and the point itself in image px, the map clicks in site-map px (converted here to the
     transformer's metres). The ellipses are centred on ``transform`` of the points (a fitted correction's
     transform_points), or on transformer's mapping of them if None. Points whose covariance is NaN (at the
@@ -35,7 +35,8 @@ def error_bars(session: Session, transformer: ViewTransformer, image_points: np.
     """
     sigmas = {"click_sigma_px": click_sigma_px, "point_sigma_px": point_sigma_px,
               "map_sigma_px": map_sigma_px / session.site_map.scale_px_per_m}
-    uncertainty = functools.partial(ground_uncertainty, transformer) if uncertainty is None else uncertainty
+    if uncertainty is None:  # the clicks are on the frame: through the session's lens (None without one)
+        uncertainty = functools.partial(ground_uncertainty, transformer, lens=session.lens)
     cov = uncertainty(image_points, **sigmas)
     valid = np.isfinite(cov).all(axis=(1, 2))
     image_points, cov = image_points[valid], cov[valid]

@@ -106,3 +106,20 @@ def test_boxes_are_drawn_on_the_frame_in_its_pixels(session, tmp_path):
     order = np.argsort(bottom[:, 0])
     np.testing.assert_allclose(bottom[order], foot[np.argsort(foot[:, 0])], atol=0.06)  # rounded to 0.1 px
     assert np.abs(opencv_undistort(foot) - foot).max() > 5  # the undistorted feet are elsewhere: the check bites
+
+
+def test_error_bars_take_the_clicks_on_the_frame(session):
+    """The page's error bars before any fit are the trapezoid's through the session's lens (the clicks err on the
+    distorted frame): the probe's ellipse axes equal ground_uncertainty(..., lens=) at the undistorted point, and
+    differ from the lens-blind ones."""
+    from homocal.geometry import ViewTransformer
+    from homocal.uncertainty import ground_uncertainty
+
+    point = seen([[2.0, 30.0]])[0]
+    bars = api.locate(session, {**REQ, "point": point.tolist()})["errorbars"]
+    transformer = ViewTransformer(opencv_undistort(REQ["trapezoid"]["image"]), GROUND)
+    q = opencv_undistort([point])
+    with_lens, blind = (np.sqrt(np.linalg.eigvalsh(ground_uncertainty(transformer, q, lens=lens)[0]))[::-1]
+                        for lens in (LENS, None))
+    np.testing.assert_allclose(bars["sigma"][0], with_lens, rtol=1e-4)
+    assert np.abs(with_lens / blind - 1).max() > 100 * 1e-4  # the lens term is far beyond the agreement above
