@@ -22,11 +22,21 @@ stream of all seeds back to back.
     python research/watch.py --scene scene1 --seeds 6 --minutes 10 --fps 5
     python research/watch.py --scene scene1 --seeds 6 --minutes 10 --fps 5 --static-only --arl0 50,100,200,500
     python research/watch.py --scene scene1 --seeds 6 --minutes 10 --fps 5 --arl0 1000 --case-arl0 1000
+
+With --datasets, rendered recordings instead (simgen datasets of a scene whose camera moves: camera_pose.parquet
+gives its pose; one without it is a static recording): ``homocal watch`` runs on each one's boxes of each of
+--detectors (its hand-placed trapezoid, camera.json, the camera's true height, the people's own height prior,
+--case-arl0) into --work, and is measured against the true pose (``watch_dataset``); printed per recording and
+pooled per detector:
+
+    python research/watch.py --datasets DIR [DIR ...] --detectors segmentation,rgb --work WORK
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
+import io
 import json
 import math
 import sys
@@ -121,10 +131,11 @@ def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float) -> dict:
     after its detection (those within the recording)."""
     manifest = json.loads((dataset / "manifest.json").read_text())
     cam_height = json.loads((dataset / "camera.json").read_text())["mount_height_m"]
-    code = homocal_main(["watch", "--trapezoid", str(dataset / "trapezoids.json"), "--boxes", str(dataset / "detections.parquet"),
-                         "--detector", detector, "--fps", str(manifest["fps"]), "--camera-json", str(dataset / "camera.json"),
-                         "--camera-height", str(cam_height), "--height-mean", str(HEIGHT[0]), "--height-sd", str(HEIGHT[1]),
-                         "--arl0-people", str(arl0), "--out", str(out)])
+    with contextlib.redirect_stdout(io.StringIO()):  # its one summary line; the figures are printed here
+        code = homocal_main(["watch", "--trapezoid", str(dataset / "trapezoids.json"), "--boxes", str(dataset / "detections.parquet"),
+                             "--detector", detector, "--fps", str(manifest["fps"]), "--camera-json", str(dataset / "camera.json"),
+                             "--camera-height", str(cam_height), "--height-mean", str(HEIGHT[0]), "--height-sd", str(HEIGHT[1]),
+                             "--arl0-people", str(arl0), "--out", str(out)])
     assert code == 0, f"homocal watch failed on {dataset} ({detector})"
     times, cameras = true_cameras(dataset)
     angles = np.array([(c.tilt_deg, c.roll_deg, c.yaw_deg) for c in cameras])

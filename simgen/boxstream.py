@@ -3,12 +3,12 @@
 
 The people are simgen's walkers (simgen.agents.Crowd: the same routes, speeds, waits, heights and poses as a
 rendered dataset of the same scene and seed). Each frame, every body's geoms (capsules: segment ends and
-radii) give the points ``body_points``: the segment ends moved by +-radius along x and z (world). A camera,
-the scene's camera posed at each instant as a rendered dataset's (``Scene.camera_at``: its ``[[camera.moves]]`` and
-``[camera.sway]``), projects them (``boxes_of``): a person's box is
-the box of the pixels whose centres their bounding box covers (edges at half-integers, as a segmentation
-mask's box), clipped to the image; a box wholly outside the image is not given. Not modelled: occlusion
-between people and by props, detector noise and misses: a best case of the segmentation detector.
+radii) give the points ``body_points``: the segment ends moved by +-radius along x and z (world). The scene's
+camera, posed at each instant as in a rendered dataset (``Scene.camera_at``: its ``[[camera.moves]]`` and
+``[camera.sway]``), projects them (``boxes_of``): a person's box is the box of the pixels whose centres their
+bounding box covers (edges at half-integers, as a segmentation mask's box), clipped to the image; a box wholly
+outside the image is not given. Not modelled: occlusion between people and by props, detector noise and misses:
+a best case of the segmentation detector.
 """
 from __future__ import annotations
 

@@ -145,7 +145,7 @@ def test_camera_pose_table_is_each_steps_pose(moving):
         R = _rotation(row.tilt_deg, row.roll_deg, row.yaw_deg)
         line = np.array([row.horizon_a, row.horizon_b, row.horizon_c])
         assert math.hypot(*line[:2]) == pytest.approx(1.0, abs=1e-12)
-        for direction in ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]):
+        for direction in ([0.5, 1.0, 0.0], [-0.5, 1.0, 0.0]):  # ahead of the camera: finite vanishing points
             vanishing = K @ R @ direction
             assert line @ (vanishing / vanishing[2]) == pytest.approx(0.0, abs=1e-9)
         assert line @ [K[0, 2], K[1, 2] + 1000.0, 1.0] > 0  # positive below it
