@@ -3,16 +3,16 @@
 
 The people are simgen's walkers (simgen.agents.Crowd: the same routes, speeds, waits, heights and poses as a
 rendered dataset of the same scene and seed). Each frame, every body's geoms (capsules: segment ends and
-radii) give the points ``body_points``: the segment ends moved by +-radius along x and z (world). A camera,
-a PinholeCamera whose tilt is the scene's plus ``tilt_deg(t)``, projects them (``boxes_of``): a person's box is
-the box of the pixels whose centres their bounding box covers (edges at half-integers, as a segmentation
-mask's box), clipped to the image; a box wholly outside the image is not given. Not modelled: occlusion
-between people and by props, detector noise and misses: a best case of the segmentation detector.
+radii) give the points ``body_points``: the segment ends moved by +-radius along x and z (world). The scene's
+camera, posed at each instant as in a rendered dataset (``Scene.camera_at``: its ``[[camera.moves]]`` and
+``[camera.sway]``), projects them (``boxes_of``): a person's box is the box of the pixels whose centres their
+bounding box covers (edges at half-integers, as a segmentation mask's box), clipped to the image; a box wholly
+outside the image is not given. Not modelled: occlusion between people and by props, detector noise and misses:
+a best case of the segmentation detector.
 """
 from __future__ import annotations
 
-import dataclasses
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -46,11 +46,9 @@ def boxes_of(camera: PinholeCamera, points: np.ndarray) -> tuple[np.ndarray, np.
     return xyxy[seen], seen
 
 
-def box_stream(scene: Scene, seed: int, seconds: float, fps: float,
-               tilt_deg: Callable[[float], float] = lambda t: 0.0) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
+def box_stream(scene: Scene, seed: int, seconds: float, fps: float) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
     """Yield (frame, xyxy (N, 4) homocal pixel edges, agent ids (N,)) of body_points seen by the scene's camera
-    tilted tilt_deg(t) degrees further down at time t = frame / fps."""
+    as posed at time t = frame / fps (``Scene.camera_at``)."""
     for frame, points, ids in body_points(scene, seed, seconds, fps):
-        camera = dataclasses.replace(scene.camera, tilt_deg=scene.camera.tilt_deg + tilt_deg(frame / fps))
-        xyxy, seen = boxes_of(camera, points)
+        xyxy, seen = boxes_of(scene.camera_at(frame / fps), points)
         yield frame, xyxy, ids[seen]

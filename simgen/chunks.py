@@ -109,7 +109,7 @@ def run_chunk(stage: Stage, detectors: list, c: int, parts: Path, tick=lambda fr
                 state = stage.set_time(t)
                 ids = stage.agent_ids()
                 if step is not None:
-                    gt.append(gt_columns(step, cam, state, ids))
+                    gt.append(gt_columns(step, stage.camera, state, ids))
                 if frame is not None:
                     rgb = stage.rgb()
                     writer.append(rgb)

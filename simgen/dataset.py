@@ -34,11 +34,13 @@ from simgen.parquet import write_parquet
 from simgen.scene import GT_DT, Scene
 from simgen.stage import Stage
 from simgen.static import calibration_table, write_static
+from simgen.truth import camera_pose_table
 from simgen.video import concat
 
 FORMAT = "simgen-dataset"  # manifest.json's format tag: the folder is a simgen dataset
 FINAL = ("manifest.json", "camera.json", "trapezoids.json", "site_map.png", "site_map.json", "calibration.parquet",
-         "gt.parquet", "detections.parquet", "mot/gt.txt", "video.mp4")  # fmt: skip
+         "gt.parquet", "detections.parquet", "mot/gt.txt", "video.mp4", "camera_pose.parquet")  # fmt: skip
+# camera_pose.parquet: only when the camera moves (Scene.moving)
 
 
 def manifest(scene: Scene, seed: int, frames_done: int, complete: bool) -> dict:
@@ -64,6 +66,8 @@ def _finalize(scene: Scene, out: Path) -> None:
     write_parquet(out / "gt.parquet", gt)
     write_parquet(out / "detections.parquet", match_to_gt(det, gt))
     write_mot_gt(gt, scene.fps, out / "mot" / "gt.txt")
+    if scene.moving:
+        write_parquet(out / "camera_pose.parquet", camera_pose_table(scene))
     write_atomic(out / "video.mp4", lambda p: concat([parts / f"{c:05d}.mp4" for c in range(n)], p))
 
 

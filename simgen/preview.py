@@ -10,6 +10,7 @@ from PIL import Image
 from PIL.PngImagePlugin import PngInfo
 
 from homocal.files import check_output_file, write_atomic
+from homocal.geometry.camera import PinholeCamera
 from simgen.detection import SegmentationDetector
 from simgen.scene import Scene
 from simgen.stage import Stage
@@ -29,12 +30,14 @@ def _px(points: np.ndarray) -> np.ndarray:
     return np.round(np.asarray(points, dtype=np.float64) * (1 << _SHIFT)).astype(np.int32)
 
 
-def annotate(scene: Scene, rgb: np.ndarray, agent_ids: np.ndarray, foot_xy: np.ndarray | None = None) -> np.ndarray:
+def annotate(scene: Scene, rgb: np.ndarray, agent_ids: np.ndarray, foot_xy: np.ndarray | None = None,
+             camera: PinholeCamera | None = None) -> np.ndarray:
     """(H, W, 3) RGB frame -> annotated BGR copy: segmentation boxes (green), their foot points (red),
     the ground truth's foot points ``foot_xy`` (N, 2) m if given (blue crosses), hand-placed trapezoid
-    (yellow), exact trapezoid (cyan), horizon (magenta), with a legend of them in a strip below (with_legend)."""
+    (yellow), exact trapezoid (cyan, of the ``[camera]`` pose), horizon (magenta), with a legend of them in a strip
+    below (with_legend). ``camera``: the frame's pose of a moving camera (default: the ``[camera]`` pose)."""
     img = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
-    cam = scene.camera
+    cam = scene.camera if camera is None else camera
     a, b, c = cam.horizon
     if any(cam.distortion):  # a line of the undistorted image, curved by the lens
         u = np.linspace(-cam.width, 2.0 * cam.width, 300)
@@ -100,7 +103,7 @@ def preview(scene: Scene, seed: int, t: float, path: str | Path) -> int:
     with Stage(scene, seed, t_end=t + 1.0) as stage:
         state = stage.set_time(t)
         agent_ids = stage.agent_ids()
-        img = annotate(scene, stage.rgb(), agent_ids, state.xy)
+        img = annotate(scene, stage.rgb(), agent_ids, state.xy, stage.camera)
     info = PngInfo()
     info.add_text("Software", SOFTWARE)
     write_atomic(path, lambda tmp: Image.fromarray(img[..., ::-1]).save(tmp, format="PNG", pnginfo=info))

@@ -25,6 +25,8 @@ DETECTORS = ("segmentation", "rgb", "hog")
 QUALITIES = ("draft", "default", "high")  # render presets (simgen.render.QUALITY)
 MAX_SECONDS = 86400.0  # longest run (and preview time): a day; the agents' walks are planned for the whole run
 MAX_FPS = 1000  # highest video frame rate
+MAX_CAMERA_MOVES = 100  # [[camera.moves]] entries at most
+MAX_SWAY_DEG = 45.0  # [camera.sway] amplitude_deg at most
 HAND_PLACED_MAX_PX = 2.0  # a hand-placed vertex lies 1 to 2 px from the exact one (data_schema.md)
 SHIPPED = Path(__file__).parent / "scenes"
 """The scenes that ship with simgen (package data; in a checkout a link to the top-level scenes/, their one source)."""
@@ -45,6 +47,51 @@ class Route:
     weight: float
     wait_s: tuple[float, float] = (0.0, 0.0)  # a waiting walker's wait, uniform, seconds (agents.py)
     wait_share: float = 0.0  # fraction of walkers who wait
+
+
+@dataclass(frozen=True)
+class CameraMove:
+    """A ``[[camera.moves]]`` entry: from ``at_s`` on, the camera's pose gains (tilt, roll, yaw) degrees, at once
+    (``over_s`` 0) or linearly over ``over_s`` seconds."""
+
+    at_s: float
+    over_s: float = 0.0
+    tilt_deg: float = 0.0
+    roll_deg: float = 0.0
+    yaw_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class Sway:
+    """``[camera.sway]``: the tilt swings by amplitude_deg sin(2 pi t / period_s), degrees."""
+
+    amplitude_deg: float
+    period_s: float
+
+
+def camera_offsets(moves: tuple[CameraMove, ...], sway: Sway | None, t) -> np.ndarray:
+    """The pose change (tilt, roll, yaw) in degrees, (N, 3), at times t (N,) seconds: the sum of the moves, each
+    ramped (fraction clip((t - at_s) / over_s, 0, 1); a step (over_s 0) counts from t >= at_s on), plus the sway
+    of the tilt. The one pose function of a moving camera (``Scene.camera_at``, the renders, gt.parquet,
+    camera_pose.parquet, simgen.boxstream)."""
+    t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+    out = np.zeros((len(t), 3))
+    for m in moves:
+        if m.over_s > 0:
+            share = np.clip((t - m.at_s) / m.over_s, 0.0, 1.0)
+        else:
+            share = (t >= m.at_s).astype(np.float64)
+        out += share[:, None] * np.array([m.tilt_deg, m.roll_deg, m.yaw_deg])
+    if sway is not None:
+        out[:, 0] += sway.amplitude_deg * np.sin(2.0 * np.pi * t / sway.period_s)
+    return out
+
+
+def posed(camera: PinholeCamera, offsets) -> PinholeCamera:
+    """``camera`` with the pose change (tilt, roll, yaw) degrees added to its own."""
+    tilt, roll, yaw = (float(x) for x in offsets)
+    return dataclasses.replace(camera, tilt_deg=camera.tilt_deg + tilt, roll_deg=camera.roll_deg + roll,
+                               yaw_deg=camera.yaw_deg + yaw)
 
 
 @dataclass(frozen=True)
@@ -81,6 +128,8 @@ class Scene:
     ground: Ground
     raw: dict = field(repr=False)
     quality: str = "default"  # render preset, one of QUALITIES
+    moves: tuple[CameraMove, ...] = ()  # [[camera.moves]], by at_s
+    sway: Sway | None = None  # [camera.sway]
 
     # ---- derived numbers ---------------------------------------------------------------
     @property
@@ -90,6 +139,16 @@ class Scene:
     @property
     def steps_total(self) -> int:
         return round(self.seconds * GT_RATE)
+
+    @property
+    def moving(self) -> bool:
+        """Whether the camera moves (moves or a sway): only then is it posed per instant and camera_pose.parquet written."""
+        return bool(self.moves) or self.sway is not None
+
+    def camera_at(self, t: float) -> PinholeCamera:
+        """The camera at time t seconds: ``camera`` (the ``[camera]`` pose, the same object for a static camera)
+        with ``camera_offsets`` added."""
+        return posed(self.camera, camera_offsets(self.moves, self.sway, t)[0]) if self.moving else self.camera
 
     @property
     def site_map(self) -> SiteMap:
@@ -360,6 +419,45 @@ def _read_camera(raw: dict) -> PinholeCamera:
     return camera
 
 
+def _read_motion(raw: dict, camera: PinholeCamera) -> tuple[tuple[CameraMove, ...], Sway | None]:
+    """``[[camera.moves]]`` and ``[camera.sway]``; every pose they reach must be a valid camera. Raises ConfigError."""
+    entries = _get(raw, "camera.moves", list, default=[])
+    if len(entries) > MAX_CAMERA_MOVES:
+        raise ConfigError(f"scene.toml: camera.moves: at most {MAX_CAMERA_MOVES} moves, got {len(entries)}")
+    moves = []
+    for i, entry in enumerate(entries):
+        key, rd = f"camera.moves[{i}]", {"camera": {f"moves[{i}]": entry}}
+        if not isinstance(entry, dict):
+            raise ConfigError(f"scene.toml: {key}: expected a table ([[camera.moves]]), got {entry!r:.40}")
+        move = CameraMove(_get(rd, f"{key}.at_s"),
+                          *(_get(rd, f"{key}.{name}", default=0.0) for name in ("over_s", "tilt_deg", "roll_deg", "yaw_deg")))
+        for name in ("at_s", "over_s"):
+            if not 0.0 <= getattr(move, name) <= MAX_SECONDS:
+                raise ConfigError(f"scene.toml: {key}.{name}: must be in [0, {MAX_SECONDS:g}] s, got {getattr(move, name)}")
+        if moves and move.at_s < moves[-1].at_s:
+            raise ConfigError(f"scene.toml: {key}.at_s: moves must come in time order ({move.at_s:g} s after {moves[-1].at_s:g} s)")
+        moves.append(move)
+    sway = None
+    if "sway" in raw["camera"]:
+        sway = Sway(_get(raw, "camera.sway.amplitude_deg"), _get(raw, "camera.sway.period_s"))
+        if not 0.0 <= sway.amplitude_deg <= MAX_SWAY_DEG:
+            raise ConfigError(f"scene.toml: camera.sway.amplitude_deg: must be in [0, {MAX_SWAY_DEG:g}], got {sway.amplitude_deg}")
+        if not 0.0 < sway.period_s <= MAX_SECONDS:
+            raise ConfigError(f"scene.toml: camera.sway.period_s: must be in (0, {MAX_SECONDS:g}] s, got {sway.period_s}")
+    # the offsets are linear between the moves' ends, so the poses' extremes are at them or just before a step
+    # (the sway at its extremes)
+    knots = np.array([0.0, *(m.at_s for m in moves), *(m.at_s + m.over_s for m in moves)])
+    knots = np.concatenate([knots, np.nextafter(knots[1:], -np.inf)])
+    swing = 0.0 if sway is None else sway.amplitude_deg
+    for offsets in camera_offsets(tuple(moves), None, knots):
+        for extra in {-swing, swing}:
+            try:
+                posed(camera, offsets + [extra, 0.0, 0.0])
+            except ValueError as e:
+                raise ConfigError(f"scene.toml: camera.moves, camera.sway: a pose they reach is no camera: {e}") from None
+    return tuple(moves), sway
+
+
 def _read_routes(raw: dict) -> tuple[Route, ...]:
     """``[[agents.routes]]``. Raises ConfigError."""
     routes = []
@@ -421,6 +519,7 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
     if not model_path.is_file():
         raise ConfigError(f"scene.toml: model: {model_path} does not exist")
     camera = _read_camera(raw)
+    moves, sway = _read_motion(raw, camera)
     routes = _read_routes(raw)
     calib_xy = _read_calibration(raw)
 
@@ -447,6 +546,8 @@ def load_scene(folder: str | Path, check_trapezoid: bool = True) -> Scene:
         ground=_read_ground(model_path),
         raw=plain,
         quality=_get(raw, "render.quality", str, default="default"),
+        moves=moves,
+        sway=sway,
     )
     _check_unknown_keys(plain, read)
     _check_run(scene)

@@ -14,7 +14,7 @@ import pyarrow as pa
 from homocal.geometry.camera import PinholeCamera
 from simgen.agents import AgentState
 from simgen.detection import id_boxes
-from simgen.scene import in_frame
+from simgen.scene import GT_RATE, Scene, in_frame
 
 GT_SCHEMA = pa.schema([
     ("t", pa.float64()), ("step", pa.int64()), ("agent_id", pa.int32()),
@@ -22,6 +22,11 @@ GT_SCHEMA = pa.schema([
     ("u", pa.float64()), ("v", pa.float64()), ("in_frame", pa.bool_()),
     ("x1", pa.float64()), ("y1", pa.float64()), ("x2", pa.float64()), ("y2", pa.float64()),
     ("visible_fraction", pa.float64()), ("visible_pixels", pa.int32()),
+])  # fmt: skip
+
+CAMERA_POSE_SCHEMA = pa.schema([
+    ("t", pa.float64()), ("step", pa.int64()), ("tilt_deg", pa.float64()), ("roll_deg", pa.float64()),
+    ("yaw_deg", pa.float64()), ("horizon_a", pa.float64()), ("horizon_b", pa.float64()), ("horizon_c", pa.float64()),
 ])  # fmt: skip
 
 _ANGLES = np.linspace(0.0, 2.0 * np.pi, 24, endpoint=False)
@@ -113,3 +118,15 @@ def gt_columns(step: int, camera: PinholeCamera, state: AgentState, agent_ids: n
         "x1": box[:, 0], "y1": box[:, 1], "x2": box[:, 2], "y2": box[:, 3],
         "visible_fraction": fraction, "visible_pixels": pixels,
     }  # fmt: skip
+
+
+def camera_pose_table(scene: Scene) -> pa.Table:
+    """camera_pose.parquet (CAMERA_POSE_SCHEMA): the moving camera's pose at every ground-truth step
+    (``Scene.camera_at``) and its horizon a u + b v + c = 0 (``PinholeCamera.horizon``: the undistorted image,
+    a^2 + b^2 = 1, positive below the horizon)."""
+    steps = np.arange(scene.steps_total, dtype=np.int64)
+    poses = [scene.camera_at(x) for x in steps / GT_RATE]  # the instants simgen.chunks renders
+    angles = np.array([(c.tilt_deg, c.roll_deg, c.yaw_deg) for c in poses]).reshape(-1, 3)
+    lines = np.array([c.horizon for c in poses]).reshape(-1, 3)
+    return pa.Table.from_arrays([pa.array(steps * 0.05), pa.array(steps), *map(pa.array, angles.T), *map(pa.array, lines.T)],
+                                schema=CAMERA_POSE_SCHEMA)
