@@ -19,6 +19,8 @@ REQUIRED_COLUMNS = {
     "calibration.parquet": ["index", "distance_m", "x", "y", "u", "v", "u_exact", "v_exact"],
 }
 
+CAMERA_POSE = "camera_pose.parquet"  # the camera's pose per ground-truth step, in a dataset whose camera moves
+
 
 @dataclass(frozen=True)
 class Dataset:
@@ -43,6 +45,11 @@ class Dataset:
     trapezoid_image: np.ndarray
     trapezoid_map: np.ndarray
     trapezoids: dict
+
+    @property
+    def moving(self) -> bool:
+        """Whether the camera moves during the recording (simgen writes CAMERA_POSE only then, data_schema.md)."""
+        return (self.path / CAMERA_POSE).is_file()
 
     def calibration_points(self, source: str = EXACT) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Calibration objects in index order: image (M, 2) px, ground (M, 2) m, distance (M,) m.

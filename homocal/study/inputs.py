@@ -9,7 +9,7 @@ import numpy as np
 from homocal.correctors.descent import DescentCorrector
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.least_change import LeastChangeCorrector
-from homocal.dataset import EXACT, calibration_source, load_dataset
+from homocal.dataset import CAMERA_POSE, EXACT, calibration_source, load_dataset
 from homocal.geometry import SiteMap
 from homocal.geometry.lens import undistort_input
 from homocal.study.options import (DEFAULT_PRESET, Number, Parsed, Via, Words, declared_options, internal, option,
@@ -221,6 +221,9 @@ class StudyScene:
         """Load a dataset folder; calibration points from the exact or segmentation foot points (a detector's
         test points use segmentation calibration points, the only detector calibration objects carry)."""
         ds = load_dataset(path)
+        if ds.moving:
+            raise ValueError(f"{path}: its camera moves ({CAMERA_POSE}): the study's trapezoid and test points need a "
+                             "camera that stays still")
         cal_image, cal_ground, distance = ds.calibration_points(calibration_source(params.foot_source))
         if len(cal_image) < 3:
             raise ValueError(f"{path}: need at least 3 calibration points, got {len(cal_image)}")

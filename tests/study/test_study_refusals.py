@@ -136,3 +136,21 @@ def test_advise_refuses_a_seed_as_the_study_does(tmp_path, capsys, text):
               "-o", str(tmp_path / "a.csv")])
     assert raised.value.code == 2 and "argument --seed" in one_error_line(capsys)
     assert not any(tmp_path.iterdir())
+
+
+def test_a_dataset_whose_camera_moves_is_refused(dataset, tmp_path, capsys):
+    """A dataset with camera_pose.parquet (simgen writes it only when [[camera.moves]] or [camera.sway] move the
+    camera): its test points were seen by a moving camera, which the study's one trapezoid cannot map. One line
+    naming the file, exit 2, nothing written."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    moving = tmp_path / "moving"
+    shutil.copytree(dataset, moving)
+    pq.write_table(pa.table({"t": [0.0], "step": [0], "tilt_deg": [15.0]}), moving / "camera_pose.parquet")
+    assert load_dataset(moving).moving and not load_dataset(dataset).moving
+    before = snapshot(tmp_path)
+    out = tmp_path / "out"
+    assert main(["study", str(moving), "-o", str(out), "--variants", "1", "--n-test", "20", "--no-progress"]) == 2
+    assert "its camera moves (camera_pose.parquet)" in one_error_line(capsys)
+    assert snapshot(tmp_path) == before and not out.exists()
