@@ -40,6 +40,12 @@ def _quad_jacobian(source: np.ndarray, target: np.ndarray, points: np.ndarray, w
     return J
 
 
+def click_jacobian(transformer: ViewTransformer, image_points: np.ndarray) -> np.ndarray:
+    """J_s (N, 2, 8) of ``ground_uncertainty``: the derivative of the mapped points (N, 2) px -> target units
+    with respect to the 8 clicked image coordinates of the transformer's trapezoid."""
+    return _quad_jacobian(transformer.source, transformer.target, as_points(image_points, "image_points"), 0, STEP)
+
+
 def ground_uncertainty(
     transformer: ViewTransformer,
     image_points: np.ndarray,
@@ -77,7 +83,7 @@ def ground_uncertainty(
     Jq = (H[None, :2, :2] - mapped[:, :, None] * H[None, 2:3, :2]) / xyw[:, 2, None, None]  # (N, 2, 2)
     cov = sp**2 * Jq @ Jq.transpose(0, 2, 1)
     if sc > 0:
-        Js = _quad_jacobian(source, target, q, 0, STEP)
+        Js = click_jacobian(transformer, q)
         cov += sc**2 * Js @ Js.transpose(0, 2, 1)
     if sm > 0:
         Jt = _quad_jacobian(source, target, q, 1, 1e-6 * max(float(np.ptp(target, axis=0).max()), 1e-300))
