@@ -71,3 +71,27 @@ def test_split_speed_sigma_is_the_line_fit_plus_the_mapping_share():
     for k in (0, 29):
         expected = np.sqrt(u @ (Pv + monte_carlo_velocity_cov(ground[k], v)) @ u)
         assert abs(table["speed_sigma_mps"][k] / expected - 1) < 0.1, k
+
+
+def test_pedestrians_fitted_horizon_share_against_moving_the_horizon():
+    """A PedestrianCorrector's shared error includes its fitted horizon's (sigma horizon_sigma_px_): its share of
+    a velocity against the velocity seen through the correction with its horizon moved by -+ sigma / 100."""
+    import copy
+
+    from tests.correctors.test_pedestrians import _fit
+    c = _fit()
+    assert not c.roll_estimated_
+    ground, v = np.array([[1.0, 30.0]]), np.array([[0.6, -1.2]])
+    h = 0.05
+    q = c.transformer_.inverse_transform_points(np.vstack([ground - h * v, ground + h * v]))
+    moved, ends = copy.copy(c), []
+    for sign in (1.0, -1.0):
+        moved.horizon_row_ = c.horizon_row_ + sign * c.horizon_sigma_px_ / 100
+        moved._set_transformer()
+        a, b = moved.transform_points(q)
+        ends.append((b - a) / (2 * h))
+    d = 100 * (ends[0] - ends[1]) / 2  # the velocity's change per sigma of the horizon
+    feet = c.transformer_.inverse_transform_points(ground)
+    S = mapping_velocity_covariance(c, feet, v, click_sigma_px=0.0)[0]
+    np.testing.assert_allclose(S, np.outer(d, d), rtol=1e-3, atol=1e-3 * (d @ d))
+    assert d @ d > 1e-6  # not negligible
