@@ -41,6 +41,17 @@ def _quad_jacobian(source: np.ndarray, target: np.ndarray, points: np.ndarray, w
     return J
 
 
+def click_jacobian(transformer: ViewTransformer, image_points: np.ndarray, lens: Lens | None = None) -> np.ndarray:
+    """J_s (N, 2, 8) of ``ground_uncertainty``: the derivative of the mapped points (N, 2) px -> target units
+    with respect to the 8 clicked image coordinates of the transformer's trapezoid (with ``lens``: clicked on the
+    distorted frame, each corner's derivative times the undistortion's local Jacobian inv(lens.distort_jacobian))."""
+    Js = _quad_jacobian(transformer.source, transformer.target, as_points(image_points, "image_points"), 0, STEP)
+    if lens is None or lens.is_identity:
+        return Js
+    corners = np.linalg.inv(lens.distort_jacobian(transformer.source))  # (4, 2, 2) d(undistorted) / d(clicked)
+    return np.einsum("nikj,kjl->nikl", Js.reshape(len(Js), 2, 4, 2), corners).reshape(len(Js), 2, 8)
+
+
 def ground_uncertainty(
     transformer: ViewTransformer,
     image_points: np.ndarray,
@@ -84,14 +95,11 @@ def ground_uncertainty(
     xyw = np.column_stack([q, np.ones(len(q))]) @ H.T
     mapped = apply_homography(H, q)
     Jq = (H[None, :2, :2] - mapped[:, :, None] * H[None, 2:3, :2]) / xyw[:, 2, None, None]  # (N, 2, 2)
-    corners = np.broadcast_to(np.eye(2), (4, 2, 2))  # d(undistorted corner) / d(clicked corner)
     if lens is not None and not lens.is_identity:
-        A = np.linalg.inv(lens.distort_jacobian(np.vstack([source, q])))  # (4 + N, 2, 2) the undistortion's
-        corners, Jq = A[:4], Jq @ A[4:]
+        Jq = Jq @ np.linalg.inv(lens.distort_jacobian(q))  # the point detected on the distorted frame
     cov = sp**2 * Jq @ Jq.transpose(0, 2, 1)
     if sc > 0:
-        Js = _quad_jacobian(source, target, q, 0, STEP)
-        Js = np.einsum("nikj,kjl->nikl", Js.reshape(len(q), 2, 4, 2), corners).reshape(len(q), 2, 8)
+        Js = click_jacobian(transformer, q, lens)
         cov += sc**2 * Js @ Js.transpose(0, 2, 1)
     if sm > 0:
         Jt = _quad_jacobian(source, target, q, 1, 1e-6 * max(float(np.ptp(target, axis=0).max()), 1e-300))

@@ -2,7 +2,7 @@
 supervision's speed recipe (issue 34 item 4; docs/measure.md).
 
     python research/measure_speeds.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--shift 16]
-    python research/measure_speeds.py DATASET [DATASET ...] --spread
+    python research/measure_speeds.py DATASET [DATASET ...] --spread [--split]
     python research/measure_speeds.py DATASET --throughput 10
 
 Per dataset and detector, the clicked trapezoid is the dataset's exact one moved as a tilt error moves it so
@@ -33,6 +33,8 @@ true| <= k sigma_m, the 2D error against the semi-major axis; speeds: |speed - t
 
 --spread: each dataset evaluated on its own, its figures (band medians, the 5-50 m 90th percentile, coverage)
 given as mean [min, max] over the datasets.
+--split: the filter's measurement noise the foot point's own only, the shared mapping error added to the
+speed's bar (homocal.measure.measure_tracks(split_mapping_error=True)).
 --throughput MINUTES: the first dataset's segmentation boxes repeated (frames and track ids shifted) into a
 CSV of MINUTES minutes, then `homocal measure` on it as a subprocess: boxes per second and the child's peak
 resident memory (ru_maxrss).
@@ -123,7 +125,7 @@ def mappings(ds, detector: str, shift: float, frames: np.ndarray, xyxy: np.ndarr
     return {"uncorrected": clicked, "least change": least, "pedestrians": peds}, clicked
 
 
-def evaluate(paths: list[str], detector: str, shift: float) -> dict:
+def evaluate(paths: list[str], detector: str, shift: float, split: bool = False) -> dict:
     """{(mapping, estimator): dict of pooled arrays err (m/s), rel (%, NaN below WALKING_MPS), range, cover1/2
     (speeds), pos1/2 (positions)} over the datasets."""
     pooled: dict = collections.defaultdict(lambda: collections.defaultdict(list))
@@ -143,7 +145,8 @@ def evaluate(paths: list[str], detector: str, shift: float) -> dict:
         for name, mapping in maps.items():
             for estimator, smooth in (("filter", False), ("smoother", True)):
                 speed, sigma, pos_err, pos_sigma = (np.full(len(frames), np.nan) for _ in range(4))
-                for batch in measure_tracks(mapping, frames, feet, ids, fps, smooth=smooth):
+                for batch in measure_tracks(mapping, frames, feet, ids, fps, smooth=smooth,
+                                            split_mapping_error=split):
                     at = np.array([index[(f, k)] for f, k in zip(batch["frame"], batch["track_id"])])
                     speed[at], sigma[at] = batch["speed_mps"], batch["speed_sigma_mps"]
                     pos_err[at] = np.hypot(batch["x"] - true_xy[at, 0], batch["y"] - true_xy[at, 1])
@@ -251,6 +254,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--detectors", default="segmentation,rgb")
     parser.add_argument("--shift", type=float, default=16.0, help="the clicked horizon above the true one, px")
     parser.add_argument("--throughput", type=float, metavar="MINUTES")
+    parser.add_argument("--split", action="store_true", help="measure_tracks(split_mapping_error=True)")
     parser.add_argument("--spread", action="store_true", help="each dataset on its own: mean [min, max] over them")
     args = parser.parse_args(argv)
     if args.throughput:
@@ -258,9 +262,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     for detector in args.detectors.split(","):
         if args.spread:
-            print(spread_table([evaluate([d], detector, args.shift) for d in args.datasets], detector, args.shift) + "\n")
+            print(spread_table([evaluate([d], detector, args.shift, args.split) for d in args.datasets], detector, args.shift) + "\n")
         else:
-            print(table(evaluate(args.datasets, detector, args.shift), detector, args.shift) + "\n")
+            print(table(evaluate(args.datasets, detector, args.shift, args.split), detector, args.shift) + "\n")
     return 0
 
 

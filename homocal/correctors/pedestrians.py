@@ -652,6 +652,13 @@ class PedestrianCorrector(Corrector):
         transformer_ turned by tilt_homography(K, -+1e-6))."""
         q = as_points(image_points, "image_points")
         cov = super().ground_uncertainty(q, click_sigma_px, point_sigma_px, map_sigma_px)
+        J, angles = self.angle_modes(q)
+        return cov + J @ angles @ np.swapaxes(J, 1, 2)
+
+    def angle_modes(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The fitted camera angles' share of ``ground_uncertainty`` at image points q (N, 2) px: J (N, 2, 2),
+        the derivative of the corrected points (metres) along (tilt, roll) (radians), and the angles'
+        covariance (2, 2) (radians^2); the share is J cov J^T."""
         f, cy = self.focal_px_, self.principal_point_[1]
         roll = math.radians(self.roll_deg_)
         tilt = math.atan((cy - self.horizon_row_) * math.cos(roll) / f)
@@ -666,7 +673,7 @@ class PedestrianCorrector(Corrector):
         else:
             tilt_sigma = self.horizon_sigma_px_ / (f * (1.0 + math.tan(tilt) ** 2))
             angles = np.diag([tilt_sigma**2, 0.0])
-        return cov + J @ angles @ np.swapaxes(J, 1, 2)
+        return J, angles
 
     # ---- JSON ----------------------------------------------------------------------------------
     def to_dict(self) -> dict:

@@ -15,7 +15,7 @@ import numpy as np
 
 from homocal.geometry import ViewTransformer
 from homocal.measure.kalman import ACCEL_PSD, kalman_filter, rts_smoother, speed_and_sigma
-from homocal.uncertainty import ground_uncertainty, sigma_radius
+from homocal.uncertainty import STEP, click_jacobian, ground_uncertainty, sigma_radius
 
 COLUMNS = ("frame", "t", "track_id", "u", "v", "x", "y", "sigma_m", "x_smooth", "y_smooth", "vx", "vy", "speed_mps",
            "speed_sigma_mps")
@@ -75,6 +75,43 @@ def map_points(mapping: Mapping, feet: np.ndarray, click_sigma_px: float, point_
                                                                      point_sigma_px=point_sigma_px)
 
 
+def point_noise(mapping: Mapping, feet: np.ndarray, cov: np.ndarray, click_sigma_px: float) -> np.ndarray:
+    """The part (N, 2, 2) metres^2 of the ground covariances cov (N, 2, 2) of foot points (N, 2) px (``map_points``)
+    that is independent from frame to frame: cov less the shared mapping error (the mapping's ground_uncertainty
+    at point_sigma_px = 0: clicking, a fitted horizon), which is the same in every frame of a track."""
+    return cov - mapping.ground_uncertainty(feet, click_sigma_px=click_sigma_px, point_sigma_px=0.0)
+
+
+def mapping_modes(mapping: Mapping, feet: np.ndarray, click_sigma_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """The shared mapping error at foot points (N, 2) px as J (N, 2, k), the ground points' derivative along k
+    error parameters, and their covariance C (k, k), so that J C J^T is ground_uncertainty at point_sigma_px = 0:
+    the 8 clicked corner coordinates (``homocal.uncertainty.click_jacobian``, click_sigma_px each) and a
+    PedestrianCorrector's fitted tilt and roll (its ``angle_modes``)."""
+    J, C = click_jacobian(mapping.mapping, feet), click_sigma_px**2 * np.eye(8)
+    if hasattr(mapping, "angle_modes"):
+        Ja, Ca = mapping.angle_modes(feet)
+        J, C = np.concatenate([J, Ja], axis=2), np.block([[C, np.zeros((8, 2))], [np.zeros((2, 8)), Ca]])
+    return J, C
+
+
+def mapping_velocity_covariance(mapping: Mapping, feet: np.ndarray, v: np.ndarray, click_sigma_px: float
+                                ) -> np.ndarray:
+    """Covariance (N, 2, 2) (m/s)^2 of ground velocities v (N, 2) m/s at foot points (N, 2) px under the shared
+    mapping error: a perturbation e of the mapping moves a ground point by J(q) e (``mapping_modes``), the same
+    in every frame up to J's change along the track, so it moves the velocity by D e, D = dJ/dt = (dJ/dq) q',
+    with q' = (d mapping / dq)^-1 v the foot point's image velocity (px/s); D C D^T. Derivatives by central
+    differences: the mapping's over STEP px, J's over 1 px along q'. NaN where a foot point is NaN."""
+    d = np.stack([(mapping.transform_points(feet + STEP * e) - mapping.transform_points(feet - STEP * e))
+                  / (2 * STEP) for e in np.eye(2)], axis=-1)  # (N, 2, 2): d(x, y) / d(u, v)
+    q_dot = np.linalg.solve(d, v[..., None])[..., 0]
+    rate = np.linalg.norm(q_dot, axis=1)
+    e = q_dot / np.where(rate > 0, rate, 1.0)[:, None]  # unit image direction (0 where the point stands)
+    J_ahead, C = mapping_modes(mapping, feet + e, click_sigma_px)
+    J_behind, _ = mapping_modes(mapping, feet - e, click_sigma_px)
+    D = (J_ahead - J_behind) * (rate / 2)[:, None, None]
+    return D @ C @ D.transpose(0, 2, 1)
+
+
 def check_tracks(frames: np.ndarray, track_ids: np.ndarray) -> None:
     """ValueError for a track whose rows (in the given order) go back in frame or repeat one: the rows of a
     track must come in increasing frame order, one box per track and frame."""
@@ -108,7 +145,8 @@ def track_batches(track_ids: np.ndarray, frames: np.ndarray) -> Iterator[list[np
 
 def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
                    accel_psd: float = ACCEL_PSD, smooth: bool = True, click_sigma_px: float = 1.5,
-                   point_sigma_px: float = 1.0) -> Iterator[dict[str, np.ndarray]]:
+                   point_sigma_px: float = 1.0, split_mapping_error: bool = False
+                   ) -> Iterator[dict[str, np.ndarray]]:
     """homocal measure's table in batches of whole tracks (dicts of COLUMNS, each (rows,)), tracks in
     increasing id, each in frame order.
 
@@ -130,18 +168,22 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
     for batch in track_batches(track_ids, frames):
         rows = np.concatenate(batch)
         xy, cov = map_points(mapping, feet[rows], click_sigma_px, point_sigma_px)
+        noise = point_noise(mapping, feet[rows], cov, click_sigma_px) if split_mapping_error else cov
         n, L = len(batch), max(map(len, batch))
         t, z, R = np.empty((n, L)), np.full((n, L, 2), np.nan), np.full((n, L, 2, 2), np.nan)
         at = np.concatenate([[0], np.cumsum([len(r) for r in batch])])
         for i, r in enumerate(batch):
             m = len(r)
             t[i, :m], t[i, m:] = frames[r] / fps, frames[r[-1]] / fps
-            z[i, :m], R[i, :m] = xy[at[i]:at[i + 1]], cov[at[i]:at[i + 1]]
+            z[i, :m], R[i, :m] = xy[at[i]:at[i + 1]], noise[at[i]:at[i + 1]]
         filtered = kalman_filter(t, z, R, accel_psd)
         x, P = rts_smoother(filtered) if smooth else (filtered["x"], filtered["P"])
         used = np.concatenate([np.arange(len(r)) + i * L for i, r in enumerate(batch)])
         x, P = x.reshape(-1, 4)[used], P.reshape(-1, 4, 4)[used]
-        speed, speed_sigma = speed_and_sigma(x[:, 2:], P[:, 2:, 2:])
+        Pv = P[:, 2:, 2:]
+        if split_mapping_error:
+            Pv = Pv + mapping_velocity_covariance(mapping, feet[rows], x[:, 2:], click_sigma_px)
+        speed, speed_sigma = speed_and_sigma(x[:, 2:], Pv)
         yield {"frame": frames[rows], "t": frames[rows] / fps, "track_id": track_ids[rows], "u": feet[rows, 0],
                "v": feet[rows, 1], "x": xy[:, 0], "y": xy[:, 1], "sigma_m": sigma_radius(cov), "x_smooth": x[:, 0],
                "y_smooth": x[:, 1], "vx": x[:, 2], "vy": x[:, 3], "speed_mps": speed, "speed_sigma_mps": speed_sigma}

@@ -1,0 +1,97 @@
+"""homocal measure's split of the error model (measure_tracks(split_mapping_error=True)): the filter's
+measurement noise the foot point's own, the shared mapping error's share of a velocity against a Monte Carlo over
+perturbed clicked trapezoids, and the smoothed speed's sigma against a batch least-squares line fit."""
+import numpy as np
+import pytest
+
+from homocal.geometry import apply_homography, homography_from_quads, read_trapezoid_file
+from homocal.measure.tracks import (TrapezoidMapping, mapping_modes, mapping_velocity_covariance, measure_tracks,
+                                    point_noise)
+from homocal.uncertainty import ground_uncertainty
+
+CLICK_PX = 1.5
+TRANSFORMER = read_trapezoid_file("examples/street/trapezoid.json")[0]  # metres, camera at the origin
+MAPPING = TrapezoidMapping(TRANSFORMER)
+
+
+def monte_carlo_velocity_cov(ground: np.ndarray, v: np.ndarray, n: int = 2000) -> np.ndarray:
+    """(2, 2) covariance of the velocity v (2,) m/s at ground point (2,) seen through n trapezoids whose clicked
+    corners move by CLICK_PX: each perturbed homography applied to the foot points of ground -+ v h."""
+    h = 0.05
+    q = TRANSFORMER.inverse_transform_points(np.stack([ground - h * v, ground + h * v]))
+    rng = np.random.default_rng(0)
+    dv = []
+    for _ in range(n):
+        a, b = apply_homography(homography_from_quads(TRANSFORMER.source + rng.normal(0, CLICK_PX, (4, 2)),
+                                                       TRANSFORMER.target), q)
+        dv.append((b - a) / (2 * h))
+    return np.cov(np.array(dv).T)
+
+
+def test_point_noise_is_the_foot_points_own_part_and_the_modes_the_rest():
+    feet = TRANSFORMER.inverse_transform_points(np.array([[0.0, 10.0], [2.0, 25.0], [-3.0, 40.0]]))
+    cov = MAPPING.ground_uncertainty(feet, click_sigma_px=CLICK_PX, point_sigma_px=2.0)
+    own = ground_uncertainty(TRANSFORMER, feet, click_sigma_px=0.0, point_sigma_px=2.0)
+    np.testing.assert_allclose(point_noise(MAPPING, feet, cov, CLICK_PX), own, rtol=1e-9, atol=1e-12)
+    J, C = mapping_modes(MAPPING, feet, CLICK_PX)
+    np.testing.assert_allclose(J @ C @ J.transpose(0, 2, 1), cov - own, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.slow  # ~3-6 s: the Monte Carlo
+def test_mapping_velocity_covariance_against_monte_carlo():
+    for ground, v in (([0.0, 12.0], [0.0, 1.3]), ([3.0, 25.0], [1.3, 0.0]), ([-2.0, 40.0], [-0.9, 0.9])):
+        ground, v = np.array(ground), np.array(v)
+        feet = TRANSFORMER.inverse_transform_points(ground[None])
+        S = mapping_velocity_covariance(MAPPING, feet, v[None], CLICK_PX)[0]
+        mc = monte_carlo_velocity_cov(ground, v)
+        u = v / np.linalg.norm(v)
+        # 2000 draws: the sample sigma is good to ~2 % (1 / sqrt(2 n)); first order at 1.5 px to a few %
+        assert abs(np.sqrt(u @ S @ u) / np.sqrt(u @ mc @ u) - 1) < 0.1, (ground, v)
+        assert abs(np.sqrt(np.trace(S) / np.trace(mc)) - 1) < 0.1, (ground, v)
+
+
+def test_split_speed_sigma_is_the_line_fit_plus_the_mapping_share():
+    """A straight walk at constant velocity with almost no process noise: the smoothed velocity's covariance is
+    the weighted least-squares line fit's, [sum A_k^T R_k^-1 A_k]^-1 with A_k = [I, t_k I] and R_k the foot
+    point's own covariance; the speed's variance adds the Monte Carlo's mapping share along the velocity."""
+    fps, v = 10.0, np.array([0.8, 1.1])
+    t = np.arange(30) / fps
+    ground = np.array([-2.0, 15.0]) + t[:, None] * v
+    feet = TRANSFORMER.inverse_transform_points(ground)
+    (table,) = measure_tracks(TRANSFORMER, np.arange(30), feet, np.zeros(30, int), fps, accel_psd=1e-12,
+                              click_sigma_px=CLICK_PX, split_mapping_error=True)
+    R = ground_uncertainty(TRANSFORMER, feet, click_sigma_px=0.0, point_sigma_px=1.0)
+    info = np.zeros((4, 4))
+    for tk, Rk in zip(t, R):
+        A = np.hstack([np.eye(2), tk * np.eye(2)])
+        info += A.T @ np.linalg.inv(Rk) @ A
+    Pv = np.linalg.inv(info)[2:, 2:]
+    u = v / np.linalg.norm(v)
+    np.testing.assert_allclose(table["speed_mps"], np.linalg.norm(v), rtol=1e-5)  # the start prior's pull
+    for k in (0, 29):
+        expected = np.sqrt(u @ (Pv + monte_carlo_velocity_cov(ground[k], v)) @ u)
+        assert abs(table["speed_sigma_mps"][k] / expected - 1) < 0.1, k
+
+
+def test_pedestrians_fitted_horizon_share_against_moving_the_horizon():
+    """A PedestrianCorrector's shared error includes its fitted horizon's (sigma horizon_sigma_px_): its share of
+    a velocity against the velocity seen through the correction with its horizon moved by -+ sigma / 100."""
+    import copy
+
+    from tests.correctors.test_pedestrians import _fit
+    c = _fit()
+    assert not c.roll_estimated_
+    ground, v = np.array([[1.0, 30.0]]), np.array([[0.6, -1.2]])
+    h = 0.05
+    q = c.transformer_.inverse_transform_points(np.vstack([ground - h * v, ground + h * v]))
+    moved, ends = copy.copy(c), []
+    for sign in (1.0, -1.0):
+        moved.horizon_row_ = c.horizon_row_ + sign * c.horizon_sigma_px_ / 100
+        moved._set_transformer()
+        a, b = moved.transform_points(q)
+        ends.append((b - a) / (2 * h))
+    d = 100 * (ends[0] - ends[1]) / 2  # the velocity's change per sigma of the horizon
+    feet = c.transformer_.inverse_transform_points(ground)
+    S = mapping_velocity_covariance(c, feet, v, click_sigma_px=0.0)[0]
+    np.testing.assert_allclose(S, np.outer(d, d), rtol=1e-3, atol=1e-3 * (d @ d))
+    assert d @ d > 1e-6  # not negligible
