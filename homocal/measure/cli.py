@@ -11,7 +11,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 from tqdm import tqdm
 
-from homocal.arguments import number
+from homocal.arguments import CAMERA_JSON_HELP, camera_json, number
 from homocal.boxes import DEFAULT_DETECTOR, read_boxes
 from homocal.correctors.base import load_corrector
 from homocal.correctors.catalogue import label
@@ -55,6 +55,8 @@ def add_parser(subparsers) -> None:
                     "error bars.", epilog=FORMATS, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("correction", type=Path, metavar="CORRECTION.json", help="homocal fit's output, or a trapezoid file")
     p.add_argument("--boxes", required=True, type=Path, metavar="FILE", help="people's boxes (see below)")
+    p.add_argument("--camera-json", type=Path, metavar="CAMERA.json",
+                   help=CAMERA_JSON_HELP + ". With a trapezoid file only: a correction carries the lens it was fitted with")
     p.add_argument("--detector", metavar="NAME", help=f"the detector's rows of a detections.parquet (default {DEFAULT_DETECTOR})")
     p.add_argument("--fps", type=number(float, 0, MAX_FPS, low_open=True), metavar="F",
                    help="frames per second (default: the boxes' file's, when it says it)")
@@ -71,12 +73,18 @@ def add_parser(subparsers) -> None:
     p.set_defaults(handler=handle_measure)
 
 
-def load_mapping(path: Path):
-    """(a fitted Corrector or a TrapezoidMapping, its label) of a correction file or a trapezoid file."""
+def load_mapping(path: Path, camera_json_path: Path | None = None):
+    """(a fitted Corrector or a TrapezoidMapping, its label) of a correction file or a trapezoid file (its corners
+    undistorted with --camera-json's lens, which the mapping keeps); ValueError for --camera-json with a correction."""
     if json_format(path) == FORMAT:
+        if camera_json_path is not None:
+            raise ValueError(f"--camera-json: {path} is a correction, which carries the lens it was fitted with "
+                             "(homocal fit --camera-json); give --camera-json with a trapezoid file only")
         corrector = load_corrector(path)
         return corrector, f"the {label(corrector)} correction"
-    return TrapezoidMapping(read_trapezoid_file(path)[0]), "the trapezoid (uncorrected)"
+    camera = camera_json(camera_json_path)
+    lens = None if camera is None else camera.lens
+    return TrapezoidMapping(read_trapezoid_file(path, lens)[0], lens), "the trapezoid (uncorrected)"
 
 
 def file_fps(path: Path) -> float | None:
@@ -155,7 +163,7 @@ def handle_measure(args: argparse.Namespace) -> int:
         if path is not None:
             check_output_file(path, lambda p, c=columns: parquet_columns(p) == list(c), f"table of homocal measure {flag}")
     fps = check_fps(args)
-    mapping, what = load_mapping(args.correction)
+    mapping, what = load_mapping(args.correction, args.camera_json)
     boxes = read_boxes(args.boxes, args.detector, getattr(mapping, "lens_", None))  # undistorted with the fit's lens
     check_image_size(mapping, boxes.image_size, args)
     if boxes.track_ids is None:

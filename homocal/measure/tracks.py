@@ -13,7 +13,7 @@ from typing import Protocol
 
 import numpy as np
 
-from homocal.geometry import ViewTransformer
+from homocal.geometry import Lens, ViewTransformer
 from homocal.measure.kalman import ACCEL_PSD, kalman_filter, rts_smoother, speed_and_sigma
 from homocal.uncertainty import STEP, click_jacobian, ground_uncertainty, sigma_radius
 
@@ -48,19 +48,21 @@ class Mapping(Protocol):
 
 class TrapezoidMapping:
     """A clicked trapezoid's mapping with a Corrector's interface (no correction): its transform_points and
-    homocal.ground_uncertainty."""
+    homocal.ground_uncertainty. transformer maps undistorted pixels; lens (or None) is the camera's, as a
+    Corrector's ``lens_``: the clicks and the feet err on its distorted frame."""
 
-    def __init__(self, transformer: ViewTransformer) -> None:
+    def __init__(self, transformer: ViewTransformer, lens: Lens | None = None) -> None:
         if not isinstance(transformer, ViewTransformer):
             raise TypeError(f"transformer: expected a homocal.ViewTransformer, got {type(transformer).__name__}")
         self.mapping = self.base_transformer_ = transformer
+        self.lens_ = None if lens is None or lens.is_identity else lens
 
     def transform_points(self, image_points: np.ndarray) -> np.ndarray:
         return self.mapping.transform_points(image_points)
 
     def ground_uncertainty(self, image_points: np.ndarray, click_sigma_px: float = 1.5,
                            point_sigma_px: float = 1.0) -> np.ndarray:
-        return ground_uncertainty(self.mapping, image_points, click_sigma_px, point_sigma_px)
+        return ground_uncertainty(self.mapping, image_points, click_sigma_px, point_sigma_px, lens=self.lens_)
 
 
 def as_mapping(mapping) -> Mapping:
@@ -87,7 +89,7 @@ def mapping_modes(mapping: Mapping, feet: np.ndarray, click_sigma_px: float) -> 
     error parameters, and their covariance C (k, k), so that J C J^T is ground_uncertainty at point_sigma_px = 0:
     the 8 clicked corner coordinates (``homocal.uncertainty.click_jacobian``, click_sigma_px each) and a
     PedestrianCorrector's fitted tilt and roll (its ``angle_modes``)."""
-    J, C = click_jacobian(mapping.mapping, feet), click_sigma_px**2 * np.eye(8)
+    J, C = click_jacobian(mapping.mapping, feet, getattr(mapping, "lens_", None)), click_sigma_px**2 * np.eye(8)
     if hasattr(mapping, "angle_modes"):
         Ja, Ca = mapping.angle_modes(feet)
         J, C = np.concatenate([J, Ja], axis=2), np.block([[C, np.zeros((8, 2))], [np.zeros((2, 8)), Ca]])
