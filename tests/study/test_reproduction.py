@@ -612,7 +612,7 @@ def test_perturbation_spread_bad_inputs_are_one_line(datasets, args, code, messa
     assert bad.returncode == code and message in last and bad.stdout == "", bad.stderr
 
 
-@pytest.mark.parametrize("folder", ["missing", "empty"])
+@pytest.mark.parametrize("folder", ["missing", pytest.param("empty", marks=pytest.mark.slow)])  # each starts the script
 def test_perturbation_spread_refuses_a_folder_that_is_not_a_dataset(tmp_path, folder):
     script = Path(__file__).parents[2] / "research" / "perturbation_spread.py"
     path = tmp_path / folder
