@@ -163,6 +163,7 @@ def _with_quad(path, params, quad):
     return scene
 
 
+@pytest.mark.slow  # a study in a subprocess
 def test_dry_run_and_bad_input(datasets, tmp_path, capsys):
     assert main(["study", *datasets, "--out", str(tmp_path / "x"), "--preset", "paper", "--dry-run"]) == 0
     assert "total: 385,385 samples" in capsys.readouterr().out
