@@ -9,13 +9,14 @@ from pathlib import Path
 import pytest
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
-RENDERING_FIXTURES = {"tiny_dataset"}  # a test that uses one is marked generate (pyproject.toml's markers)
+RENDERING_FIXTURES = {"tiny_dataset"}  # a test that uses one is marked generate and slow (a 20 s render; pyproject.toml)
 
 
 def pytest_collection_modifyitems(items):
     for item in items:
         if RENDERING_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.generate)
+            item.add_marker(pytest.mark.slow)
 
 
 @pytest.fixture(scope="session")

@@ -37,6 +37,7 @@ README_MAX_LINES = 250
 NUMBER = re.compile(r"-?[0-9]+\.[0-9]+(?:e[-+]?[0-9]+)?")
 FULL_PRECISION = 12  # significant digits from which a shown number is a float written in full
 FLOAT_RTOL = 1e-6  # how far a float written in full may move (relative) on another machine
+SLOW_BLOCK = 2  # a console block running this many homocal commands or more is marked slow (a 2 s interpreter each)
 HISTORY = re.compile(r"sessions?\s+[0-9]", re.I)  # a session and its number: history lives in git and CHANGELOG.md
 
 
@@ -82,7 +83,9 @@ def commands(block: str) -> list[tuple[str, str]]:
     return out
 
 
-CONSOLE = [(page, block) for page in PAGES for block in blocks(page, "console")]
+CONSOLE = [pytest.param(page, block, id=f"{name(page)}: {block.split(chr(10))[0][2:60]}",
+                        marks=[pytest.mark.slow] if len(re.findall(r"^\$ homocal ", block, re.M)) >= SLOW_BLOCK else [])
+           for page in PAGES for block in blocks(page, "console")]
 PYTHON = [page for page in PAGES if blocks(page, "python")]
 
 
@@ -93,7 +96,7 @@ def folder(tmp_path: Path, monkeypatch) -> Path:
     return tmp_path
 
 
-@pytest.mark.parametrize("page, block", CONSOLE, ids=[f"{name(p)}: {b.split(chr(10))[0][2:60]}" for p, b in CONSOLE])
+@pytest.mark.parametrize("page, block", CONSOLE)
 def test_console_block(page, block, folder):
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     for command, expected in commands(block):

@@ -268,6 +268,7 @@ class TestHorizonCorrector:
 
 
 class TestDescentCorrector:
+    @pytest.mark.slow  # 12 descents
     @settings(max_examples=12, deadline=None)
     @given(st.lists(st.integers(-3, 3), min_size=8, max_size=8), st.integers(0, 2**64 - 1))
     def test_never_ends_above_initial_loss(self, offsets, seed):

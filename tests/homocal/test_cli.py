@@ -48,6 +48,7 @@ def work(tmp_path: Path) -> Path:
     return tmp_path
 
 
+@pytest.mark.slow  # two homocal processes per method, against the library
 @pytest.mark.parametrize("method,expected", [
     ("regression", lambda: RegressionCorrector()),
     ("regression-signed", lambda: RegressionCorrector(signed=True)),
@@ -81,6 +82,7 @@ def test_fit_and_apply_match_the_library(work, method, expected):
     assert sorted(p.name for p in work.iterdir()) == ["c.json", "feet.csv", "out.csv", "ref.csv", "trap.json"]
 
 
+@pytest.mark.slow  # homocal in a subprocess
 def test_apply_rounds_to_the_decimals_asked(work):
     """--decimals 3: x, y and sigma_m to the millimetre, each the full value rounded (nan stays nan); the input's
     columns as they were."""
@@ -95,6 +97,7 @@ def test_apply_rounds_to_the_decimals_asked(work):
     assert any(len(r["x"].split(".")[1]) > 3 for r in full) and all(len(r["x"].split(".")[1]) == 3 for r in mm[:3])
 
 
+@pytest.mark.slow  # homocal in a subprocess
 def test_fit_defaults_to_least_change(work):
     """The study's best method on median and failure tail together (README, paper preset) is fit's default."""
     fit = homocal("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "-o", "c.json", cwd=work)
@@ -103,6 +106,7 @@ def test_fit_defaults_to_least_change(work):
     assert saved == LeastChangeCorrector().fit(ViewTransformer(IMAGE, GROUND), REF_Q, REF_G, (0.0, 0.0)).to_dict()
 
 
+@pytest.mark.slow  # homocal in a subprocess
 def test_apply_marks_bad_rows_and_names_their_lines(work):
     assert homocal("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "--method", "regression-intercept",
                    "-o", "c.json", cwd=work).returncode == 0
@@ -120,6 +124,7 @@ def test_apply_marks_bad_rows_and_names_their_lines(work):
         assert (r["status"] == "ok") == all(np.isfinite(float(r[c])) for c in ("x", "y", "sigma_m"))
 
 
+@pytest.mark.slow  # homocal in a subprocess
 def test_point_behind_the_camera_is_a_warning(work):
     rows = np.column_stack([REF_Q, REF_G * [[1, 1], [1, 1], [1, -1]]])
     write_csv(work / "ref.csv", ["u", "v", "x", "y"], rows)
@@ -142,12 +147,14 @@ def _street_variants():
     return out
 
 
+@pytest.mark.slow  # homocal in a subprocess
 def test_street_example_fits(tmp_path):
     fit = homocal("fit", "--trapezoid", str(STREET / "trapezoid.json"), "--points", str(STREET / "reference_points.csv"),
                   "--method", "regression-intercept", "-o", "c.json", cwd=tmp_path)
     assert fit.returncode == 0 and fit.stderr == "", fit.stderr
 
 
+@pytest.mark.slow  # homocal in a subprocess
 def test_hybrid_reports_its_choice(work):
     fit = homocal("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "--method", "hybrid",
                   "--threshold", "50", "-o", "c.json", cwd=work)
@@ -156,6 +163,7 @@ def test_hybrid_reports_its_choice(work):
     assert f"hybrid chose {chosen}" in fit.stdout
 
 
+@pytest.mark.slow  # homocal in a subprocess
 @pytest.mark.parametrize("layout", ["site_map_inline", "simgen_dataset"])
 def test_site_map_pixels_and_simgen_trapezoids(work, layout):
     map_px = SITE_MAP.to_pixels(GROUND).tolist()
@@ -320,6 +328,7 @@ def boxes_work(tiny_dataset, tmp_path_factory) -> Path:
     return work
 
 
+@pytest.mark.slow  # fit and apply in subprocesses on a rendered dataset
 @pytest.mark.parametrize("boxes,flags", [("mot/det/segmentation.txt", []), ("{dataset}/detections.parquet", []),
                                          ("{dataset}/detections.parquet", ["--detector", "segmentation"])])
 def test_pedestrians_fit_then_apply(boxes_work, tiny_dataset, boxes, flags):

@@ -106,6 +106,7 @@ def _report(results: Path, out: Path | None, capsys) -> tuple[int, str]:
     return _run(["report", str(results), "--no-progress", *([] if out is None else ["-o", str(out)])], capsys)
 
 
+@pytest.mark.slow  # reports drawn
 def test_report_folder_is_marked_and_rewritten(results, tmp_path, capsys):
     out = tmp_path / "page"
     assert _report(results, out, capsys)[0] == 0

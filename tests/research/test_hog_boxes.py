@@ -19,6 +19,7 @@ def run(*args):
 
 
 @pytest.mark.skipif(hog_missing() is not None, reason="this OpenCV has no HOGDescriptor (the hog extra)")
+@pytest.mark.slow  # HOG over a rendered dataset
 def test_the_csv_holds_hogs_boxes_of_every_nth_frame_read_back_in_homocal_pixels(tiny_dataset, tmp_path):
     from simgen.detection.hog import HogDetector
 

@@ -30,6 +30,8 @@ def test_line_is_the_default_and_zigzag_alternates(tmp_path):
     np.testing.assert_array_equal(xy[:, 0], np.tile([3.0, -3.0], 20))
 
 
+@pytest.mark.generate
+@pytest.mark.slow  # scene1 rendered at 1280x720
 def test_zigzag_objects_are_rendered_where_they_stand(tmp_path):
     from simgen.static import calibration_table
     from simgen.stage import Stage

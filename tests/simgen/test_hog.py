@@ -44,6 +44,8 @@ def test_a_function_detector_s_rows_do_not_depend_on_the_order_it_returns_boxes_
         assert batch.agent_id.tolist() == [5, -1, -1, -1]
 
 
+@pytest.mark.generate
+@pytest.mark.slow  # three datasets rendered
 def test_every_detector_gives_the_same_bytes_in_two_serial_runs_and_two_workers(tmp_path):
     """Issue 26's case, short: segmentation, rgb and hog; two serial runs and a --workers 2 run of 1 s."""
     from simgen.cli import main
@@ -77,7 +79,8 @@ def person_frames():
     return frames
 
 
-@pytest.mark.parametrize("upscale, which", [(1.0, 0), (2.0, 0), (2.0, 1)])  # 1x: about 80 px at 12 m; 2x: also 66 px at 15 m
+@pytest.mark.generate
+@pytest.mark.parametrize("upscale, which", [(1.0, 0), pytest.param(2.0, 0, marks=pytest.mark.slow), pytest.param(2.0, 1, marks=pytest.mark.slow)])  # 1x: about 80 px at 12 m; 2x: also 66 px at 15 m
 def test_hog_finds_a_rendered_person_and_its_foot_point(person_frames, upscale, which):
     rgb, ids = person_frames[which]
     batch = HogDetector(upscale=upscale).detect(0, 0.0, rgb, ids)
@@ -90,6 +93,8 @@ def test_hog_finds_a_rendered_person_and_its_foot_point(person_frames, upscale, 
     assert abs(foot[0] - (seg[0] + seg[2]) / 2) < 0.05 * height and abs(foot[1] - seg[3]) < 0.15 * height  # window steps of 8 px / upscale
 
 
+@pytest.mark.generate
+@pytest.mark.slow  # a dataset rendered
 def test_generate_runs_the_hog_detector_when_asked(tmp_path):
     from simgen.cli import main
 

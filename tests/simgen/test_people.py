@@ -80,6 +80,8 @@ CASES = [(h, heading, stride, phase) for h in (1.5, 1.95) for heading in (0.0, 1
          for stride, phase in ((1.2, 0.0), (1.2, 0.5), (0.0, 0.0))]
 
 
+@pytest.mark.generate
+@pytest.mark.slow  # 30 segmentation renders of scene1 at 1280x720
 def test_rendered_feet_agree_with_the_foot_point_at_10_m(stage):
     """Each foot found in a feet-only segmentation render (MuJoCo offscreen), its pixels back-projected to the
     plane of the foot's axis (z = foot radius); the midpoint of the two feet, projected, lies within 2 px of the

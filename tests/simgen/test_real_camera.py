@@ -14,7 +14,7 @@ from simgen.scene import load_scene
 
 from scene_copies import copy_scene
 
-pytestmark = pytest.mark.generate
+pytestmark = [pytest.mark.generate, pytest.mark.slow]  # a dataset rendered
 
 
 @pytest.fixture(scope="module")

@@ -32,7 +32,7 @@ def _env(**set_vars: str) -> dict:
 REAL_CAMERA = {"yaw_deg": 8.0, "roll_deg": 1.0, "distortion": [-0.30678, 0.0825017, 0.0028784, -0.00015829, 0.0]}
 
 
-@pytest.mark.parametrize("camera", [{}, REAL_CAMERA], ids=["pinhole", "real"])
+@pytest.mark.parametrize("camera", [{}, pytest.param(REAL_CAMERA, marks=pytest.mark.slow)], ids=["pinhole", "real"])
 @pytest.mark.parametrize("backend", ["egl", "osmesa"])
 def test_marker_on_ground_point_lands_on_its_projection(backend, camera):
     """Rendered markers land on cv2.projectPoints of their centres (with the lens, roll and yaw: through the wide

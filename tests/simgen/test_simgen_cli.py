@@ -77,6 +77,7 @@ def test_progress_option(flag, expected):
     assert show_progress(_parser().parse_args(["generate", "s", "-o", "x", *flag])) is expected
 
 
+@pytest.mark.generate  # renders a frame
 def test_preview_writes_its_png_and_says_so(small_scene, tmp_path, capsys):
     png = tmp_path / "frame.png"
     assert main(["preview", str(small_scene), "-o", str(png), "--t", "2"]) == 0

@@ -383,6 +383,7 @@ def sweep_files(out: Path) -> dict[str, bytes]:
     return {str(p.relative_to(out)): p.read_bytes() for p in sorted(out.rglob("*")) if p.is_file() and p.name != "timing.json"}
 
 
+@pytest.mark.slow  # end to end: sweeps and research scripts
 def test_sweep_resumed_after_a_kill_gives_identical_files(datasets, tmp_path):
     """A sweep killed (SIGKILL) during its second run, then resumed, writes the files of an uninterrupted one
     (timing.json aside); sweep.csv has a row per method per value with D; the closest value is named."""
@@ -408,6 +409,7 @@ def test_sweep_resumed_after_a_kill_gives_identical_files(datasets, tmp_path):
     assert len(lines) == 1 + 3 * len(metrics.METHODS)
 
 
+@pytest.mark.slow  # end to end: sweeps and research scripts
 def test_table1_reach_reads_a_sweep(datasets, tmp_path):
     """research/table1_reach.py on a sweep: every run named by its options, ranked by sweep.csv's D, and each
     number's nearest value and the bound (the RMS of the nearest gaps) as computed here from sweep.csv."""
@@ -468,6 +470,7 @@ def test_least_mean_error_against_a_one_dimensional_search():
         assert least_mean_error(d[:, None], t, q) == pytest.approx(f((lo + hi) / 2), abs=1e-9)
 
 
+@pytest.mark.slow  # end to end: sweeps and research scripts
 def test_radial_ceiling_bounds_every_sample_of_a_study(datasets, tmp_path):
     """study.ceiling on a sweep of the metric: no sample's path improvement under a radial method exceeds its
     variant's ceiling for that method's family (float32 shards: 1e-3 pp), and the families nest;
@@ -583,6 +586,7 @@ def test_perturbation_is_recorded_said_and_checked(datasets, tmp_path, capsys):
         assert not out.exists()
 
 
+@pytest.mark.slow  # end to end: sweeps and research scripts
 def test_perturbation_spread_measures_each_reading(datasets):
     """research/perturbation_spread.py: one row per scene and reading; its share of unperturbed variants counted
     from draw_variant here, and its horizon spread against the horizon row computed here from OpenCV's homography
@@ -612,13 +616,13 @@ def test_perturbation_spread_measures_each_reading(datasets):
 
 
 
-@pytest.mark.parametrize("args, code, message", [
+@pytest.mark.parametrize("args, code, message", [  # each row starts the script: the first is fast, the rest slow
     (["--variants", "1"], 1, "perturbation_spread.py: --variants must be at least 2 (a spread needs two variants)"),
-    (["--variants", "0"], 1, "perturbation_spread.py: --variants must be at least 2"),
-    (["--image-width", "0"], 2, "argument --image-width: expected a number in (0, 100000] (px) or none, got '0'"),
-    (["--map-scale", "nan"], 2, "argument --map-scale"),
-    (["--perturbation", "each"], 2, "argument --perturbation: expected one of coordinate, variant, variant-positive, got 'each'"),
-    (["--horizon-shift", "normal:1"], 2, "argument --horizon-shift: expected a number of pixels"),
+    pytest.param(["--variants", "0"], 1, "perturbation_spread.py: --variants must be at least 2", marks=pytest.mark.slow),
+    pytest.param(["--image-width", "0"], 2, "argument --image-width: expected a number in (0, 100000] (px) or none, got '0'", marks=pytest.mark.slow),
+    pytest.param(["--map-scale", "nan"], 2, "argument --map-scale", marks=pytest.mark.slow),
+    pytest.param(["--perturbation", "each"], 2, "argument --perturbation: expected one of coordinate, variant, variant-positive, got 'each'", marks=pytest.mark.slow),
+    pytest.param(["--horizon-shift", "normal:1"], 2, "argument --horizon-shift: expected a number of pixels", marks=pytest.mark.slow),
 ])
 def test_perturbation_spread_bad_inputs_are_one_line(datasets, args, code, message):
     """research/perturbation_spread.py's bad inputs: each one line on stderr naming the problem, its exit code."""
@@ -628,7 +632,7 @@ def test_perturbation_spread_bad_inputs_are_one_line(datasets, args, code, messa
     assert bad.returncode == code and message in last and bad.stdout == "", bad.stderr
 
 
-@pytest.mark.parametrize("folder", ["missing", "empty"])
+@pytest.mark.parametrize("folder", ["missing", pytest.param("empty", marks=pytest.mark.slow)])  # each starts the script
 def test_perturbation_spread_refuses_a_folder_that_is_not_a_dataset(tmp_path, folder):
     script = Path(__file__).parents[2] / "research" / "perturbation_spread.py"
     path = tmp_path / folder

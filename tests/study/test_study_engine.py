@@ -58,6 +58,7 @@ def test_results_directory_contract(reference):
     assert (d_spread > 0).all() and np.isfinite(shard.column("path_descent").to_numpy()).all()
 
 
+@pytest.mark.slow  # end to end: studies in subprocesses
 def test_same_seed_same_bytes_and_resume_after_kill(datasets, tmp_path):
     """A study killed (SIGKILL) as soon as its first shard is on disk, then resumed, gives the bytes of an
     uninterrupted run. 150 variants (302 shards, about a second of work once compiled) so the kill lands
@@ -116,6 +117,7 @@ def test_resume_rejects_a_shard_without_its_degenerate_reason(datasets, referenc
     assert not (out / "shards" / "scene_a" / "variant_00002.parquet").exists()
 
 
+@pytest.mark.slow  # end to end: a Dask LocalCluster
 def test_dask_local_cluster_matches_in_process(datasets, reference, tmp_path):
     out = tmp_path / "dask"
     assert main(["study", *datasets, "--out", str(out), "--variants", "40", "--n-test", "200", "--workers", "2"]) == 0
@@ -161,6 +163,7 @@ def _with_quad(path, params, quad):
     return scene
 
 
+@pytest.mark.slow  # a study in a subprocess
 def test_dry_run_and_bad_input(datasets, tmp_path, capsys):
     assert main(["study", *datasets, "--out", str(tmp_path / "x"), "--preset", "paper", "--dry-run"]) == 0
     assert "total: 385,385 samples" in capsys.readouterr().out
@@ -229,7 +232,8 @@ def test_a_second_writer_is_refused_with_who_holds_the_lock(datasets, tmp_path, 
     assert main(["study", *datasets, "-o", str(out), "--variants", "1", "--n-test", "50"]) == 0  # free again
 
 
-@pytest.mark.parametrize("fault", ["garbage", "cut", "other_variant", "swapped", "other_seed", "deleted"])
+@pytest.mark.parametrize("fault", ["garbage", "cut", "other_variant", "swapped", "other_seed",
+                                   pytest.param("deleted", marks=pytest.mark.slow)])  # deleted: a report drawn
 def test_resume_and_report_check_every_shard(datasets, reference, tmp_path, capsys, fault):
     """A garbage or cut shard, a valid shard of another variant copied over one, two shards swapped, a shard of
     another study (seed 1): resume and report refuse it, naming the file, and the refused resume leaves

@@ -156,6 +156,7 @@ class TestReportCommand:
         assert (out / "table.md").read_text().count("### ") == len(METHODS)
         assert (out / "table.csv").read_text().startswith("method,metric,alpha,beta,overall,paper")
 
+    @pytest.mark.slow  # a whole report drawn
     def test_page_reads_as_a_page(self, results, tmp_path):
         """A table of contents linking every section; the headline figure before every other; the settings as the
         study's flags with their units, never study.json's keys, raw JSON or null."""
@@ -271,6 +272,7 @@ class TestDatasetFigures:
         assert shifted == pytest.approx(ds.camera.horizon_row - 5.0, abs=1e-6)
         np.testing.assert_allclose(picked[2][1][0] - ds.trapezoid_image, [[0.5, 0.5], [0.5, 0.5], [-2.5, 1.5], [0.5, 0.5]])
 
+    @pytest.mark.slow  # a whole report drawn
     def test_report_draws_them(self, dataset_dir, tmp_path):
         write_results(tmp_path, datasets={s: str(dataset_dir) for s in SCENES})
         write_variants(tmp_path / "variants" / "alpha.parquet")
@@ -304,6 +306,7 @@ class TestSeveralStudies:
             roots.append(root)
         return roots
 
+    @pytest.mark.slow  # a whole report drawn
     def test_spread_table(self, studies, tmp_path, capsys):
         out = tmp_path / "report"
         assert main(["report", *map(str, studies), "--out", str(out)]) == 0
@@ -323,6 +326,7 @@ class TestSeveralStudies:
                 assert min(values) < max(values)  # three seeds, three distances
         assert "Over 3 studies of this configuration (seeds 0, 1, 2)" in (out / "report.html").read_text()
 
+    @pytest.mark.slow  # a whole report drawn
     def test_one_study_has_a_spread_table_too(self, studies, tmp_path):
         report.write_report(studies[0], tmp_path / "one")
         rows = list(csv.DictReader((tmp_path / "one" / "table_spread.csv").open(encoding="utf-8")))

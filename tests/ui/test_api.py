@@ -498,7 +498,8 @@ def test_locate_maps_a_point_and_corrects_it(session):
 
 
 # ---- save and load ---------------------------------------------------------------------------------------
-@pytest.mark.parametrize("method", ["regression-signed", "regression-intercept", "horizon", "hybrid"])  # hybrid: descent too
+@pytest.mark.parametrize("method", ["regression-signed", "regression-intercept", "horizon",
+                                    pytest.param("hybrid", marks=pytest.mark.slow)])  # hybrid: descent too
 def test_saved_files_give_homocal_fits_correction(server, session, tmp_path, capsys, method):
     status, answer = post(server, "api/save", request(method=method, seed=3, threshold=80.0))
     assert status == 200, answer
@@ -601,6 +602,7 @@ def test_bad_command_lines(tmp_path, monkeypatch, capsys, args, message):
     assert err.startswith("homocal: error: ") and message in err and err.count("\n") == 1
 
 
+@pytest.mark.slow  # homocal ui in a subprocess
 def test_the_printed_url_carries_the_token_and_out_is_made(tmp_path):
     """`homocal ui --out NEW` makes the one missing folder; its printed URL's token opens the API."""
     cv2.imwrite(str(tmp_path / "f.png"), np.zeros((8, 8, 3), np.uint8))
