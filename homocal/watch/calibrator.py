@@ -29,7 +29,7 @@ holds only such observations (re-armed or new people): the people before the det
 those who straddle the change point and all others, because the change point is only an estimate (on a
 step it is early or late by several people, so some of them saw the camera before the move, and a straddling
 person's median is from whichever pose most of their boxes saw), while every box after the detection
-saw the moved camera; those still in view give their new observation anyway (one person, one observation),
+saw the moved camera (after a step; a ramp may go on); those still in view give their new observation anyway (one person, one observation),
 only those gone are lost. The test re-arms at MIN_PEOPLE people. Memory: the last WINDOW_PEOPLE people of the
 stretch and the live tracks of the last LINK_GAP frames (at most MAX_TRACKS, each at most PERSON_BOXES rows):
 bounded whatever the stream's length; work per box is constant (a move re-arms the live tracks once).
