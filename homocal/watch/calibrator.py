@@ -21,10 +21,18 @@ gives a mean of ``arl0_people`` people between false alarms on a steady camera b
 of a one-sided CUSUM's run length (normal increments; Siegmund 1985, "Sequential analysis"; two sides:
 half of it): ARL0 = (exp(2 k b) - 2 k b - 1) / (2 k^2) / 2, b = h + 1.166 (``cusum_threshold``).
 Each person is tested against the estimate of the people before it, then joins it (a self-starting CUSUM,
-as Hawkins 1987). At a move, the people since the alarming statistic's last 0 (its change point estimate)
-start the new stretch, whose estimate starts from them; the test re-arms at MIN_PEOPLE people. Memory: the
-last WINDOW_PEOPLE people of the stretch and the live tracks of the last LINK_GAP frames (at most MAX_TRACKS):
-bounded whatever the stream's length; work per box is constant.
+as Hawkins 1987). At a move, the people since the alarming statistic's last 0 (its change point estimate) give
+the move's horizon after, and the new stretch (from that change point on) starts from their estimate; then
+every live track is re-armed: each person in view gives a new observation from their boxes after the
+detection, so the stretch fills at once from the people in view, not only from newcomers. The new stretch
+holds only such observations (re-armed or new people): the people before the detection are dropped from it,
+those who straddle the change point and all others, because the change point is only an estimate (on a
+step it is early or late by several people, so some of them saw the camera before the move, and a straddling
+person's median is from whichever pose most of their boxes saw), while every box after the detection
+saw the moved camera (after a step; a ramp may go on); those still in view give their new observation anyway (one person, one observation),
+only those gone are lost. The test re-arms at MIN_PEOPLE people. Memory: the last WINDOW_PEOPLE people of the
+stretch and the live tracks of the last LINK_GAP frames (at most MAX_TRACKS, each at most PERSON_BOXES rows):
+bounded whatever the stream's length; work per box is constant (a move re-arms the live tracks once).
 
 A gap in the stream longer than LINK_GAP frames ends every track (a person seen again is a new person): a gap
 is a gap, the estimate and the test go on; a move during a gap is found from the people after it.
@@ -165,6 +173,7 @@ class OnlineCalibrator:
         self._cusum = [0.0, 0.0]
         self.stretch_start_s = 0.0
         self.estimate = (math.nan, math.nan, 1.0)  # horizon row, sigma, scale s
+        self.n_people = 0  # the people behind the estimate
 
     # ---- boxes -> people ------------------------------------------------------------------------
     def update(self, frame: int, boxes: np.ndarray, track_ids: np.ndarray | None = None) -> State:
@@ -208,14 +217,17 @@ class OnlineCalibrator:
             del self._tracks[key]
         if len(self._tracks) > MAX_TRACKS:
             raise ValueError(f"frame {frame}: more than {MAX_TRACKS} people (tracks) at once")
-        move = None
+        move, observed = None, []
         for person in people:
-            move = self._observe(person) or move
+            observed.append(person)
+            move = self._observe(person)
+            if move:  # the tracks are re-armed: this frame's other people give new observations later
+                break
         row, sigma, _ = self.estimate
         armed = len(self._people) >= MIN_PEOPLE
-        return State(t, self.stretch_start_s, row, sigma, len(self._people),
+        return State(t, self.stretch_start_s, row, sigma, self.n_people,
                      *(self._cusum if armed else (math.nan, math.nan)), self.threshold if armed else math.nan, move,
-                     tuple(p[1] for p in people), tuple(p[2] for p in people))
+                     tuple(p[1] for p in observed), tuple(p[2] for p in observed))
 
     # ---- people -> estimate and test ------------------------------------------------------------
     def _observe(self, person: tuple[float, float, float]) -> Move | None:
@@ -233,19 +245,22 @@ class OnlineCalibrator:
         side = int(np.argmax(self._cusum))
         if armed and self._cusum[side] > self.threshold:
             return self._move(side, person[0])
-        self.estimate = robust_location(people)
+        self.estimate, self.n_people = robust_location(people), len(people)
         return None
 
     def _move(self, side: int, now: float) -> Move:
-        """Split the stretch at the alarming statistic's last 0: the people since start the new stretch."""
+        """Split the stretch at the alarming statistic's last 0, whose people give the new stretch's first estimate;
+        empty the stretch and re-arm every live track (module docstring)."""
         people = list(self._people)
         start = len(people) - min(self._since_zero[side], len(people) - 1)
         before, after = robust_location(people[:start]), robust_location(people[start:])
         move = Move(people[start][0], now, before[0], before[1], after[0], after[1], self._cusum[side], self.threshold,
                     1 if side == 0 else -1, start)
-        self._people = deque(people[start:], maxlen=WINDOW_PEOPLE)
+        self._people = deque(maxlen=WINDOW_PEOPLE)
+        for track in self._tracks.values():
+            track[1], track[2] = [], []
         self._since_zero, self._cusum = [0, 0], [0.0, 0.0]
-        self.stretch_start_s, self.estimate = people[start][0], after
+        self.stretch_start_s, self.estimate, self.n_people = people[start][0], after, len(people) - start
         return move
 
     # ---- corrections ---------------------------------------------------------------------------
@@ -256,7 +271,7 @@ class OnlineCalibrator:
         if not math.isfinite(row):
             raise ValueError("no person seen yet: no horizon to correct with")
         return PedestrianCorrector(self.height_mean_m, self.height_sd_m).from_horizon(
-            transformer, row, sigma, self.K, self.camera_height_m, len(self._people), camera_origin)
+            transformer, row, sigma, self.K, self.camera_height_m, self.n_people, camera_origin)
 
 
 def robust_location(people) -> tuple[float, float, float]:

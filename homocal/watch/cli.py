@@ -173,7 +173,7 @@ class _Run:
     def finish(self) -> None:
         """The current stretch's correction (3 people or more), horizon.parquet closed and put in place."""
         cal = self.calibrator
-        n = len(cal._people)
+        n = cal.n_people
         if n >= 3:
             self._save(cal.stretch_start_s, cal.estimate[0], cal.estimate[1], n)
         self._flush()

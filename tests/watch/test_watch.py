@@ -286,3 +286,39 @@ def test_watch_refuses_its_settings_as_fit_does(tmp_path, capsys, monkeypatch, e
                      monkeypatch=monkeypatch)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and message in r.stderr, r.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.slow
+def test_a_move_rearms_the_people_in_view_and_the_new_stretch_is_unbiased():
+    """simgen.boxstream's walkers of scene1 (seed 2), the camera tilting 2 degrees further down at 60 s: every person
+    in view at the detection with PERSON_BOXES usable boxes in the frames after it is in the new stretch at once,
+    and that stretch's horizon is nearer the moved camera's than the change point's people's."""
+    from pathlib import Path
+
+    from homocal.correctors.pedestrians import _on_border
+    from homocal.watch.calibrator import PERSON_BOXES
+    from simgen.boxstream import box_stream
+    from simgen.scene import CameraMove, load_scene
+
+    scene = load_scene(Path(__file__).resolve().parents[2] / "simgen" / "scenes" / "scene1")
+    moving = dataclasses.replace(scene, moves=(CameraMove(60.0, tilt_deg=2.0),))
+    frames = list(box_stream(moving, 2, 80.0, FPS))
+    cam = scene.camera
+    cal = OnlineCalibrator(cam.K, cam.mount_height_m, FPS, (cam.width, cam.height), 1.71, 0.09)
+    states = [cal.update(f, b, i) for f, b, i in frames]
+    detected = [k for k, s in enumerate(states) if s.move]
+    assert len(detected) == 1 and states[detected[0]].move.detected_s > 60.0
+    d = detected[0]
+    # the people in view at the detection whose next PERSON_BOXES boxes are all usable (not at the image border,
+    # a finite implied horizon: a person partly in view may have none)
+    def usable(xyxy, ids):
+        rows = implied_horizon_rows(xyxy[:, 3], xyxy[:, 1], cam.K[1, 1], cam.K[1, 2], cam.mount_height_m, 1.71)[0]
+        return set(ids[np.isfinite(rows) & ~_on_border(xyxy, (cam.width, cam.height))].tolist())
+    usable = [usable(xyxy, ids) for _, xyxy, ids in frames[d + 1:d + 1 + PERSON_BOXES]]
+    in_view = set(frames[d][2].tolist()).intersection(*usable)
+    after = states[d + PERSON_BOXES]  # newcomers need PERSON_BOXES boxes after the detection: none is in yet
+    assert len(in_view) >= 10 and after.n_people == len(in_view)
+    true_row = moving.camera_at(after.t_s).horizon_row
+    error = abs(after.horizon_row - true_row)
+    # the change point's people (3eaf950's new stretch: 2.97 px off at this frame) are further off
+    assert error < abs(states[d].move.horizon_after - true_row) and error < 3 * after.horizon_sigma_px
