@@ -207,3 +207,17 @@ def test_a_trapezoid_on_a_distorted_camera_takes_the_lens(tmp_path, capsys, monk
                      "--out", "u.parquet", cwd=tmp_path, capsys=capsys, monkeypatch=monkeypatch)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "carries the lens it was fitted with" in r.stderr
     assert not (tmp_path / "u.parquet").exists()
+
+
+def test_foot_noise_by_box_height(scene, capsys, monkeypatch):
+    """--foot-noise box-height: each foot point's sigma 0.06 x its box's 80 px (4.8 px, FOOT_SIGMA_PER_BOX_HEIGHT),
+    so sigma_m is that of --point-sigma-px 4.8 with the fixed noise, and the noise-free walkers' speeds stay."""
+    out = {}
+    for name, extra in (("box", ["--foot-noise", "box-height"]), ("fixed", ["--point-sigma-px", "4.8"])):
+        r = homocal_main("measure", "trap.json", "--boxes", "boxes.csv", "--fps", "10", "--out", f"{name}.parquet",
+                         *extra, cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
+        assert r.returncode == 0, r.stderr
+        out[name] = pq.read_table(scene / f"{name}.parquet").to_pandas()
+    np.testing.assert_allclose(out["box"].sigma_m, out["fixed"].sigma_m, rtol=1e-9)
+    for k, track in out["box"].groupby("track_id"):
+        np.testing.assert_allclose(track.speed_mps, np.hypot(*WALKERS[k][2:]), atol=0.02)
