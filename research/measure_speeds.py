@@ -2,7 +2,7 @@
 supervision's speed recipe (issue 34 item 4; docs/measure.md).
 
     python research/measure_speeds.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--shift 16]
-    python research/measure_speeds.py DATASET [DATASET ...] --spread [--split]
+    python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma]
     python research/measure_speeds.py DATASET --throughput 10
 
 Per dataset and detector, the clicked trapezoid is the dataset's exact one moved as a tilt error moves it so
