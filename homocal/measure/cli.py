@@ -20,10 +20,12 @@ from homocal.files import check_output_file, json_format, read_json, write_atomi
 from homocal.geometry import read_trapezoid_file
 from homocal.geometry.boxes import box_bottom_points, link_tracks
 from homocal.measure.kalman import ACCEL_PSD
-from homocal.measure.tracks import (COLUMNS, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
+from homocal.measure.tracks import (COLUMNS, FOOT_SIGMA_PER_BOX_HEIGHT, box_height_sigma_px, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
                                     TrapezoidMapping, check_people_per_frame, check_tracks, measure_tracks, pair_distances, summarise)
 from homocal.progress import add_progress_option, show_progress
 
+FOOT_NOISE = ("fixed", "box-height")
+"""--foot-noise's choices (docs/measure.md, The filter)."""
 MAX_FPS = 1000.0
 """The highest frame rate taken (--fps, or the boxes' file's)."""
 INTEGER_COLUMNS = {"frame", "track_id", "frames", "first_frame", "last_frame", "track_a", "track_b"}
@@ -69,6 +71,10 @@ def add_parser(subparsers) -> None:
                    help="clicking error of each trapezoid coordinate, pixels (default 1.5)")
     p.add_argument("--point-sigma-px", type=number(float, 0), default=1.0, metavar="PX",
                    help="error of each foot point coordinate, pixels (default 1.0)")
+    p.add_argument("--foot-noise", choices=FOOT_NOISE, default=FOOT_NOISE[0],
+                   help="fixed: each point's whole covariance (--point-sigma-px) is the filter's measurement noise; "
+                        f"box-height: the foot point's own error, {FOOT_SIGMA_PER_BOX_HEIGHT:g} x its box's height px "
+                        "(fitted), is, and the shared mapping error goes into the speed's sigma (default fixed)")
     add_progress_option(p)
     p.set_defaults(handler=handle_measure)
 
@@ -188,11 +194,14 @@ def handle_measure(args: argparse.Namespace) -> int:
             check_people_per_frame(frames)
         except ValueError as e:
             raise ValueError(f"--pairs: {args.boxes}: {e}") from None
-    sigmas = {"click_sigma_px": args.click_sigma_px, "point_sigma_px": args.point_sigma_px}
+    by_box = args.foot_noise == "box-height"
+    sigmas = {"click_sigma_px": args.click_sigma_px,
+              "point_sigma_px": box_height_sigma_px(boxes.xyxy[keep]) if by_box else args.point_sigma_px}
     summaries = []
 
     def tracks():
-        for batch in measure_tracks(mapping, frames, feet, ids, fps, accel_psd=args.accel_psd, **sigmas):
+        for batch in measure_tracks(mapping, frames, feet, ids, fps, accel_psd=args.accel_psd,
+                                    split_mapping_error=by_box, **sigmas):
             summaries.append(summarise(batch))
             yield batch
 

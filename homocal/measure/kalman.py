@@ -87,10 +87,16 @@ def rts_smoother(filtered: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarra
     """Rauch-Tung-Striebel backward pass over ``kalman_filter``'s output: smoothed states (n, L, 4) and
     covariances (n, L, 4, 4), each conditioned on the whole track:
         C_k = P_k F_{k+1}^T P_pred_{k+1}^-1,  x_s,k = x_k + C_k (x_s,k+1 - x_pred,k+1),
-        P_s,k = P_k + C_k (P_s,k+1 - P_pred,k+1) C_k^T."""
+        P_s,k = P_k + C_k (P_s,k+1 - P_pred,k+1) C_k^T.
+    A step of dt = 0 (a track's padding: no time, no measurement) repeats the state, P_pred,k+1 = P_k: C_k = I
+    there, not solved for (P_k is singular after a measurement of zero covariance)."""
     x, P = filtered["x"].copy(), filtered["P"].copy()
     for k in range(x.shape[1] - 2, -1, -1):
-        C = np.linalg.solve(filtered["P_pred"][:, k + 1], filtered["F"][:, k + 1] @ P[:, k]).transpose(0, 2, 1)
+        moves = filtered["F"][:, k + 1, 0, 2] > 0  # dt > 0
+        C = np.broadcast_to(np.eye(4), P[:, k].shape).copy()
+        if moves.any():
+            C[moves] = np.linalg.solve(filtered["P_pred"][moves, k + 1],
+                                       filtered["F"][moves, k + 1] @ P[moves, k]).transpose(0, 2, 1)
         x[:, k] += np.einsum("nij,nj->ni", C, x[:, k + 1] - filtered["x_pred"][:, k + 1])
         P[:, k] += C @ (P[:, k + 1] - filtered["P_pred"][:, k + 1]) @ C.transpose(0, 2, 1)
     return x, P

@@ -70,18 +70,37 @@ def as_mapping(mapping) -> Mapping:
     return TrapezoidMapping(mapping) if isinstance(mapping, ViewTransformer) else mapping
 
 
-def map_points(mapping: Mapping, feet: np.ndarray, click_sigma_px: float, point_sigma_px: float
+def map_points(mapping: Mapping, feet: np.ndarray, click_sigma_px: float, point_sigma_px
                ) -> tuple[np.ndarray, np.ndarray]:
-    """Ground points (N, 2) metres and their covariances (N, 2, 2) metres^2 of foot points (N, 2) px."""
-    return mapping.transform_points(feet), mapping.ground_uncertainty(feet, click_sigma_px=click_sigma_px,
-                                                                     point_sigma_px=point_sigma_px)
+    """Ground points (N, 2) metres and their covariances (N, 2, 2) metres^2 of foot points (N, 2) px, point_sigma_px
+    one for all or one a foot point ((N,): ``point_noise``)."""
+    if np.ndim(point_sigma_px) == 0:
+        return mapping.transform_points(feet), mapping.ground_uncertainty(feet, click_sigma_px=click_sigma_px,
+                                                                         point_sigma_px=point_sigma_px)
+    shared = mapping.ground_uncertainty(feet, click_sigma_px=click_sigma_px, point_sigma_px=0.0)
+    return mapping.transform_points(feet), shared + point_noise(mapping, feet, point_sigma_px)
 
 
-def point_noise(mapping: Mapping, feet: np.ndarray, cov: np.ndarray, click_sigma_px: float) -> np.ndarray:
-    """The part (N, 2, 2) metres^2 of the ground covariances cov (N, 2, 2) of foot points (N, 2) px (``map_points``)
-    that is independent from frame to frame: cov less the shared mapping error (the mapping's ground_uncertainty
-    at point_sigma_px = 0: clicking, a fitted horizon), which is the same in every frame of a track."""
-    return cov - mapping.ground_uncertainty(feet, click_sigma_px=click_sigma_px, point_sigma_px=0.0)
+def point_noise(mapping: Mapping, feet: np.ndarray, point_sigma_px) -> np.ndarray:
+    """The part (N, 2, 2) metres^2 of the ground covariances of foot points (N, 2) px that is independent from
+    frame to frame: the foot point's own error, point_sigma_px (a number or (N,)) on each of its coordinates,
+    through the mapping (homocal.ground_uncertainty of its transformer and lens at no clicking error), not the
+    shared mapping error (clicking, a fitted horizon), which is the same in every frame of a track."""
+    unit = ground_uncertainty(mapping.mapping, feet, click_sigma_px=0.0, point_sigma_px=1.0,
+                              lens=getattr(mapping, "lens_", None))
+    return np.square(point_sigma_px)[..., None, None] * unit
+
+
+FOOT_SIGMA_PER_BOX_HEIGHT = 0.06
+"""FITTED: a foot point's 1-sigma per coordinate, px, per px of its box's height (sigma_px = 0.06 x box height):
+the pure ratio fitted by research/foot_noise.py to the robust sigmas of the segmentation and the rgb boxes'
+foot-point errors against the truth on simgen's scene1 and scene2, seed 0 (0.056 and 0.062; an intercept fits
+negative). The error is not white: its autocorrelation one frame apart (20 fps) is 0.93-0.97."""
+
+
+def box_height_sigma_px(xyxy: np.ndarray) -> np.ndarray:
+    """Foot points' 1-sigma (N,) px of boxes xyxy (N, 4) px: FOOT_SIGMA_PER_BOX_HEIGHT x the box's height."""
+    return FOOT_SIGMA_PER_BOX_HEIGHT * np.abs(xyxy[:, 3] - xyxy[:, 1])
 
 
 def mapping_modes(mapping: Mapping, feet: np.ndarray, click_sigma_px: float) -> tuple[np.ndarray, np.ndarray]:
@@ -147,7 +166,7 @@ def track_batches(track_ids: np.ndarray, frames: np.ndarray) -> Iterator[list[np
 
 def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
                    accel_psd: float = ACCEL_PSD, smooth: bool = True, click_sigma_px: float = 1.5,
-                   point_sigma_px: float = 1.0, split_mapping_error: bool = False
+                   point_sigma_px: float | np.ndarray = 1.0, split_mapping_error: bool = False
                    ) -> Iterator[dict[str, np.ndarray]]:
     """homocal measure's table in batches of whole tracks (dicts of COLUMNS, each (rows,)), tracks in
     increasing id, each in frame order.
@@ -155,7 +174,8 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
     Args:
         mapping: a fitted Corrector or a ViewTransformer.
         frames: (N,) int video frames (t = frame / fps seconds); track_ids (N,) int, one box per track and
-            frame (``check_tracks``); feet (N, 2) foot points, px.
+            frame (``check_tracks``); feet (N, 2) foot points, px; point_sigma_px a number or one a foot point
+            (N,) (``box_height_sigma_px``).
         accel_psd: the filter's process noise q, m^2/s^3 (homocal.measure.kalman).
         smooth: True: the RTS smoother's states (each conditioned on the whole track); False: the forward
             filter's (each on the frames up to it: what a live system has).
@@ -167,10 +187,12 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
     mapping = as_mapping(mapping)
     frames, track_ids = np.asarray(frames, dtype=np.int64), np.asarray(track_ids, dtype=np.int64)
     feet = np.asarray(feet, dtype=np.float64)
+    point_sigma_px = point_sigma_px if np.ndim(point_sigma_px) == 0 else np.asarray(point_sigma_px, dtype=np.float64)
     for batch in track_batches(track_ids, frames):
         rows = np.concatenate(batch)
-        xy, cov = map_points(mapping, feet[rows], click_sigma_px, point_sigma_px)
-        noise = point_noise(mapping, feet[rows], cov, click_sigma_px) if split_mapping_error else cov
+        sigma = point_sigma_px if np.ndim(point_sigma_px) == 0 else point_sigma_px[rows]
+        xy, cov = map_points(mapping, feet[rows], click_sigma_px, sigma)
+        noise = point_noise(mapping, feet[rows], sigma) if split_mapping_error else cov
         n, L = len(batch), max(map(len, batch))
         t, z, R = np.empty((n, L)), np.full((n, L, 2), np.nan), np.full((n, L, 2, 2), np.nan)
         at = np.concatenate([[0], np.cumsum([len(r) for r in batch])])
@@ -234,7 +256,8 @@ def check_people_per_frame(frames: np.ndarray) -> None:
 
 
 def pair_distances(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
-                   click_sigma_px: float = 1.5, point_sigma_px: float = 1.0) -> Iterator[dict[str, np.ndarray]]:
+                   click_sigma_px: float = 1.5, point_sigma_px: float | np.ndarray = 1.0
+                   ) -> Iterator[dict[str, np.ndarray]]:
     """The ground distance between every two people in the same frame (PAIR_COLUMNS; track_a < track_b), in
     chunks of frames (``frame_chunks``), from the mapped foot points; distance_sigma_m = sqrt(e^T (C_a + C_b) e)
     (delta method, e the unit vector from a to b, C the points' covariances taken as independent: the part of
@@ -246,7 +269,8 @@ def pair_distances(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
     check_people_per_frame(frames)
     for rows in frame_chunks(frames):
         rows = rows[np.lexsort((track_ids[rows], frames[rows]))]
-        xy, cov = map_points(mapping, np.asarray(feet, dtype=np.float64)[rows], click_sigma_px, point_sigma_px)
+        sigma = point_sigma_px if np.ndim(point_sigma_px) == 0 else np.asarray(point_sigma_px, dtype=np.float64)[rows]
+        xy, cov = map_points(mapping, np.asarray(feet, dtype=np.float64)[rows], click_sigma_px, sigma)
         f, k = frames[rows], track_ids[rows]
         _, starts, n = np.unique(f, return_index=True, return_counts=True)
         a, b = [], []

@@ -86,3 +86,21 @@ def test_speed_sigma_against_monte_carlo():
     np.testing.assert_allclose(sigma, np.linalg.norm(draws, axis=1).std(), rtol=0.03)
     # at rest: the largest spread of the velocity
     assert speed_and_sigma(np.zeros(2), Pv)[1] == np.sqrt(np.linalg.eigvalsh(Pv)[-1])
+
+
+def test_smoother_over_a_padded_track_whose_last_measurement_is_exact():
+    """A shorter track padded to the batch's length (dt = 0, no measurement) whose last measurement has zero
+    covariance (a foot point's sigma of 0): its filtered covariance is singular there; the smoother keeps that
+    point exactly, the padding repeats it, and the track's states are those of the track smoothed alone."""
+    t = np.array([np.arange(6) / 10, np.r_[np.arange(3) / 10, [0.2] * 3]])
+    z = np.full((2, 6, 2), np.nan)
+    z[0] = np.column_stack([np.zeros(6), np.arange(6) / 10])
+    z[1, :3] = np.column_stack([np.ones(3), 0.5 * np.arange(3) / 10 + [0.0, 0.01, -0.01]])
+    R = np.full((2, 6, 2, 2), np.nan)
+    R[0], R[1, :3] = 0.01 * np.eye(2), 0.01 * np.eye(2)
+    R[1, 2] = 0.0
+    x, P = rts_smoother(kalman_filter(t, z, R))
+    np.testing.assert_allclose(x[1, 2, :2], z[1, 2], atol=1e-12)
+    np.testing.assert_allclose(x[1, 3:], np.broadcast_to(x[1, 2], (3, 4)), atol=0)
+    alone, _ = rts_smoother(kalman_filter(t[1:, :3], z[1:, :3], R[1:, :3]))
+    np.testing.assert_allclose(x[1, :3], alone[0], rtol=1e-9, atol=1e-12)

@@ -32,7 +32,7 @@ def test_point_noise_is_the_foot_points_own_part_and_the_modes_the_rest():
     feet = TRANSFORMER.inverse_transform_points(np.array([[0.0, 10.0], [2.0, 25.0], [-3.0, 40.0]]))
     cov = MAPPING.ground_uncertainty(feet, click_sigma_px=CLICK_PX, point_sigma_px=2.0)
     own = ground_uncertainty(TRANSFORMER, feet, click_sigma_px=0.0, point_sigma_px=2.0)
-    np.testing.assert_allclose(point_noise(MAPPING, feet, cov, CLICK_PX), own, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(point_noise(MAPPING, feet, 2.0), own, rtol=1e-9, atol=1e-12)
     J, C = mapping_modes(MAPPING, feet, CLICK_PX)
     np.testing.assert_allclose(J @ C @ J.transpose(0, 2, 1), cov - own, rtol=1e-9, atol=1e-12)
 
@@ -95,3 +95,31 @@ def test_pedestrians_fitted_horizon_share_against_moving_the_horizon():
     S = mapping_velocity_covariance(c, feet, v, click_sigma_px=0.0)[0]
     np.testing.assert_allclose(S, np.outer(d, d), rtol=1e-3, atol=1e-3 * (d @ d))
     assert d @ d > 1e-6  # not negligible
+
+
+def test_per_box_point_noise_against_the_mappings_derivative():
+    """point_noise with one sigma a foot point: sigma^2 J J^T, J the mapping's derivative by central differences
+    of its transform_points; exact for a sigma far below the clicking error at 40 m, where taking the shared part
+    away from the whole covariance (cov(1.5 px, sigma) - cov(1.5 px, 0)) lost 1e-4 of it at 1e-6 px."""
+    feet = TRANSFORMER.inverse_transform_points(np.array([[0.0, 10.0], [2.0, 25.0], [3.0, 45.0]]))
+    sigma = np.array([3.0, 0.5, 1e-6])
+    h = 1e-4
+    J = np.stack([(TRANSFORMER.transform_points(feet + h * e) - TRANSFORMER.transform_points(feet - h * e)) / (2 * h)
+                  for e in np.eye(2)], axis=-1)
+    np.testing.assert_allclose(point_noise(MAPPING, feet, sigma), sigma[:, None, None]**2 * J @ J.transpose(0, 2, 1),
+                               rtol=1e-6)
+
+
+def test_per_box_sigma_of_one_value_is_the_scalar_and_the_bar_grows_with_it():
+    fps, v = 10.0, np.array([0.8, 1.1])
+    t = np.arange(30) / fps
+    feet = TRANSFORMER.inverse_transform_points(np.array([-2.0, 15.0]) + t[:, None] * v)
+    frames, ids = np.arange(30), np.zeros(30, int)
+    run = lambda s: next(measure_tracks(MAPPING, frames, feet, ids, fps, point_sigma_px=s, split_mapping_error=True))  # noqa: E731
+    same, scalar = run(np.full(30, 2.0)), run(2.0)
+    for c in ("sigma_m", "speed_mps", "speed_sigma_mps"):
+        np.testing.assert_allclose(same[c], scalar[c], rtol=1e-12)
+    wide = run(np.r_[np.full(15, 2.0), np.full(15, 8.0)])
+    assert (wide["sigma_m"][15:] > scalar["sigma_m"][15:]).all()
+    np.testing.assert_allclose(wide["sigma_m"][:15], scalar["sigma_m"][:15], rtol=1e-12)
+    assert wide["speed_sigma_mps"][-1] > scalar["speed_sigma_mps"][-1]

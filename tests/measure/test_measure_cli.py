@@ -207,3 +207,31 @@ def test_a_trapezoid_on_a_distorted_camera_takes_the_lens(tmp_path, capsys, monk
                      "--out", "u.parquet", cwd=tmp_path, capsys=capsys, monkeypatch=monkeypatch)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "carries the lens it was fitted with" in r.stderr
     assert not (tmp_path / "u.parquet").exists()
+
+
+def test_foot_noise_by_box_height(scene, capsys, monkeypatch):
+    """--foot-noise box-height: each foot point's sigma 0.06 x its box's 80 px (4.8 px, FOOT_SIGMA_PER_BOX_HEIGHT),
+    so sigma_m is that of --point-sigma-px 4.8 with the fixed noise, and the noise-free walkers' speeds stay."""
+    out = {}
+    for name, extra in (("box", ["--foot-noise", "box-height"]), ("fixed", ["--point-sigma-px", "4.8"])):
+        r = homocal_main("measure", "trap.json", "--boxes", "boxes.csv", "--fps", "10", "--out", f"{name}.parquet",
+                         *extra, cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
+        assert r.returncode == 0, r.stderr
+        out[name] = pq.read_table(scene / f"{name}.parquet").to_pandas()
+    np.testing.assert_allclose(out["box"].sigma_m, out["fixed"].sigma_m, rtol=1e-9)
+    for k, track in out["box"].groupby("track_id"):
+        np.testing.assert_allclose(track.speed_mps, np.hypot(*WALKERS[k][2:]), atol=0.02)
+
+
+
+def test_exact_foot_points_on_a_shorter_track(scene, capsys, monkeypatch):
+    """--click-sigma-px 0 --point-sigma-px 0 (exact points: zero covariance) with a track shorter than another:
+    the smoother's padding after its end is no singular matrix, and the noise-free walkers come out exact."""
+    write_csv(scene / "short.csv", [r for r in walker_rows() if not (r[1] == 2 and r[0] >= 30)])
+    r = homocal_main("measure", "trap.json", "--boxes", "short.csv", "--fps", "10", "--out", "short.parquet",
+                     "--click-sigma-px", "0", "--point-sigma-px", "0", cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    tracks = pq.read_table(scene / "short.parquet").to_pandas()
+    assert (tracks.track_id == 2).sum() == 30 and (tracks.sigma_m == 0).all()
+    for k, track in tracks.groupby("track_id"):
+        np.testing.assert_allclose(track[["x_smooth", "y_smooth"]], truth(k, track.frame.to_numpy()), atol=1e-6)
