@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from homocal.files import check_input_file, read_points_csv
+from homocal.files import check_input_file, read_json, read_points_csv
 from homocal.geometry.boxes import MAX_BOXES_PER_FRAME, box_edges, undistort_boxes
 from homocal.geometry.camera_file import read_camera
 from homocal.geometry.lens import Lens
@@ -35,6 +35,7 @@ if TYPE_CHECKING:
     import pyarrow as pa  # pyarrow loads where a Parquet file is read (a cheap ``import homocal``)
 
 MOT_COLUMNS = (9, 10)
+MAX_FPS = 1000.0  # the highest frame rate of a boxes file's video (--fps of measure, watch and the page)
 MAX_BOXES_BYTES = 2**28
 """The largest boxes file read, of any kind (256 MiB, some 4 million MOT lines): read_boxes refuses a larger
 file before reading it, read_mot a larger file or stream."""
@@ -289,3 +290,19 @@ def _read_csv_boxes(path: Path) -> PersonBoxes:
                          "y1 the top edge, y2 the bottom edge, image rows counted down)")
     tracks = cols["track_id"].astype(np.int64) if "track_id" in cols else None
     return PersonBoxes(cols["frame"].astype(np.int64), xyxy, tracks)
+
+
+def file_fps(path: Path) -> float | None:
+    """The frame rate the boxes' file's folder says: a dataset's manifest.json "fps", a MOT sequence's
+    seqinfo.ini frameRate; None when neither is there."""
+    if path.suffix.lower() == ".parquet" and (path.parent / "manifest.json").is_file():
+        return read_json(path.parent / "manifest.json").get("fps")
+    seqinfo = path.parent.parent / "seqinfo.ini"
+    if path.suffix.lower() == ".txt" and seqinfo.is_file():
+        parser = configparser.ConfigParser()
+        try:
+            parser.read(seqinfo, encoding="utf-8")
+        except (configparser.Error, UnicodeDecodeError) as e:
+            raise ValueError(f"{seqinfo}: not a MOTChallenge seqinfo.ini ({e})") from None
+        return parser.get("Sequence", "frameRate", fallback=None)
+    return None

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import configparser
 import math
 from pathlib import Path
 
@@ -12,11 +11,11 @@ import pyarrow.parquet as pq
 from tqdm import tqdm
 
 from homocal.arguments import CAMERA_JSON_HELP, camera_json, number
-from homocal.boxes import DEFAULT_DETECTOR, read_boxes
+from homocal.boxes import DEFAULT_DETECTOR, MAX_FPS, file_fps, read_boxes
 from homocal.correctors.base import load_corrector
 from homocal.correctors.catalogue import label
 from homocal.correctors.serialization import FORMAT
-from homocal.files import check_output_file, json_format, read_json, write_atomic
+from homocal.files import check_output_file, json_format, write_atomic
 from homocal.geometry import read_trapezoid_file
 from homocal.geometry.boxes import box_bottom_points, link_tracks
 from homocal.measure.kalman import ACCEL_PSD
@@ -26,7 +25,6 @@ from homocal.progress import add_progress_option, show_progress
 
 FOOT_NOISE = ("fixed", "box-height")
 """--foot-noise's choices (docs/measure.md, The filter)."""
-MAX_FPS = 1000.0
 """The highest frame rate taken (--fps, or the boxes' file's)."""
 INTEGER_COLUMNS = {"frame", "track_id", "frames", "first_frame", "last_frame", "track_a", "track_b"}
 
@@ -91,22 +89,6 @@ def load_mapping(path: Path, camera_json_path: Path | None = None):
     camera = camera_json(camera_json_path)
     lens = None if camera is None else camera.lens
     return TrapezoidMapping(read_trapezoid_file(path, lens)[0], lens), "the trapezoid (uncorrected)"
-
-
-def file_fps(path: Path) -> float | None:
-    """The frame rate the boxes' file's folder says: a dataset's manifest.json "fps", a MOT sequence's
-    seqinfo.ini frameRate; None when neither is there."""
-    if path.suffix.lower() == ".parquet" and (path.parent / "manifest.json").is_file():
-        return read_json(path.parent / "manifest.json").get("fps")
-    seqinfo = path.parent.parent / "seqinfo.ini"
-    if path.suffix.lower() == ".txt" and seqinfo.is_file():
-        parser = configparser.ConfigParser()
-        try:
-            parser.read(seqinfo, encoding="utf-8")
-        except (configparser.Error, UnicodeDecodeError) as e:
-            raise ValueError(f"{seqinfo}: not a MOTChallenge seqinfo.ini ({e})") from None
-        return parser.get("Sequence", "frameRate", fallback=None)
-    return None
 
 
 def check_fps(args: argparse.Namespace) -> float:

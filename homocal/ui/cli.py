@@ -6,7 +6,7 @@ from pathlib import Path
 
 from homocal.arguments import CAMERA_JSON_HELP, camera_json, number, xy_pair
 from homocal.geometry import SiteMap
-from homocal.measure.cli import MAX_FPS
+from homocal.boxes import MAX_FPS
 from homocal.ui import session as sessions
 from homocal.ui.server import UIServer
 

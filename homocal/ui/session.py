@@ -19,7 +19,7 @@ from homocal.geometry.lens import undistort_input
 from homocal.geometry import Lens, SiteMap
 from homocal.lens.lines import DEFAULT_HFOV_DEG, DEFAULT_TERMS
 from homocal.lens.lines import TERMS as LENS_TERMS
-from homocal.measure.cli import MAX_FPS, file_fps
+from homocal.boxes import MAX_FPS, file_fps
 
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
 
@@ -93,7 +93,7 @@ def from_files(frame: Path, site_map_image: Path, site_map: SiteMap, camera_orig
                frame_index: int = 0, boxes: Path | None = None, fps: float | None = None) -> Session:
     """A session from a frame (an image, or a video's frame ``frame_index``) and a site-map image, with the
     boxes file ``boxes`` (homocal.read_boxes's three kinds) when given, at ``fps`` frames per second (None: the
-    rate its folder says, homocal.measure.cli.file_fps, if any)."""
+    rate its folder says, homocal.boxes.file_fps, if any)."""
     frame_png, frame_size = read_frame(frame, frame_index)
     map_png, map_size = _png(cv2.imread(str(site_map_image), cv2.IMREAD_COLOR), site_map_image)
     session = Session(frame_png, frame_size, map_png, map_size, site_map, np.asarray(camera_origin, float),

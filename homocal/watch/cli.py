@@ -22,7 +22,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from homocal.arguments import camera_json, number, xy_pair
-from homocal.boxes import CSV_COLUMNS, CSV_CONVENTION, MAX_LINE_CHARS, read_boxes
+from homocal.boxes import CSV_COLUMNS, CSV_CONVENTION, MAX_FPS, MAX_LINE_CHARS, read_boxes
 from homocal.correctors.cli import add_pedestrian_flags, pedestrian_flag_error
 from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.files import create_temporary, output_folder, write_json_atomic
@@ -51,7 +51,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    f".csv of {','.join(CSV_COLUMNS)}[,track_id] (corner pixels), or - for such CSV lines on standard "
                    "input, as a running detector writes them; frames in time order")
     p.add_argument("--detector", metavar="NAME", help="a detections.parquet's detector (default segmentation)")
-    p.add_argument("--fps", required=True, type=number(float, 0, 1000, low_open=True), help="frames per second of the boxes' video")
+    p.add_argument("--fps", required=True, type=number(float, 0, MAX_FPS, low_open=True), help="frames per second of the boxes' video")
     p.add_argument("--camera-json", type=Path, metavar="CAMERA.json", help="the image size and intrinsics K (default: "
                    "those beside the boxes file); needed for a CSV or standard input")
     add_pedestrian_flags(p, ("camera_height_m", *PRIOR))
