@@ -271,6 +271,9 @@ def _edited_correction(edit) -> str:
      "c.json: bad regression correction (field fitted.b: expected a finite number"),
     ("negative click sigma", "ok", None, ["--click-sigma-px", "-1"], "--click-sigma-px: must be a finite number >= 0"),
     ("NaN point sigma", "ok", None, ["--point-sigma-px", "nan"], "--point-sigma-px: must be a finite number >= 0"),
+    ("negative decimals", "ok", None, ["--decimals", "-1"], "--decimals: must be an integer in [0, 17], got -1"),
+    ("huge decimals", "ok", None, ["--decimals", "99"], "--decimals: must be an integer in [0, 17], got 99"),
+    ("fractional decimals", "ok", None, ["--decimals", "2.5"], "--decimals: expected an integer, got '2.5'"),
 ])
 def test_bad_apply_input(work, name, correction, feet, extra, message, capsys, monkeypatch):
     if correction == "ok":

@@ -123,6 +123,9 @@ BAD = [  # (writes the boxes, extra arguments, the error's words)
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "nan"], "argument --fps: must be a finite number in (0, 1000]"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "1e9"], "argument --fps: must be a finite number in (0, 1000]"),
     (walker_rows, ["--boxes", "boxes.csv"], "--fps: required (boxes.csv does not say its frame rate)"),
+    (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--foot-noise", "bogus"], "argument --foot-noise: invalid choice"),
+    (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--camera-json", "missing.json"], "--camera-json missing.json: no such file"),
+    (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--camera-json", "trap.json"], "--camera-json trap.json: image_size: missing"),
 ]
 
 
