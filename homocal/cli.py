@@ -4,25 +4,24 @@ Each subcommand module (a ``cli.py``, or the study module the command is named a
 ``add_parser(subparsers)``: it adds its parser(s) and registers each command's handler,
 ``parser.set_defaults(handler=handle_<command>)``, ``handle_<command>(args) -> int`` (the exit code).
 A handler raises ValueError or OSError for bad input; ``main`` prints it as one ``homocal: error: ...``
-line and exits 2. To add a subcommand, import its module and list it in SUBCOMMANDS.
+line and exits 2. To add a subcommand, list its command name(s) and module in SUBCOMMANDS: a command line
+naming one command imports only its module (``homocal apply`` does not load the study's compiled kernels).
 """
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 
 from homocal import __version__
-from homocal import examples_cli
-from homocal.correctors import cli as corrector_cli
 from homocal.files import OutputFolderError, os_message
-from homocal.lens import cli as lens_cli
-from homocal.measure import cli as measure_cli
-from homocal.study import advise as study_advise, cli as study_cli, report as study_report, sweep as study_sweep
-from homocal.ui import cli as ui_cli
-from homocal.watch import cli as watch_cli
 
-SUBCOMMANDS = (corrector_cli, study_cli, study_sweep, study_report, study_advise, ui_cli, lens_cli, measure_cli,
-               watch_cli, examples_cli)
+SUBCOMMANDS = {  # command -> the module whose add_parser adds it, in the order --help lists them
+    "fit": "homocal.correctors.cli", "apply": "homocal.correctors.cli", "study": "homocal.study.cli",
+    "sweep": "homocal.study.sweep", "report": "homocal.study.report", "advise": "homocal.study.advise",
+    "ui": "homocal.ui.cli", "lens": "homocal.lens.cli", "measure": "homocal.measure.cli",
+    "watch": "homocal.watch.cli", "examples": "homocal.examples_cli",
+}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -32,12 +31,14 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"homocal: error: {message} (see {self.prog} --help)\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser of every command, or only of ``command``'s module when it names one of SUBCOMMANDS."""
     parser = _Parser(prog="homocal", description="Homography ground-plane mapping: correct it from reference points.")
     parser.add_argument("--version", action="version", version=f"homocal {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for module in SUBCOMMANDS:
-        module.add_parser(subparsers)
+    modules = [SUBCOMMANDS[command]] if command in SUBCOMMANDS else dict.fromkeys(SUBCOMMANDS.values())
+    for module in modules:
+        importlib.import_module(module).add_parser(subparsers)
     return parser
 
 
@@ -59,7 +60,8 @@ def join_signed_values(argv: list[str]) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(join_signed_values(sys.argv[1:] if argv is None else list(argv)))
+    argv = join_signed_values(sys.argv[1:] if argv is None else list(argv))
+    args = build_parser(argv[0] if argv else None).parse_args(argv)
     try:
         return args.handler(args)
     except (ValueError, OSError, OutputFolderError) as e:

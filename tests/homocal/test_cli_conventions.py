@@ -1,11 +1,13 @@
 """The homocal command's conventions: --version, -o/--out on every subcommand that writes, `-o -` for the
 table apply writes, help text on every option, progress bars as --progress/--no-progress or the terminal say."""
 import argparse
+import subprocess
+import sys
 from importlib.metadata import version
 
 import pytest
 
-from homocal.cli import build_parser, main
+from homocal.cli import SUBCOMMANDS, build_parser, main
 from homocal.correctors import RegressionCorrector
 from homocal.geometry import ViewTransformer
 from homocal.progress import show_progress
@@ -65,3 +67,20 @@ def test_fit_refuses_stdout(work, capsys, monkeypatch):  # noqa: F811
                           cwd=work, capsys=capsys, monkeypatch=monkeypatch)
     assert result.returncode == 2 and result.stderr.startswith("homocal: error: -o -:") and result.stderr.count("\n") == 1
     assert sorted(p.name for p in work.iterdir()) == before
+
+
+def test_subcommands_table_names_what_each_module_adds():
+    """SUBCOMMANDS (command -> module) is what each module's add_parser adds, in --help's order."""
+    assert list(subparsers()) == list(SUBCOMMANDS)
+    for command, module in SUBCOMMANDS.items():
+        parser = build_parser(command)
+        added = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+        assert command in added and {SUBCOMMANDS[c] for c in added} == {module}
+
+
+def test_one_command_loads_only_its_module():
+    """`homocal apply` imports neither the study nor the page (their modules cost ~2 s of CPU to import)."""
+    probe = ("import sys; from homocal.cli import build_parser; build_parser('apply'); "
+             "print(sorted(m for m in ('homocal.study.advise', 'homocal.ui.cli', 'homocal.study.cli') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
