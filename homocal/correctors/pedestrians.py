@@ -187,6 +187,22 @@ def focal_from_homography(image_to_ground: np.ndarray, principal_point: tuple[fl
     return 1.0 / math.sqrt(x)
 
 
+def intrinsics(image_to_ground: np.ndarray, image_size: tuple[int, int] | None, K=None) -> np.ndarray:
+    """(3, 3) the intrinsics a fit from people uses: K checked (finite, fx = fy > 0), or when K is None the principal
+    point at the centre of image_size (width, height) px and the focal length ``focal_from_homography`` gives the
+    clicked mapping image_to_ground (3, 3). ValueError naming K for bad K, or when neither K nor image_size is given."""
+    if K is None:
+        if image_size is None:
+            raise ValueError("K and image_size are both None: give the intrinsics K or the image size")
+        cx, cy = image_size[0] / 2.0 - 0.5, image_size[1] / 2.0 - 0.5
+        f = focal_from_homography(image_to_ground, (cx, cy))
+        return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+    K = np.asarray(K, dtype=np.float64)
+    if K.shape != (3, 3) or not np.isfinite(K).all() or not K[0, 0] > 0 or abs(K[0, 0] - K[1, 1]) > 1e-6 * K[0, 0]:
+        raise ValueError(f"K: expected finite (3, 3) intrinsics with fx = fy > 0, got {K.tolist()}")
+    return K
+
+
 def camera_height_from_homography(image_to_ground: np.ndarray, K: np.ndarray) -> float:
     """Height (the ground homography's target units, metres) of the optical centre above the ground plane, from a
     ground homography (3, 3) image -> ground and the intrinsics K (3, 3): with B = K^-1 G = lambda [r1 r2 t]
@@ -453,16 +469,9 @@ class PedestrianCorrector(Corrector):
         frames = _check_labels(frames, n, "frames")
         tracks = _check_labels(track_ids, n, "track_ids")
         size = _check_image_size(image_size)
-        if K is None:
-            if size is None:
-                raise ValueError("K and image_size are both None: give the intrinsics K or the image size")
-            principal = (size[0] / 2.0 - 0.5, size[1] / 2.0 - 0.5)
-            focal, self.focal_source_ = focal_from_homography(transformer.m, principal), "clicked mapping"
-        else:
-            K = np.asarray(K, dtype=np.float64)
-            if K.shape != (3, 3) or not np.isfinite(K).all() or not K[0, 0] > 0 or abs(K[0, 0] - K[1, 1]) > 1e-6 * K[0, 0]:
-                raise ValueError(f"K: expected finite (3, 3) intrinsics with fx = fy > 0, got {K.tolist()}")
-            principal, focal, self.focal_source_ = (float(K[0, 2]), float(K[1, 2])), float(K[1, 1]), "given"
+        self.focal_source_ = "clicked mapping" if K is None else "given"
+        K = intrinsics(transformer.m, size, K)
+        principal, focal = (float(K[0, 2]), float(K[1, 2])), float(K[1, 1])
         self.focal_px_, self.principal_point_ = focal, principal
         if camera_height_m is None:
             self.camera_height_source_ = "clicked mapping"

@@ -53,9 +53,10 @@ from homocal.correctors.pedestrians import (
     PedestrianCorrector,
     _on_border,
     camera_height_from_homography,
-    focal_from_homography,
     implied_horizon_rows,
+    intrinsics,
 )
+from homocal.boxes import MAX_FPS
 from homocal.geometry import ViewTransformer
 from homocal.geometry.boxes import TrackLinker
 
@@ -153,13 +154,11 @@ class OnlineCalibrator:
                  height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
                  arl0_people: float = DEFAULT_ARL0_PEOPLE) -> None:
         PedestrianCorrector(height_mean_m, height_sd_m)  # the prior's checks
-        K = np.asarray(K, dtype=np.float64)
-        if K.shape != (3, 3) or not np.isfinite(K).all() or not K[0, 0] > 0 or abs(K[0, 0] - K[1, 1]) > 1e-6 * K[0, 0]:
-            raise ValueError(f"K: expected finite (3, 3) intrinsics with fx = fy > 0, got {K.tolist()}")
+        K = intrinsics(None, None, K)
         if not (isinstance(camera_height_m, (int, float)) and 0 < camera_height_m <= 100):
             raise ValueError(f"camera_height_m must be in (0, 100] m, got {camera_height_m!r}")
-        if not (isinstance(fps, (int, float)) and 0 < fps <= 1000):
-            raise ValueError(f"fps must be in (0, 1000], got {fps!r}")
+        if not (isinstance(fps, (int, float)) and 0 < fps <= MAX_FPS):
+            raise ValueError(f"fps must be in (0, {MAX_FPS:g}], got {fps!r}")
         if not (isinstance(arl0_people, (int, float)) and 10 <= arl0_people <= 1e9):
             raise ValueError(f"arl0_people must be in [10, 1e9] people, got {arl0_people!r}")
         self.K, self.camera_height_m, self.fps, self.image_size = K, float(camera_height_m), float(fps), image_size
@@ -302,15 +301,9 @@ def robust_location(people) -> tuple[float, float, float]:
 def camera_of(transformer: ViewTransformer, image_size: tuple[int, int] | None, K=None,
               camera_height_m: float | None = None) -> tuple[np.ndarray, float]:
     """(K (3, 3), camera height m) a watch uses: those given, else from the clicked mapping: the principal point at
-    the centre of image_size (px) and the focal length of ``focal_from_homography``, the height of
+    the centre of image_size (px) and the focal length of the mapping (pedestrians.intrinsics), the height of
     ``camera_height_from_homography``. ValueError when neither K nor image_size is given."""
-    if K is None:
-        if image_size is None:
-            raise ValueError("K: needed (neither the image size nor K is known)")
-        principal = (image_size[0] / 2.0 - 0.5, image_size[1] / 2.0 - 0.5)
-        f = focal_from_homography(transformer.m, principal)
-        K = np.array([[f, 0.0, principal[0]], [0.0, f, principal[1]], [0.0, 0.0, 1.0]])
-    K = np.asarray(K, dtype=np.float64)
+    K = intrinsics(transformer.m, image_size, K)
     return K, camera_height_m if camera_height_m is not None else camera_height_from_homography(transformer.m, K)
 
 

@@ -25,6 +25,7 @@ from homocal.correctors.pedestrians import (
     focal_from_homography,
     horizon_row,
     implied_heights,
+    intrinsics,
     roll_homography,
 )
 from homocal.geometry import PinholeCamera, ViewTransformer, apply_homography
@@ -87,6 +88,17 @@ class TestCameraFromTheMapping:
         m = clicked_mapping(shift).m
         assert focal_from_homography(m, (CAM.K[0, 2], CAM.K[1, 2])) == pytest.approx(CAM.focal_px, rel=1e-9)
         assert camera_height_from_homography(m, CAM.K) == pytest.approx(4.0, rel=1e-9)
+
+    def test_intrinsics_from_the_mapping_or_given(self):
+        """pedestrians.intrinsics: the pinhole's K from its own mapping and image size (principal point at the
+        centre, as PinholeCamera puts it), a given K as it is; bad K and no source refused naming K."""
+        np.testing.assert_allclose(intrinsics(clicked_mapping(0.0).m, (1280, 720)), CAM.K, rtol=1e-9, atol=1e-9)
+        assert intrinsics(None, None, CAM.K.tolist()) == pytest.approx(CAM.K)
+        for bad in (np.eye(2), np.diag([800.0, 810.0, 1.0]), np.diag([np.nan, np.nan, 1.0]), np.diag([-5.0, -5.0, 1.0])):
+            with pytest.raises(ValueError, match="^K: expected"):
+                intrinsics(None, None, bad)
+        with pytest.raises(ValueError, match="K and image_size are both None"):
+            intrinsics(clicked_mapping(0.0).m, None)
 
     def test_tilt_homography_is_the_camera_tilted(self):
         ground = np.array([[3.0, 10.0], [-5.0, 30.0], [0.0, 6.0]])
