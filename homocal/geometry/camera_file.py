@@ -17,6 +17,8 @@ from homocal.geometry.lens import Lens, check_image_size, float_array
 
 MAX_CAMERA_BYTES = 1 << 20  # a camera file's size (camera.json is about 2 KB)
 NO_DISTORTION = (0.0, 0.0, 0.0, 0.0, 0.0)
+ARRAYS = {"K": (3, 3), "distortion": (5,), "R": (3, 3), "t": (3,), "horizon": (3,), "camera_origin": (2,)}  # field: shape
+NUMBERS = {"mount_height_m": "mount_height_m", "horizon_row_px": "horizon_row"}  # field: the file's key
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,8 +47,7 @@ class CameraModel:
     horizon_row_px: float | None = None
 
     def __post_init__(self) -> None:
-        shapes = {"K": (3, 3), "distortion": (5,), "R": (3, 3), "t": (3,), "horizon": (3,), "camera_origin": (2,)}
-        for key, shape in shapes.items():
+        for key, shape in ARRAYS.items():
             if getattr(self, key) is not None:
                 object.__setattr__(self, key, float_array(getattr(self, key), shape, key))
         object.__setattr__(self, "image_size", check_image_size(self.image_size))
@@ -58,7 +59,7 @@ class CameraModel:
             raise ValueError(f"R: not a rotation (orthonormal, det +1): {self.R.tolist()}")
         if self.horizon is not None and not math.isclose(math.hypot(*self.horizon[:2]), 1.0, abs_tol=1e-9):
             raise ValueError(f"horizon: hypot(a, b) must be 1, got {self.horizon.tolist()}")
-        for key in ("mount_height_m", "horizon_row_px"):
+        for key in NUMBERS:
             value = getattr(self, key)
             if value is not None:
                 if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)):
@@ -97,9 +98,8 @@ class CameraModel:
             raise ValueError("image_size: missing (give image_size [W, H], or width and height)")
         if isinstance(size, list):
             size = tuple(size)
-        get = {key: data.get(key) for key in ("K", "R", "t", "horizon", "mount_height_m", "camera_origin")}
-        distortion = data.get("distortion", NO_DISTORTION)
-        return cls(size, distortion=distortion, horizon_row_px=data.get("horizon_row"), **get)
+        arrays = {key: data.get(key) for key in ARRAYS} | {"distortion": data.get("distortion", NO_DISTORTION)}
+        return cls(size, **arrays, **{field: data.get(key) for field, key in NUMBERS.items()})
 
     def to_dict(self) -> dict:
         """The keys the model holds, as plain lists: {"K", "distortion", "image_size"} (lens.json) and, when known,
@@ -107,14 +107,8 @@ class CameraModel:
         ``from_dict`` reads it back."""
         out: dict = {} if self.K is None else {"K": self.K.tolist()}
         out |= {"distortion": self.distortion.tolist(), "image_size": list(self.image_size)}
-        for key in ("R", "t", "horizon", "camera_origin"):
-            if getattr(self, key) is not None:
-                out[key] = getattr(self, key).tolist()
-        if self.mount_height_m is not None:
-            out["mount_height_m"] = self.mount_height_m
-        if self.horizon_row_px is not None:
-            out["horizon_row"] = self.horizon_row_px
-        return out
+        out |= {key: getattr(self, key).tolist() for key in ARRAYS if key not in out and getattr(self, key) is not None}
+        return out | {key: getattr(self, field) for field, key in NUMBERS.items() if getattr(self, field) is not None}
 
 
 def read_camera(path: str | Path) -> CameraModel:

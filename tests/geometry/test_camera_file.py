@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from homocal.geometry import CameraModel, Lens, PinholeCamera, camera_json_dict, read_camera
-from homocal.geometry.camera_file import MAX_CAMERA_BYTES
+from homocal.geometry.camera_file import ARRAYS, MAX_CAMERA_BYTES, NUMBERS
 
 CAM = PinholeCamera()
 # sha256 of scene1's and scene2's camera.json as simgen wrote them at 2b0ea99 (before the lens): the ideal pinhole
@@ -102,3 +102,15 @@ def test_bad_camera_files(tmp_path, content, message):
     with pytest.raises(ValueError) as e:
         read_camera(path)
     assert str(e.value).startswith(f"{path}: ") and message in str(e.value) and "\n" not in str(e.value)
+
+
+def test_every_field_is_in_one_table():
+    """CameraModel's fields besides image_size are each in ARRAYS or NUMBERS (which its checks, from_dict and
+    to_dict read): a new field without an entry fails here; every entry round-trips through to_dict/from_dict."""
+    assert sorted(f.name for f in dataclasses.fields(CameraModel)) == sorted(["image_size", *ARRAYS, *NUMBERS])
+    full = CameraModel((1280, 720), K=np.diag([900.0, 900.0, 1.0]) + [[0, 0, 639.5], [0, 0, 359.5], [0, 0, 0]],
+                       distortion=[-0.1, 0.01, 0.0, 0.0, 0.0], R=np.eye(3), t=[0.0, 0.0, 4.0], horizon=[0.0, 1.0, -300.0],
+                       mount_height_m=4.0, camera_origin=[1.0, 2.0], horizon_row_px=300.0)
+    again = CameraModel.from_dict(full.to_dict())
+    for name in [*ARRAYS, *NUMBERS]:
+        assert np.array_equal(getattr(again, name), getattr(full, name)), name
