@@ -76,7 +76,7 @@ from homocal.study.inputs import StudyParams, StudyScene, preset_params
 from homocal.study.kernels import METHODS
 from homocal.study.metrics import (OVERALL, build_table, complete_shard_files, csv_number, format_metric, load_study,
                                    markdown_row, method_stats)
-from homocal.study.perturb import base_quad
+from homocal.study.perturb import base_trapezoid
 from homocal.study.report import config_label
 from homocal.study.shards import path_errors, prepare_variant
 
@@ -233,9 +233,8 @@ def end_to_end(path: str, kind: str, args) -> dict:
     quads = {"exact": ds.trapezoids["exact"], "hand-placed": ds.trapezoids["hand_placed"]}[kind]
     target = ds.site_map.to_metres(np.asarray(quads["map"], float))
     image = np.asarray(quads["image"], float)
-    row = float(ViewTransformer(image, target).horizon_row(K[0, 2]))
     shift = preset_params(BASES["fitted"]).horizon_shift.a  # the fitted base error (a fixed shift, px)
-    clicked = ViewTransformer(base_quad(image, K, row, true_row, shift, np.zeros(8)), target)
+    clicked = ViewTransformer(base_trapezoid(image, target, K, true_row, shift, np.zeros(8)), target)
     out = Path(args.out) / f"end_to_end_{ds.name}_{kind}.json"
     check_output_file(out, lambda p: json_format(p) == FORMAT, "homocal correction")  # never a file it did not write
     boxes = read_boxes(args.det)
