@@ -117,7 +117,7 @@ class Handler(BaseHTTPRequestHandler):
         elif path == "/map.png":
             self._send(200, session.map_png, "image/png")
         elif path == "/api/session":
-            self._json(200, session.info())
+            self._json(200, {**session.info(), "max_body": MAX_BODY})  # the page checks an upload against it
         else:
             self._json(404, {"error": f"no such page: {path}"})
 
