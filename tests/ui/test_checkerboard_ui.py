@@ -142,6 +142,12 @@ def test_calibration_recovers_the_lens_and_the_session_maps_through_it(session, 
     api.checkerboard(session, {"photos": photos(*board_pngs()[:4]), "pattern": "9x6", "square_m": 0.025})
     api.save_lens(session, {})
     assert sorted(p.name for p in (session.out_dir / api.BOARD_DIR).iterdir()) == [f"{i}.png" for i in range(4)]
+    trapezoid = {"image": [[200.0, 150.0], [440.0, 150.0], [600.0, 330.0], [40.0, 330.0]],
+                 "map": SITE.to_pixels(np.array([[-3.0, 30.0], [3.0, 30.0], [3.0, 8.0], [-3.0, 8.0]])).tolist()}
+    fit = api.save(session, {"trapezoid": trapezoid, "camera_origin": [0, 0], "method": "least-change",
+                             "points": [[320.0, 300.0, 0.0, 9.0], [300.0, 200.0, 0.5, 20.0], [340.0, 170.0, -0.5, 27.0]]})
+    assert str(session.out_dir / api.LENS_FILE) in fit["written"] and fit["lens_command"] == api.save_lens(session, {})["command"]
+    assert f"--camera-json {session.out_dir / api.LENS_FILE}" in fit["command"]
     (session.out_dir / api.BOARD_DIR / "mine.png").write_bytes(GREY)
     with pytest.raises(api.Refused, match=r"mine.png in .*: not a photograph of this calibration"):
         api.save_lens(session, {})
