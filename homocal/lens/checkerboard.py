@@ -79,7 +79,8 @@ def calibrate_board(paths: list[Path], pattern: tuple[int, int], square_m: float
 
     The focal lengths, the principal point and the distortion ``terms`` (a key of TERMS; the others fixed at 0:
     calibrateCamera's FIX_K2, FIX_K3, ZERO_TANGENT_DIST) are fitted. ValueError: no file, more than MAX_FRAMES, frames of different sizes
-    (or not ``image_size`` (W, H), when given: a camera's frame), the board found in fewer than MIN_FRAMES of them.
+    (or not ``image_size`` (W, H), when given: a camera's frame), the board found in fewer than MIN_FRAMES of them,
+    a calibrated distortion that folds the frame (Lens.check_folds).
     """
     if not paths:
         raise ValueError("no frame to read")
@@ -115,4 +116,9 @@ def calibrate_board(paths: list[Path], pattern: tuple[int, int], square_m: float
             rms, K, dist, _, _ = cv2.calibrateCamera([board] * len(corners), corners, size, None, None, flags=flags)
         finally:
             cv2.setNumThreads(threads)
-    return BoardFit(Lens(K, dist.ravel()[:5], size), terms, float(rms), found, missing)
+    lens = Lens(K, dist.ravel()[:5], size)
+    try:
+        lens.check_folds()
+    except ValueError as e:
+        raise ValueError(f"the calibrated {e} (photograph the board out to the frame's corners, or fit fewer terms)") from None
+    return BoardFit(lens, terms, float(rms), found, missing)

@@ -122,6 +122,18 @@ def test_checkerboard_recovers_a_rendered_lens(tmp_path, capsys, monkeypatch):
     assert again.returncode == 0 and (tmp_path / "again.json").read_bytes() == (tmp_path / "lens.json").read_bytes()
 
 
+def test_checkerboard_lens_that_folds_the_frame_is_refused(tmp_path, capsys, monkeypatch):
+    """Boards only near the image centre leave k3 free: the fitted k1, k2, k3 fold the frame's corners (a lens no
+    --camera-json would read), refused in one line, nothing written."""
+    (tmp_path / "frames").mkdir()
+    for i, rvec in enumerate(([0, 0, 0], [0.3, 0, 0], [0, 0.3, 0], [0.2, 0.2, 0.1])):
+        cv2.imwrite(str(tmp_path / "frames" / f"{i}.png"), render_board((np.array(rvec, float), np.array([-4.0, -2.5, 14.0]))))
+    r = run(tmp_path, capsys, monkeypatch, "--checkerboard", "frames/*.png", "--pattern", "9x6", "--square-m", "0.025",
+            "--terms", "k1,k2,k3", "-o", "lens.json")
+    assert r.returncode == 2 and "the calibrated distortion: " in r.stderr and "folds the image" in r.stderr, r.stderr
+    assert r.stderr.count("\n") == 1 and not (tmp_path / "lens.json").exists()
+
+
 # ---- one frame ------------------------------------------------------------------------------
 def test_frame_edges_recover_the_lens(tmp_path, capsys, monkeypatch):
     """Straight bars drawn on a pinhole canvas larger than the frame, the frame sampled through TRUE."""
