@@ -83,7 +83,8 @@ def parse_body(body: bytes) -> dict:
     return request
 
 
-_STRING_OR_BRACKET = re.compile(rb'"(?:[^"\\]|\\.)*"|[\[\]{}]')
+_STRING_OR_BRACKET = re.compile(rb'"[^"\\]*(?:\\.[^"\\]*)*"|[\[\]{}]')  # a string's plain
+# characters in one step of the loop (a photograph's base64: millions of them)
 
 
 def _depth(body: bytes) -> int:
