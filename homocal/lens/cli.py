@@ -8,7 +8,7 @@ from pathlib import Path
 
 from homocal.arguments import number
 from homocal.files import check_output_file, json_format, read_json, write_json_atomic
-from homocal.lens.checkerboard import MAX_FRAMES, calibrate_board
+from homocal.lens.checkerboard import MAX_FRAMES, MAX_SQUARE_M, calibrate_board, parse_pattern
 from homocal.lens.edges import fit_frame
 from homocal.lens.lines import DEFAULT_HFOV_DEG, DEFAULT_TERMS, TERMS, fit_lines, intrinsics, read_lines_file
 
@@ -27,14 +27,11 @@ lens.json: {{"K": [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], "distortion": [k1, k2, 
 
 
 def _pattern(text: str) -> tuple[int, int]:
-    """argparse type: COLSxROWS inner corners, each in [2, 100]."""
+    """argparse type: COLSxROWS inner corners (parse_pattern)."""
     try:
-        cols, rows = (int(part) for part in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected COLSxROWS inner corners such as 9x6, got {text!r}") from None
-    if not (2 <= cols <= 100 and 2 <= rows <= 100):
-        raise argparse.ArgumentTypeError(f"each count must be in [2, 100], got {text!r}")
-    return cols, rows
+        return parse_pattern(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -56,7 +53,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     lens.add_argument("--terms", choices=TERMS, default=DEFAULT_TERMS, metavar="TERMS",
                       help=f"the distortion coefficients fitted, the others 0: {' or '.join(TERMS)} (default %(default)s)")
     lens.add_argument("--pattern", type=_pattern, metavar="COLSxROWS", help="--checkerboard: inner corners, e.g. 9x6")
-    lens.add_argument("--square-m", type=number(float, 0, 100, low_open=True), metavar="M",
+    lens.add_argument("--square-m", type=number(float, 0, MAX_SQUARE_M, low_open=True), metavar="M",
                       help="--checkerboard: side of one square, metres")
     lens.set_defaults(handler=handle_lens)
 

@@ -5,28 +5,37 @@ FileExistsError (409, the page asks before replacing) or ``Refused`` (409, never
 computation goes through the library: the trapezoid's ViewTransformer is built as ``homocal fit`` builds it
 from the saved trapezoid.json, and the correction is made from the method catalogue as ``homocal fit`` does.
 Bounds: at most MAX_REFERENCE_POINTS points, coordinates within +/-MAX_COORDINATE, sigmas up to MAX_SIGMA_PX,
-seeds in [0, 2**64), the hybrid's threshold in [0, 100] percent. A method fitted from people's boxes reads the
-session's boxes file (named at launch: a request names only one of its detectors, never a path).
+seeds in [0, 2**64), the hybrid's threshold in [0, 100] percent; a checkerboard's those of ``homocal lens
+--checkerboard`` (homocal.lens.checkerboard), its photographs within the server's MAX_BODY. A method fitted from
+people's boxes reads the session's boxes file (named at launch: a request names only one of its detectors, never
+a path).
 """
 from __future__ import annotations
 
+import base64
 import csv
+import glob
 import io
 import math
 import os
 import shlex
+import tempfile
 import warnings
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
+from homocal.arguments import within
 from homocal.correctors.base import MAX_REFERENCE_POINTS, Corrector, load_corrector
 from homocal.correctors.catalogue import Method, fit_note, get_method, method_of, quality
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.pedestrians import SETTINGS as PEDESTRIAN_SETTINGS
 from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.correctors.serialization import float_or_none
-from homocal.files import read_json, read_points_csv, write_json_atomic, write_text_atomic
+from homocal.files import read_json, read_points_csv, write_atomic, write_json_atomic, write_text_atomic
 from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, signed_area, validate_quad
+from homocal.lens.checkerboard import MAX_FRAMES, MAX_SQUARE_M, calibrate_board, parse_pattern
 from homocal.lens.lines import DEFAULT_HFOV_DEG, DEFAULT_TERMS, TERMS, check_lines, fit_lines, intrinsics
 from homocal.ui import overlay
 from homocal.ui.errorbars import error_bars
@@ -37,6 +46,7 @@ from homocal.watch.folder import correction_at
 
 TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE = "trapezoid.json", "reference_points.csv", "correction.json"
 LINES_FILE, LENS_FILE = "lines.json", "lens.json"  # the line tool's: homocal lens --lines LINES_FILE -o LENS_FILE
+BOARD_DIR = "checkerboard"  # the checkerboard's photographs: homocal lens --checkerboard 'BOARD_DIR/*' -o LENS_FILE
 CAMERA_FILE = "camera_intrinsics.json"  # Save's --camera-json of a fit from boxes (not camera.json: a dataset's)
 MAX_SIGMA_PX = 100.0  # the error bars' sigmas (pixels): a clicking error beyond this is no click
 MAX_TOLERANCE_M = 1e6
@@ -50,13 +60,14 @@ class Refused(Exception):
 
 
 # ---- request fields -------------------------------------------------------------------------------
-def _number(req: dict, key: str, default: float, low: float, high: float) -> float:
-    """The request's field ``key`` (``default`` if absent): a finite number in [low, high]."""
+def _number(req: dict, key: str, default: float | None, low: float, high: float, low_open: bool = False) -> float:
+    """The request's field ``key`` (``default`` if absent; None: required): a finite number in [low, high] ((low,
+    high] if low_open)."""
     value = req.get(key, default)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise ValueError(f"{key}: expected a finite number, got {value!r}")
-    if not low <= value <= high:
-        raise ValueError(f"{key}: expected a number in [{low:g}, {high:g}], got {value!r}")
+    if not within(value, low, high, low_open):
+        raise ValueError(f"{key}: expected a number in {'(' if low_open else '['}{low:g}, {high:g}], got {value!r}")
     return float(value)
 
 
@@ -356,42 +367,140 @@ def watch(session: Session, req: dict) -> dict:
                            for m in moves)}
 
 
+def _terms(req: dict) -> str:
+    """The request's "terms": the distortion coefficients fitted, a key of TERMS (default DEFAULT_TERMS)."""
+    terms = req.get("terms", DEFAULT_TERMS)
+    if not isinstance(terms, str) or terms not in TERMS:
+        raise ValueError(f"terms: expected one of {', '.join(TERMS)}, got {terms!r}")
+    return terms
+
+
+def _use_fitted_lens(session: Session, fit, files: dict, command: str) -> dict:
+    """Use the lens the page fitted (``fit``: a LensFit or a BoardFit) from now on (use_lens: every click, box and
+    overlay goes through it), with the files Save writes and the command that writes the same lens.json from them
+    (Session.lens_fit); the lens and its lens.json "fit" for the page."""
+    use_lens(session, fit.lens, session.out_dir / LENS_FILE)
+    session.lens_fit = {"files": {session.out_dir / LENS_FILE: fit.to_json(), **files}, "command": command}
+    return {"lens": fit.lens.to_dict(), "fit": fit.to_json()["fit"]}
+
+
 def lens(session: Session, req: dict) -> dict:
     """Fit the lens that makes the request's "lines" (polylines [[u, v], ...] of the frame's pixels, along edges
     straight in the world) straight, as ``homocal lens --lines`` does (homocal.lens.lines: check_lines, fit_lines
     with "terms" (default DEFAULT_TERMS) and the focal length of "hfov_deg" (default DEFAULT_HFOV_DEG)), and use it
-    for the session from now on (use_lens: every click, box and overlay goes through it). Answers the lens, the
-    fit's diagnostics ("fit": lens.json's) and a summary."""
-    terms = req.get("terms", DEFAULT_TERMS)
-    if terms not in TERMS:
-        raise ValueError(f"terms: expected one of {', '.join(TERMS)}, got {terms!r}")
+    for the session from now on (``_use_fitted_lens``). Answers the lens, the fit's diagnostics ("fit": lens.json's)
+    and a summary."""
+    terms = _terms(req)
     hfov = _number(req, "hfov_deg", DEFAULT_HFOV_DEG, 1, 179)
     try:
         size, lines = check_lines(list(session.frame_size), req.get("lines"))
         fit = fit_lines(size, lines, intrinsics(size, hfov), terms)
     except ValueError as e:
         raise ValueError(f"lines: {e}") from None
-    use_lens(session, fit.lens, session.out_dir / LENS_FILE)
-    session.lines_fit = {"lines": [line.tolist() for line in lines], "terms": terms, "hfov_deg": hfov, "fit": fit}
+    lines_path, lens_path = session.out_dir / LINES_FILE, session.out_dir / LENS_FILE
+    command = (f"homocal lens --lines {shlex.quote(str(lines_path))} -o {shlex.quote(str(lens_path))} "
+               f"--hfov {hfov!r} --terms {terms}")
+    lines_json = {"image_size": list(size), "lines": [line.tolist() for line in lines]}
+    answer = _use_fitted_lens(session, fit, {lines_path: lines_json}, command)
     k1, k2, p1, p2, k3 = fit.lens.distortion
-    return {"lens": fit.lens.to_dict(), "fit": fit.to_json()["fit"],
+    return {**answer,
             "summary": f"{fit.lines} lines, {fit.points} points: straightness RMS {fit.rms_before_px:.2f} px before, "
                        f"{fit.rms_after_px:.2f} px after; k1 {k1:.4f} +- {fit.sigma[0]:.4f}, k2 {k2:.4f}, f "
                        f"{fit.lens.K[0, 0]:.1f} px; the frame's corner moves {fit.corner_displacement_px:.1f} px"}
 
 
+def _photos(req: dict) -> list[tuple[str, bytes]]:
+    """The request's "photos" [{"name": a file name, "data": its bytes in base64}], sorted by name (the order of
+    the command's glob); the first MAX_FRAMES + 1 (calibrate_board refuses more, as the command reads its glob).
+    ValueError naming the bad one: not a list, a name that is a path or starts with a dot (a glob's * skips it),
+    a name given twice, data that is not base64."""
+    photos = req.get("photos")
+    if not isinstance(photos, list):
+        raise ValueError('photos: expected a list of {"name": file name, "data": base64}')
+    out = {}
+    for i, photo in enumerate(photos[:MAX_FRAMES + 1]):
+        name = photo.get("name") if isinstance(photo, dict) else None
+        if (not isinstance(name, str) or not name.isprintable() or name != Path(name).name or name.startswith(".")
+                or "\\" in name or len(name.encode()) > 255):
+            raise ValueError(f"photos[{i}]: expected a file name (no folder, not starting with a dot), got {name!r}")
+        if name in out:
+            raise ValueError(f"photos[{i}]: {name} is given twice")
+        try:
+            out[name] = base64.b64decode(photo.get("data"), validate=True)
+        except (TypeError, ValueError):
+            raise ValueError(f"photos[{i}]: {name}'s data is not base64") from None
+    return sorted(out.items())
+
+
+def checkerboard(session: Session, req: dict) -> dict:
+    """Calibrate the lens from the request's checkerboard "photos" (``_photos``; of the frame's size) of a board of
+    "pattern" ("COLSxROWS" inner corners) with squares of "square_m" metres, as ``homocal lens --checkerboard`` does
+    (homocal.lens.checkerboard: parse_pattern, calibrate_board with "terms" (default DEFAULT_TERMS) and its bounds),
+    and use it for the session from now on (``_use_fitted_lens``). Save writes the photographs into BOARD_DIR for
+    the command. Answers the lens, the fit's diagnostics (lens.json's "fit", photographs by name) and a summary."""
+    terms = _terms(req)
+    try:
+        pattern = parse_pattern(req.get("pattern"))
+    except ValueError as e:
+        raise ValueError(f"pattern: {e}") from None
+    square = _number(req, "square_m", None, 0, MAX_SQUARE_M, low_open=True)
+    photos = _photos(req)
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, data in photos:
+            (Path(tmp) / name).write_bytes(data)
+        try:
+            fit = calibrate_board([Path(tmp) / name for name, _ in photos], pattern, square, terms, session.frame_size)
+        except ValueError as e:
+            raise ValueError("photos: " + str(e).replace(tmp + os.sep, "")) from None
+    folder, lens_path = session.out_dir / BOARD_DIR, session.out_dir / LENS_FILE
+    saved = replace(fit, frames=[str(folder / Path(p).name) for p in fit.frames],
+                    missing=[str(folder / Path(p).name) for p in fit.missing])  # as the command's glob names them
+    command = (f"homocal lens --checkerboard {shlex.quote(os.path.join(glob.escape(str(folder)), '*'))} --pattern "
+               f"{pattern[0]}x{pattern[1]} --square-m {square!r} --terms {terms} -o {shlex.quote(str(lens_path))}")
+    answer = _use_fitted_lens(session, saved, {folder / name: data for name, data in photos}, command)
+    found, missing = ([Path(p).name for p in paths] for paths in (fit.frames, fit.missing))
+    k1, k2, p1, p2, k3 = fit.lens.distortion
+    return {**answer, "fit": {**answer["fit"], "frames": found, "missing": missing},
+            "summary": f"board found in {len(found)} of {len(photos)} photographs"
+                       + (f" (not in {', '.join(missing)})" if missing else "")
+                       + f", RMS reprojection error {fit.rms_px:.3f} px; k1 {k1:.4f}, k2 {k2:.4f}, f {fit.lens.K[0, 0]:.1f} px"}
+
+
 def _lens_files(session: Session) -> tuple[dict, dict]:
-    """The paths of LINES_FILE and LENS_FILE with their contents, for a lens fitted from the page's lines (none
-    otherwise), and the ``homocal lens --lines`` command that writes the same lens.json from LINES_FILE."""
-    if session.lines_fit is None:
+    """The files of the lens fitted on the page (Session.lens_fit; none otherwise) with their contents, and the
+    ``homocal lens`` command that writes the same lens.json from them."""
+    if session.lens_fit is None:
         return {}, {}
-    f = session.lines_fit
-    lines_path, lens_path = session.out_dir / LINES_FILE, session.out_dir / LENS_FILE
-    contents = {lines_path: {"image_size": list(session.frame_size), "lines": f["lines"]},
-                lens_path: f["fit"].to_json()}
-    command = (f"homocal lens --lines {shlex.quote(str(lines_path))} -o {shlex.quote(str(lens_path))} "
-               f"--hfov {f['hfov_deg']!r} --terms {f['terms']}")
-    return contents, {"lens_command": command}
+    return session.lens_fit["files"], {"lens_command": session.lens_fit["command"]}
+
+
+def _board_leftovers(session: Session, paths: list) -> list:
+    """The files in BOARD_DIR besides ``paths`` (the command's glob would read them too): those this server wrote and
+    that are still what it wrote, which Save removes; ``Refused`` for the folder being a link or holding another."""
+    folder = session.out_dir / BOARD_DIR
+    if folder not in {p.parent for p in paths} or not (folder.is_dir() or folder.is_symlink()):
+        return []
+    if folder.is_symlink():
+        raise Refused(f"{BOARD_DIR} in {session.out_dir}: a symbolic link, which Save never writes into (remove it, or "
+                      "save to another folder)")
+    others = [p for p in folder.iterdir() if p not in paths]
+    foreign = [p.name for p in others if _identity(p) != session.written.get(p)]
+    if foreign:
+        raise Refused(f"{', '.join(sorted(foreign))} in {folder}: not a photograph of this calibration, which "
+                      "the command's glob would read (remove it, or save to another folder)")
+    return others
+
+
+def _write_lens_files(session: Session, files: dict, leftovers: list) -> None:
+    """Write the lens's files (JSON objects or bytes), then remove the leftovers (``_board_leftovers``)."""
+    for path, data in files.items():
+        if isinstance(data, bytes):
+            write_atomic(path, lambda tmp, data=data: tmp.write_bytes(data))
+        else:
+            write_json_atomic(path, data)
+    for path in leftovers:
+        path.unlink()
+        session.written.pop(path, None)
 
 
 def _check_replace(session: Session, paths: list, req: dict) -> None:
@@ -408,15 +517,14 @@ def _check_replace(session: Session, paths: list, req: dict) -> None:
 
 
 def save_lens(session: Session, req: dict) -> dict:
-    """Write the lines and the lens fitted from them (LINES_FILE, LENS_FILE: the files of ``homocal lens --lines``)
-    to the session's folder, asking before replacing a file this server did not write (as save); answer the
-    files and the command that writes the same lens.json."""
+    """Write the lens fitted on the page and what it was fitted from (LENS_FILE with LINES_FILE, or with the
+    photographs in BOARD_DIR: the files of ``homocal lens``) to the session's folder, asking before replacing a
+    file this server did not write (as save); answer the files and the command that writes the same lens.json."""
     contents, command = _lens_files(session)
     if not contents:
-        raise ValueError("lines: fit the lens from lines first")
+        raise ValueError("lens: fit it from lines, or calibrate it from a checkerboard, first")
     _check_replace(session, list(contents), req)
-    for path, data in contents.items():
-        write_json_atomic(path, data)
+    _write_lens_files(session, contents, _board_leftovers(session, list(contents)))
     session.written.update({p: _identity(p) for p in contents})
     return {"written": [str(p) for p in contents], "command": command["lens_command"]}
 
@@ -460,8 +568,9 @@ def save(session: Session, req: dict) -> dict:
     image, map_px = trapezoid(req)
     names = (TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE) + ((CAMERA_FILE,) if method.evidence == "boxes" else ())
     paths = [session.out_dir / name for name in names]
-    lens_files, lens_command = _lens_files(session)  # the lens the flags name, when fitted from the page's lines
+    lens_files, lens_command = _lens_files(session)  # the lens the flags name, when fitted on the page
     _check_replace(session, paths + list(lens_files), req)
+    leftovers = _board_leftovers(session, list(lens_files))
     site = {"scale_px_per_m": session.site_map.scale_px_per_m, "origin_px": list(session.site_map.origin_px)}
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
@@ -494,8 +603,7 @@ def save(session: Session, req: dict) -> dict:
     corrector.save(paths[2])
     if method.evidence == "boxes":
         write_json_atomic(paths[3], camera)
-    for path, data in lens_files.items():
-        write_json_atomic(path, data)
+    _write_lens_files(session, lens_files, leftovers)
     paths += list(lens_files)
     session.written.update({p: _identity(p) for p in paths})
     points_flag = f" --points {shlex.quote(str(paths[1]))}" if len(points) else ""
@@ -549,5 +657,5 @@ def load(session: Session, req: dict) -> dict:
     return out
 
 
-ENDPOINTS = {"view": view, "fit": fit, "watch": watch, "lens": lens, "save_lens": save_lens, "locate": locate,
-             "save": save, "load": load}
+ENDPOINTS = {"view": view, "fit": fit, "watch": watch, "lens": lens, "checkerboard": checkerboard, "save_lens": save_lens,
+             "locate": locate, "save": save, "load": load}

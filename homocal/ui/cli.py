@@ -21,7 +21,8 @@ those people's boxes, and draws the fitted horizon beside the clicked one; "Hori
 watch's calibrator over them at --fps and plots the horizon over time with the detected moves (a click on the
 plot picks the stretch whose correction a pedestrians fit uses).
 The line tool (click mode "straight lines") fits the lens from polylines along straight edges, as homocal lens
---lines, and uses it from then on; Save lens writes lines.json and lens.json into --out.
+--lines, and uses it from then on; Save lens writes lines.json and lens.json into --out. Calibrate does the same
+from uploaded checkerboard photographs, as homocal lens --checkerboard (Save lens also writes them).
 Save writes trapezoid.json, reference_points.csv and correction.json into --out, in the formats of
 homocal fit and homocal apply (for a fit from boxes also camera_intrinsics.json, the image size and K it
 used, as --camera-json), and shows the homocal fit command that writes the same correction from them; it

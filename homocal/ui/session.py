@@ -43,8 +43,9 @@ class Session:
     fps: float | None = None  # frames per second of the boxes' video (--fps, else its folder's): the watch's time
     lens: Lens | None = None  # the camera's lens (--camera-json, a dataset's camera.json); None: a pinhole's pixels
     camera_file: Path | None = None  # the file the lens came from (Save's command names it)
-    lines_fit: dict | None = None  # the lens fitted from the page's lines: {"lines", "terms", "hfov_deg", "fit"
-    # (homocal.lens.lines.LensFit)}; Save writes its LINES_FILE and LENS_FILE (camera_file)
+    lens_fit: dict | None = None  # the lens fitted on the page (Fit lens, Calibrate): {"files": {path: a JSON object
+    # or bytes}, "command": the homocal lens command that writes the same LENS_FILE (camera_file) from them}; Save
+    # and Save lens write its files
     written: dict[Path, tuple] = field(default_factory=dict)  # the identity (api._identity) of each file this
     # server wrote: Save replaces those without asking while they are still what it wrote
     boxes_read: dict[str | None, PersonBoxes] = field(default_factory=dict, repr=False)  # person_boxes' reads

@@ -75,7 +75,7 @@ def test_bad_lines_are_one_line(files, lines, message):
     session = from_files(files["frame"], files["map"], SITE, (0.0, 0.0), files["out"])
     with pytest.raises(ValueError, match=message.replace("(", r"\(")):
         api.lens(session, {"lines": lines})
-    assert session.lens is None and session.lines_fit is None
+    assert session.lens is None and session.lens_fit is None
 
 
 def test_save_writes_the_lens_the_fit_names(files):

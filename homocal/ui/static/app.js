@@ -20,7 +20,7 @@ const S = {
   probe: null,         // {u, v, answer}
   watch: null,         // last /api/watch answer (the horizon over time), null when out of date
   lines: [[]],         // the line tool's polylines ([u, v] frame px), the last one being clicked
-  lens: null,          // last /api/lens answer: the lens fitted from the lines, which the server now uses
+  lens: null,          // last /api/lens or /api/checkerboard answer: the lens fitted, which the server now uses
   at: null,            // the time (s) picked on the time plot: a fit from boxes is that stretch's correction
   message: null,       // {text, kind: "error" | "warn" | "info", topic}: the status line (see say)
 };
@@ -695,18 +695,42 @@ async function doSave() {
   } catch (e) { say(e.message, "error", "files"); }
 }
 
-// Fit the lens from the clicked lines (/api/lens): the server uses it from then on, so the overlays are asked again.
-async function doFitLens() {
+// Fit the lens (/api/lens from the clicked lines, /api/checkerboard from photographs): the server uses it from
+// then on, so the overlays are asked again. request: a function giving the request (it may fail: said as an error).
+async function fitLens(endpoint, request, verb) {
   try {
-    const answer = await api("lens", { lines: S.lines.filter((l) => l.length), terms: $("lens-terms").value,
-                                       hfov_deg: number("lens-hfov") });
+    const answer = await api(endpoint, await request());
     S.lens = answer;
     $("lens-summary").textContent = answer.summary;
     invalidateFit();
-    say("lens fitted: " + answer.summary, "info", "lens");
+    say(`lens ${verb}: ` + answer.summary, "info", "lens");
     await refreshView();
   } catch (e) { say(e.message, "error", "lens"); }
 }
+
+const doFitLens = () => fitLens("lens", () => ({ lines: S.lines.filter((l) => l.length), terms: $("lens-terms").value,
+                                                 hfov_deg: number("lens-hfov") }), "fitted");
+
+// The chosen photographs as [{name, data: base64}]; an error, before any is read, if their base64 exceeds the
+// server's bound on a request (max_body: it would refuse them).
+async function boardPhotos() {
+  const files = [...$("board-photos").files];
+  const bytes = files.reduce((n, f) => n + f.size, 0);
+  if (4 * Math.ceil(bytes / 3) > S.info.max_body) {
+    throw new Error(`photos: ${(bytes / 2 ** 20).toFixed(1)} MiB of photographs; the server takes at most ` +
+                    `${(S.info.max_body * 3 / 4 / 2 ** 20).toFixed(1)} MiB in one request (choose fewer, or smaller files)`);
+  }
+  return Promise.all(files.map((f) => new Promise((resolve, reject) => {
+    const reader = new FileReader();
+    reader.onload = () => resolve({ name: f.name, data: reader.result.slice(reader.result.indexOf(",") + 1) });
+    reader.onerror = () => reject(new Error(`photos: cannot read ${f.name}`));
+    reader.readAsDataURL(f);
+  })));
+}
+
+const doCalibrate = () => fitLens("checkerboard", async () => ({
+  photos: await boardPhotos(), pattern: $("board-pattern").value, square_m: number("board-square"),
+  terms: $("lens-terms").value }), "calibrated");
 
 async function doSaveLens() {
   try {
@@ -756,6 +780,7 @@ function bind() {
   $("watch").onclick = doWatch;
   $("timeplot").addEventListener("click", pickStretch);
   $("fit-lens").onclick = doFitLens;
+  $("calibrate").onclick = doCalibrate;
   $("save-lens").onclick = doSaveLens;
   $("end-line").onclick = () => { if (S.lines[S.lines.length - 1].length) S.lines.push([]); render(); };
   $("clear-lines").onclick = () => { S.lines = [[]]; clearTopic("lens"); render(); };
