@@ -98,6 +98,13 @@ foot-point errors against the truth on simgen's scene1 and scene2, seed 0 (0.056
 negative). The error is not white: its autocorrelation one frame apart (20 fps) is 0.93-0.97."""
 
 
+FOOT_CORRELATION_S = 0.57
+"""FITTED: the correlation time tau, seconds, of the foot point's error taken as an AR(1) (homocal.measure.kalman:
+rho = exp(-dt / tau) between frames dt apart): research/foot_noise.py's least-squares fit to the errors'
+autocorrelation at lags 1-5 frames (20 fps) on simgen's scene1 and scene2, seed 0 (0.59 s segmentation, 0.55 s
+rgb boxes, u and v together)."""
+
+
 def box_height_sigma_px(xyxy: np.ndarray) -> np.ndarray:
     """Foot points' 1-sigma (N,) px of boxes xyxy (N, 4) px: FOOT_SIGMA_PER_BOX_HEIGHT x the box's height."""
     return FOOT_SIGMA_PER_BOX_HEIGHT * np.abs(xyxy[:, 3] - xyxy[:, 1])
@@ -166,8 +173,8 @@ def track_batches(track_ids: np.ndarray, frames: np.ndarray) -> Iterator[list[np
 
 def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
                    accel_psd: float = ACCEL_PSD, smooth: bool = True, click_sigma_px: float = 1.5,
-                   point_sigma_px: float | np.ndarray = 1.0, split_mapping_error: bool = False
-                   ) -> Iterator[dict[str, np.ndarray]]:
+                   point_sigma_px: float | np.ndarray = 1.0, split_mapping_error: bool = False,
+                   foot_correlation_s: float | None = None) -> Iterator[dict[str, np.ndarray]]:
     """homocal measure's table in batches of whole tracks (dicts of COLUMNS, each (rows,)), tracks in
     increasing id, each in frame order.
 
@@ -179,11 +186,18 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
         accel_psd: the filter's process noise q, m^2/s^3 (homocal.measure.kalman).
         smooth: True: the RTS smoother's states (each conditioned on the whole track); False: the forward
             filter's (each on the frames up to it: what a live system has).
+        split_mapping_error: the filter's measurement noise the foot point's own (``point_noise``) and the shared
+            mapping error in the speed's sigma (``mapping_velocity_covariance``); False: the whole covariance.
+        foot_correlation_s: None: the measurement noise white; tau seconds (FOOT_CORRELATION_S): the foot
+            point's own noise correlated over frames, an AR(1) of this correlation time in the filter's state
+            (homocal.measure.kalman; with split_mapping_error).
     x, y are the mapped foot points, sigma_m their 1-sigma radius (homocal.sigma_radius of the mapping's
     ground_uncertainty at click_sigma_px, point_sigma_px: the filter's measurement noise); x_smooth, y_smooth,
     vx, vy the filter's state; speed_mps = |(vx, vy)| and speed_sigma_mps its delta-method 1-sigma from the
     state's velocity covariance (kalman.speed_and_sigma).
     """
+    if foot_correlation_s is not None and not (split_mapping_error and foot_correlation_s > 0):
+        raise ValueError(f"foot_correlation_s: expected > 0 with split_mapping_error=True, got {foot_correlation_s!r}")
     mapping = as_mapping(mapping)
     frames, track_ids = np.asarray(frames, dtype=np.int64), np.asarray(track_ids, dtype=np.int64)
     feet = np.asarray(feet, dtype=np.float64)
@@ -200,14 +214,18 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
             m = len(r)
             t[i, :m], t[i, m:] = frames[r] / fps, frames[r[-1]] / fps
             z[i, :m], R[i, :m] = xy[at[i]:at[i + 1]], noise[at[i]:at[i + 1]]
-        filtered = kalman_filter(t, z, R, accel_psd)
+        foot = None
+        if foot_correlation_s is not None:  # all of the foot point's noise correlated, none white
+            foot, R = (R, foot_correlation_s), np.where(np.isfinite(R), 0.0, np.nan)
+        filtered = kalman_filter(t, z, R, accel_psd, foot)
         x, P = rts_smoother(filtered) if smooth else (filtered["x"], filtered["P"])
         used = np.concatenate([np.arange(len(r)) + i * L for i, r in enumerate(batch)])
-        x, P = x.reshape(-1, 4)[used], P.reshape(-1, 4, 4)[used]
-        Pv = P[:, 2:, 2:]
+        d = x.shape[-1]
+        x, P = x.reshape(-1, d)[used], P.reshape(-1, d, d)[used]
+        Pv = P[:, 2:4, 2:4]
         if split_mapping_error:
-            Pv = Pv + mapping_velocity_covariance(mapping, feet[rows], x[:, 2:], click_sigma_px)
-        speed, speed_sigma = speed_and_sigma(x[:, 2:], Pv)
+            Pv = Pv + mapping_velocity_covariance(mapping, feet[rows], x[:, 2:4], click_sigma_px)
+        speed, speed_sigma = speed_and_sigma(x[:, 2:4], Pv)
         yield {"frame": frames[rows], "t": frames[rows] / fps, "track_id": track_ids[rows], "u": feet[rows, 0],
                "v": feet[rows, 1], "x": xy[:, 0], "y": xy[:, 1], "sigma_m": sigma_radius(cov), "x_smooth": x[:, 0],
                "y_smooth": x[:, 1], "vx": x[:, 2], "vy": x[:, 3], "speed_mps": speed, "speed_sigma_mps": speed_sigma}
