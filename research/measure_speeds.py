@@ -63,7 +63,7 @@ from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer, box_bottom_points
 from homocal.geometry.boxes import link_tracks
 from homocal.measure import measure_tracks
-from homocal.measure.tracks import FOOT_CORRELATION_S, box_height_sigma_px
+from homocal.measure.tracks import foot_noise_options
 from homocal.study.perturb import base_quad
 
 BANDS = ((5.0, 15.0), (15.0, 30.0), (30.0, 50.0), (5.0, 50.0))
@@ -151,10 +151,9 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
         for name, mapping in maps.items():
             for estimator, smooth in (("filter", False), ("smoother", True)):
                 speed, sigma, pos_err, pos_sigma = (np.full(len(frames), np.nan) for _ in range(4))
-                foot_sigma = box_height_sigma_px(xyxy) if box_sigma or correlated else 1.0
-                for batch in measure_tracks(mapping, frames, feet, ids, fps, smooth=smooth, point_sigma_px=foot_sigma,
-                                            split_mapping_error=split or box_sigma or correlated,
-                                            foot_correlation_s=FOOT_CORRELATION_S if correlated else None):
+                noise = foot_noise_options("correlated" if correlated else "box-height" if box_sigma else "fixed", xyxy, 1.0)
+                noise["split_mapping_error"] |= split
+                for batch in measure_tracks(mapping, frames, feet, ids, fps, smooth=smooth, **noise):
                     at = np.array([index[(f, k)] for f, k in zip(batch["frame"], batch["track_id"])])
                     speed[at], sigma[at] = batch["speed_mps"], batch["speed_sigma_mps"]
                     pos_err[at] = np.hypot(batch["x"] - true_xy[at, 0], batch["y"] - true_xy[at, 1])

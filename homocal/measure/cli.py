@@ -19,12 +19,10 @@ from homocal.files import check_output_file, json_format, write_atomic
 from homocal.geometry import read_trapezoid_file
 from homocal.geometry.boxes import box_bottom_points, link_tracks
 from homocal.measure.kalman import ACCEL_PSD
-from homocal.measure.tracks import (COLUMNS, FOOT_CORRELATION_S, FOOT_SIGMA_PER_BOX_HEIGHT, box_height_sigma_px, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
+from homocal.measure.tracks import (COLUMNS, FOOT_CORRELATION_S, FOOT_NOISE, FOOT_SIGMA_PER_BOX_HEIGHT, foot_noise_options, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
                                     TrapezoidMapping, check_people_per_frame, check_tracks, measure_tracks, pair_distances, summarise)
 from homocal.progress import add_progress_option, show_progress
 
-FOOT_NOISE = ("fixed", "box-height", "correlated")
-"""--foot-noise's choices (docs/measure.md, The filter)."""
 """The highest frame rate taken (--fps, or the boxes' file's)."""
 INTEGER_COLUMNS = {"frame", "track_id", "frames", "first_frame", "last_frame", "track_a", "track_b"}
 
@@ -178,15 +176,12 @@ def handle_measure(args: argparse.Namespace) -> int:
             check_people_per_frame(frames)
         except ValueError as e:
             raise ValueError(f"--pairs: {args.boxes}: {e}") from None
-    by_box = args.foot_noise != "fixed"
-    sigmas = {"click_sigma_px": args.click_sigma_px,
-              "point_sigma_px": box_height_sigma_px(boxes.xyxy[keep]) if by_box else args.point_sigma_px}
+    noise = foot_noise_options(args.foot_noise, boxes.xyxy[keep], args.point_sigma_px)
+    sigmas = {"click_sigma_px": args.click_sigma_px, "point_sigma_px": noise.pop("point_sigma_px")}
     summaries = []
 
     def tracks():
-        for batch in measure_tracks(mapping, frames, feet, ids, fps, accel_psd=args.accel_psd, split_mapping_error=by_box,
-                                    foot_correlation_s=FOOT_CORRELATION_S if args.foot_noise == "correlated" else None,
-                                    **sigmas):
+        for batch in measure_tracks(mapping, frames, feet, ids, fps, accel_psd=args.accel_psd, **noise, **sigmas):
             summaries.append(summarise(batch))
             yield batch
 

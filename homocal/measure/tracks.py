@@ -110,6 +110,24 @@ def box_height_sigma_px(xyxy: np.ndarray) -> np.ndarray:
     return FOOT_SIGMA_PER_BOX_HEIGHT * np.abs(xyxy[:, 3] - xyxy[:, 1])
 
 
+FOOT_NOISE = ("fixed", "box-height", "correlated")
+"""The foot point's noise models (homocal measure --foot-noise, GroundTracker's foot_noise; docs/measure.md):
+fixed, one sigma for every point and the whole covariance the filter's white measurement noise; box-height,
+``box_height_sigma_px`` white and the shared mapping error in the speed's sigma (split_mapping_error);
+correlated, box-height's with the foot error an AR(1) of FOOT_CORRELATION_S in the filter's state."""
+
+
+def foot_noise_options(foot_noise: str, xyxy: np.ndarray, point_sigma_px: float) -> dict:
+    """``measure_tracks``'s point_sigma_px, split_mapping_error and foot_correlation_s for a FOOT_NOISE model and
+    boxes xyxy (N, 4) px (point_sigma_px: fixed's sigma, px); ValueError for another name."""
+    if foot_noise not in FOOT_NOISE:
+        raise ValueError(f"foot_noise: expected one of {', '.join(FOOT_NOISE)}, got {foot_noise!r}")
+    if foot_noise == "fixed":
+        return {"point_sigma_px": point_sigma_px, "split_mapping_error": False, "foot_correlation_s": None}
+    return {"point_sigma_px": box_height_sigma_px(np.asarray(xyxy, dtype=np.float64)), "split_mapping_error": True,
+            "foot_correlation_s": FOOT_CORRELATION_S if foot_noise == "correlated" else None}
+
+
 def mapping_modes(mapping: Mapping, feet: np.ndarray, click_sigma_px: float) -> tuple[np.ndarray, np.ndarray]:
     """The shared mapping error at foot points (N, 2) px as J (N, 2, k), the ground points' derivative along k
     error parameters, and their covariance C (k, k), so that J C J^T is ground_uncertainty at point_sigma_px = 0:
