@@ -25,7 +25,8 @@ SUMMARY_COLUMNS = ("track_id", "frames", "first_frame", "last_frame", "duration_
 PAIR_COLUMNS = ("frame", "t", "track_a", "track_b", "distance_m", "distance_sigma_m")
 BATCH_CELLS = 2**16
 """Cells (tracks x frames, padded) filtered at once, and boxes mapped at once for distances: about 85 floats a
-cell (the filter's states, predictions, covariances and transitions, the smoother's copies), some 45 MB."""
+cell (the filter's states, predictions, covariances and transitions, the smoother's copies), some 45 MB; about
+twice that with the correlated foot error's six states."""
 MAX_TRACK_FRAMES = BATCH_CELLS
 """The longest track measured (a batch of its own; 36 minutes at 30 fps): homocal measure refuses longer ones."""
 MAX_PEOPLE_PER_FRAME = 500
