@@ -51,6 +51,15 @@ def transition(dt: np.ndarray, q: float, foot: tuple[np.ndarray, float] | None =
     return F, Q
 
 
+def correlated_noise(R: np.ndarray, tau: float | None) -> tuple[np.ndarray, tuple[np.ndarray, float] | None]:
+    """``kalman_filter``'s (R, foot) for a measurement noise R (..., 2, 2) metres^2: white (R, None) when tau is
+    None; else all of it correlated with correlation time tau seconds, (0, (R, tau)): no white part (NaN where R
+    is NaN: no measurement there)."""
+    if tau is None:
+        return R, None
+    return np.where(np.isfinite(R), 0.0, np.nan), (R, tau)
+
+
 def measurement_matrix(d: int) -> np.ndarray:
     """H (2, d): the measured foot point's ground position, the state's (x, y) (d = 4) plus its error b (d = 6)."""
     H = np.eye(2, d)

@@ -9,9 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from homocal.geometry.boxes import box_bottom_points
-from homocal.measure.kalman import ACCEL_PSD, predict, speed_and_sigma, start_state, update
-from homocal.measure.tracks import (FOOT_NOISE, as_mapping, foot_noise_options, map_points, mapping_velocity_covariance,
-                                    point_noise)
+from homocal.measure.kalman import ACCEL_PSD, correlated_noise, predict, start_state, update
+from homocal.measure.tracks import FOOT_NOISE, as_mapping, foot_noise_options, map_points, point_noise, state_speed
 from homocal.uncertainty import sigma_radius
 
 MAX_AGE_S = 2.0
@@ -80,11 +79,8 @@ class GroundTracker:
         feet = box_bottom_points(np.asarray(xyxy), convention=self.convention)
         noise = foot_noise_options(self.foot_noise, np.asarray(xyxy), self.point_sigma_px)
         xy, cov = map_points(self.mapping, feet, self.click_sigma_px, noise["point_sigma_px"])
-        R = point_noise(self.mapping, feet, noise["point_sigma_px"]) if noise["split_mapping_error"] else cov
-        tau = noise["foot_correlation_s"]
-        foot = None if tau is None else (R, tau)
-        if foot is not None:  # as measure_tracks: the foot point's noise all correlated, none white
-            R = np.where(np.isfinite(R), 0.0, np.nan)
+        R, foot = correlated_noise(point_noise(self.mapping, feet, noise["point_sigma_px"])
+                                   if noise["split_mapping_error"] else cov, noise["foot_correlation_s"])
         x, P = start_state(len(ids), None if foot is None else foot[0])
         dt = np.zeros(len(ids))
         for i, k in enumerate(ids.tolist()):
@@ -95,8 +91,6 @@ class GroundTracker:
         x, P = update(x, P, xy, R)
         for i, k in enumerate(ids.tolist()):
             self._tracks[k] = (x[i], P[i], int(frame))
-        Pv = P[:, 2:4, 2:4]
-        if noise["split_mapping_error"]:
-            Pv = Pv + mapping_velocity_covariance(self.mapping, feet, x[:, 2:4], self.click_sigma_px)
-        speed, speed_sigma = speed_and_sigma(x[:, 2:4], Pv)
+        speed, speed_sigma = state_speed(self.mapping, feet, x, P,
+                                         self.click_sigma_px if noise["split_mapping_error"] else None)
         return GroundState(ids.astype(np.int64), xy, sigma_radius(cov), x[:, :2], x[:, 2:4], speed, speed_sigma)

@@ -14,7 +14,7 @@ from typing import Protocol
 import numpy as np
 
 from homocal.geometry import Lens, ViewTransformer
-from homocal.measure.kalman import ACCEL_PSD, kalman_filter, rts_smoother, speed_and_sigma
+from homocal.measure.kalman import ACCEL_PSD, correlated_noise, kalman_filter, rts_smoother, speed_and_sigma
 from homocal.uncertainty import STEP, click_jacobian, ground_uncertainty, sigma_radius
 
 COLUMNS = ("frame", "t", "track_id", "u", "v", "x", "y", "sigma_m", "x_smooth", "y_smooth", "vx", "vy", "speed_mps",
@@ -159,6 +159,17 @@ def mapping_velocity_covariance(mapping: Mapping, feet: np.ndarray, v: np.ndarra
     return D @ C @ D.transpose(0, 2, 1)
 
 
+def state_speed(mapping: Mapping, feet: np.ndarray, x: np.ndarray, P: np.ndarray, click_sigma_px: float | None
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Speed (N,) m/s and its 1-sigma of the filter's states x (N, d) and covariances P (N, d, d) at foot points
+    (N, 2) px (kalman.speed_and_sigma of the velocity's block), plus the shared mapping error's share
+    (``mapping_velocity_covariance`` at click_sigma_px) unless click_sigma_px is None."""
+    Pv = P[:, 2:4, 2:4]
+    if click_sigma_px is not None:
+        Pv = Pv + mapping_velocity_covariance(mapping, feet, x[:, 2:4], click_sigma_px)
+    return speed_and_sigma(x[:, 2:4], Pv)
+
+
 def check_tracks(frames: np.ndarray, track_ids: np.ndarray) -> None:
     """ValueError for a track whose rows (in the given order) go back in frame or repeat one: the rows of a
     track must come in increasing frame order, one box per track and frame."""
@@ -233,18 +244,13 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
             m = len(r)
             t[i, :m], t[i, m:] = frames[r] / fps, frames[r[-1]] / fps
             z[i, :m], R[i, :m] = xy[at[i]:at[i + 1]], noise[at[i]:at[i + 1]]
-        foot = None
-        if foot_correlation_s is not None:  # all of the foot point's noise correlated, none white
-            foot, R = (R, foot_correlation_s), np.where(np.isfinite(R), 0.0, np.nan)
+        R, foot = correlated_noise(R, foot_correlation_s)
         filtered = kalman_filter(t, z, R, accel_psd, foot)
         x, P = rts_smoother(filtered) if smooth else (filtered["x"], filtered["P"])
         used = np.concatenate([np.arange(len(r)) + i * L for i, r in enumerate(batch)])
         d = x.shape[-1]
         x, P = x.reshape(-1, d)[used], P.reshape(-1, d, d)[used]
-        Pv = P[:, 2:4, 2:4]
-        if split_mapping_error:
-            Pv = Pv + mapping_velocity_covariance(mapping, feet[rows], x[:, 2:4], click_sigma_px)
-        speed, speed_sigma = speed_and_sigma(x[:, 2:4], Pv)
+        speed, speed_sigma = state_speed(mapping, feet[rows], x, P, click_sigma_px if split_mapping_error else None)
         yield {"frame": frames[rows], "t": frames[rows] / fps, "track_id": track_ids[rows], "u": feet[rows, 0],
                "v": feet[rows, 1], "x": xy[:, 0], "y": xy[:, 1], "sigma_m": sigma_radius(cov), "x_smooth": x[:, 0],
                "y_smooth": x[:, 1], "vx": x[:, 2], "vy": x[:, 3], "speed_mps": speed, "speed_sigma_mps": speed_sigma}
