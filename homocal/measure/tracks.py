@@ -99,11 +99,12 @@ foot-point errors against the truth on simgen's scene1 and scene2, seed 0 (0.056
 negative). The error is not white: its autocorrelation one frame apart (20 fps) is 0.93-0.97."""
 
 
-FOOT_CORRELATION_S = 0.57
+FOOT_CORRELATION_S = 0.16
 """FITTED: the correlation time tau, seconds, of the foot point's error taken as an AR(1) (homocal.measure.kalman:
-rho = exp(-dt / tau) between frames dt apart): research/foot_noise.py's least-squares fit to the errors'
-autocorrelation at lags 1-5 frames (20 fps) on simgen's scene1 and scene2, seed 0 (0.59 s segmentation, 0.55 s
-rgb boxes, u and v together)."""
+rho = exp(-dt / tau) between frames dt apart): research/foot_noise.py's least-squares fit to the autocorrelation
+at lags 1-5 frames (20 fps) of the error over its box's height, the unit process that FOOT_SIGMA_PER_BOX_HEIGHT
+scales, on simgen's scene1 and scene2, seed 0 (0.13 s segmentation, 0.19 s rgb boxes, u and v together; the
+error in pixels, where the large boxes weigh most, gives 0.55-0.59 s)."""
 
 
 def box_height_sigma_px(xyxy: np.ndarray) -> np.ndarray:
