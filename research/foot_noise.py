@@ -9,7 +9,10 @@ coordinate, 1.4826 x the median absolute deviation from the median (u, v), and t
 fit sigma_px = a + b x box height (weighted least squares of the bins' sigmas of both coordinates, each bin
 weighted by its box count); and the errors' autocorrelation at lags 1..MAX_LAG frames (Pearson, over pairs of
 the same agent's boxes that many frames apart, each error less its agent's median): near 0 at lag 1 means
-white at the video rate.
+white at the video rate; and the correlation time tau of an AR(1) fitted to them (``correlation_time``). Both
+of the error in pixels (where the large boxes' large errors weigh most) and of the error over the box's height,
+in units of the sigma the model gives it (FOOT_SIGMA_PER_BOX_HEIGHT x height), each box weighing alike: the
+process the filter's AR(1) is (homocal.measure.tracks.FOOT_CORRELATION_S).
 """
 from __future__ import annotations
 
@@ -81,6 +84,13 @@ def autocorrelation(e: np.ndarray, agents: np.ndarray, frames: np.ndarray, lag: 
     return float(np.corrcoef(r[pairs[:, 0]], r[pairs[:, 1]])[0, 1])
 
 
+def correlation_time(acf: np.ndarray, dt: float) -> float:
+    """tau (s) of an AR(1), rho_k = exp(-k dt / tau), fitted to autocorrelations acf (K,) at lags 1..K frames dt
+    seconds apart: least squares of ln rho_k = -(k dt) / tau through the origin."""
+    lag = dt * np.arange(1, len(acf) + 1)
+    return float(-np.sum(lag * lag) / np.sum(lag * np.log(acf)))
+
+
 def report(paths: list[str], detector: str) -> str:
     parts = [foot_errors(p, detector) for p in paths]
     err, height, frames = (np.concatenate([p[i] for p in parts]) for i in (0, 1, 3))
@@ -100,10 +110,15 @@ def report(paths: list[str], detector: str) -> str:
                      f"{a + b * hm:.2f} |")
     lines.append(f"fitted (u and v together): sigma_px = {a:.3f} + {b:.4f} x box height (px); pure ratio {ratio:.4f} x "
                  f"box height (u alone {per_axis[0]:.4f}, v alone {per_axis[1]:.4f})")
-    for c, name in ((0, "u"), (1, "v")):
-        acf = [autocorrelation(err[:, c], agents, frames, lag) for lag in range(1, MAX_LAG + 1)]
-        lines.append(f"autocorrelation of the {name} error at lags 1..{MAX_LAG} frames: "
-                     + ", ".join(f"{x:.2f}" for x in acf))
+    dt = 1.0 / float(load_dataset(paths[0]).manifest["fps"])
+    for what, scale in (("error, px", 1.0), ("error / box height (in units of its modelled sigma)", height)):
+        acfs = []
+        for c, name in ((0, "u"), (1, "v")):
+            acfs.append([autocorrelation(err[:, c] / scale, agents, frames, lag) for lag in range(1, MAX_LAG + 1)])
+            lines.append(f"autocorrelation of the {name} {what}, at lags 1..{MAX_LAG} frames: "
+                         + ", ".join(f"{x:.2f}" for x in acfs[-1]) + f" (AR(1) correlation time "
+                         f"{correlation_time(np.array(acfs[-1]), dt):.2f} s)")
+        lines.append(f"AR(1) correlation time of u and v together: {correlation_time(np.mean(acfs, axis=0), dt):.2f} s")
     return "\n".join(lines)
 
 

@@ -2,8 +2,8 @@
 supervision's speed recipe (issue 34 item 4; docs/measure.md).
 
     python research/measure_speeds.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--shift 16]
-    python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma]
-    python research/measure_speeds.py DATASET --throughput 10
+    python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma | --correlated]
+    python research/measure_speeds.py DATASET --throughput 10 [--correlated]
 
 Per dataset and detector, the clicked trapezoid is the dataset's exact one moved as a tilt error moves it so
 that its horizon lies --shift px above the true one (homocal.study.perturb.base_quad; 16 px is the study's
@@ -37,9 +37,12 @@ given as mean [min, max] over the datasets.
 speed's bar (homocal.measure.measure_tracks(split_mapping_error=True)).
 --box-sigma: the split with each foot point's own sigma FOOT_SIGMA_PER_BOX_HEIGHT x its box's height
 (homocal.measure.tracks.box_height_sigma_px; research/foot_noise.py) instead of 1 px.
+--correlated: --box-sigma with the foot point's error an AR(1) of correlation time FOOT_CORRELATION_S in the
+filter's state (measure_tracks(foot_correlation_s=...); homocal measure --foot-noise correlated).
+--accel-psd Q: the filter's process noise (homocal measure --accel-psd; default homocal.measure.ACCEL_PSD).
 --throughput MINUTES: the first dataset's segmentation boxes repeated (frames and track ids shifted) into a
-CSV of MINUTES minutes, then `homocal measure` on it as a subprocess: boxes per second and the child's peak
-resident memory (ru_maxrss).
+CSV of MINUTES minutes, then `homocal measure` on it as a subprocess (with --correlated: --foot-noise
+correlated): boxes per second and the child's peak resident memory (ru_maxrss).
 """
 from __future__ import annotations
 
@@ -60,8 +63,8 @@ from homocal.correctors import LeastChangeCorrector, PedestrianCorrector
 from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer, box_bottom_points
 from homocal.geometry.boxes import link_tracks
-from homocal.measure import measure_tracks
-from homocal.measure.tracks import box_height_sigma_px
+from homocal.measure import ACCEL_PSD, measure_tracks
+from homocal.measure.tracks import foot_noise_options
 from homocal.study.perturb import base_quad
 
 BANDS = ((5.0, 15.0), (15.0, 30.0), (30.0, 50.0), (5.0, 50.0))
@@ -128,7 +131,8 @@ def mappings(ds, detector: str, shift: float, frames: np.ndarray, xyxy: np.ndarr
     return {"uncorrected": clicked, "least change": least, "pedestrians": peds}, clicked
 
 
-def evaluate(paths: list[str], detector: str, shift: float, split: bool = False, box_sigma: bool = False) -> dict:
+def evaluate(paths: list[str], detector: str, shift: float, split: bool = False, box_sigma: bool = False,
+             correlated: bool = False, accel_psd: float = ACCEL_PSD) -> dict:
     """{(mapping, estimator): dict of pooled arrays err (m/s), rel (%, NaN below WALKING_MPS), range, cover1/2
     (speeds), pos1/2 (positions)} over the datasets."""
     pooled: dict = collections.defaultdict(lambda: collections.defaultdict(list))
@@ -148,9 +152,9 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
         for name, mapping in maps.items():
             for estimator, smooth in (("filter", False), ("smoother", True)):
                 speed, sigma, pos_err, pos_sigma = (np.full(len(frames), np.nan) for _ in range(4))
-                foot_sigma = box_height_sigma_px(xyxy) if box_sigma else 1.0
-                for batch in measure_tracks(mapping, frames, feet, ids, fps, smooth=smooth, point_sigma_px=foot_sigma,
-                                            split_mapping_error=split or box_sigma):
+                noise = foot_noise_options("correlated" if correlated else "box-height" if box_sigma else "fixed", xyxy, 1.0)
+                noise["split_mapping_error"] |= split
+                for batch in measure_tracks(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=accel_psd, **noise):
                     at = np.array([index[(f, k)] for f, k in zip(batch["frame"], batch["track_id"])])
                     speed[at], sigma[at] = batch["speed_mps"], batch["speed_sigma_mps"]
                     pos_err[at] = np.hypot(batch["x"] - true_xy[at, 0], batch["y"] - true_xy[at, 1])
@@ -225,7 +229,7 @@ def spread_table(per_dataset: list[dict], detector: str, shift: float) -> str:
     return "\n".join(lines)
 
 
-def throughput(path: str, minutes: float) -> str:
+def throughput(path: str, minutes: float, foot_noise: str = "fixed") -> str:
     ds = load_dataset(path)
     boxes = read_boxes(Path(path) / "detections.parquet", "segmentation")
     fps = float(ds.manifest["fps"])
@@ -244,7 +248,8 @@ def throughput(path: str, minutes: float) -> str:
         n = copies * len(ids)
         start = time.perf_counter()
         subprocess.run([sys.executable, "-m", "homocal.cli", "measure", str(trap), "--boxes", str(csv), "--fps",
-                        f"{fps:g}", "--out", str(Path(tmp) / "tracks.parquet"), "--no-progress"], check=True)
+                        f"{fps:g}", "--out", str(Path(tmp) / "tracks.parquet"), "--foot-noise", foot_noise,
+                        "--no-progress"], check=True)
         seconds = time.perf_counter() - start
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
     return (f"throughput: {n:,} boxes in the file ({copies} copies of {ds.name}'s {length} frames of segmentation boxes, "
@@ -261,16 +266,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--split", action="store_true", help="measure_tracks(split_mapping_error=True)")
     parser.add_argument("--box-sigma", action="store_true",
                         help="the split with each foot point's sigma FOOT_SIGMA_PER_BOX_HEIGHT x its box's height")
+    parser.add_argument("--correlated", action="store_true",
+                        help="--box-sigma with the foot point's error an AR(1) of correlation time FOOT_CORRELATION_S")
+    parser.add_argument("--accel-psd", type=float, default=ACCEL_PSD, help="the filter's process noise q, m^2/s^3")
     parser.add_argument("--spread", action="store_true", help="each dataset on its own: mean [min, max] over them")
     args = parser.parse_args(argv)
     if args.throughput:
-        print(throughput(args.datasets[0], args.throughput))
+        print(throughput(args.datasets[0], args.throughput, "correlated" if args.correlated else "fixed"))
         return 0
     for detector in args.detectors.split(","):
         if args.spread:
-            print(spread_table([evaluate([d], detector, args.shift, args.split, args.box_sigma) for d in args.datasets], detector, args.shift) + "\n")
+            print(spread_table([evaluate([d], detector, args.shift, args.split, args.box_sigma, args.correlated,
+                                         args.accel_psd) for d in args.datasets], detector, args.shift) + "\n")
         else:
-            print(table(evaluate(args.datasets, detector, args.shift, args.split, args.box_sigma), detector, args.shift) + "\n")
+            print(table(evaluate(args.datasets, detector, args.shift, args.split, args.box_sigma, args.correlated,
+                                 args.accel_psd), detector, args.shift) + "\n")
     return 0
 
 

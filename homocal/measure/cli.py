@@ -19,12 +19,10 @@ from homocal.files import check_output_file, json_format, write_atomic
 from homocal.geometry import read_trapezoid_file
 from homocal.geometry.boxes import box_bottom_points, link_tracks
 from homocal.measure.kalman import ACCEL_PSD
-from homocal.measure.tracks import (COLUMNS, FOOT_SIGMA_PER_BOX_HEIGHT, box_height_sigma_px, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
+from homocal.measure.tracks import (COLUMNS, FOOT_CORRELATION_S, FOOT_NOISE, FOOT_SIGMA_PER_BOX_HEIGHT, foot_noise_options, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
                                     TrapezoidMapping, check_people_per_frame, check_tracks, measure_tracks, pair_distances, summarise)
 from homocal.progress import add_progress_option, show_progress
 
-FOOT_NOISE = ("fixed", "box-height")
-"""--foot-noise's choices (docs/measure.md, The filter)."""
 """The highest frame rate taken (--fps, or the boxes' file's)."""
 INTEGER_COLUMNS = {"frame", "track_id", "frames", "first_frame", "last_frame", "track_a", "track_b"}
 
@@ -72,7 +70,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("--foot-noise", choices=FOOT_NOISE, default=FOOT_NOISE[0],
                    help="fixed: each point's whole covariance (--point-sigma-px) is the filter's measurement noise; "
                         f"box-height: the foot point's own error, {FOOT_SIGMA_PER_BOX_HEIGHT:g} x its box's height px "
-                        "(fitted), is, and the shared mapping error goes into the speed's sigma (default fixed)")
+                        "(fitted), is, and the shared mapping error goes into the speed's sigma; correlated: as "
+                        f"box-height, the foot point's error correlated over {FOOT_CORRELATION_S:g} s (fitted), "
+                        "an AR(1) in the filter's state (default fixed)")
     add_progress_option(p)
     p.set_defaults(handler=handle_measure)
 
@@ -176,14 +176,12 @@ def handle_measure(args: argparse.Namespace) -> int:
             check_people_per_frame(frames)
         except ValueError as e:
             raise ValueError(f"--pairs: {args.boxes}: {e}") from None
-    by_box = args.foot_noise == "box-height"
-    sigmas = {"click_sigma_px": args.click_sigma_px,
-              "point_sigma_px": box_height_sigma_px(boxes.xyxy[keep]) if by_box else args.point_sigma_px}
+    noise = foot_noise_options(args.foot_noise, boxes.xyxy[keep], args.point_sigma_px)
+    sigmas = {"click_sigma_px": args.click_sigma_px, "point_sigma_px": noise.pop("point_sigma_px")}
     summaries = []
 
     def tracks():
-        for batch in measure_tracks(mapping, frames, feet, ids, fps, accel_psd=args.accel_psd,
-                                    split_mapping_error=by_box, **sigmas):
+        for batch in measure_tracks(mapping, frames, feet, ids, fps, accel_psd=args.accel_psd, **noise, **sigmas):
             summaries.append(summarise(batch))
             yield batch
 

@@ -8,6 +8,13 @@ acceleration model, Bar-Shalom, Li and Kirubarajan 2001, Section 6.2.2):
 A measurement z (2,) = (x, y) with covariance R (2, 2): the mapping's own per-point covariance
 (``Corrector.ground_uncertainty``), so a far point, whose R is large, counts less. A measurement that is NaN
 (a foot point on or above the horizon) is skipped: the step only predicts.
+
+A foot point's error correlated over frames (``foot``): the state takes its ground displacement b = (bx, by)
+(metres) as two more components, an AR(1) (a first-order Gauss-Markov process) of correlation time tau seconds
+and stationary covariance R_b (2, 2), the foot point's own noise through the mapping:
+    b' = phi b + w_b,  phi = exp(-dt / tau),  Q_b = (1 - phi^2) R_b,  z = (x, y) + b + white noise (R),
+so s = (x, y, vx, vy, bx, by), F and Q block-diagonal (the motion's, the error's), H = [I, 0, I] (Gelb 1974,
+Section 4.5: state augmentation for coloured measurement noise).
 """
 from __future__ import annotations
 
@@ -23,69 +30,108 @@ START_SPEED_SIGMA_MPS = 10.0
 start does not pull a track's first speeds towards 0 (a 2 m/s sigma pulled a walker's first speed 3 % low)."""
 
 
-def transition(dt: np.ndarray, q: float) -> tuple[np.ndarray, np.ndarray]:
-    """F (n, 4, 4) and Q (n, 4, 4) of the module docstring for time steps dt (n,) seconds."""
+def transition(dt: np.ndarray, q: float, foot: tuple[np.ndarray, float] | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """F (n, d, d) and Q (n, d, d) of the module docstring for time steps dt (n,) seconds; d = 4, or 6 with
+    foot = (R_b (n, 2, 2) metres^2, tau seconds): the correlated foot-point error's block (a NaN R_b: none)."""
     n = len(dt)
-    F = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+    d = 4 if foot is None else 6
+    F = np.broadcast_to(np.eye(d), (n, d, d)).copy()
     F[:, 0, 2] = F[:, 1, 3] = dt
-    Q = np.zeros((n, 4, 4))
+    Q = np.zeros((n, d, d))
     for i in range(2):
         Q[:, i, i] = q * dt**3 / 3
         Q[:, i, i + 2] = Q[:, i + 2, i] = q * dt**2 / 2
         Q[:, i + 2, i + 2] = q * dt
+    if foot is not None:
+        R_b, tau = foot
+        phi = np.exp(-dt / tau)
+        F[:, 4:, 4:] *= phi[:, None, None]
+        Q[:, 4:, 4:] = (1 - phi**2)[:, None, None] * np.nan_to_num(R_b)
     return F, Q
 
 
-def kalman_filter(t: np.ndarray, z: np.ndarray, R: np.ndarray, q: float = ACCEL_PSD) -> dict[str, np.ndarray]:
-    """Forward pass over tracks: t (n, L) seconds, non-decreasing along each row (a padded step repeats the last
-    time and has NaN z), z (n, L, 2) metres, R (n, L, 2, 2) metres^2.
+def correlated_noise(R: np.ndarray, tau: float | None) -> tuple[np.ndarray, tuple[np.ndarray, float] | None]:
+    """``kalman_filter``'s (R, foot) for a measurement noise R (..., 2, 2) metres^2: white (R, None) when tau is
+    None; else all of it correlated with correlation time tau seconds, (0, (R, tau)): no white part (NaN where R
+    is NaN: no measurement there)."""
+    if tau is None:
+        return R, None
+    return np.where(np.isfinite(R), 0.0, np.nan), (R, tau)
 
-    Returns "x", "P" (the filtered states (n, L, 4) and covariances (n, L, 4, 4)), "x_pred", "P_pred" (the
-    predictions before each update) and "F" (n, L, 4, 4), the transitions into each step (identity at step 0).
+
+def measurement_matrix(d: int) -> np.ndarray:
+    """H (2, d): the measured foot point's ground position, the state's (x, y) (d = 4) plus its error b (d = 6)."""
+    H = np.eye(2, d)
+    if d == 6:
+        H[:, 4:] = np.eye(2)
+    return H
+
+
+def kalman_filter(t: np.ndarray, z: np.ndarray, R: np.ndarray, q: float = ACCEL_PSD,
+                  foot: tuple[np.ndarray, float] | None = None) -> dict[str, np.ndarray]:
+    """Forward pass over tracks: t (n, L) seconds, non-decreasing along each row (a padded step repeats the last
+    time and has NaN z), z (n, L, 2) metres, R (n, L, 2, 2) metres^2 (the white part of the measurement
+    error); foot None, or (R_b (n, L, 2, 2) metres^2, tau seconds): the part correlated over frames (module
+    docstring), d = 6 states.
+
+    Returns "x", "P" (the filtered states (n, L, d) and covariances (n, L, d, d)), "x_pred", "P_pred" (the
+    predictions before each update) and "F" (n, L, d, d), the transitions into each step (identity at step 0).
     """
     n, L = t.shape
-    x, P = start_state(n)
-    out = {k: np.empty((n, L, 4)) for k in ("x", "x_pred")} | {k: np.empty((n, L, 4, 4)) for k in ("P", "P_pred", "F")}
+    x, P = start_state(n, None if foot is None else foot[0][:, 0])
+    d = x.shape[1]
+    out = {k: np.empty((n, L, d)) for k in ("x", "x_pred")} | {k: np.empty((n, L, d, d)) for k in ("P", "P_pred", "F")}
     for k in range(L):
-        x, P, F = predict(x, P, t[:, k] - t[:, k - 1] if k else np.zeros(n), q)
+        x, P, F = predict(x, P, t[:, k] - t[:, k - 1] if k else np.zeros(n), q,
+                          None if foot is None else (foot[0][:, k], foot[1]))
         out["x_pred"][:, k], out["P_pred"][:, k], out["F"][:, k] = x, P, F
         x, P = update(x, P, z[:, k], R[:, k])
         out["x"][:, k], out["P"][:, k] = x, P
     return out
 
 
-def start_state(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """n tracks' first states (n, 4) and covariances (n, 4, 4): START_POSITION_SIGMA_M, START_SPEED_SIGMA_MPS."""
+def start_state(n: int, R_b: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """n tracks' first states (n, d) and covariances (n, d, d): START_POSITION_SIGMA_M, START_SPEED_SIGMA_MPS;
+    with R_b (n, 2, 2) metres^2 (d = 6) the foot-point error b = 0 with its stationary covariance R_b."""
     P = np.diag([START_POSITION_SIGMA_M**2] * 2 + [START_SPEED_SIGMA_MPS**2] * 2)
-    return np.zeros((n, 4)), np.broadcast_to(P, (n, 4, 4)).copy()
+    if R_b is None:
+        return np.zeros((n, 4)), np.broadcast_to(P, (n, 4, 4)).copy()
+    P6 = np.zeros((n, 6, 6))
+    P6[:, :4, :4], P6[:, 4:, 4:] = P, np.nan_to_num(R_b)
+    return np.zeros((n, 6)), P6
 
 
-def predict(x: np.ndarray, P: np.ndarray, dt: np.ndarray, q: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """States (n, 4) and covariances (n, 4, 4) moved on by dt (n,) seconds: F x, F P F^T + Q, and F."""
-    F, Q = transition(dt, q)
+def predict(x: np.ndarray, P: np.ndarray, dt: np.ndarray, q: float, foot: tuple[np.ndarray, float] | None = None
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """States (n, d) and covariances (n, d, d) moved on by dt (n,) seconds: F x, F P F^T + Q, and F
+    (``transition``; foot as there)."""
+    F, Q = transition(dt, q, foot)
     return np.einsum("nij,nj->ni", F, x), F @ P @ F.transpose(0, 2, 1) + Q, F
 
 
 def update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The Kalman update of states x (n, 4), covariances P (n, 4, 4) by position measurements z (n, 2) with
-    covariances R (n, 2, 2), Joseph form; rows whose z or R is not finite are returned as they are."""
+    """The Kalman update of states x (n, d), covariances P (n, d, d) by position measurements z (n, 2) with
+    covariances R (n, 2, 2), H = ``measurement_matrix(d)``, Joseph form; rows whose z or R is not finite are
+    returned as they are."""
     ok = np.isfinite(z).all(axis=1) & np.isfinite(R).all(axis=(1, 2))
     if not ok.any():
         return x, P
     x, P = x.copy(), P.copy()
     xo, Po, zo, Ro = x[ok], P[ok], z[ok], R[ok]
-    S = Po[:, :2, :2] + Ro
-    K = np.linalg.solve(S, Po[:, :2, :]).transpose(0, 2, 1)  # P H^T S^-1, (m, 4, 2); S and P symmetric
-    x[ok] = xo + np.einsum("nij,nj->ni", K, zo - xo[:, :2])
-    A = np.broadcast_to(np.eye(4), Po.shape).copy()
-    A[:, :, :2] -= K
+    H = measurement_matrix(x.shape[1])
+    HP = H @ Po  # (m, 2, d)
+    S = HP @ H.T + Ro
+    K = np.linalg.solve(S, HP).transpose(0, 2, 1)  # P H^T S^-1, (m, d, 2); S and P symmetric
+    x[ok] = xo + np.einsum("nij,nj->ni", K, zo - xo @ H.T)
+    A = np.eye(x.shape[1]) - K @ H
     P[ok] = A @ Po @ A.transpose(0, 2, 1) + K @ Ro @ K.transpose(0, 2, 1)
     return x, P
 
 
 def rts_smoother(filtered: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Rauch-Tung-Striebel backward pass over ``kalman_filter``'s output: smoothed states (n, L, 4) and
-    covariances (n, L, 4, 4), each conditioned on the whole track:
+    """Rauch-Tung-Striebel backward pass over ``kalman_filter``'s output: smoothed states (n, L, d) and
+    covariances (n, L, d, d), each conditioned on the whole track:
         C_k = P_k F_{k+1}^T P_pred_{k+1}^-1,  x_s,k = x_k + C_k (x_s,k+1 - x_pred,k+1),
         P_s,k = P_k + C_k (P_s,k+1 - P_pred,k+1) C_k^T.
     A step of dt = 0 (a track's padding: no time, no measurement) repeats the state, P_pred,k+1 = P_k: C_k = I
@@ -93,7 +139,7 @@ def rts_smoother(filtered: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarra
     x, P = filtered["x"].copy(), filtered["P"].copy()
     for k in range(x.shape[1] - 2, -1, -1):
         moves = filtered["F"][:, k + 1, 0, 2] > 0  # dt > 0
-        C = np.broadcast_to(np.eye(4), P[:, k].shape).copy()
+        C = np.broadcast_to(np.eye(P.shape[-1]), P[:, k].shape).copy()
         if moves.any():
             C[moves] = np.linalg.solve(filtered["P_pred"][moves, k + 1],
                                        filtered["F"][moves, k + 1] @ P[moves, k]).transpose(0, 2, 1)

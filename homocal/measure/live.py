@@ -9,8 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from homocal.geometry.boxes import box_bottom_points
-from homocal.measure.kalman import ACCEL_PSD, predict, speed_and_sigma, start_state, update
-from homocal.measure.tracks import map_points, as_mapping
+from homocal.measure.kalman import ACCEL_PSD, correlated_noise, predict, start_state, update
+from homocal.measure.tracks import FOOT_NOISE, as_mapping, foot_noise_options, map_points, point_noise, state_speed
 from homocal.uncertainty import sigma_radius
 
 MAX_AGE_S = 2.0
@@ -45,15 +45,19 @@ class GroundTracker:
         convention: the boxes' pixel convention (homocal.box_bottom_points): "corners" for supervision's
             Detections of YOLO-like models, "indices" for its mask_to_xyxy boxes, "homocal" for simgen's.
         accel_psd, click_sigma_px, point_sigma_px: as homocal.measure.measure_tracks.
+        foot_noise: the foot point's noise model, one of homocal.measure.tracks.FOOT_NOISE (homocal measure
+            --foot-noise): "fixed" (point_sigma_px), "box-height" or "correlated".
     """
 
     def __init__(self, mapping, fps: float, *, convention: str = "corners", accel_psd: float = ACCEL_PSD,
-                 click_sigma_px: float = 1.5, point_sigma_px: float = 1.0) -> None:
+                 click_sigma_px: float = 1.5, point_sigma_px: float = 1.0, foot_noise: str = FOOT_NOISE[0]) -> None:
         if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
             raise ValueError(f"fps: expected a finite number > 0, got {fps!r}")
+        foot_noise_options(foot_noise, np.zeros((0, 4)), point_sigma_px)  # ValueError for an unknown model
         self.mapping, self.fps, self.convention = as_mapping(mapping), float(fps), convention
         self.accel_psd, self.click_sigma_px, self.point_sigma_px = accel_psd, click_sigma_px, point_sigma_px
-        self._tracks: dict[int, tuple[np.ndarray, np.ndarray, int]] = {}  # id -> state (4,), covariance (4, 4), frame
+        self.foot_noise = foot_noise
+        self._tracks: dict[int, tuple[np.ndarray, np.ndarray, int]] = {}  # id -> state (d,), covariance (d, d), frame
         self._frame: int | None = None
 
     def update(self, detections, frame: int) -> GroundState:
@@ -73,16 +77,20 @@ class GroundTracker:
         self._frame = int(frame)
         self._tracks = {k: s for k, s in self._tracks.items() if (frame - s[2]) / self.fps <= MAX_AGE_S}
         feet = box_bottom_points(np.asarray(xyxy), convention=self.convention)
-        xy, cov = map_points(self.mapping, feet, self.click_sigma_px, self.point_sigma_px)
-        x, P = start_state(len(ids))
+        noise = foot_noise_options(self.foot_noise, np.asarray(xyxy), self.point_sigma_px)
+        xy, cov = map_points(self.mapping, feet, self.click_sigma_px, noise["point_sigma_px"])
+        R, foot = correlated_noise(point_noise(self.mapping, feet, noise["point_sigma_px"])
+                                   if noise["split_mapping_error"] else cov, noise["foot_correlation_s"])
+        x, P = start_state(len(ids), None if foot is None else foot[0])
         dt = np.zeros(len(ids))
         for i, k in enumerate(ids.tolist()):
             if k in self._tracks:
                 x[i], P[i], last = self._tracks[k]
                 dt[i] = (frame - last) / self.fps
-        x, P, _ = predict(x, P, dt, self.accel_psd)
-        x, P = update(x, P, xy, cov)
+        x, P, _ = predict(x, P, dt, self.accel_psd, foot)
+        x, P = update(x, P, xy, R)
         for i, k in enumerate(ids.tolist()):
             self._tracks[k] = (x[i], P[i], int(frame))
-        speed, speed_sigma = speed_and_sigma(x[:, 2:], P[:, 2:, 2:])
-        return GroundState(ids.astype(np.int64), xy, sigma_radius(cov), x[:, :2], x[:, 2:], speed, speed_sigma)
+        speed, speed_sigma = state_speed(self.mapping, feet, x, P,
+                                         self.click_sigma_px if noise["split_mapping_error"] else None)
+        return GroundState(ids.astype(np.int64), xy, sigma_radius(cov), x[:, :2], x[:, 2:4], speed, speed_sigma)

@@ -14,7 +14,7 @@ from typing import Protocol
 import numpy as np
 
 from homocal.geometry import Lens, ViewTransformer
-from homocal.measure.kalman import ACCEL_PSD, kalman_filter, rts_smoother, speed_and_sigma
+from homocal.measure.kalman import ACCEL_PSD, correlated_noise, kalman_filter, rts_smoother, speed_and_sigma
 from homocal.uncertainty import STEP, click_jacobian, ground_uncertainty, sigma_radius
 
 COLUMNS = ("frame", "t", "track_id", "u", "v", "x", "y", "sigma_m", "x_smooth", "y_smooth", "vx", "vy", "speed_mps",
@@ -25,7 +25,8 @@ SUMMARY_COLUMNS = ("track_id", "frames", "first_frame", "last_frame", "duration_
 PAIR_COLUMNS = ("frame", "t", "track_a", "track_b", "distance_m", "distance_sigma_m")
 BATCH_CELLS = 2**16
 """Cells (tracks x frames, padded) filtered at once, and boxes mapped at once for distances: about 85 floats a
-cell (the filter's states, predictions, covariances and transitions, the smoother's copies), some 45 MB."""
+cell (the filter's states, predictions, covariances and transitions, the smoother's copies), some 45 MB; about
+twice that with the correlated foot error's six states."""
 MAX_TRACK_FRAMES = BATCH_CELLS
 """The longest track measured (a batch of its own; 36 minutes at 30 fps): homocal measure refuses longer ones."""
 MAX_PEOPLE_PER_FRAME = 500
@@ -98,9 +99,35 @@ foot-point errors against the truth on simgen's scene1 and scene2, seed 0 (0.056
 negative). The error is not white: its autocorrelation one frame apart (20 fps) is 0.93-0.97."""
 
 
+FOOT_CORRELATION_S = 0.16
+"""FITTED: the correlation time tau, seconds, of the foot point's error taken as an AR(1) (homocal.measure.kalman:
+rho = exp(-dt / tau) between frames dt apart): research/foot_noise.py's least-squares fit to the autocorrelation
+at lags 1-5 frames (20 fps) of the error over its box's height, the unit process that FOOT_SIGMA_PER_BOX_HEIGHT
+scales, on simgen's scene1 and scene2, seed 0 (0.13 s segmentation, 0.19 s rgb boxes, u and v together; the
+error in pixels, where the large boxes weigh most, gives 0.55-0.59 s)."""
+
+
 def box_height_sigma_px(xyxy: np.ndarray) -> np.ndarray:
     """Foot points' 1-sigma (N,) px of boxes xyxy (N, 4) px: FOOT_SIGMA_PER_BOX_HEIGHT x the box's height."""
     return FOOT_SIGMA_PER_BOX_HEIGHT * np.abs(xyxy[:, 3] - xyxy[:, 1])
+
+
+FOOT_NOISE = ("fixed", "box-height", "correlated")
+"""The foot point's noise models (homocal measure --foot-noise, GroundTracker's foot_noise; docs/measure.md):
+fixed, one sigma for every point and the whole covariance the filter's white measurement noise; box-height,
+``box_height_sigma_px`` white and the shared mapping error in the speed's sigma (split_mapping_error);
+correlated, box-height's with the foot error an AR(1) of FOOT_CORRELATION_S in the filter's state."""
+
+
+def foot_noise_options(foot_noise: str, xyxy: np.ndarray, point_sigma_px: float) -> dict:
+    """``measure_tracks``'s point_sigma_px, split_mapping_error and foot_correlation_s for a FOOT_NOISE model and
+    boxes xyxy (N, 4) px (point_sigma_px: fixed's sigma, px); ValueError for another name."""
+    if foot_noise not in FOOT_NOISE:
+        raise ValueError(f"foot_noise: expected one of {', '.join(FOOT_NOISE)}, got {foot_noise!r}")
+    if foot_noise == "fixed":
+        return {"point_sigma_px": point_sigma_px, "split_mapping_error": False, "foot_correlation_s": None}
+    return {"point_sigma_px": box_height_sigma_px(np.asarray(xyxy, dtype=np.float64)), "split_mapping_error": True,
+            "foot_correlation_s": FOOT_CORRELATION_S if foot_noise == "correlated" else None}
 
 
 def mapping_modes(mapping: Mapping, feet: np.ndarray, click_sigma_px: float) -> tuple[np.ndarray, np.ndarray]:
@@ -131,6 +158,17 @@ def mapping_velocity_covariance(mapping: Mapping, feet: np.ndarray, v: np.ndarra
     J_behind, _ = mapping_modes(mapping, feet - e, click_sigma_px)
     D = (J_ahead - J_behind) * (rate / 2)[:, None, None]
     return D @ C @ D.transpose(0, 2, 1)
+
+
+def state_speed(mapping: Mapping, feet: np.ndarray, x: np.ndarray, P: np.ndarray, click_sigma_px: float | None
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Speed (N,) m/s and its 1-sigma of the filter's states x (N, d) and covariances P (N, d, d) at foot points
+    (N, 2) px (kalman.speed_and_sigma of the velocity's block), plus the shared mapping error's share
+    (``mapping_velocity_covariance`` at click_sigma_px) unless click_sigma_px is None."""
+    Pv = P[:, 2:4, 2:4]
+    if click_sigma_px is not None:
+        Pv = Pv + mapping_velocity_covariance(mapping, feet, x[:, 2:4], click_sigma_px)
+    return speed_and_sigma(x[:, 2:4], Pv)
 
 
 def check_tracks(frames: np.ndarray, track_ids: np.ndarray) -> None:
@@ -166,8 +204,8 @@ def track_batches(track_ids: np.ndarray, frames: np.ndarray) -> Iterator[list[np
 
 def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
                    accel_psd: float = ACCEL_PSD, smooth: bool = True, click_sigma_px: float = 1.5,
-                   point_sigma_px: float | np.ndarray = 1.0, split_mapping_error: bool = False
-                   ) -> Iterator[dict[str, np.ndarray]]:
+                   point_sigma_px: float | np.ndarray = 1.0, split_mapping_error: bool = False,
+                   foot_correlation_s: float | None = None) -> Iterator[dict[str, np.ndarray]]:
     """homocal measure's table in batches of whole tracks (dicts of COLUMNS, each (rows,)), tracks in
     increasing id, each in frame order.
 
@@ -179,11 +217,18 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
         accel_psd: the filter's process noise q, m^2/s^3 (homocal.measure.kalman).
         smooth: True: the RTS smoother's states (each conditioned on the whole track); False: the forward
             filter's (each on the frames up to it: what a live system has).
+        split_mapping_error: the filter's measurement noise the foot point's own (``point_noise``) and the shared
+            mapping error in the speed's sigma (``mapping_velocity_covariance``); False: the whole covariance.
+        foot_correlation_s: None: the measurement noise white; tau seconds (FOOT_CORRELATION_S): the foot
+            point's own noise correlated over frames, an AR(1) of this correlation time in the filter's state
+            (homocal.measure.kalman; with split_mapping_error).
     x, y are the mapped foot points, sigma_m their 1-sigma radius (homocal.sigma_radius of the mapping's
     ground_uncertainty at click_sigma_px, point_sigma_px: the filter's measurement noise); x_smooth, y_smooth,
     vx, vy the filter's state; speed_mps = |(vx, vy)| and speed_sigma_mps its delta-method 1-sigma from the
     state's velocity covariance (kalman.speed_and_sigma).
     """
+    if foot_correlation_s is not None and not (split_mapping_error and foot_correlation_s > 0):
+        raise ValueError(f"foot_correlation_s: expected > 0 with split_mapping_error=True, got {foot_correlation_s!r}")
     mapping = as_mapping(mapping)
     frames, track_ids = np.asarray(frames, dtype=np.int64), np.asarray(track_ids, dtype=np.int64)
     feet = np.asarray(feet, dtype=np.float64)
@@ -200,14 +245,13 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
             m = len(r)
             t[i, :m], t[i, m:] = frames[r] / fps, frames[r[-1]] / fps
             z[i, :m], R[i, :m] = xy[at[i]:at[i + 1]], noise[at[i]:at[i + 1]]
-        filtered = kalman_filter(t, z, R, accel_psd)
+        R, foot = correlated_noise(R, foot_correlation_s)
+        filtered = kalman_filter(t, z, R, accel_psd, foot)
         x, P = rts_smoother(filtered) if smooth else (filtered["x"], filtered["P"])
         used = np.concatenate([np.arange(len(r)) + i * L for i, r in enumerate(batch)])
-        x, P = x.reshape(-1, 4)[used], P.reshape(-1, 4, 4)[used]
-        Pv = P[:, 2:, 2:]
-        if split_mapping_error:
-            Pv = Pv + mapping_velocity_covariance(mapping, feet[rows], x[:, 2:], click_sigma_px)
-        speed, speed_sigma = speed_and_sigma(x[:, 2:], Pv)
+        d = x.shape[-1]
+        x, P = x.reshape(-1, d)[used], P.reshape(-1, d, d)[used]
+        speed, speed_sigma = state_speed(mapping, feet[rows], x, P, click_sigma_px if split_mapping_error else None)
         yield {"frame": frames[rows], "t": frames[rows] / fps, "track_id": track_ids[rows], "u": feet[rows, 0],
                "v": feet[rows, 1], "x": xy[:, 0], "y": xy[:, 1], "sigma_m": sigma_radius(cov), "x_smooth": x[:, 0],
                "y_smooth": x[:, 1], "vx": x[:, 2], "vy": x[:, 3], "speed_mps": speed, "speed_sigma_mps": speed_sigma}

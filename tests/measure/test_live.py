@@ -10,6 +10,7 @@ import pytest
 
 from homocal.geometry import PinholeCamera, ViewTransformer
 from homocal.measure import GroundTracker, measure_tracks
+from homocal.measure.tracks import FOOT_NOISE, foot_noise_options
 
 CAMERA = PinholeCamera()
 GROUND = np.array([[-3.0, 40.0], [3.0, 40.0], [3.0, 10.0], [-3.0, 10.0]])
@@ -41,11 +42,12 @@ def run(tracker, make):
     return out
 
 
-def check_against_the_file_filter(out):
+def check_against_the_file_filter(out, foot_noise="fixed"):
     frames, ids, boxes = walkers()
     feet = np.column_stack([(boxes[:, 0] + boxes[:, 2]) / 2 - 0.5, boxes[:, 3] - 0.5])  # corners -> homocal
     mapping = ViewTransformer(CAMERA.project_ground(GROUND), GROUND)
-    for batch in measure_tracks(mapping, frames, feet, ids, FPS, smooth=False):
+    for batch in measure_tracks(mapping, frames, feet, ids, FPS, smooth=False,
+                                **foot_noise_options(foot_noise, boxes, 1.0)):
         for j, (f, k) in enumerate(zip(batch["frame"], batch["track_id"])):
             xy, v, speed, sigma = out[(int(f), int(k))]
             np.testing.assert_allclose(xy, [batch["x_smooth"][j], batch["y_smooth"][j]], rtol=1e-9)
@@ -75,6 +77,19 @@ def test_duck_typed_detections_and_their_refusals():
             tracker.update(detections, frame)
     with pytest.raises(ValueError, match="fps"):
         GroundTracker(ViewTransformer(CAMERA.project_ground(GROUND), GROUND), float("nan"))
+
+
+@pytest.mark.parametrize("foot_noise", FOOT_NOISE[1:])
+def test_foot_noise_models_as_the_file_filter(foot_noise):
+    """GroundTracker(foot_noise=...) frame by frame: homocal measure --foot-noise's forward filter on the file
+    (each box's sigma from its height, the split, the correlated foot error in the state)."""
+    mapping = ViewTransformer(CAMERA.project_ground(GROUND), GROUND)
+    out = run(GroundTracker(mapping, FPS, foot_noise=foot_noise), lambda xyxy, ids: SimpleNamespace(xyxy=xyxy, tracker_id=ids))
+    check_against_the_file_filter(out, foot_noise)
+    fixed = run(GroundTracker(mapping, FPS), lambda xyxy, ids: SimpleNamespace(xyxy=xyxy, tracker_id=ids))
+    assert out[(19, 0)][3] != fixed[(19, 0)][3]  # another model: another bar
+    with pytest.raises(ValueError, match="foot_noise: expected one of fixed, box-height, correlated"):
+        GroundTracker(mapping, FPS, foot_noise="white")
 
 
 def test_homocal_never_imports_supervision():

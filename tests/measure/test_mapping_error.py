@@ -123,3 +123,11 @@ def test_per_box_sigma_of_one_value_is_the_scalar_and_the_bar_grows_with_it():
     assert (wide["sigma_m"][15:] > scalar["sigma_m"][15:]).all()
     np.testing.assert_allclose(wide["sigma_m"][:15], scalar["sigma_m"][:15], rtol=1e-12)
     assert wide["speed_sigma_mps"][-1] > scalar["speed_sigma_mps"][-1]
+
+
+@pytest.mark.parametrize("tau, split", [(0.5, False), (0.0, True), (-1.0, True)])
+def test_foot_correlation_needs_the_split_and_a_positive_time(tau, split):
+    feet = TRANSFORMER.inverse_transform_points(np.array([[0.0, 10.0], [0.1, 10.1]]))
+    with pytest.raises(ValueError, match="foot_correlation_s: expected > 0 with split_mapping_error=True"):
+        next(measure_tracks(MAPPING, np.arange(2), feet, np.zeros(2, int), 10.0, split_mapping_error=split,
+                            foot_correlation_s=tau))

@@ -226,6 +226,22 @@ def test_foot_noise_by_box_height(scene, capsys, monkeypatch):
         np.testing.assert_allclose(track.speed_mps, np.hypot(*WALKERS[k][2:]), atol=0.02)
 
 
+def test_foot_noise_correlated(scene, capsys, monkeypatch):
+    """--foot-noise correlated: box-height's sigmas with the foot error an AR(1) in the filter: the same sigma_m,
+    the noise-free walkers' speeds stay, and the speed's bar is wider than box-height's inside the tracks (a
+    correlated error averages away more slowly than a white one of the same size)."""
+    out = {}
+    for name in ("box-height", "correlated"):
+        r = homocal_main("measure", "trap.json", "--boxes", "boxes.csv", "--fps", "10", "--out", f"{name}.parquet",
+                         "--foot-noise", name, cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
+        assert r.returncode == 0, r.stderr
+        out[name] = pq.read_table(scene / f"{name}.parquet").to_pandas()
+    np.testing.assert_array_equal(out["correlated"].sigma_m, out["box-height"].sigma_m)
+    for k, track in out["correlated"].groupby("track_id"):
+        np.testing.assert_allclose(track.speed_mps, np.hypot(*WALKERS[k][2:]), atol=0.02)
+    assert out["correlated"].speed_sigma_mps.median() > 1.1 * out["box-height"].speed_sigma_mps.median()
+
+
 
 def test_exact_foot_points_on_a_shorter_track(scene, capsys, monkeypatch):
     """--click-sigma-px 0 --point-sigma-px 0 (exact points: zero covariance) with a track shorter than another:

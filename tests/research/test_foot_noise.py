@@ -45,3 +45,10 @@ def test_autocorrelation_of_an_ar1_series_per_agent():
     for lag in (1, 3):
         # AR(1): rho^lag; sampling error of a correlation over 6000 pairs ~ (1 - rho^2) / sqrt(6000 / 9) ~ 0.015
         assert abs(script.autocorrelation(e[order], ids[order], frames[order], lag) - rho**lag) < 0.06
+
+
+def test_correlation_time_of_an_exponential_autocorrelation():
+    """An AR(1)'s autocorrelation rho^k at lags k frames dt apart is exp(-k dt / tau), tau = -dt / ln(rho)."""
+    rho, dt = 0.9, 0.05
+    acf = rho ** np.arange(1, 6)
+    assert abs(script.correlation_time(acf, dt) - (-dt / np.log(rho))) < 1e-12
