@@ -6,7 +6,7 @@ computation goes through the library: the trapezoid's ViewTransformer is built a
 from the saved trapezoid.json, and the correction is made from the method catalogue as ``homocal fit`` does.
 Bounds: at most MAX_REFERENCE_POINTS points, coordinates within +/-MAX_COORDINATE, sigmas up to MAX_SIGMA_PX,
 seeds in [0, 2**64), the hybrid's threshold in [0, 100] percent; a checkerboard's those of ``homocal lens
---checkerboard`` (homocal.lens.checkerboard), its photographs within the server's MAX_BODY. A method fitted from
+--checkerboard`` (homocal.lens.checkerboard), its photographs within the server's MAX_BOARD_BODY. A method fitted from
 people's boxes reads the session's boxes file (named at launch: a request names only one of its detectors, never
 a path).
 """
