@@ -7,9 +7,9 @@ object (``homocal.ui.api.ENDPOINTS``). Every answer to an API request is JSON; b
 Requests must name this server in their Host header (no DNS rebinding); POSTs must be JSON (which a foreign
 web page cannot send here without a CORS preflight, which this server never grants) and carry the per-launch
 token of the printed URL (``?token=...``, as Jupyter's) in the X-Homocal-Token header, or get 403.
-Bounds: a body of at most MAX_BODY bytes (the checkerboard's photographs: MAX_BOARD_BODY), JSON nested at most MAX_DEPTH deep, integers of at most
-MAX_INTEGER_DIGITS digits, MAX_CONCURRENT POSTs read and answered at once (another one waits up to QUEUE_SECONDS,
-then gets 503).
+Bounds: a body of at most MAX_BODY bytes (the checkerboard's photographs: MAX_BOARD_BODY), JSON nested at most
+MAX_DEPTH deep, integers of at most MAX_INTEGER_DIGITS digits, MAX_CONCURRENT POSTs read and answered at once
+(another one waits up to QUEUE_SECONDS, then gets 503).
 """
 from __future__ import annotations
 

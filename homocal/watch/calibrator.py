@@ -5,9 +5,9 @@ h_c: the horizon row at which a person of the prior's mean height spans that box
 (``homocal.correctors.pedestrians.implied_horizon_rows``, the inverse of the pedestrians' implied heights), and
 its 1-sigma spread sigma = |dv/dH| sqrt(sd^2 + (mu BOX_SIGMA_PX / p)^2) (the people's height spread sd and a
 box edge error of BOX_SIGMA_PX on a box p px tall, as a height error); a box cut by the image border (tested in
-the camera's pixels, as PedestrianCorrector.fit does, before a lens's undistortion) is not used. Boxes are linked into people (tracks:
-given, or ``TrackLinker``); a person is one observation, the median of its first PERSON_BOXES boxes' rows
-with the sigma of the median box, given once (one person, one height: their boxes are not independent).
+the camera's pixels, as PedestrianCorrector.fit does, before a lens's undistortion) is not used. Boxes are linked
+into people (tracks: given, or ``TrackLinker``); a person is one observation, the median of its first PERSON_BOXES
+boxes' rows with the sigma of the median box, given once (one person, one height: their boxes are not independent).
 
 Estimate: over the last WINDOW_PEOPLE people of the current stretch, the Huber M-estimate of the horizon row
 (psi clipping standardised residuals at +-CLIP) with a scale s (the median absolute standardised residual /

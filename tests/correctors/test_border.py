@@ -21,6 +21,7 @@ from homocal.geometry import Lens, PinholeCamera, SiteMap, ViewTransformer
 from homocal.geometry.boxes import undistort_boxes
 from homocal.ui import api
 from homocal.ui.session import from_files, use_lens
+from homocal.watch import OnlineCalibrator
 
 CAM = PinholeCamera()  # 1280x720, 95 degrees, 4 m high, 15 degrees down
 W, H = CAM.width, CAM.height
@@ -158,3 +159,13 @@ def test_the_page_flags_the_raw_pixels(tmp_path, name):
     assert len(corners) == fitted["correction"]["fitted"]["n_border"] == BOXES_EACH * raw.sum()
     np.testing.assert_allclose(np.sort(api.watch(session, req)["people"]["row"]), np.sort(watched_rows(lens, boxes)),
                                atol=1e-6)
+
+
+def test_the_watch_refuses_a_box_beyond_the_lens_fold():
+    """OnlineCalibrator(lens=) undistorts every box it is given (as read_boxes checks a file's): one no ray of the lens
+    reaches (beyond the fold of a lens that folds 1900 px out, test_lens_cli's) is refused naming its frame."""
+    folding = Lens(CAM.K, [-0.2, 0.04, 5e-4, -3e-4, -0.002], (W, H))
+    calibrator = OnlineCalibrator(CAM.K, 4.0, FPS, (W, H), lens=folding)
+    calibrator.update(0, np.array([[600.0, 300.0, 640.0, 400.0]]))
+    with pytest.raises(ValueError, match=r"^frame 1: xyxy\[0\] = \[3000.0, 300.0, 3100.0, 500.0\] lies beyond the lens's fold"):
+        calibrator.update(1, np.array([[3000.0, 300.0, 3100.0, 500.0]]))
