@@ -155,7 +155,8 @@ class PersonBoxes:
         track_ids: (N,) int64 person of each box, or None when the file has none.
         image_size: (width, height) px when the file's folder says it (seqinfo.ini, camera.json), else None.
         K: (3, 3) intrinsics when the file's folder has them (a dataset's camera.json), else None.
-        lens: the Lens the boxes were undistorted with (read_boxes' lens), else None: xyxy are the file's pixels.
+        lens: the Lens the boxes were undistorted with (read_boxes' lens, undistort=True), else None: xyxy are the
+            file's pixels.
     """
 
     frames: np.ndarray
@@ -166,9 +167,13 @@ class PersonBoxes:
     lens: Lens | None = None
 
 
-def read_boxes(path: str | os.PathLike, detector: str | None = None, lens: Lens | None = None) -> PersonBoxes:
+def read_boxes(path: str | os.PathLike, detector: str | None = None, lens: Lens | None = None, *,
+               undistort: bool = True) -> PersonBoxes:
     """People's boxes from a file, by its extension, in the undistorted image of ``lens`` when given
-    (geometry.boxes.undistort_boxes; its image size must be the file's when the file says one):
+    (geometry.boxes.undistort_boxes; its image size must be the file's when the file says one); with
+    undistort=False checked against the lens as the same but left in the camera's pixels, image_size and K the
+    lens's (for PedestrianCorrector.fit(lens=) and OnlineCalibrator(lens=), which test a box for the image border
+    there, where the frame cuts it, and then undistort it):
 
     - ``.txt``: a MOTChallenge file (read_mot), such as ``simgen export-mot``'s ``SEQ/det/<detector>.txt``
       (ids -1: no tracks) or a gt.txt (its ids are the tracks). When the file sits in ``SEQ/det/`` or
@@ -217,6 +222,8 @@ def read_boxes(path: str | os.PathLike, detector: str | None = None, lens: Lens 
         xyxy = undistort_boxes(boxes.xyxy, lens)
     except ValueError as e:
         raise ValueError(f"{path}: {e}") from None
+    if not undistort:
+        return dataclasses.replace(boxes, image_size=lens.image_size, K=lens.K, lens=None)
     return dataclasses.replace(boxes, xyxy=xyxy, image_size=lens.image_size, K=lens.K, lens=lens)
 
 

@@ -61,7 +61,8 @@ homocal.max_trustworthy_range) stays under 0.5 m.
 CAMERA.json (--camera-json, any method): a dataset's camera.json; a lens.json
   {"K": [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], "distortion": [k1, k2, p1, p2, k3], "image_size": [W, H]}
 (homocal lens; OpenCV's distortion model); or {"width": W, "height": H, "K": ...} (K optional). Its lens
-undistorts the trapezoid's image corners, the reference points and the boxes before any homography, and
+undistorts the trapezoid's image corners, the reference points and the boxes (after testing them for the
+image border in the camera's pixels, where the frame cuts them) before any homography, and
 the correction carries it (homocal apply undistorts the feet with it). The trapezoid file's "image_size"
 (a dataset's: its camera.json's) and the boxes file's must be the lens's.
 
@@ -223,11 +224,13 @@ def _fit_from_points(args: argparse.Namespace, method, transformer: ViewTransfor
 
 def _fit_from_boxes(args: argparse.Namespace, method, transformer: ViewTransformer, points: np.ndarray | None,
                     camera: CameraModel | None):
-    """The fitted PedestrianCorrector of fit's flags (boxes undistorted with the camera's lens) and a phrase naming
-    its evidence; ValueError naming the flag (or --boxes / --points) for bad input or an untrustworthy fit."""
+    """The fitted PedestrianCorrector of fit's flags (the camera's pixels and its lens: fit(lens=) tests the image
+    border on them, then undistorts) and a phrase naming its evidence; ValueError naming the flag (or --boxes /
+    --points) for bad input or an untrustworthy fit."""
+    lens = None if camera is None else camera.lens
     try:
         corrector = method.make(**{k: getattr(args, k) for k in method.settings})
-        boxes = _read_boxes(args, None if camera is None else camera.lens)
+        boxes = _read_boxes(args, lens)
         size, K = boxes.image_size, boxes.K
         source = f"--boxes {args.boxes}'s folder"
         if camera is not None:
@@ -236,7 +239,7 @@ def _fit_from_boxes(args: argparse.Namespace, method, transformer: ViewTransform
         check = {} if points is None else {"image_points": points[:, :2], "ground_points": points[:, 2:]}
         corrector.fit(transformer, boxes.xyxy, convention="homocal", frames=boxes.frames, track_ids=boxes.track_ids,
                       camera_height_m=args.camera_height_m, K=K, image_size=size, camera_origin=args.camera_origin,
-                      **check)
+                      lens=lens, **check)
     except OptionError as e:  # a value within its own bounds that does not fit another (the sd and the mean)
         raise pedestrian_flag_error(e) from None
     except ValueError as e:
@@ -255,9 +258,10 @@ def _fit_from_boxes(args: argparse.Namespace, method, transformer: ViewTransform
 
 
 def _read_boxes(args: argparse.Namespace, lens):
-    """read_boxes of --boxes (and --detector), undistorted with lens; its ValueError naming the flag."""
+    """read_boxes of --boxes (and --detector), checked against lens, in the camera's pixels; its ValueError naming
+    the flag."""
     try:
-        return read_boxes(args.boxes, args.detector, lens)
+        return read_boxes(args.boxes, args.detector, lens, undistort=False)
     except ValueError as e:
         raise ValueError(f"--boxes {e}") from None
 

@@ -6,7 +6,7 @@ computation goes through the library: the trapezoid's ViewTransformer is built a
 from the saved trapezoid.json, and the correction is made from the method catalogue as ``homocal fit`` does.
 Bounds: at most MAX_REFERENCE_POINTS points, coordinates within +/-MAX_COORDINATE, sigmas up to MAX_SIGMA_PX,
 seeds in [0, 2**64), the hybrid's threshold in [0, 100] percent; a checkerboard's those of ``homocal lens
---checkerboard`` (homocal.lens.checkerboard), its photographs within the server's MAX_BODY. A method fitted from
+--checkerboard`` (homocal.lens.checkerboard), its photographs within the server's MAX_BOARD_BODY. A method fitted from
 people's boxes reads the session's boxes file (named at launch: a request names only one of its detectors, never
 a path).
 """
@@ -39,7 +39,7 @@ from homocal.lens.checkerboard import MAX_FRAMES, MAX_SQUARE_M, calibrate_board,
 from homocal.lens.lines import DEFAULT_HFOV_DEG, DEFAULT_TERMS, TERMS, check_lines, fit_lines, intrinsics
 from homocal.ui import overlay
 from homocal.ui.errorbars import error_bars
-from homocal.ui.session import Session, to_frame, undistorted, use_lens
+from homocal.ui.session import Session, undistorted, use_lens
 from homocal.watch import OnlineCalibrator
 from homocal.watch.calibrator import PERSON_BOXES, by_frame, camera_of
 from homocal.watch.folder import correction_at
@@ -202,7 +202,7 @@ def _fit_boxes(session: Session, req: dict, corrector, transformer: ViewTransfor
     check = {"image_points": points[:, :2], "ground_points": points[:, 2:]} if len(points) else {}
     corrector.fit(transformer, boxes.xyxy, convention="homocal", frames=boxes.frames, track_ids=boxes.track_ids,
                   camera_height_m=settings["camera_height_m"], K=settings["K"], image_size=settings["image_size"],
-                  camera_origin=_camera_origin(req), **check)
+                  camera_origin=_camera_origin(req), lens=session.lens, **check)
     return settings
 
 
@@ -268,17 +268,16 @@ def fit(session: Session, req: dict) -> dict:
                                                                      session.lens), _camera_origin(req)),
         "horizon": overlay.through_lens(overlay.horizon_segment(corrector.mapping, w, h), session.lens),
         "boxes": None if box_settings is None or "stretch" in box_settings else drawn_boxes(
-            session, box_settings["boxes"].xyxy, corrector.box_status_),
+            box_settings["boxes"].xyxy, corrector.box_status_),
         "correction": corrector.to_dict(),
     }
 
 
-def drawn_boxes(session: Session, xyxy: np.ndarray, status: np.ndarray) -> dict:
-    """The boxes (N, 4) x1, y1, x2, y2 px (the session's undistorted pixels) a fit from boxes read, by their part in
-    it (status (N,): "used", "outlier", "border"), for the page to draw on the frame: {"used": [outline, ...],
-    "outlier": [...], "border": [...], "total": N, "step": k}, each outline the box's 4 corners and 4 side
-    midpoints (from the top-left, clockwise) in the frame's pixels (through the session's lens: the bottom
-    midpoint is the foot point the file gave); every k-th box of each kind, at most MAX_DRAWN_BOXES in all."""
+def drawn_boxes(xyxy: np.ndarray, status: np.ndarray) -> dict:
+    """The boxes (N, 4) x1, y1, x2, y2 px (the frame's pixels, as the file gave them) a fit from boxes read, by their
+    part in it (status (N,): "used", "outlier", "border"), for the page to draw on the frame: {"used": [outline,
+    ...], "outlier": [...], "border": [...], "total": N, "step": k}, each outline the box's 4 corners and 4 side
+    midpoints (from the top-left, clockwise); every k-th box of each kind, at most MAX_DRAWN_BOXES in all."""
     step = max(1, math.ceil(len(xyxy) / MAX_DRAWN_BOXES))
     out = {}
     for kind in ("used", "outlier", "border"):
@@ -286,7 +285,7 @@ def drawn_boxes(session: Session, xyxy: np.ndarray, status: np.ndarray) -> dict:
         xc, yc = (x1 + x2) / 2, (y1 + y2) / 2
         outline = np.stack([np.column_stack(p) for p in ((x1, y1), (xc, y1), (x2, y1), (x2, yc), (x2, y2), (xc, y2),
                                                          (x1, y2), (x1, yc))], axis=1)  # (n, 8, 2)
-        out[kind] = np.round(to_frame(session, outline.reshape(-1, 2)), 1).reshape(-1, 8, 2).tolist()
+        out[kind] = np.round(outline, 1).tolist()
     return {**out, "total": len(xyxy), "step": step}
 
 
@@ -305,7 +304,7 @@ def _watched(session: Session, req: dict) -> dict:
     prior = PedestrianCorrector(**{k: req[k] for k in ("height_mean_m", "height_sd_m") if req.get(k) is not None})
     K, height = camera_of(transformer, settings["image_size"], settings["K"], settings["camera_height_m"])
     calibrator = OnlineCalibrator(K, height, session.fps, settings["image_size"], prior.height_mean_m,
-                                  prior.height_sd_m)
+                                  prior.height_sd_m, lens=session.lens)
     boxes = settings["boxes"]
     states = [calibrator.update(*frame) for frame in by_frame(boxes.frames, boxes.xyxy, boxes.track_ids,
                                                               str(session.boxes))]

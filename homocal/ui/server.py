@@ -7,9 +7,9 @@ object (``homocal.ui.api.ENDPOINTS``). Every answer to an API request is JSON; b
 Requests must name this server in their Host header (no DNS rebinding); POSTs must be JSON (which a foreign
 web page cannot send here without a CORS preflight, which this server never grants) and carry the per-launch
 token of the printed URL (``?token=...``, as Jupyter's) in the X-Homocal-Token header, or get 403.
-Bounds: a body of at most MAX_BODY bytes, JSON nested at most MAX_DEPTH deep, integers of at most
-MAX_INTEGER_DIGITS digits, MAX_CONCURRENT POSTs read and answered at once (another one waits up to QUEUE_SECONDS,
-then gets 503).
+Bounds: a body of at most MAX_BODY bytes (the checkerboard's photographs: MAX_BOARD_BODY), JSON nested at most
+MAX_DEPTH deep, integers of at most MAX_INTEGER_DIGITS digits, MAX_CONCURRENT POSTs read and answered at once
+(another one waits up to QUEUE_SECONDS, then gets 503).
 """
 from __future__ import annotations
 
@@ -27,6 +27,8 @@ from homocal.ui.session import Session
 
 HOST = "127.0.0.1"
 MAX_BODY = 10 * 1024 * 1024  # bytes
+MAX_BOARD_BODY = 128 * 1024 * 1024  # bytes: POST /api/checkerboard's, its photographs in base64 (96 MiB of files, some
+# 50 full-HD PNGs); at most MAX_CONCURRENT such bodies in memory, each with its decoded JSON and photographs
 MAX_DEPTH = 20  # nesting of JSON arrays and objects (the page's deepest request nests 5)
 MAX_INTEGER_DIGITS = 20  # a seed is below 2**64, 20 digits
 MAX_CONCURRENT = 2  # POSTs read and computed at once (2 cores): at most 2 bodies in memory
@@ -118,7 +120,7 @@ class Handler(BaseHTTPRequestHandler):
         elif path == "/map.png":
             self._send(200, session.map_png, "image/png")
         elif path == "/api/session":
-            self._json(200, {**session.info(), "max_body": MAX_BODY})  # the page checks an upload against it
+            self._json(200, {**session.info(), "max_board_body": MAX_BOARD_BODY})  # the page checks an upload against it
         else:
             self._json(404, {"error": f"no such page: {path}"})
 
@@ -172,14 +174,14 @@ class Handler(BaseHTTPRequestHandler):
 
     def _read_body(self) -> dict:
         """The request's JSON object (``parse_body``), or BadRequest: a Content-Length that is not 1..MAX_BODY
-        (400, 413), fewer bytes than it says, a bad body (400)."""
+        (MAX_BOARD_BODY for /api/checkerboard) (400, 413), fewer bytes than it says, a bad body (400)."""
         text = self.headers.get("Content-Length", "").strip()
         if not text.isdigit() or len(text) > 12:
             raise BadRequest(400, f"Content-Length: expected a number of bytes, got {text!r}")
-        length = int(text)
-        if not 0 < length <= MAX_BODY:
+        length, most = int(text), MAX_BOARD_BODY if self.path == "/api/checkerboard" else MAX_BODY
+        if not 0 < length <= most:
             raise BadRequest(413 if length else 400,
-                             f"Content-Length: expected a JSON body of 1 byte to {MAX_BODY} bytes, got {length}")
+                             f"Content-Length: expected a JSON body of 1 byte to {most} bytes, got {length}")
         try:
             body = self.rfile.read(length)
         except OSError:

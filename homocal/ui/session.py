@@ -51,10 +51,11 @@ class Session:
     boxes_read: dict[str | None, PersonBoxes] = field(default_factory=dict, repr=False)  # person_boxes' reads
 
     def person_boxes(self, detector: str | None) -> PersonBoxes:
-        """The boxes of ``boxes`` (of ``detector`` for a detections.parquet), read once per session (read_boxes):
-        every fit and save of the page fits from them."""
+        """The boxes of ``boxes`` (of ``detector`` for a detections.parquet), read once per session (read_boxes:
+        checked against the lens, in the frame's pixels, where a box is tested for the frame's border before the
+        fit or the watch undistorts it): every fit and save of the page fits from them."""
         if detector not in self.boxes_read:
-            self.boxes_read[detector] = read_boxes(self.boxes, detector, self.lens)
+            self.boxes_read[detector] = read_boxes(self.boxes, detector, self.lens, undistort=False)
         return self.boxes_read[detector]
 
     def info(self) -> dict:

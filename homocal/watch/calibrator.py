@@ -4,9 +4,10 @@ Per box (homocal's pixel edges, y1 the head row, y2 the foot row), with the intr
 h_c: the horizon row at which a person of the prior's mean height spans that box
 (``homocal.correctors.pedestrians.implied_horizon_rows``, the inverse of the pedestrians' implied heights), and
 its 1-sigma spread sigma = |dv/dH| sqrt(sd^2 + (mu BOX_SIGMA_PX / p)^2) (the people's height spread sd and a
-box edge error of BOX_SIGMA_PX on a box p px tall, as a height error). Boxes are linked into people (tracks:
-given, or ``TrackLinker``); a person is one observation, the median of its first PERSON_BOXES boxes' rows
-with the sigma of the median box, given once (one person, one height: their boxes are not independent).
+box edge error of BOX_SIGMA_PX on a box p px tall, as a height error); a box cut by the image border (tested in
+the camera's pixels, as PedestrianCorrector.fit does, before a lens's undistortion) is not used. Boxes are linked
+into people (tracks: given, or ``TrackLinker``); a person is one observation, the median of its first PERSON_BOXES
+boxes' rows with the sigma of the median box, given once (one person, one height: their boxes are not independent).
 
 Estimate: over the last WINDOW_PEOPLE people of the current stretch, the Huber M-estimate of the horizon row
 (psi clipping standardised residuals at +-CLIP) with a scale s (the median absolute standardised residual /
@@ -58,7 +59,8 @@ from homocal.correctors.pedestrians import (
 )
 from homocal.boxes import MAX_FPS
 from homocal.geometry import ViewTransformer
-from homocal.geometry.boxes import TrackLinker
+from homocal.geometry.boxes import TrackLinker, undistort_boxes
+from homocal.geometry.lens import Lens
 
 WINDOW_PEOPLE = 200  # people in the sliding estimate: the memory bound
 MIN_PEOPLE = 20  # people a stretch needs before its estimate is tested
@@ -148,11 +150,14 @@ class OnlineCalibrator:
         image_size: (width, height) px; boxes at the border are not used (None: all used).
         height_mean_m, height_sd_m: the prior of people's heights (PedestrianCorrector's).
         arl0_people: the mean number of people between false alarms on a steady camera (the threshold follows).
+        lens: the camera's lens (homocal.geometry.Lens, the same K and image size): update takes the camera's
+            pixels, tests the border there (PedestrianCorrector.fit(lens=)'s rule) and then undistorts the boxes
+            (undistort_boxes); the horizon rows are then the undistorted image's. None: a pinhole.
     """
 
     def __init__(self, K, camera_height_m: float, fps: float, image_size: tuple[int, int] | None = None,
                  height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
-                 arl0_people: float = DEFAULT_ARL0_PEOPLE) -> None:
+                 arl0_people: float = DEFAULT_ARL0_PEOPLE, lens: Lens | None = None) -> None:
         PedestrianCorrector(height_mean_m, height_sd_m)  # the prior's checks
         K = intrinsics(None, None, K)
         if not (isinstance(camera_height_m, (int, float)) and 0 < camera_height_m <= 100):
@@ -162,6 +167,7 @@ class OnlineCalibrator:
         if not (isinstance(arl0_people, (int, float)) and 10 <= arl0_people <= 1e9):
             raise ValueError(f"arl0_people must be in [10, 1e9] people, got {arl0_people!r}")
         self.K, self.camera_height_m, self.fps, self.image_size = K, float(camera_height_m), float(fps), image_size
+        self.lens = lens
         self.height_mean_m, self.height_sd_m = float(height_mean_m), float(height_sd_m)
         self.arl0_people, self.threshold = float(arl0_people), cusum_threshold(arl0_people)
         self._linker = TrackLinker(max_gap=LINK_GAP)
@@ -177,14 +183,19 @@ class OnlineCalibrator:
     # ---- boxes -> people ------------------------------------------------------------------------
     def update(self, frame: int, boxes: np.ndarray, track_ids: np.ndarray | None = None) -> State:
         """Take the boxes (N, 4) homocal's pixel edges (x1, y1, x2, y2) of video frame ``frame`` (int, not before
-        the last one; N may be 0) with their track ids (N,) int or None (linked by overlap); return the State.
-        ValueError for a frame going backwards, a box not finite or upside down."""
+        the last one; N may be 0; the camera's pixels) with their track ids (N,) int or None (linked by overlap);
+        return the State. ValueError for a frame going backwards, a box not finite or upside down, or beyond the
+        lens's fold."""
         if self._last_frame is not None and frame < self._last_frame:
             raise ValueError(f"frame {frame} after frame {self._last_frame}: boxes must come in time order")
         boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
         bad = np.flatnonzero(~(np.isfinite(boxes).all(axis=1) & (boxes[:, 3] > boxes[:, 1]) & (boxes[:, 2] > boxes[:, 0])))
         if bad.size:
             raise ValueError(f"frame {frame}: box {boxes[bad[0]].tolist()} is not finite or is upside down or empty")
+        try:
+            edges = boxes if self.lens is None else undistort_boxes(boxes, self.lens)
+        except ValueError as e:
+            raise ValueError(f"frame {frame}: {e}") from None
         if self._last_frame is not None and frame - self._last_frame > LINK_GAP:
             self._tracks.clear()  # a gap ends every track
         self._last_frame = frame
@@ -194,13 +205,13 @@ class OnlineCalibrator:
         for key in ids.tolist():  # every box keeps its track alive; only tracks yet to give a person are measured
             tracks.setdefault(key, [frame, [], []])[0] = frame
         todo = np.array([i for i, key in enumerate(ids.tolist()) if tracks[key][1] is not None], dtype=np.int64)
-        b = boxes[todo]
+        b = edges[todo]
         rows, slope = implied_horizon_rows(b[:, 3], b[:, 1], self.K[1, 1], self.K[1, 2], self.camera_height_m,
                                            self.height_mean_m)
         sigmas = np.abs(slope) * np.hypot(self.height_sd_m, self.height_mean_m * BOX_SIGMA_PX / (b[:, 3] - b[:, 1]))
         usable = np.isfinite(rows) & np.isfinite(sigmas) & (sigmas > 0)
-        if self.image_size is not None:
-            usable &= ~_on_border(b, self.image_size)
+        if self.image_size is not None:  # cut by the frame: in the camera's pixels
+            usable &= ~_on_border(boxes[todo], self.image_size)
         people = []
         for i in np.flatnonzero(usable):
             track = tracks[int(ids[todo[i]])]

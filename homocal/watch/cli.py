@@ -27,7 +27,7 @@ from homocal.correctors.cli import add_pedestrian_flags, pedestrian_flag_error
 from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.files import create_temporary, output_folder, write_json_atomic
 from homocal.geometry import ViewTransformer, read_trapezoid_file
-from homocal.geometry.boxes import box_edges, undistort_boxes
+from homocal.geometry.boxes import box_edges
 from homocal.study.options import OptionError
 from homocal.watch.calibrator import DEFAULT_ARL0_PEOPLE, MIN_PEOPLE, OnlineCalibrator, by_frame, camera_of
 from homocal.watch.folder import MARKER, TOOL
@@ -78,7 +78,7 @@ def handle_watch(args: argparse.Namespace) -> int:
     K, height = camera_of(transformer, size, K, args.camera_height_m)
     prior = {name: getattr(args, name) for name in PRIOR if getattr(args, name) is not None}
     try:
-        calibrator = OnlineCalibrator(K, height, args.fps, size, **prior, arl0_people=args.arl0_people)
+        calibrator = OnlineCalibrator(K, height, args.fps, size, **prior, arl0_people=args.arl0_people, lens=lens)
     except OptionError as e:
         raise pedestrian_flag_error(e) from None
     settings = {"format": TOOL, "boxes": str(args.boxes), "detector": args.detector, "fps": args.fps,
@@ -182,11 +182,11 @@ class _Run:
 
 
 def _open_boxes(args, lens=None):
-    """(iterator of (frame, xyxy (N, 4) homocal edges of the undistorted image of lens, track ids (N,) or None),
-    image size, K) of --boxes."""
+    """(iterator of (frame, xyxy (N, 4) homocal edges in the camera's pixels, track ids (N,) or None), image size,
+    K) of --boxes (a file's checked against lens: OnlineCalibrator(lens=) undistorts them)."""
     if args.boxes == "-":
-        return ((frame, undistort_boxes(xyxy, lens), ids) for frame, xyxy, ids in _stdin_boxes(sys.stdin)), None, None
-    boxes = read_boxes(Path(args.boxes), args.detector, lens)
+        return _stdin_boxes(sys.stdin), None, None
+    boxes = read_boxes(Path(args.boxes), args.detector, lens, undistort=False)
     return by_frame(boxes.frames, boxes.xyxy, boxes.track_ids, args.boxes), boxes.image_size, boxes.K
 
 

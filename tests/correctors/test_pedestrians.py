@@ -596,10 +596,10 @@ class TestRollAndLens:
         assert rms < 2.0 < rms_no_roll and median < median_no_roll  # the horizon as a row misses the target
         assert rms < 2.0 < rms_no_lens and median < 2.0 < median_no_lens  # so does a lens ignored
 
-    def test_lens_is_the_command_lines_path(self):
-        """fit(lens=) on the camera's boxes is fit on the boxes undistorted as homocal fit reads them (read_boxes:
-        undistort_boxes), to the bit (no image size: no border test, which reads the camera's pixels in the one
-        and the undistorted image's in the other)."""
+    def test_lens_is_read_boxes_undistortion(self):
+        """fit(lens=) on the camera's boxes is fit on the boxes undistorted as read_boxes(lens=) gives them
+        (undistort_boxes), to the bit (no image size: no border test, which only the camera's pixels answer:
+        test_border.py)."""
         _, boxes, clicked = self.scene(1.0)
         args = dict(convention="homocal", track_ids=np.arange(len(boxes)), K=CAM.K, camera_height_m=4.0)
         own = PedestrianCorrector(1.7, 0.07).fit(clicked, boxes, lens=self.LENS, **args)

@@ -21,7 +21,7 @@ from test_browser import browser, idle, js, ui_server, wait_for  # noqa: F401 (b
 from homocal.geometry import SiteMap
 from homocal.lens.checkerboard import MAX_FRAMES
 from homocal.ui import api
-from homocal.ui.server import MAX_BODY
+from homocal.ui.server import MAX_BOARD_BODY, MAX_BODY
 from homocal.ui.session import from_files, undistorted
 
 SITE = SiteMap(10.0, (200.0, 700.0))
@@ -98,11 +98,26 @@ def test_bad_input_is_one_line_and_sets_nothing(server, session, fields, message
 
 
 def test_a_body_over_the_servers_bound_is_refused(server, session):
-    """An upload over MAX_BODY is refused from its Content-Length (413), before a byte of it is read."""
+    """An upload over MAX_BOARD_BODY is refused from its Content-Length (413), before a byte of it is read."""
     status, answer = raw(server, f"POST /api/checkerboard HTTP/1.1\r\nContent-Type: application/json\r\n"
-                                 f"Content-Length: {MAX_BODY + 1}")
-    assert status == 413 and answer["error"] == f"Content-Length: expected a JSON body of 1 byte to {MAX_BODY} bytes, got {MAX_BODY + 1}"
+                                 f"Content-Length: {MAX_BOARD_BODY + 1}")
+    assert status == 413 and answer["error"] == (f"Content-Length: expected a JSON body of 1 byte to {MAX_BOARD_BODY} "
+                                                 f"bytes, got {MAX_BOARD_BODY + 1}")
     assert session.lens is None and session.lens_fit is None
+
+
+def test_photographs_over_the_other_endpoints_bound_are_read(server, session):
+    """A body between MAX_BODY and MAX_BOARD_BODY reaches the checkerboard (its first photograph, not an image, is
+    what it refuses: the body was read whole) and is refused (413) by every other endpoint from its length."""
+    body = json.dumps(request(photos=photos(b"\0" * (MAX_BODY * 3 // 4 + 2**20), GREY, GREY))).encode()
+    assert MAX_BODY < len(body) <= MAX_BOARD_BODY
+    status, answer = post(server, "api/checkerboard", body)
+    assert status == 400 and answer["error"].startswith("photos: 0.png: not a readable image"), answer
+    for endpoint in set(api.ENDPOINTS) - {"checkerboard"}:
+        status, answer = raw(server, f"POST /api/{endpoint} HTTP/1.1\r\nContent-Type: application/json\r\n"
+                                     f"Content-Length: {len(body)}")
+        assert status == 413 and answer["error"] == (f"Content-Length: expected a JSON body of 1 byte to {MAX_BODY} "
+                                                     f"bytes, got {len(body)}"), endpoint
 
 
 @pytest.mark.slow  # the boards are rendered (3 s)
@@ -164,7 +179,8 @@ def test_checkerboard_in_a_browser(browser, session, tmp_path):  # noqa: F811
     folder.mkdir()
     for i, data in enumerate(board_pngs()):
         (folder / f"{i}.png").write_bytes(data)
-    (folder / "huge.png").write_bytes(b"\0" * MAX_BODY)
+    with open(folder / "huge.png", "wb") as f:  # its size over the bound (sparse: the page refuses it unread)
+        f.truncate(MAX_BOARD_BODY)
     d = browser
     with ui_server("--frame", str(tmp_path / "frame.png"), "--site-map", str(tmp_path / "map.png"), "--scale", "10",
                    "--origin", "200,700", "--out", str(session.out_dir)) as url:

@@ -85,8 +85,8 @@ def test_a_lens_of_another_frame_is_refused(session):
 
 
 def test_boxes_are_drawn_on_the_frame_in_its_pixels(session, tmp_path):
-    """The people's boxes a pedestrians fit read (undistorted before the fit) are drawn through the lens: each
-    outline's bottom midpoint is the foot point the file gave (the distorted frame's)."""
+    """The people's boxes a pedestrians fit read are drawn as the file gave them, in the frame's pixels (the fit
+    undistorts them): each outline's bottom midpoint is the foot point the file gave (the distorted frame's)."""
     rng = np.random.default_rng(1)
     ground = np.column_stack([rng.uniform(-4, 4, 60), rng.uniform(8, 30, 60)])
     foot = seen(ground)

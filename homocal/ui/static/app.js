@@ -712,13 +712,13 @@ const doFitLens = () => fitLens("lens", () => ({ lines: S.lines.filter((l) => l.
                                                  hfov_deg: number("lens-hfov") }), "fitted");
 
 // The chosen photographs as [{name, data: base64}]; an error, before any is read, if their base64 exceeds the
-// server's bound on a request (max_body: it would refuse them).
+// server's bound on their request (max_board_body: it would refuse them).
 async function boardPhotos() {
   const files = [...$("board-photos").files];
   const bytes = files.reduce((n, f) => n + f.size, 0);
-  if (4 * Math.ceil(bytes / 3) > S.info.max_body) {
+  if (4 * Math.ceil(bytes / 3) > S.info.max_board_body) {
     throw new Error(`photos: ${(bytes / 2 ** 20).toFixed(1)} MiB of photographs; the server takes at most ` +
-                    `${(S.info.max_body * 3 / 4 / 2 ** 20).toFixed(1)} MiB in one request (choose fewer, or smaller files)`);
+                    `${(S.info.max_board_body * 3 / 4 / 2 ** 20).toFixed(1)} MiB in one request (choose fewer, or smaller files)`);
   }
   return Promise.all(files.map((f) => new Promise((resolve, reject) => {
     const reader = new FileReader();
