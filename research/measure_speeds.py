@@ -44,7 +44,7 @@ fitted: per dataset, detector and mapping by maximum likelihood of the filter's 
 tracks (homocal.measure.tracks.fit_tracks_accel_psd; no ground truth), printed to stderr.
 --throughput MINUTES: the first dataset's segmentation boxes repeated (frames and track ids shifted) into a
 CSV of MINUTES minutes, then `homocal measure` on it as a subprocess (with --correlated: --foot-noise
-correlated): boxes per second and the child's peak resident memory (ru_maxrss).
+correlated; with --accel-psd, that): boxes per second and the child's peak resident memory (ru_maxrss).
 """
 from __future__ import annotations
 
@@ -235,7 +235,7 @@ def spread_table(per_dataset: list[dict], detector: str, shift: float) -> str:
     return "\n".join(lines)
 
 
-def throughput(path: str, minutes: float, foot_noise: str = "fixed") -> str:
+def throughput(path: str, minutes: float, foot_noise: str = "fixed", accel_psd: float | str = ACCEL_PSD) -> str:
     ds = load_dataset(path)
     boxes = read_boxes(Path(path) / "detections.parquet", "segmentation")
     fps = float(ds.manifest["fps"])
@@ -255,7 +255,7 @@ def throughput(path: str, minutes: float, foot_noise: str = "fixed") -> str:
         start = time.perf_counter()
         subprocess.run([sys.executable, "-m", "homocal.cli", "measure", str(trap), "--boxes", str(csv), "--fps",
                         f"{fps:g}", "--out", str(Path(tmp) / "tracks.parquet"), "--foot-noise", foot_noise,
-                        "--no-progress"], check=True)
+                        "--accel-psd", str(accel_psd), "--no-progress"], check=True)
         seconds = time.perf_counter() - start
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
     return (f"throughput: {n:,} boxes in the file ({copies} copies of {ds.name}'s {length} frames of segmentation boxes, "
@@ -279,7 +279,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--spread", action="store_true", help="each dataset on its own: mean [min, max] over them")
     args = parser.parse_args(argv)
     if args.throughput:
-        print(throughput(args.datasets[0], args.throughput, "correlated" if args.correlated else "fixed"))
+        print(throughput(args.datasets[0], args.throughput, "correlated" if args.correlated else "fixed", args.accel_psd))
         return 0
     for detector in args.detectors.split(","):
         if args.spread:
