@@ -39,10 +39,12 @@ speed's bar (homocal.measure.measure_tracks(split_mapping_error=True)).
 (homocal.measure.tracks.box_height_sigma_px; research/foot_noise.py) instead of 1 px.
 --correlated: --box-sigma with the foot point's error an AR(1) of correlation time FOOT_CORRELATION_S in the
 filter's state (measure_tracks(foot_correlation_s=...); homocal measure --foot-noise correlated).
---accel-psd Q: the filter's process noise (homocal measure --accel-psd; default homocal.measure.ACCEL_PSD).
+--accel-psd Q|fitted: the filter's process noise (homocal measure --accel-psd; default homocal.measure.ACCEL_PSD);
+fitted: per dataset, detector and mapping by maximum likelihood of the filter's innovations on the boxes'
+tracks (homocal.measure.tracks.fit_tracks_accel_psd; no ground truth), printed to stderr.
 --throughput MINUTES: the first dataset's segmentation boxes repeated (frames and track ids shifted) into a
 CSV of MINUTES minutes, then `homocal measure` on it as a subprocess (with --correlated: --foot-noise
-correlated): boxes per second and the child's peak resident memory (ru_maxrss).
+correlated; with --accel-psd, that): boxes per second and the child's peak resident memory (ru_maxrss).
 """
 from __future__ import annotations
 
@@ -64,7 +66,7 @@ from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer, box_bottom_points
 from homocal.geometry.boxes import link_tracks
 from homocal.measure import ACCEL_PSD, measure_tracks
-from homocal.measure.tracks import foot_noise_options
+from homocal.measure.tracks import fit_tracks_accel_psd, foot_noise_options
 from homocal.study.perturb import base_quad
 
 BANDS = ((5.0, 15.0), (15.0, 30.0), (30.0, 50.0), (5.0, 50.0))
@@ -132,7 +134,7 @@ def mappings(ds, detector: str, shift: float, frames: np.ndarray, xyxy: np.ndarr
 
 
 def evaluate(paths: list[str], detector: str, shift: float, split: bool = False, box_sigma: bool = False,
-             correlated: bool = False, accel_psd: float = ACCEL_PSD) -> dict:
+             correlated: bool = False, accel_psd: float | str = ACCEL_PSD) -> dict:
     """{(mapping, estimator): dict of pooled arrays err (m/s), rel (%, NaN below WALKING_MPS), range, cover1/2
     (speeds), pos1/2 (positions)} over the datasets."""
     pooled: dict = collections.defaultdict(lambda: collections.defaultdict(list))
@@ -150,11 +152,15 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
         first, last = (np.array([f(frames[ids == k]) for k in range(ids.max() + 1)]) for f in (np.min, np.max))
         inner = (frames - first[ids] >= fps) & (last[ids] - frames >= fps)  # at least 1 s from its track's ends
         for name, mapping in maps.items():
+            noise = foot_noise_options("correlated" if correlated else "box-height" if box_sigma else "fixed", xyxy, 1.0)
+            noise["split_mapping_error"] |= split
+            q = accel_psd
+            if q == "fitted":
+                q = fit_tracks_accel_psd(mapping, frames, feet, ids, fps, **noise)
+                print(f"{Path(path).name}, {detector}, {name}: q fitted {q:.3g} m^2/s^3", file=sys.stderr)
             for estimator, smooth in (("filter", False), ("smoother", True)):
                 speed, sigma, pos_err, pos_sigma = (np.full(len(frames), np.nan) for _ in range(4))
-                noise = foot_noise_options("correlated" if correlated else "box-height" if box_sigma else "fixed", xyxy, 1.0)
-                noise["split_mapping_error"] |= split
-                for batch in measure_tracks(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=accel_psd, **noise):
+                for batch in measure_tracks(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise):
                     at = np.array([index[(f, k)] for f, k in zip(batch["frame"], batch["track_id"])])
                     speed[at], sigma[at] = batch["speed_mps"], batch["speed_sigma_mps"]
                     pos_err[at] = np.hypot(batch["x"] - true_xy[at, 0], batch["y"] - true_xy[at, 1])
@@ -229,7 +235,7 @@ def spread_table(per_dataset: list[dict], detector: str, shift: float) -> str:
     return "\n".join(lines)
 
 
-def throughput(path: str, minutes: float, foot_noise: str = "fixed") -> str:
+def throughput(path: str, minutes: float, foot_noise: str = "fixed", accel_psd: float | str = ACCEL_PSD) -> str:
     ds = load_dataset(path)
     boxes = read_boxes(Path(path) / "detections.parquet", "segmentation")
     fps = float(ds.manifest["fps"])
@@ -249,7 +255,7 @@ def throughput(path: str, minutes: float, foot_noise: str = "fixed") -> str:
         start = time.perf_counter()
         subprocess.run([sys.executable, "-m", "homocal.cli", "measure", str(trap), "--boxes", str(csv), "--fps",
                         f"{fps:g}", "--out", str(Path(tmp) / "tracks.parquet"), "--foot-noise", foot_noise,
-                        "--no-progress"], check=True)
+                        "--accel-psd", str(accel_psd), "--no-progress"], check=True)
         seconds = time.perf_counter() - start
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
     return (f"throughput: {n:,} boxes in the file ({copies} copies of {ds.name}'s {length} frames of segmentation boxes, "
@@ -268,11 +274,12 @@ def main(argv: list[str] | None = None) -> int:
                         help="the split with each foot point's sigma FOOT_SIGMA_PER_BOX_HEIGHT x its box's height")
     parser.add_argument("--correlated", action="store_true",
                         help="--box-sigma with the foot point's error an AR(1) of correlation time FOOT_CORRELATION_S")
-    parser.add_argument("--accel-psd", type=float, default=ACCEL_PSD, help="the filter's process noise q, m^2/s^3")
+    parser.add_argument("--accel-psd", type=lambda s: s if s == "fitted" else float(s), default=ACCEL_PSD,
+                        help="the filter's process noise q, m^2/s^3, or fitted (per dataset, detector and mapping)")
     parser.add_argument("--spread", action="store_true", help="each dataset on its own: mean [min, max] over them")
     args = parser.parse_args(argv)
     if args.throughput:
-        print(throughput(args.datasets[0], args.throughput, "correlated" if args.correlated else "fixed"))
+        print(throughput(args.datasets[0], args.throughput, "correlated" if args.correlated else "fixed", args.accel_psd))
         return 0
     for detector in args.detectors.split(","):
         if args.spread:

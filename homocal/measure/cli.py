@@ -18,9 +18,9 @@ from homocal.correctors.serialization import FORMAT
 from homocal.files import check_output_file, json_format, write_atomic
 from homocal.geometry import read_trapezoid_file
 from homocal.geometry.boxes import box_bottom_points, link_tracks
-from homocal.measure.kalman import ACCEL_PSD
+from homocal.measure.kalman import ACCEL_PSD, ACCEL_PSD_BOUNDS
 from homocal.measure.tracks import (COLUMNS, FOOT_CORRELATION_S, FOOT_NOISE, FOOT_SIGMA_PER_BOX_HEIGHT, foot_noise_options, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
-                                    TrapezoidMapping, check_people_per_frame, check_tracks, measure_tracks, pair_distances, summarise)
+                                    TrapezoidMapping, check_people_per_frame, check_tracks, fit_tracks_accel_psd, measure_tracks, pair_distances, summarise)
 from homocal.progress import add_progress_option, show_progress
 
 """The highest frame rate taken (--fps, or the boxes' file's)."""
@@ -61,8 +61,10 @@ def add_parser(subparsers) -> None:
     p.add_argument("-o", "--out", required=True, type=Path, metavar="TRACKS.parquet", help="the table to write")
     p.add_argument("--summary", type=Path, metavar="FILE.parquet", help="also write one row per track here")
     p.add_argument("--pairs", type=Path, metavar="FILE.parquet", help="also write the distances between people here")
-    p.add_argument("--accel-psd", type=number(float, 0, 1e6, low_open=True), default=ACCEL_PSD, metavar="Q",
-                   help=f"the filter's acceleration spectral density, m^2/s^3 (default {ACCEL_PSD:g})")
+    p.add_argument("--accel-psd", type=accel_psd, default=ACCEL_PSD, metavar="fitted|Q",
+                   help=f"the filter's acceleration spectral density, m^2/s^3, or {FITTED}: fitted to the tracks by "
+                        "maximum likelihood of the filter's innovations, in "
+                        f"[{ACCEL_PSD_BOUNDS[0]:g}, {ACCEL_PSD_BOUNDS[1]:g}] (default {ACCEL_PSD:g})")
     p.add_argument("--click-sigma-px", type=number(float, 0), default=1.5, metavar="PX",
                    help="clicking error of each trapezoid coordinate, pixels (default 1.5)")
     p.add_argument("--point-sigma-px", type=number(float, 0), default=1.0, metavar="PX",
@@ -75,6 +77,20 @@ def add_parser(subparsers) -> None:
                         "an AR(1) in the filter's state (default fixed)")
     add_progress_option(p)
     p.set_defaults(handler=handle_measure)
+
+
+FITTED = "fitted"
+"""--accel-psd's word for a q fitted to the file's tracks (``fit_tracks_accel_psd``)."""
+
+
+def accel_psd(text: str) -> float | str:
+    """argparse type of --accel-psd: FITTED, or a number in (0, 1e6]."""
+    if text == FITTED:
+        return FITTED
+    try:
+        return number(float, 0, 1e6, low_open=True)(text)
+    except argparse.ArgumentTypeError as e:
+        raise argparse.ArgumentTypeError(f"{FITTED} or a number: {e}") from None
 
 
 def load_mapping(path: Path, camera_json_path: Path | None = None):
@@ -178,10 +194,14 @@ def handle_measure(args: argparse.Namespace) -> int:
             raise ValueError(f"--pairs: {args.boxes}: {e}") from None
     noise = foot_noise_options(args.foot_noise, boxes.xyxy[keep], args.point_sigma_px)
     sigmas = {"click_sigma_px": args.click_sigma_px, "point_sigma_px": noise.pop("point_sigma_px")}
+    q, fitted = args.accel_psd, ""
+    if q == FITTED:
+        q = fit_tracks_accel_psd(mapping, frames, feet, ids, fps, **noise, **sigmas)
+        fitted = f" Process noise fitted to the tracks: {q:.3g} m^2/s^3."
     summaries = []
 
     def tracks():
-        for batch in measure_tracks(mapping, frames, feet, ids, fps, accel_psd=args.accel_psd, **noise, **sigmas):
+        for batch in measure_tracks(mapping, frames, feet, ids, fps, accel_psd=q, **noise, **sigmas):
             summaries.append(summarise(batch))
             yield batch
 
@@ -205,5 +225,5 @@ def handle_measure(args: argparse.Namespace) -> int:
     short = f"; {dropped:,} of one frame left out" if dropped else ""
     print(f"homocal measure: {len(frames):,} boxes in {len(summary['track_id']):,} tracks ({source}{short}) of "
           f"{args.boxes} mapped with {what} of {args.correction} at {fps:g} fps, smoothed and written to {args.out}"
-          f"{pairs}. Median speed {np.nanmedian(summary['mean_speed_mps']):.2f} m/s over the tracks.")
+          f"{pairs}. Median speed {np.nanmedian(summary['mean_speed_mps']):.2f} m/s over the tracks.{fitted}")
     return 0

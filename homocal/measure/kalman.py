@@ -19,10 +19,16 @@ Section 4.5: state augmentation for coloured measurement noise).
 from __future__ import annotations
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 ACCEL_PSD = 0.5
 """q, m^2/s^3: a walker's velocity wanders by sqrt(q T) m/s in T seconds (0.7 m/s in one second, enough for a
 person who stops or starts within about two seconds). Chosen from that, not fitted to a benchmark."""
+ACCEL_PSD_BOUNDS = (1e-4, 10.0)
+"""The range of q, m^2/s^3, that ``fit_accel_psd`` searches: a velocity that wanders by 1 cm/s to 3 m/s in one
+second (a walker at constant velocity to a sprinter's turns)."""
+ACCEL_PSD_LOG_TOLERANCE = 0.01
+"""``fit_accel_psd``'s tolerance on ln q (1 %: far below the estimate's own spread on a few tracks)."""
 START_POSITION_SIGMA_M = 100.0
 """A track's first state: position unknown (this sigma, far beyond any error bar; the first measurement sets it)."""
 START_SPEED_SIGMA_MPS = 10.0
@@ -89,6 +95,31 @@ def kalman_filter(t: np.ndarray, z: np.ndarray, R: np.ndarray, q: float = ACCEL_
         x, P = update(x, P, z[:, k], R[:, k])
         out["x"][:, k], out["P"][:, k] = x, P
     return out
+
+
+def innovation_log_likelihood(t: np.ndarray, z: np.ndarray, R: np.ndarray, q: float,
+                              foot: tuple[np.ndarray, float] | None = None) -> float:
+    """The prediction-error log-likelihood of tracks under process noise q (arguments as ``kalman_filter``'s):
+    the sum over measured steps of -(ln det S + nu^T S^-1 nu) / 2, nu = z - H x_pred the innovation and
+    S = H P_pred H^T + R its covariance (the constant 2 pi dropped; Bar-Shalom, Li and Kirubarajan 2001,
+    Section 5.2.5; Harvey 1989, Section 3.4)."""
+    f = kalman_filter(t, z, R, q, foot)
+    H = measurement_matrix(f["x"].shape[-1])
+    ok = np.isfinite(z).all(axis=-1) & np.isfinite(R).all(axis=(-2, -1))
+    nu = z[ok] - f["x_pred"][ok] @ H.T
+    S = H @ f["P_pred"][ok] @ H.T + R[ok]
+    return float(-0.5 * (np.linalg.slogdet(S)[1].sum() + np.einsum("ni,ni->", nu, np.linalg.solve(S, nu[..., None])[..., 0])))
+
+
+def fit_accel_psd(t: np.ndarray, z: np.ndarray, R: np.ndarray, foot: tuple[np.ndarray, float] | None = None
+                  ) -> float:
+    """The maximum-likelihood q, m^2/s^3, of tracks (arguments as ``kalman_filter``'s): the maximum of
+    ``innovation_log_likelihood`` over ln q in ln ACCEL_PSD_BOUNDS (Brent's bounded search, to
+    ACCEL_PSD_LOG_TOLERANCE)."""
+    best = minimize_scalar(lambda s: -innovation_log_likelihood(t, z, R, float(np.exp(s)), foot),
+                           bounds=np.log(ACCEL_PSD_BOUNDS), method="bounded",
+                           options={"xatol": ACCEL_PSD_LOG_TOLERANCE})
+    return float(np.exp(best.x))
 
 
 def start_state(n: int, R_b: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:

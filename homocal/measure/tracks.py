@@ -14,7 +14,8 @@ from typing import Protocol
 import numpy as np
 
 from homocal.geometry import Lens, ViewTransformer
-from homocal.measure.kalman import ACCEL_PSD, correlated_noise, kalman_filter, rts_smoother, speed_and_sigma
+from homocal.measure.kalman import (ACCEL_PSD, correlated_noise, fit_accel_psd, kalman_filter, rts_smoother,
+                                   speed_and_sigma)
 from homocal.uncertainty import STEP, click_jacobian, ground_uncertainty, sigma_radius
 
 COLUMNS = ("frame", "t", "track_id", "u", "v", "x", "y", "sigma_m", "x_smooth", "y_smooth", "vx", "vy", "speed_mps",
@@ -202,6 +203,42 @@ def track_batches(track_ids: np.ndarray, frames: np.ndarray) -> Iterator[list[np
         yield batch
 
 
+def filter_inputs(mapping: Mapping, frames: np.ndarray, feet: np.ndarray, fps: float, batch: list[np.ndarray],
+                  click_sigma_px: float, point_sigma_px: float | np.ndarray, split_mapping_error: bool,
+                  foot_correlation_s: float | None) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """A batch of tracks (``track_batches``' row indices) as the filter takes it: the mapped points xy (N, 2) m
+    and their covariances (N, 2, 2) m^2 (rows in the batch's order), and kalman_filter's (t, z, R, foot), padded
+    to the longest track (arguments as ``measure_tracks``'; frames (N,), feet (N, 2) px of all rows)."""
+    rows = np.concatenate(batch)
+    sigma = point_sigma_px if np.ndim(point_sigma_px) == 0 else point_sigma_px[rows]
+    xy, cov = map_points(mapping, feet[rows], click_sigma_px, sigma)
+    noise = point_noise(mapping, feet[rows], sigma) if split_mapping_error else cov
+    n, L = len(batch), max(map(len, batch))
+    t, z, R = np.empty((n, L)), np.full((n, L, 2), np.nan), np.full((n, L, 2, 2), np.nan)
+    at = np.concatenate([[0], np.cumsum([len(r) for r in batch])])
+    for i, r in enumerate(batch):
+        m = len(r)
+        t[i, :m], t[i, m:] = frames[r] / fps, frames[r[-1]] / fps
+        z[i, :m], R[i, :m] = xy[at[i]:at[i + 1]], noise[at[i]:at[i + 1]]
+    return xy, cov, (t, z, *correlated_noise(R, foot_correlation_s))
+
+
+def fit_tracks_accel_psd(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
+                         click_sigma_px: float = 1.5, point_sigma_px: float | np.ndarray = 1.0,
+                         split_mapping_error: bool = False, foot_correlation_s: float | None = None) -> float:
+    """The filter's process noise q, m^2/s^3, fitted to the tracks by maximum likelihood of its innovations
+    (``kalman.fit_accel_psd``; arguments as ``measure_tracks``'): no ground truth, the people's own motion
+    under the measurement noise model. Its cost is bounded: the tracks of ``track_batches``' first batch
+    (tracks in increasing id, at most BATCH_CELLS cells), each likelihood one forward filter over them."""
+    mapping = as_mapping(mapping)
+    frames, track_ids = np.asarray(frames, dtype=np.int64), np.asarray(track_ids, dtype=np.int64)
+    point_sigma_px = point_sigma_px if np.ndim(point_sigma_px) == 0 else np.asarray(point_sigma_px, dtype=np.float64)
+    batch = next(track_batches(track_ids, frames))
+    _, _, inputs = filter_inputs(mapping, frames, np.asarray(feet, dtype=np.float64), fps, batch, click_sigma_px,
+                                 point_sigma_px, split_mapping_error, foot_correlation_s)
+    return fit_accel_psd(*inputs)
+
+
 def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
                    accel_psd: float = ACCEL_PSD, smooth: bool = True, click_sigma_px: float = 1.5,
                    point_sigma_px: float | np.ndarray = 1.0, split_mapping_error: bool = False,
@@ -235,19 +272,11 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
     point_sigma_px = point_sigma_px if np.ndim(point_sigma_px) == 0 else np.asarray(point_sigma_px, dtype=np.float64)
     for batch in track_batches(track_ids, frames):
         rows = np.concatenate(batch)
-        sigma = point_sigma_px if np.ndim(point_sigma_px) == 0 else point_sigma_px[rows]
-        xy, cov = map_points(mapping, feet[rows], click_sigma_px, sigma)
-        noise = point_noise(mapping, feet[rows], sigma) if split_mapping_error else cov
-        n, L = len(batch), max(map(len, batch))
-        t, z, R = np.empty((n, L)), np.full((n, L, 2), np.nan), np.full((n, L, 2, 2), np.nan)
-        at = np.concatenate([[0], np.cumsum([len(r) for r in batch])])
-        for i, r in enumerate(batch):
-            m = len(r)
-            t[i, :m], t[i, m:] = frames[r] / fps, frames[r[-1]] / fps
-            z[i, :m], R[i, :m] = xy[at[i]:at[i + 1]], noise[at[i]:at[i + 1]]
-        R, foot = correlated_noise(R, foot_correlation_s)
+        xy, cov, (t, z, R, foot) = filter_inputs(mapping, frames, feet, fps, batch, click_sigma_px, point_sigma_px,
+                                                 split_mapping_error, foot_correlation_s)
         filtered = kalman_filter(t, z, R, accel_psd, foot)
         x, P = rts_smoother(filtered) if smooth else (filtered["x"], filtered["P"])
+        L = t.shape[1]
         used = np.concatenate([np.arange(len(r)) + i * L for i, r in enumerate(batch)])
         d = x.shape[-1]
         x, P = x.reshape(-1, d)[used], P.reshape(-1, d, d)[used]

@@ -2,8 +2,11 @@
 the batch least-squares solution of the whole track's Gaussian model, the filter's last state too; the speed's
 delta-method sigma against Monte Carlo."""
 import numpy as np
+import pytest
 
-from homocal.measure.kalman import kalman_filter, rts_smoother, speed_and_sigma, start_state, transition
+from homocal.measure.kalman import (ACCEL_PSD_BOUNDS, fit_accel_psd, innovation_log_likelihood, kalman_filter,
+                                    rts_smoother, speed_and_sigma, start_state, transition)
+from homocal.measure.kalman import START_POSITION_SIGMA_M as P0, START_SPEED_SIGMA_MPS as V0
 
 
 def batch_solution(t, z, R, q, foot=None):
@@ -188,3 +191,80 @@ def test_correlated_foot_error_velocity_covariance_against_monte_carlo():
     # the mean of 1000 chi-square(2) draws: standard error 2 / sqrt(1000) = 0.063; 4 of them
     assert abs(nees["correlated"] - 2) < 0.25, nees
     assert nees["white"] > 3, nees  # the white filter's bars too narrow: its squared errors several times its variance
+
+
+def joint_log_density(t, z, R, q, foot=None):
+    """ln N(z; 0, C) of one track's measurements z (L, 2) (NaN rows left out) without the 2 pi term, C written in
+    closed form: per axis x(t) = x0 + v0 t + the integral of white acceleration twice, x0 ~ N(0, P0^2),
+    v0 ~ N(0, V0^2), Cov = P0^2 + V0^2 t_j t_k + q m^2 (3 M - m) / 6 (m, M the smaller and larger time since
+    the first step: integrated Brownian motion), plus R on each step and, with foot = (R_b (2, 2), tau), the
+    stationary AR(1) exp(-|t_j - t_k| / tau) R_b."""
+    s = t - t[0]
+    m, M = np.minimum.outer(s, s), np.maximum.outer(s, s)
+    axis = P0**2 + V0**2 * np.outer(s, s) + q * m**2 * (3 * M - m) / 6
+    C = np.kron(axis, np.eye(2)) + np.kron(np.eye(len(t)), np.ones((2, 2))) * np.concatenate(
+        [np.concatenate(list(R), axis=1)] * len(t))  # the block diagonal of R
+    if foot is not None:
+        C += np.kron(np.exp(-np.abs(s[:, None] - s) / foot[1]), foot[0])
+    ok = np.repeat(np.isfinite(z).all(axis=1), 2)
+    C, y = C[np.ix_(ok, ok)], z.reshape(-1)[ok]
+    return -0.5 * (np.linalg.slogdet(C)[1] + y @ np.linalg.solve(C, y))
+
+
+def test_innovation_log_likelihood_is_the_joint_gaussian_density():
+    """The prediction-error decomposition: the sum of the innovations' log densities is the joint density of all
+    of a track's measurements, written here in closed form (irregular steps, a skipped measurement; white noise
+    and the correlated foot error)."""
+    rng = np.random.default_rng(7)
+    t = np.cumsum(rng.uniform(0.03, 0.12, 9))
+    z = np.column_stack([2.0 + 1.2 * t, 18.0 - 0.4 * t]) + rng.normal(0, 0.1, (9, 2))
+    z[4] = np.nan
+    R = np.array([[[0.01 + 0.002 * k, 0.003], [0.003, 0.02]] for k in range(9)])
+    R_b = np.array([[0.02, 0.005], [0.005, 0.03]])
+    for q in (0.01, 0.5, 3.0):
+        np.testing.assert_allclose(innovation_log_likelihood(t[None], z[None], R[None], q),
+                                   joint_log_density(t, z, R, q), rtol=1e-9)
+        foot = (np.broadcast_to(R_b, (1, 9, 2, 2)), 0.3)
+        np.testing.assert_allclose(innovation_log_likelihood(t[None], z[None], R[None], q, foot),
+                                   joint_log_density(t, z, R, q, (R_b, 0.3)), rtol=1e-9)
+
+
+def simulated_tracks(rng, q, n=60, L=60, dt=0.05, s=0.1, tau=None):
+    """n tracks of L steps dt apart drawn from the model with white acceleration q (m^2/s^3), each axis's step
+    covariance written from its definition, measured with noise s (m) per axis: white, or an AR(1) of
+    correlation time tau. Returns kalman_filter's (t, z, R) or (t, z, R, foot) of the model."""
+    Qa = q * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
+    pos, vel = rng.normal(0, 10, (n, 2)), rng.normal(0, 1.4, (n, 2))
+    b = rng.normal(0, s, (n, 2))
+    phi = 0.0 if tau is None else np.exp(-dt / tau)
+    z = np.empty((n, L, 2))
+    for k in range(L):
+        if k:
+            w = rng.multivariate_normal(np.zeros(2), Qa, (n, 2))  # (n, axis, (position, velocity))
+            pos, vel = pos + vel * dt + w[..., 0], vel + w[..., 1]
+            b = phi * b + rng.normal(0, s * np.sqrt(1 - phi**2), (n, 2))
+        z[:, k] = pos + b
+    t = np.broadcast_to(np.arange(L) * dt, (n, L))
+    R = np.broadcast_to(s**2 * np.eye(2), (n, L, 2, 2))
+    return (t, z, R) if tau is None else (t, z, np.zeros((n, L, 2, 2)), (R, tau))
+
+
+@pytest.mark.slow
+def test_fitted_q_recovers_the_q_tracks_were_drawn_with():
+    """On tracks drawn from the model with a known q (white and correlated measurement noise), the
+    maximum-likelihood q lies within 4 of its standard errors of the truth; the standard error of ln q from the
+    likelihood's curvature (the observed information), small enough for the check to tell q from 2 q."""
+    rng = np.random.default_rng(8)
+    for q, tau in ((0.05, None), (1.0, None), (0.1, 0.3)):
+        tracks = simulated_tracks(rng, q, tau=tau)
+        fitted = fit_accel_psd(*tracks)
+        ll = [innovation_log_likelihood(*tracks[:3], fitted * np.exp(h), *tracks[3:]) for h in (-0.1, 0.0, 0.1)]
+        se = 1 / np.sqrt(-(ll[0] - 2 * ll[1] + ll[2]) / 0.1**2)
+        assert se < 0.15, (q, tau, se)
+        assert abs(np.log(fitted / q)) < 4 * se, (q, tau, fitted, se)
+
+
+def test_fitted_q_stops_at_its_bound():
+    """Tracks far wilder than people (q 1000 m^2/s^3): the fit stops at its upper bound."""
+    wild = simulated_tracks(np.random.default_rng(9), 1e3, n=20, L=30)
+    assert ACCEL_PSD_BOUNDS[1] / 1.1 < fit_accel_psd(*wild) <= ACCEL_PSD_BOUNDS[1]

@@ -9,6 +9,7 @@ import pytest
 from cli_run import homocal_main
 from homocal.geometry import PinholeCamera
 from homocal.measure import COLUMNS
+from homocal.measure.kalman import ACCEL_PSD_BOUNDS
 
 CAMERA = PinholeCamera()  # 1280x720, 4 m high, 15 degrees down
 FPS = 10.0
@@ -124,6 +125,10 @@ BAD = [  # (writes the boxes, extra arguments, the error's words)
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "1e9"], "argument --fps: must be a finite number in (0, 1000]"),
     (walker_rows, ["--boxes", "boxes.csv"], "--fps: required (boxes.csv does not say its frame rate)"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--foot-noise", "bogus"], "argument --foot-noise: invalid choice"),
+    (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--accel-psd", "fast"],
+     "argument --accel-psd: fitted or a number: expected a number, got 'fast'"),
+    (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--accel-psd", "0"],
+     "argument --accel-psd: fitted or a number: must be a finite number in (0, 1e+06], got 0"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--camera-json", "missing.json"], "--camera-json missing.json: no such file"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--camera-json", "trap.json"], "--camera-json trap.json: image_size: missing"),
 ]
@@ -241,6 +246,18 @@ def test_foot_noise_correlated(scene, capsys, monkeypatch):
         np.testing.assert_allclose(track.speed_mps, np.hypot(*WALKERS[k][2:]), atol=0.02)
     assert out["correlated"].speed_sigma_mps.median() > 1.1 * out["box-height"].speed_sigma_mps.median()
 
+
+
+def test_accel_psd_fitted(scene, capsys, monkeypatch):
+    """--accel-psd fitted on walkers at constant velocity with exact foot points: no acceleration in their
+    innovations, so the likelihood's q is its lower bound (ACCEL_PSD_BOUNDS), printed, and the speeds stay."""
+    r = homocal_main("measure", "trap.json", "--boxes", "boxes.csv", "--fps", "10", "--out", "fitted.parquet",
+                     "--accel-psd", "fitted", cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    q = float(r.stdout.split("Process noise fitted to the tracks: ")[1].split(" m^2/s^3")[0])
+    assert ACCEL_PSD_BOUNDS[0] <= q < 1.1 * ACCEL_PSD_BOUNDS[0]
+    for k, track in pq.read_table(scene / "fitted.parquet").to_pandas().groupby("track_id"):
+        np.testing.assert_allclose(track.speed_mps, np.hypot(*WALKERS[k][2:]), atol=0.02)
 
 
 def test_exact_foot_points_on_a_shorter_track(scene, capsys, monkeypatch):
