@@ -1,11 +1,11 @@
 """How tall each detector's boxes make a dataset's people at the camera's true pose (docs/real-camera.md, "The
 people"): why the pedestrians' fit refuses scene3's rgb boxes.
 
-Run: python research/box_heights.py DATASET [DATASET ...] [--detectors segmentation,rgb]
+Run: python research/box_heights.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--lens known|ignore]
 
 Per dataset and detector, every box of detections.parquet clear of the frame's border (BORDER_PX, as the fit
 leaves them out) is undistorted with camera.json's lens (homocal.geometry.undistort_boxes, as homocal fit
---camera-json does) and its implied height computed at camera.json's tilt_deg and roll_deg and mount_height_m
+--camera-json does; --lens ignore: read as a pinhole's, as homocal study --lens ignore does) and its implied height computed at camera.json's tilt_deg and roll_deg and mount_height_m
 (homocal.correctors.pedestrians.implied_heights of the derolled foot and head rows: the fit's own model at the
 true pose). The people's true heights are simgen's: the person drawn for each agent (simgen.agents.Crowd of the
 shipped scene the manifest names, its seed and seconds). Prints per detector: the boxes, the median implied
@@ -27,6 +27,7 @@ from homocal.correctors.pedestrians import BORDER_PX, OUTLIER_SIGMAS, derolled_r
 from homocal.dataset import load_dataset
 from homocal.files import read_json
 from homocal.geometry.boxes import undistort_boxes
+from homocal.study.inputs import LENS_MODES
 from simgen.agents import Crowd
 from simgen.scene import SHIPPED, load_scene
 
@@ -49,8 +50,9 @@ def true_heights(manifest: dict) -> dict[int, float]:
     return {w.agent_id: w.person.height for walks in crowd.slots for w in walks}
 
 
-def summary(path: Path, detector: str) -> dict:
-    """The figures of one dataset's detector (the module docstring)."""
+def summary(path: Path, detector: str, lens: str = "known") -> dict:
+    """The figures of one dataset's detector, its boxes undistorted (lens "known") or not ("ignore") (the module
+    docstring)."""
     ds = load_dataset(path)
     raw = read_json(path / "camera.json")
     table = pq.read_table(path / "detections.parquet", columns=["detector", "agent_id", "x1", "y1", "x2", "y2"]).to_pandas()
@@ -59,7 +61,7 @@ def summary(path: Path, detector: str) -> dict:
     (w, h), lo = ds.camera.image_size, -0.5 + BORDER_PX
     inside = (edges[:, 0] > lo) & (edges[:, 1] > lo) & (edges[:, 2] < w - 0.5 - BORDER_PX) & (edges[:, 3] < h - 0.5 - BORDER_PX)
     edges, agents = edges[inside], table["agent_id"].to_numpy()[inside]
-    H = box_heights(undistort_boxes(edges, ds.camera.lens), ds.camera.K, raw["tilt_deg"], raw.get("roll_deg", 0.0),
+    H = box_heights(undistort_boxes(edges, ds.camera.lens) if lens == "known" else edges, ds.camera.K, raw["tilt_deg"], raw.get("roll_deg", 0.0),
                     ds.camera.mount_height_m)
     truth = true_heights(ds.manifest)
     seen = agents >= 0
@@ -75,11 +77,12 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("datasets", nargs="+", type=Path)
     ap.add_argument("--detectors", default="segmentation,rgb")
+    ap.add_argument("--lens", choices=LENS_MODES, default="known")
     args = ap.parse_args(argv)
     for path in args.datasets:
         for detector in args.detectors.split(","):
-            e = summary(path, detector)
-            print(f"{path} {detector}: {e['boxes']} boxes, implied height median {e['median_m']:.3f} m, "
+            e = summary(path, detector, args.lens)
+            print(f"{path} {detector}, lens {args.lens}: {e['boxes']} boxes, implied height median {e['median_m']:.3f} m, "
                   f"{e['outside_pct']:.1f} % beyond {OUTLIER_SIGMAS:g} sd of {HEIGHT_M[0]:g} m; associated: implied / "
                   f"true {e['ratio']:.3f}, the agents seen {e['seen_true_m']:.3f} m tall (median over boxes); "
                   f"no agent: {e['unassociated_pct']:.0f} % of the boxes, implied {e['unassociated_m']:.3f} m")
