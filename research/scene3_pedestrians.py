@@ -2,11 +2,13 @@
 (docs/real-camera.md, "The people on scene3").
 
 Run: python research/scene3_pedestrians.py DATASET [--detectors segmentation,rgb] [--height-mean M] [--height-sd M]
-         [--estimate-roll yes|no] [--horizon-shift PX]
+         [--estimate-roll yes|no] [--horizon-shift PX] [--lens known|ignore]
 
 Per detector, as a user runs it: `homocal fit --method pedestrians --trapezoid DATASET/trapezoids.json --boxes
 DATASET/detections.parquet --detector D --camera-json DATASET/camera.json --camera-height H --estimate-roll yes`
-(the camera's K, lens and height given, as a user who knows them; H camera.json's mount_height_m), the clicked
+(the camera's K, lens and height given, as a user who knows them; H camera.json's mount_height_m; --lens ignore:
+camera.json's K with no distortion, so the boxes and the trapezoid are the camera's pixels read as a pinhole's, as
+homocal study --lens ignore reads them), the clicked
 trapezoid the dataset's hand-placed one (--horizon-shift PX: moved as a tilt error moves it so that its horizon
 lies PX above the true one at the principal column, homocal.study.perturb.tilt_shift); then, from the saved
 correction:
@@ -14,7 +16,8 @@ correction:
     roll convention) against camera.json's horizon (a u + b v + c = 0, the undistorted image), RMS of their row
     difference over the image's pixel columns 0..W-1 (``horizon_rms``); the fitted roll and its sigma;
   - the median relative range error of the ground truth's in-frame foot points 5-50 m from the camera's ground
-    point (gt.parquet's u, v: the camera's pixels, undistorted with the correction's lens, then mapped):
+    point (gt.parquet's u, v: the camera's pixels, undistorted with the correction's lens, as they are without one,
+    then mapped):
     ``median_range_error``.
 Prints one line per detector (a fit homocal fit refuses: its message, and the detector's line says so).
 """
@@ -25,6 +28,7 @@ import json
 import math
 import tempfile
 from contextlib import redirect_stdout
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +38,8 @@ from homocal.cli import main as homocal_main
 from homocal.correctors.base import load_corrector
 from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer
+from homocal.geometry.camera_file import NO_DISTORTION
+from homocal.study.inputs import LENS_MODES
 from homocal.study.perturb import tilt_shift
 
 RANGE_M = (5.0, 50.0)  # the paper's operating range (its Fig. 2), metres
@@ -58,10 +64,15 @@ def median_range_error(corrector, pixels: np.ndarray, ground: np.ndarray, origin
     return 100 * float(np.median(np.abs(np.hypot(*(mapped - origin).T) - truth) / truth))
 
 
-def run(path: Path, detector: str, prior: list[str], estimate_roll: str, shift_px: float | None, folder: Path) -> dict:
-    """Fit with homocal fit (the module docstring; prior: its --height-mean and --height-sd flags) into folder; the
-    figures of the saved correction ("refused": True if homocal fit refused the boxes)."""
+def run(path: Path, detector: str, prior: list[str], estimate_roll: str, shift_px: float | None, folder: Path,
+        lens_mode: str = "known") -> dict:
+    """Fit with homocal fit (the module docstring; prior: its --height-mean and --height-sd flags; lens_mode: known
+    or ignore) into folder; the figures of the saved correction ("refused": True if homocal fit refused the boxes)."""
     ds = load_dataset(path)
+    camera_json = path / "camera.json"
+    if lens_mode == "ignore":
+        camera_json = folder / "pinhole.json"
+        camera_json.write_text(json.dumps(replace(ds.camera, distortion=NO_DISTORTION).to_dict()))
     trapezoid = path / "trapezoids.json"
     if shift_px is not None:
         lens, camera = ds.camera.lens, ds.camera
@@ -73,7 +84,7 @@ def run(path: Path, detector: str, prior: list[str], estimate_roll: str, shift_p
                                          "image_size": list(camera.image_size)}))
     out = folder / f"{detector}.json"
     args = ["fit", "--method", "pedestrians", "--trapezoid", str(trapezoid), "--boxes", str(path / "detections.parquet"),
-            "--detector", detector, "--camera-json", str(path / "camera.json"), "--estimate-roll", estimate_roll,
+            "--detector", detector, "--camera-json", str(camera_json), "--estimate-roll", estimate_roll,
             "--camera-height", str(ds.camera.mount_height_m), "--out", str(out), *prior]
     with redirect_stdout(None):
         if homocal_main(args) != 0:
@@ -100,16 +111,18 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--height-sd", help="their standard deviation, m (default: homocal fit's)")
     ap.add_argument("--estimate-roll", choices=("yes", "no"), default="yes")
     ap.add_argument("--horizon-shift", type=float, metavar="PX")
+    ap.add_argument("--lens", choices=LENS_MODES, default="known",
+                    help="ignore: camera.json's K with no distortion (the camera's pixels read as a pinhole's)")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         for detector in args.detectors.split(","):
             prior = [x for flag, value in (("--height-mean", args.height_mean), ("--height-sd", args.height_sd))
                      if value is not None for x in (flag, value)]
-            e = run(args.dataset, detector, prior, args.estimate_roll, args.horizon_shift, Path(tmp))
+            e = run(args.dataset, detector, prior, args.estimate_roll, args.horizon_shift, Path(tmp), args.lens)
             if e["refused"]:
-                print(f"{args.dataset} {detector}: homocal fit refused the boxes (its message above)")
+                print(f"{args.dataset} {detector}, lens {args.lens}: homocal fit refused the boxes (its message above)")
                 continue
-            print(f"{args.dataset} {detector}: {e['people']} people of {e['boxes']} boxes; roll {e['roll_deg']:.2f} "
+            print(f"{args.dataset} {detector}, lens {args.lens}: {e['people']} people of {e['boxes']} boxes; roll {e['roll_deg']:.2f} "
                   f"+- {e['roll_sigma_deg']:.2f} deg (camera.json {e['true_roll_deg']:g}); horizon line RMS "
                   f"{e['horizon_rms_px']:.2f} px (sigma {e['horizon_sigma_px']:.2f}); median relative range error "
                   f"{e['median_range_error_pct']:.2f} % ({e['points']} foot points at {RANGE_M[0]:g}-{RANGE_M[1]:g} m)")

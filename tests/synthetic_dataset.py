@@ -9,22 +9,21 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from homocal.geometry import Lens, PinholeCamera, SiteMap
+from homocal.geometry import PinholeCamera, SiteMap
+from homocal.geometry.camera_file import camera_json_dict
 
 GROUND_RECT = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])  # TL, TR, BR, BL, metres
 
 
 def write_dataset(path: str | Path, scene: str = "synthetic", n_calibration: int = 12, n_test: int = 500,
-                  seed: int = 0, distortion: list[float] | None = None) -> Path:
+                  seed: int = 0, distortion: list[float] | None = None, camera: PinholeCamera | None = None) -> Path:
     """Write a complete dataset folder: calibration objects at 5..44 m ahead, n_test agent positions on the road
     (exact projections; the "segmentation" detector adds 0.5 px noise), a hand-placed trapezoid within 2 px.
     With distortion (OpenCV's k1, k2, p1, p2, k3) every image point is the lens's (Lens.distort_points) and
-    camera.json says it."""
-    cam, site = PinholeCamera(), SiteMap(10.0, (200.0, 600.0))
-    lens = Lens(cam.K, np.zeros(5) if distortion is None else distortion, (cam.width, cam.height))
-
-    def project(xy: np.ndarray) -> np.ndarray:
-        return lens.distort_points(cam.project_ground(xy))
+    camera.json says it. camera: another camera (its lens, roll and yaw; distortion then unused), whose
+    camera.json is simgen's (camera_json_dict)."""
+    cam = camera or PinholeCamera(distortion=(0.0,) * 5 if distortion is None else tuple(distortion))
+    site, project = SiteMap(10.0, (200.0, 600.0)), cam.project_ground  # the camera's (distorted) pixels
 
     rng = np.random.default_rng(seed)
     path = Path(path)
@@ -56,8 +55,9 @@ def write_dataset(path: str | Path, scene: str = "synthetic", n_calibration: int
     files = {
         "manifest.json": {"scene": scene, "seed": seed, "config_hash": f"synthetic-{scene}-{seed}", "complete": True,
                           "detectors": ["segmentation"]},
-        "camera.json": {"camera_origin": [0.0, 0.0], "width": cam.width, "height": cam.height, "K": cam.K.tolist(),
-                        "horizon_row": cam.horizon_row, **({} if distortion is None else {"distortion": distortion})},
+        "camera.json": camera_json_dict(camera) if camera is not None else {
+            "camera_origin": [0.0, 0.0], "width": cam.width, "height": cam.height, "K": cam.K.tolist(),
+            "horizon_row": cam.horizon_row, **({} if distortion is None else {"distortion": distortion})},
         "trapezoids.json": {"order": "TL,TR,BR,BL", "hand_placed": {"image": hand_image.tolist(), "map": hand_map.tolist()},
                             "exact": {"image": exact_image.tolist(), "map": exact_map.tolist()},
                             "ground_m": GROUND_RECT.tolist()},
