@@ -75,3 +75,19 @@ def test_pooling_counts_the_static_minutes_and_the_moves():
     assert c["rms"] == pytest.approx((math.sqrt(12.5), 4.0))
     np.testing.assert_array_equal(c["ranges"][0], [5.0, 1.5])  # the median of the two at -10 s
     np.testing.assert_array_equal(c["ranges"][1], [11.0, 3.0])  # only the found move has one at its detection
+
+
+def test_rgb_boxes_meet_the_ground_truth_box_of_their_person_and_step():
+    """research/watch_rgb_boxes.py's join: a detection at t = 0.1 s (step 2 of 50 ms) meets gt.parquet's box of its
+    agent at step 2, not another step's or agent's; unmatched detections (agent -1) and boxes at the border go."""
+    import pandas as pd
+
+    spec = importlib.util.spec_from_file_location("watch_rgb_boxes", ROOT / "research" / "watch_rgb_boxes.py")
+    rgb_boxes = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(rgb_boxes)
+    box = lambda y1: {"x1": 100.0, "y1": y1, "x2": 120.0, "y2": y1 + 50.0}  # noqa: E731
+    gt = pd.DataFrame([{"step": s, "agent_id": a, **box(200.0 + 10 * s + a)} for s in range(4) for a in (7, 8)])
+    det = pd.DataFrame([{"t": 0.1, "agent_id": 7, **box(190.0)}, {"t": 0.1, "agent_id": -1, **box(300.0)},
+                        {"t": 0.15, "agent_id": 8, **box(0.5)}])  # the last one at the top border
+    m = rgb_boxes.matched(det, gt, 0.05)
+    assert len(m) == 1 and m.step.tolist() == [2] and m.y1.tolist() == [190.0] and m.y1_gt.tolist() == [227.0]
