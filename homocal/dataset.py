@@ -207,16 +207,17 @@ def read_pose_track(file: Path, manifest: dict) -> PoseTrack:
     line whose (a, b) is not a unit vector."""
     import pyarrow.parquet as pq
 
-    table = _parquet(pq.read_table, file)
+    meta = _parquet(pq.read_metadata, file)  # the row count before reading: the table is no longer than the run
     missing = [c for c in ("t", "step", "tilt_deg", "roll_deg", "yaw_deg", "horizon_a", "horizon_b", "horizon_c")
-               if c not in table.column_names]
+               if c not in meta.schema.names]
     if missing:
         raise ValueError(f"{file}: missing column(s) {', '.join(missing)}")
     n = manifest.get("steps_total")
-    step = table.column("step").to_numpy(zero_copy_only=False)
-    if not isinstance(n, int) or len(step) != n or not np.array_equal(step, np.arange(n)):
+    table = _parquet(pq.read_table, file) if isinstance(n, int) and meta.num_rows == n else None
+    step = None if table is None else table.column("step").to_numpy(zero_copy_only=False)
+    if step is None or not np.array_equal(step, np.arange(n)):
         raise ValueError(f"{file}: needs one row per ground-truth step 0 .. steps_total - 1 in order "
-                         f"(manifest.json steps_total {n!r}), got {len(step)} rows")
+                         f"(manifest.json steps_total {n!r}), got {meta.num_rows} rows")
     columns = {c: table.column(c).to_numpy(zero_copy_only=False).astype(np.float64)
                for c in ("t", "tilt_deg", "roll_deg", "yaw_deg", "horizon_a", "horizon_b", "horizon_c")}
     bad = [c for c, x in columns.items() if not np.isfinite(x).all()]
