@@ -140,8 +140,8 @@ def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure:
     """``homocal watch`` on a dataset's boxes of ``detector`` (its hand-placed trapezoid, camera.json, the camera's
     true height, the people's own height prior) into ``out``, measured against the dataset's true camera
     (load_dataset's pose track): its motion and start (``motion``), the alarms before it (false: the static
-    minutes), the first alarm after it (the detection; none on a swaying camera: every alarm is false), the other
-    alarms after it; with ``measure``, the horizon RMS (px) before the move and from the detection on (a sway: over
+    minutes), the first alarm after it on the side the horizon moved (the detection; none on a swaying camera:
+    every alarm is false), the other alarms after it; with ``measure``, the horizon RMS (px) before the move and from the detection on (a sway: over
     the whole recording), and the median range error at 5-50 m (%) of the static and the watched calibration (the
     online estimate at that time) 10 s before the move and 0, 30, 60 s after its detection (those within the
     recording)."""
@@ -154,12 +154,17 @@ def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure:
     assert code == 0, f"homocal watch failed on {dataset} ({detector})"
     case, t_move = motion(ds.pose, ds.manifest["gt_dt"])
     seconds = float(ds.manifest["seconds"])
-    alarms = [m["detected_s"] for m in json.loads((out / "moves.json").read_text())["moves"]]
+    alarms = [(m["detected_s"], m["direction"]) for m in json.loads((out / "moves.json").read_text())["moves"]]
     sway = case.startswith("sway")
-    before = [a for a in alarms if t_move is None or a < t_move or sway]
-    after = [a for a in alarms if a not in before]
+    before = [a for a, _ in alarms if t_move is None or a < t_move or sway]
+    after = [(a, side) for a, side in alarms if a not in before]
+    # the detection: the first alarm after the move's start whose side is the horizon's move (+1: down the image;
+    # any side when the horizon's row at the principal column moves less than a pixel: a roll or a yaw)
+    rows = None if ds.pose is None else ds.pose.horizon_rows(ds.camera.K[0, 2])
+    shift = 0.0 if rows is None else rows[-1] - rows[0]
+    found = [a for a, side in after if abs(shift) < 1.0 or side == np.sign(shift)]
     result = {"case": case, "t_move": t_move, "seconds": seconds, "static_s": seconds if t_move is None else t_move,
-              "false": len(before), "detected": after[0] if after else None, "later": len(after[1:])}
+              "false": len(before), "detected": found[0] if found else None, "later": len(after) - bool(found)}
     if not measure:
         return result
     cam = json.loads((dataset / "camera.json").read_text())
@@ -172,7 +177,7 @@ def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure:
     else:
         cameras = [dataclasses.replace(static, tilt_deg=a, roll_deg=b, yaw_deg=c)
                    for a, b, c in zip(ds.pose.tilt_deg, ds.pose.roll_deg, ds.pose.yaw_deg)]
-        true_rows = ds.pose.horizon_rows(static.K[0, 2])
+        true_rows = rows
     horizon = pq.read_table(out / "horizon.parquet").to_pydict()
     t_s, row = np.array(horizon["t_s"]), np.array(horizon["horizon_row_px"])
     step_of = lambda t: np.minimum(np.round(np.asarray(t) / ds.manifest["gt_dt"]).astype(int), steps - 1)  # noqa: E731
