@@ -1,8 +1,9 @@
 """Why the rgb boxes' horizon is off after a move: a rendered recording whose camera moves (research/watch.py
 --datasets), its rgb detector's boxes against the ground truth's boxes of the same people at the same instants.
 
-Printed: the rgb boxes per second around the move, matched to a person or not (the background model restarts every
-chunk from the frames before it, so a move at a chunk's start meets a model of the scene before it); the signed
+Printed: the rgb boxes per second around the move and per 10 s throughout, matched to a person or not (the
+background model restarts every chunk from the frames before it, so a move at a chunk's start meets a model of the
+scene before it); the signed
 offsets of the matched boxes' head (y1) and foot (y2) edges from gt.parquet's box of that person and step, and the
 box height's ratio, by gt box height, before and after the move; and the horizon ``homocal watch`` estimates (as
 research/watch.py runs it, the same people's height prior) from: all rgb boxes; the matched ones with the person's
@@ -81,6 +82,10 @@ def main() -> None:
     for t in np.arange(t_move - 3, t_move + 4):
         x = rgb[(rgb.t >= t) & (rgb.t < t + 1)]
         print(f"  {t:5.0f}-{t + 1:.0f} s: {np.sum(x.agent_id >= 0):4d} / {np.sum(x.agent_id < 0):4d}")
+
+    print("rgb boxes per 10 s, matched to a person / not: " + ", ".join(
+        f"{t:.0f}-{t + 10:.0f} s {np.sum(x.agent_id >= 0)} / {np.sum(x.agent_id < 0)}"
+        for t in np.arange(0, ds.manifest["seconds"], 10) for x in [rgb[(rgb.t >= t) & (rgb.t < t + 10)]]))
 
     m = matched(rgb, gt, dt)
     h = m.y2_gt - m.y1_gt
