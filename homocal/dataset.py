@@ -8,6 +8,7 @@ import numpy as np
 
 from homocal.files import read_json
 from homocal.geometry import CameraModel, SiteMap, read_camera, validate_quad
+from homocal.geometry.camera_file import UNIT_LINE_TOL
 from homocal.names import check_name
 
 EXACT = "exact"
@@ -20,6 +21,35 @@ REQUIRED_COLUMNS = {
 }
 
 CAMERA_POSE = "camera_pose.parquet"  # the camera's pose per ground-truth step, in a dataset whose camera moves
+POSE_TIME_TOL_S = 1e-6  # camera_pose.parquet's t is step * gt_dt within this (s): far below a 50 ms step
+
+
+@dataclass(frozen=True)
+class PoseTrack:
+    """camera_pose.parquet (data_schema.md): a moving camera's pose at each ground-truth step, read-only arrays.
+
+    Attributes:
+        t: (N,) s, step * gt_dt. step: (N,) int64, 0 .. N - 1, N the manifest's steps_total.
+        tilt_deg, roll_deg, yaw_deg: (N,) degrees, camera.json's angles plus the moves' changes.
+        horizon: (N, 3) lines (a, b, c) of the undistorted image, a u + b v + c = 0, hypot(a, b) = 1, positive on
+            the ground side (as camera.json's horizon).
+    """
+
+    t: np.ndarray
+    step: np.ndarray
+    tilt_deg: np.ndarray
+    roll_deg: np.ndarray
+    yaw_deg: np.ndarray
+    horizon: np.ndarray
+
+    def __post_init__(self) -> None:
+        for key in ("t", "step", "tilt_deg", "roll_deg", "yaw_deg", "horizon"):
+            getattr(self, key).flags.writeable = False
+
+    def horizon_rows(self, u: float) -> np.ndarray:
+        """The horizon's row (N,) px at column u of the undistorted image: -(a u + c) / b."""
+        a, b, c = self.horizon.T
+        return -(a * u + c) / b
 
 
 @dataclass(frozen=True)
@@ -34,6 +64,7 @@ class Dataset:
         trapezoid_image: (4, 2) hand-placed image trapezoid, px (TL, TR, BR, BL).
         trapezoid_map: (4, 2) hand-placed site-map trapezoid, map px.
         trapezoids: trapezoids.json as a dict (hand-placed and exact).
+        pose: camera_pose.parquet's pose track (read_pose_track), None for a static camera (no such file).
     """
 
     path: Path
@@ -45,11 +76,12 @@ class Dataset:
     trapezoid_image: np.ndarray
     trapezoid_map: np.ndarray
     trapezoids: dict
+    pose: PoseTrack | None = None
 
     @property
     def moving(self) -> bool:
         """Whether the camera moves during the recording (simgen writes CAMERA_POSE only then, data_schema.md)."""
-        return (self.path / CAMERA_POSE).is_file()
+        return self.pose is not None
 
     def calibration_points(self, source: str = EXACT) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Calibration objects in index order: image (M, 2) px, ground (M, 2) m, distance (M,) m.
@@ -156,6 +188,7 @@ def load_dataset(path: str | Path) -> Dataset:
         trapezoid_image=image,
         trapezoid_map=site_map_quad,
         trapezoids=trapezoids,
+        pose=read_pose_track(path / CAMERA_POSE, manifest) if (path / CAMERA_POSE).is_file() else None,
     )
     import pyarrow.parquet as pq
 
@@ -166,6 +199,37 @@ def load_dataset(path: str | Path) -> Dataset:
         if missing:
             raise ValueError(f"{path / filename}: missing column(s) {', '.join(missing)}")
     return dataset
+
+
+def read_pose_track(file: Path, manifest: dict) -> PoseTrack:
+    """camera_pose.parquet as a PoseTrack; ValueError naming the file and the problem: a missing column, not one row
+    per step of the run (manifest.json's steps_total), t not step * gt_dt, an angle or line that is not finite, a
+    line whose (a, b) is not a unit vector."""
+    import pyarrow.parquet as pq
+
+    meta = _parquet(pq.read_metadata, file)  # the row count before reading: the table is no longer than the run
+    missing = [c for c in ("t", "step", "tilt_deg", "roll_deg", "yaw_deg", "horizon_a", "horizon_b", "horizon_c")
+               if c not in meta.schema.names]
+    if missing:
+        raise ValueError(f"{file}: missing column(s) {', '.join(missing)}")
+    n = manifest.get("steps_total")
+    table = _parquet(pq.read_table, file) if isinstance(n, int) and meta.num_rows == n else None
+    step = None if table is None else table.column("step").to_numpy(zero_copy_only=False)
+    if step is None or not np.array_equal(step, np.arange(n)):
+        raise ValueError(f"{file}: needs one row per ground-truth step 0 .. steps_total - 1 in order "
+                         f"(manifest.json steps_total {n!r}), got {meta.num_rows} rows")
+    columns = {c: table.column(c).to_numpy(zero_copy_only=False).astype(np.float64)
+               for c in ("t", "tilt_deg", "roll_deg", "yaw_deg", "horizon_a", "horizon_b", "horizon_c")}
+    bad = [c for c, x in columns.items() if not np.isfinite(x).all()]
+    if bad:
+        raise ValueError(f"{file}: column {bad[0]} has a value that is not a finite number (or a null)")
+    dt = manifest.get("gt_dt")
+    if not isinstance(dt, (int, float)) or np.abs(columns["t"] - step * dt).max() > POSE_TIME_TOL_S:
+        raise ValueError(f"{file}: t must be step * gt_dt (manifest.json gt_dt {dt!r}) within {POSE_TIME_TOL_S:g} s")
+    horizon = np.column_stack([columns["horizon_a"], columns["horizon_b"], columns["horizon_c"]])
+    if np.abs(np.hypot(horizon[:, 0], horizon[:, 1]) - 1.0).max() > UNIT_LINE_TOL:
+        raise ValueError(f"{file}: each horizon line needs hypot(horizon_a, horizon_b) = 1")
+    return PoseTrack(columns["t"], step.astype(np.int64), columns["tilt_deg"], columns["roll_deg"], columns["yaw_deg"], horizon)
 
 
 def _parquet(read, file: Path):

@@ -30,6 +30,10 @@ gives its pose; one without it is a static recording): ``homocal watch`` runs on
 pooled per detector:
 
     python research/watch.py --datasets DIR [DIR ...] --detectors segmentation,rgb --work WORK
+    python research/watch.py --datasets DIR [DIR ...] --detectors segmentation,rgb --work WORK2 --static-only --arl0 1000,20000
+
+(the second: the false alarms on the static minutes, the static recordings and the parts before each move, at each
+--arl0).
 """
 from __future__ import annotations
 
@@ -50,6 +54,7 @@ import pyarrow.parquet as pq
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from homocal.cli import main as homocal_main  # noqa: E402
 from homocal.correctors.pedestrians import PedestrianCorrector  # noqa: E402
+from homocal.dataset import load_dataset  # noqa: E402
 from homocal.geometry import PinholeCamera, ViewTransformer, read_trapezoid_file  # noqa: E402
 from homocal.watch import OnlineCalibrator  # noqa: E402
 from homocal.watch.calibrator import DEFAULT_ARL0_PEOPLE  # noqa: E402
@@ -107,93 +112,157 @@ def run(scene, frames, fps, arl0):
     return moves, np.array(track), rows
 
 
-def true_cameras(dataset: Path) -> tuple[np.ndarray, list]:
-    """(times (N,) s, PinholeCamera (N,)) of a dataset's camera at each ground-truth step: camera.json's camera
-    posed as camera_pose.parquet says (the [camera] pose throughout when the dataset has none: a static camera)."""
-    cam = json.loads((dataset / "camera.json").read_text())
-    manifest = json.loads((dataset / "manifest.json").read_text())
-    static = PinholeCamera(cam["width"], cam["height"], cam["hfov_deg"], cam["mount_height_m"], cam["tilt_deg"],
-                           cam.get("roll_deg", 0.0), cam.get("yaw_deg", 0.0), tuple(cam.get("distortion", [0.0] * 5)))
-    if not (dataset / "camera_pose.parquet").is_file():
-        return np.arange(manifest["steps_total"]) * 0.05, [static] * manifest["steps_total"]
-    pose = pq.read_table(dataset / "camera_pose.parquet").to_pydict()
-    cameras = [dataclasses.replace(static, tilt_deg=a, roll_deg=b, yaw_deg=c)
-               for a, b, c in zip(pose["tilt_deg"], pose["roll_deg"], pose["yaw_deg"])]
-    return np.array(pose["t"]), cameras
+def motion(pose, gt_dt: float) -> tuple[str, float | None]:
+    """A recording's camera motion, from its pose track (homocal's PoseTrack; None: a static camera), and when it
+    starts (s; None: static): "step tilt +1" (the pose changes at once), "ramp tilt +2 over 60 s" (monotonically,
+    over more than one step; it starts at the last unchanged step), "sway tilt 0.3" (it turns back; the largest
+    change), of the angle that changes most; "static" when nothing changes."""
+    if pose is None:
+        return "static", None
+    d = np.column_stack([pose.tilt_deg, pose.roll_deg, pose.yaw_deg])
+    d = d - d[0]
+    changed = np.flatnonzero(np.any(d != 0, axis=1))
+    if not changed.size:
+        return "static", None
+    axis = int(np.argmax(np.abs(d).max(axis=0)))
+    x, i = d[:, axis], changed[0]
+    name = ("tilt", "roll", "yaw")[axis]
+    steps = np.diff(x)
+    if not (np.all(steps >= 0) or np.all(steps <= 0)):
+        return f"sway {name} {np.abs(x).max():.3g}", float(pose.t[i - 1])
+    reach = int(np.flatnonzero(x == x[-1])[0])
+    if reach == i:
+        return f"step {name} {x[-1]:+.3g}", float(pose.t[i])
+    return f"ramp {name} {x[-1]:+.3g} over {(reach - i + 1) * gt_dt:.3g} s", float(pose.t[i - 1])
 
 
-def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float) -> dict:
+def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure: bool = True) -> dict:
     """``homocal watch`` on a dataset's boxes of ``detector`` (its hand-placed trapezoid, camera.json, the camera's
-    true height, the people's own height prior) into ``out``, measured against the dataset's true camera: the move
-    (the first step whose pose differs from the first's), the first alarm after it, the other alarms (false), the
-    horizon RMS (px) before the move and from the detection on, and the median range error at 5-50 m (%) of the
-    static and the watched calibration (the online estimate at that time) 10 s before the move and 0, 30, 60 s
-    after its detection (those within the recording)."""
-    manifest = json.loads((dataset / "manifest.json").read_text())
-    cam_height = json.loads((dataset / "camera.json").read_text())["mount_height_m"]
+    true height, the people's own height prior) into ``out``, measured against the dataset's true camera
+    (load_dataset's pose track): its motion and start (``motion``), the alarms before it (false: the static
+    minutes), the first alarm after it on the side the horizon moved (the detection; none on a swaying camera:
+    every alarm is false), the other alarms after it; with ``measure``, the horizon RMS (px) before the move and from the detection on (a sway: over
+    the whole recording), and the median range error at 5-50 m (%) of the static and the watched calibration (the
+    online estimate at that time) 10 s before the move and 0, 30, 60 s after its detection (those within the
+    recording)."""
+    ds = load_dataset(dataset)
     with contextlib.redirect_stdout(io.StringIO()):  # its one summary line; the figures are printed here
         code = homocal_main(["watch", "--trapezoid", str(dataset / "trapezoids.json"), "--boxes", str(dataset / "detections.parquet"),
-                             "--detector", detector, "--fps", str(manifest["fps"]), "--camera-json", str(dataset / "camera.json"),
-                             "--camera-height", str(cam_height), "--height-mean", str(HEIGHT[0]), "--height-sd", str(HEIGHT[1]),
-                             "--arl0-people", str(arl0), "--out", str(out)])
+                             "--detector", detector, "--fps", str(ds.manifest["fps"]), "--camera-json", str(dataset / "camera.json"),
+                             "--camera-height", str(ds.camera.mount_height_m), "--height-mean", str(HEIGHT[0]),
+                             "--height-sd", str(HEIGHT[1]), "--arl0-people", str(arl0), "--out", str(out)])
     assert code == 0, f"homocal watch failed on {dataset} ({detector})"
-    times, cameras = true_cameras(dataset)
-    angles = np.array([(c.tilt_deg, c.roll_deg, c.yaw_deg) for c in cameras])
-    moved = np.flatnonzero(np.any(angles != angles[0], axis=1))
-    t_move = float(times[moved[0]]) if moved.size else float(manifest["seconds"])
-    alarms = [m["detected_s"] for m in json.loads((out / "moves.json").read_text())["moves"]]
-    detected = next((a for a in alarms if a >= t_move), None) if moved.size else None
+    case, t_move = motion(ds.pose, ds.manifest["gt_dt"])
+    seconds = float(ds.manifest["seconds"])
+    alarms = [(m["detected_s"], m["direction"]) for m in json.loads((out / "moves.json").read_text())["moves"]]
+    sway = case.startswith("sway")
+    before = [a for a, _ in alarms if t_move is None or a < t_move or sway]
+    after = [(a, side) for a, side in alarms if a not in before]
+    # the detection: the first alarm after the move's start whose side is the horizon's move (+1: down the image;
+    # any side when the horizon's row at the principal column moves less than a pixel: a roll or a yaw)
+    rows = None if ds.pose is None else ds.pose.horizon_rows(ds.camera.K[0, 2])
+    shift = 0.0 if rows is None else rows[-1] - rows[0]
+    found = [a for a, side in after if abs(shift) < 1.0 or side == np.sign(shift)]
+    result = {"case": case, "t_move": t_move, "seconds": seconds, "static_s": seconds if t_move is None else t_move,
+              "false": len(before), "detected": found[0] if found else None, "later": len(after) - bool(found)}
+    if not measure:
+        return result
+    cam = json.loads((dataset / "camera.json").read_text())
+    static = PinholeCamera(cam["width"], cam["height"], cam["hfov_deg"], cam["mount_height_m"], cam["tilt_deg"],
+                           cam.get("roll_deg", 0.0), cam.get("yaw_deg", 0.0), tuple(cam.get("distortion", [0.0] * 5)))
+    steps = ds.manifest["steps_total"]
+    if ds.pose is None:
+        a, b, c = static.horizon
+        cameras, true_rows = [static] * steps, np.full(steps, -(a * static.K[0, 2] + c) / b)
+    else:
+        cameras = [dataclasses.replace(static, tilt_deg=a, roll_deg=b, yaw_deg=c)
+                   for a, b, c in zip(ds.pose.tilt_deg, ds.pose.roll_deg, ds.pose.yaw_deg)]
+        true_rows = rows
     horizon = pq.read_table(out / "horizon.parquet").to_pydict()
     t_s, row = np.array(horizon["t_s"]), np.array(horizon["horizon_row_px"])
-    true_row = np.array([_row(cameras[min(round(t * 20), len(cameras) - 1)]) for t in t_s])
-    err = row - true_row
+    step_of = lambda t: np.minimum(np.round(np.asarray(t) / ds.manifest["gt_dt"]).astype(int), steps - 1)  # noqa: E731
+    err = row - true_rows[step_of(t_s)]
 
     def rms(mask) -> float:
         return float(np.sqrt(np.nanmean(err[mask] ** 2))) if np.any(mask & np.isfinite(err)) else math.nan
 
+    detected = result["detected"]
+    result["rms_before"] = rms(np.ones(len(t_s), bool) if t_move is None or sway else t_s < t_move)
+    result["rms_after"] = rms(t_s >= detected) if detected is not None else math.nan
     clicked = read_trapezoid_file(dataset / "trapezoids.json", cameras[0].lens)[0]
     ground, ranges = ground_grid(), []
-    for when in [t_move - 10] + ([] if detected is None else [detected, detected + 30, detected + 60]):
+    whens = [] if t_move is None or sway else [t_move - 10] + ([] if detected is None else [detected, detected + 30, detected + 60])
+    for when in whens:
         i = np.searchsorted(t_s, when, side="right") - 1
-        if when < 0 or when > times[-1] or i < 0 or not np.isfinite(row[i]):
+        if when < 0 or when > seconds or i < 0 or not np.isfinite(row[i]):
             ranges.append(None)
             continue
-        cam = cameras[min(round(when * 20), len(cameras) - 1)]
-        watched = PedestrianCorrector(*HEIGHT).from_horizon(clicked, row[i], 0.0, cam.K, cam_height, 3).transformer_
+        cam = cameras[step_of(when)]
+        watched = PedestrianCorrector(*HEIGHT).from_horizon(clicked, row[i], 0.0, cam.K, static.mount_height_m, 3).transformer_
         ranges.append((range_error(clicked, cam, ground), range_error(watched, cam, ground)))
-    return {"t_move": t_move if moved.size else None, "size_deg": (angles[-1] - angles[0]).tolist(), "detected": detected,
-            "false": len(alarms) - (detected is not None), "seconds": manifest["seconds"], "rms_before": rms(t_s < t_move),
-            "rms_after": rms(t_s >= detected) if detected is not None else math.nan, "ranges": ranges, "people": len(t_s)}
+    return {**result, "ranges": ranges, "people": len(t_s)}
 
 
-def _row(camera) -> float:
-    """The horizon's row at the principal point's column (undistorted image), px."""
-    a, b, c = camera.horizon
-    return float(-(a * camera.K[0, 2] + c) / b)
+def pooled(results: list[dict]) -> dict:
+    """watch_dataset's results of one detector pooled: per move case (in the order first seen) the delays (s, of
+    the detected moves), the number missed, the horizon RMS before / from detection (px, RMS over the recordings)
+    and the median range errors (static, watched; %) at each time; the static minutes (static recordings and the
+    parts before each move), the false alarms in them and the rate per hour; the swaying minutes and their alarms."""
+    cases: dict[str, dict] = {}
+    for r in results:
+        if r["t_move"] is None or r["case"].startswith("sway"):
+            continue
+        c = cases.setdefault(r["case"], {"delays": [], "missed": 0, "n": 0, "rms": [], "ranges": []})
+        c["n"] += 1
+        if r["detected"] is None:
+            c["missed"] += 1
+        else:
+            c["delays"].append(r["detected"] - r["t_move"])
+        c["rms"].append((r.get("rms_before", math.nan), r.get("rms_after", math.nan)))
+        c["ranges"].append(r.get("ranges", []))
+    for c in cases.values():
+        c["rms"] = tuple(np.sqrt(np.nanmean(np.square(c["rms"]), axis=0))) if np.isfinite(c["rms"]).any() else (math.nan,) * 2
+        width = max(map(len, c["ranges"]))
+        c["ranges"] = [np.median([x[k] for x in c["ranges"] if len(x) > k and x[k] is not None], axis=0)
+                       if any(len(x) > k and x[k] is not None for x in c["ranges"]) else None for k in range(width)]
+    static_s = sum(r["static_s"] for r in results if not r["case"].startswith("sway"))
+    false = sum(r["false"] for r in results if not r["case"].startswith("sway"))
+    sway_s = sum(r["seconds"] for r in results if r["case"].startswith("sway"))
+    sway = sum(r["false"] for r in results if r["case"].startswith("sway"))
+    return {"cases": cases, "static_minutes": static_s / 60, "false": false,
+            "false_per_hour": false / (static_s / 3600) if static_s else math.nan, "sway_minutes": sway_s / 60, "sway_alarms": sway}
 
 
 def datasets_main(args) -> None:
-    """--datasets: homocal watch on rendered recordings, per detector (watch_dataset), and the pooled figures."""
+    """--datasets: homocal watch on rendered recordings, per detector (watch_dataset), and the pooled figures; with
+    --static-only, the false alarms on the static minutes at each --arl0 instead."""
+    datasets = list(map(Path, args.datasets))
     for detector in args.detectors.split(","):
+        if args.static_only:
+            print(f"\n{detector} boxes: false alarms on the static minutes by ARL0 (people)")
+            for arl0 in [float(a) for a in args.arl0.split(",")]:
+                p = pooled([watch_dataset(d, detector, Path(args.work) / f"{d.name}_{detector}_{arl0:.0f}", arl0, False) for d in datasets])
+                print(f"  ARL0 {arl0:>9,.0f}: {p['false']} alarms in {p['static_minutes']:.1f} min = {p['false_per_hour']:.1f} per hour")
+            continue
         print(f"\n{detector} boxes, --arl0-people {args.case_arl0:,.0f}:")
-        delays, false, seconds, missed = [], 0, 0.0, 0
-        for dataset in map(Path, args.datasets):
+        results = []
+        for dataset in datasets:
             r = watch_dataset(dataset, detector, Path(args.work) / f"{dataset.name}_{detector}", args.case_arl0)
-            false, seconds = false + r["false"], seconds + r["seconds"]
-            if r["t_move"] is not None:
-                if r["detected"] is None:
-                    missed += 1
-                else:
-                    delays.append(r["detected"] - r["t_move"])
+            results.append(r)
             ranges = "; ".join("-" if x is None else f"{x[0]:.1f} -> {x[1]:.1f}" for x in r["ranges"])
-            move = "static" if r["t_move"] is None else f"tilt {r['size_deg'][0]:+g} deg at {r['t_move']:g} s"
+            move = r["case"] if r["t_move"] is None else f"{r['case']} at {r['t_move']:g} s"
             delay = "-" if r["detected"] is None else f"{r['detected'] - r['t_move']:.1f} s"
-            print(f"  {dataset.name}: {move}, {r['people']} people; delay {delay}; {r['false']} other alarms; "
-                  f"horizon RMS {r['rms_before']:.2f} px before, {r['rms_after']:.2f} px from detection; range error "
-                  f"static -> watched (%) at -10 s; detection; +30 s; +60 s: {ranges}")
-        found = (f"median {np.median(delays):.1f} s, 90th pct {np.percentile(delays, 90):.1f} s" if delays else "none found")
-        print(f"  pooled: delay {found}, missed {missed}; {false} false alarms (all but the first after each move) in "
-              f"{seconds / 60:.1f} minutes ({false / (seconds / 3600):.1f} per hour)")
+            print(f"  {dataset.name}: {move}, {r['people']} people; delay {delay}; {r['false']} alarms before, "
+                  f"{r['later']} more after; horizon RMS {r['rms_before']:.2f} px before, {r['rms_after']:.2f} px from "
+                  f"detection; range error static -> watched (%) at -10 s; detection; +30 s; +60 s: {ranges}")
+        p = pooled(results)
+        for case, c in p["cases"].items():
+            d = np.array(c["delays"])
+            delay = f"{np.median(d):.1f} s / {np.percentile(d, 90):.1f} s" if d.size else "-"
+            ranges = "; ".join("-" if x is None else f"{x[0]:.1f} -> {x[1]:.1f} %" for x in c["ranges"])
+            print(f"  | {case} | {delay} | {c['missed']} of {c['n']} | {c['rms'][0]:.2f} / {c['rms'][1]:.2f} px | {ranges} |")
+        print(f"  static: {p['false']} false alarms in {p['static_minutes']:.1f} minutes ({p['false_per_hour']:.1f} per hour); "
+              f"swaying: {p['sway_alarms']} alarms in {p['sway_minutes']:.1f} minutes")
 
 
 def main() -> None:

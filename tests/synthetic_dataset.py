@@ -66,3 +66,24 @@ def write_dataset(path: str | Path, scene: str = "synthetic", n_calibration: int
     for name, content in files.items():
         (path / name).write_text(json.dumps(content))
     return path
+
+
+def pose_columns(steps: int, dt: float = 0.05) -> dict:
+    """camera_pose.parquet's columns (data_schema.md) of a camera tilted 15 degrees that steps to 16 half-way: its
+    horizon a level line at row 202, then 191."""
+    step = np.arange(steps)
+    later = step >= steps // 2
+    return {"t": step * dt, "step": step, "tilt_deg": np.where(later, 16.0, 15.0), "roll_deg": np.zeros(steps),
+            "yaw_deg": np.zeros(steps), "horizon_a": np.zeros(steps), "horizon_b": np.ones(steps),
+            "horizon_c": np.where(later, -191.0, -202.0)}
+
+
+def make_moving(path: str | Path, steps: int = 20) -> Path:
+    """Give a dataset folder a moving camera: camera_pose.parquet (pose_columns), one row per step of its
+    manifest's steps_total (set to ``steps``, with gt_dt 0.05, when the manifest has none)."""
+    path = Path(path)
+    manifest = json.loads((path / "manifest.json").read_text())
+    manifest = {"steps_total": steps, "gt_dt": 0.05, **manifest}
+    (path / "manifest.json").write_text(json.dumps(manifest))
+    pq.write_table(pa.table(pose_columns(manifest["steps_total"], manifest["gt_dt"])), path / "camera_pose.parquet")
+    return path

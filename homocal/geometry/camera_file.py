@@ -15,6 +15,8 @@ from homocal.files import read_json
 from homocal.geometry.camera import PinholeCamera
 from homocal.geometry.lens import Lens, check_image_size, float_array
 
+UNIT_LINE_TOL = 1e-9  # a horizon line (a, b, c) has hypot(a, b) = 1 within this (float64 rounding is ~1e-16)
+
 MAX_CAMERA_BYTES = 1 << 20  # a camera file's size (camera.json is about 2 KB)
 NO_DISTORTION = (0.0, 0.0, 0.0, 0.0, 0.0)
 ARRAYS = {"K": (3, 3), "distortion": (5,), "R": (3, 3), "t": (3,), "horizon": (3,), "camera_origin": (2,)}  # field: shape
@@ -57,7 +59,7 @@ class CameraModel:
             raise ValueError("distortion: needs K (the coefficients act on K's normalised coordinates)")
         if self.R is not None and (not np.allclose(self.R @ self.R.T, np.eye(3), atol=1e-9) or np.linalg.det(self.R) < 0):
             raise ValueError(f"R: not a rotation (orthonormal, det +1): {self.R.tolist()}")
-        if self.horizon is not None and not math.isclose(math.hypot(*self.horizon[:2]), 1.0, abs_tol=1e-9):
+        if self.horizon is not None and not math.isclose(math.hypot(*self.horizon[:2]), 1.0, abs_tol=UNIT_LINE_TOL):
             raise ValueError(f"horizon: hypot(a, b) must be 1, got {self.horizon.tolist()}")
         for key in NUMBERS:
             value = getattr(self, key)

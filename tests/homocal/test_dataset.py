@@ -8,7 +8,8 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 import pytest
 
-from homocal.dataset import calibration_source, load_dataset
+from homocal.dataset import calibration_source, load_dataset, read_pose_track
+from synthetic_dataset import make_moving, pose_columns
 
 TABLES = ("gt.parquet", "detections.parquet", "calibration.parquet")
 
@@ -169,3 +170,65 @@ def test_max_distance_keeps_the_operating_range(tiny_dataset):
     d = np.hypot(*every.T)
     assert len(near) == np.sum(d <= 20.0) and 0 < len(near) < len(every)
     assert np.hypot(*near.T).max() <= 20.0
+
+
+# ---- camera_pose.parquet: the pose track of a camera that moves ----------------------------------
+MANIFEST = {"steps_total": 6, "gt_dt": 0.05}
+
+
+def test_pose_track_reads_the_table(tmp_path):
+    columns = pose_columns(6)
+    columns["horizon_a"], columns["horizon_b"] = np.full(6, 0.6), np.full(6, 0.8)  # a rolled camera's tilted line
+    pq.write_table(pa.table(columns), tmp_path / "camera_pose.parquet")
+    pose = read_pose_track(tmp_path / "camera_pose.parquet", MANIFEST)
+    assert pose.step.tolist() == list(range(6)) and pose.tilt_deg.tolist() == [15.0] * 3 + [16.0] * 3
+    np.testing.assert_array_equal(pose.t, columns["t"])  # the file's times, as written
+    assert pose.horizon.shape == (6, 3) and not pose.horizon.flags.writeable
+    rows = pose.horizon_rows(640.0)  # (640, row) lies on each line
+    np.testing.assert_allclose(0.6 * 640.0 + 0.8 * rows + columns["horizon_c"], 0.0, atol=1e-9)
+
+
+def _broken_pose(how: str) -> dict:
+    columns = pose_columns(6)
+    if how == "no column":
+        del columns["horizon_c"]
+    elif how == "rows":
+        columns = pose_columns(5)
+    elif how == "order":
+        columns["step"] = columns["step"][::-1].copy()
+    elif how == "t":
+        columns["t"] = columns["t"] + 0.01
+    elif how == "nan":
+        columns["yaw_deg"][2] = np.nan
+    elif how == "null":
+        columns["tilt_deg"] = pa.array([15.0, None, 15.0, 16.0, 16.0, 16.0])
+    elif how == "line":
+        columns["horizon_b"] = np.full(6, 2.0)
+    return columns
+
+
+@pytest.mark.parametrize("how, message", [
+    ("no column", "missing column.*horizon_c"),
+    ("rows", r"one row per ground-truth step.*steps_total 6\), got 5 rows"),
+    ("order", "one row per ground-truth step 0 .. steps_total - 1 in order"),
+    ("t", r"t must be step \* gt_dt"),
+    ("nan", "column yaw_deg has a value that is not a finite number"),
+    ("null", "column tilt_deg has a value that is not a finite number"),
+    ("line", r"hypot\(horizon_a, horizon_b\) = 1"),
+])  # fmt: skip
+def test_bad_pose_tables_are_refused_in_one_line(tmp_path, how, message):
+    pq.write_table(pa.table(_broken_pose(how)), tmp_path / "camera_pose.parquet")
+    with pytest.raises(ValueError, match=message) as e:
+        read_pose_track(tmp_path / "camera_pose.parquet", MANIFEST)
+    assert "\n" not in str(e.value) and str(e.value).startswith(str(tmp_path / "camera_pose.parquet"))
+
+
+def test_a_dataset_has_a_pose_track_only_when_its_camera_moves(tiny_dataset, tmp_path):
+    assert load_dataset(tiny_dataset).pose is None and not load_dataset(tiny_dataset).moving
+    moving = make_moving(shutil.copytree(tiny_dataset, tmp_path / "moving"))
+    steps = json.loads((tiny_dataset / "manifest.json").read_text())["steps_total"]
+    ds = load_dataset(moving)
+    assert ds.moving and len(ds.pose.t) == steps and ds.pose.horizon_rows(640.0)[-1] == 191.0
+    (moving / "camera_pose.parquet").write_bytes(b"PAR1 not a Parquet file")
+    with pytest.raises(ValueError, match="camera_pose.parquet: not a readable Parquet file"):
+        load_dataset(moving)

@@ -11,6 +11,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
+from homocal.dataset import load_dataset
 from simgen.boxstream import body_points, box_stream, boxes_of
 from simgen.cli import main
 from simgen.scene import CameraMove, Sway, camera_offsets, load_scene
@@ -149,6 +150,17 @@ def test_camera_pose_table_is_each_steps_pose(moving):
             vanishing = K @ R @ direction
             assert line @ (vanishing / vanishing[2]) == pytest.approx(0.0, abs=1e-9)
         assert line @ [K[0, 2], K[1, 2] + 1000.0, 1.0] > 0  # positive below it
+
+
+@pytest.mark.generate
+@pytest.mark.slow
+def test_load_dataset_gives_the_pose_track(moving):
+    """homocal.load_dataset's pose track (Dataset.pose) is camera_pose.parquet's rows, read through pyarrow alone."""
+    _, out = moving
+    table, pose = pq.read_table(out / "camera_pose.parquet").to_pydict(), load_dataset(out).pose
+    for key in ("t", "step", "tilt_deg", "roll_deg", "yaw_deg"):
+        np.testing.assert_array_equal(getattr(pose, key), table[key])
+    np.testing.assert_array_equal(pose.horizon, np.column_stack([table[f"horizon_{k}"] for k in "abc"]))
 
 
 @pytest.mark.generate

@@ -12,7 +12,7 @@ from homocal.cli import main
 from homocal.dataset import load_dataset
 from homocal.geometry import SiteMap
 from homocal.study.inputs import MAX_SEED
-from synthetic_dataset import write_dataset
+from synthetic_dataset import make_moving, write_dataset
 
 BAD_NAMES = ["../../../../escaped", "../../../../../victim", "a/b", ".", "..", ".hidden", "x\ny", "x" * 300, "", 5, None]
 
@@ -142,12 +142,7 @@ def test_a_dataset_whose_camera_moves_is_refused(dataset, tmp_path, capsys):
     """A dataset with camera_pose.parquet (simgen writes it only when [[camera.moves]] or [camera.sway] move the
     camera): its test points were seen by a moving camera, which the study's one trapezoid cannot map. One line
     naming the file, exit 2, nothing written."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    moving = tmp_path / "moving"
-    shutil.copytree(dataset, moving)
-    pq.write_table(pa.table({"t": [0.0], "step": [0], "tilt_deg": [15.0]}), moving / "camera_pose.parquet")
+    moving = make_moving(shutil.copytree(dataset, tmp_path / "moving"))
     assert load_dataset(moving).moving and not load_dataset(dataset).moving
     before = snapshot(tmp_path)
     out = tmp_path / "out"
