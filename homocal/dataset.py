@@ -21,6 +21,7 @@ REQUIRED_COLUMNS = {
 }
 
 CAMERA_POSE = "camera_pose.parquet"  # the camera's pose per ground-truth step, in a dataset whose camera moves
+POSE_COLUMNS = ("t", "step", "tilt_deg", "roll_deg", "yaw_deg", "horizon_a", "horizon_b", "horizon_c")  # CAMERA_POSE's
 POSE_TIME_TOL_S = 1e-6  # camera_pose.parquet's t is step * gt_dt within this (s): far below a 50 ms step
 
 
@@ -208,8 +209,7 @@ def read_pose_track(file: Path, manifest: dict) -> PoseTrack:
     import pyarrow.parquet as pq
 
     meta = _parquet(pq.read_metadata, file)  # the row count before reading: the table is no longer than the run
-    missing = [c for c in ("t", "step", "tilt_deg", "roll_deg", "yaw_deg", "horizon_a", "horizon_b", "horizon_c")
-               if c not in meta.schema.names]
+    missing = [c for c in POSE_COLUMNS if c not in meta.schema.names]
     if missing:
         raise ValueError(f"{file}: missing column(s) {', '.join(missing)}")
     n = manifest.get("steps_total")
@@ -219,7 +219,7 @@ def read_pose_track(file: Path, manifest: dict) -> PoseTrack:
         raise ValueError(f"{file}: needs one row per ground-truth step 0 .. steps_total - 1 in order "
                          f"(manifest.json steps_total {n!r}), got {meta.num_rows} rows")
     columns = {c: table.column(c).to_numpy(zero_copy_only=False).astype(np.float64)
-               for c in ("t", "tilt_deg", "roll_deg", "yaw_deg", "horizon_a", "horizon_b", "horizon_c")}
+               for c in POSE_COLUMNS if c != "step"}
     bad = [c for c, x in columns.items() if not np.isfinite(x).all()]
     if bad:
         raise ValueError(f"{file}: column {bad[0]} has a value that is not a finite number (or a null)")

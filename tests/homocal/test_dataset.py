@@ -8,7 +8,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 import pytest
 
-from homocal.dataset import calibration_source, load_dataset, read_pose_track
+from homocal.dataset import POSE_COLUMNS, calibration_source, load_dataset, read_pose_track
 from synthetic_dataset import make_moving, pose_columns
 
 TABLES = ("gt.parquet", "detections.parquet", "calibration.parquet")
@@ -174,6 +174,12 @@ def test_max_distance_keeps_the_operating_range(tiny_dataset):
 
 # ---- camera_pose.parquet: the pose track of a camera that moves ----------------------------------
 MANIFEST = {"steps_total": 6, "gt_dt": 0.05}
+
+
+def test_pose_columns_are_the_ones_simgen_writes():
+    from simgen.truth import CAMERA_POSE_SCHEMA
+
+    assert POSE_COLUMNS == tuple(CAMERA_POSE_SCHEMA.names)
 
 
 def test_pose_track_reads_the_table(tmp_path):
