@@ -192,10 +192,6 @@ class OnlineCalibrator:
         bad = np.flatnonzero(~(np.isfinite(boxes).all(axis=1) & (boxes[:, 3] > boxes[:, 1]) & (boxes[:, 2] > boxes[:, 0])))
         if bad.size:
             raise ValueError(f"frame {frame}: box {boxes[bad[0]].tolist()} is not finite or is upside down or empty")
-        try:
-            edges = boxes if self.lens is None else undistort_boxes(boxes, self.lens)
-        except ValueError as e:
-            raise ValueError(f"frame {frame}: {e}") from None
         if self._last_frame is not None and frame - self._last_frame > LINK_GAP:
             self._tracks.clear()  # a gap ends every track
         self._last_frame = frame
@@ -205,7 +201,10 @@ class OnlineCalibrator:
         for key in ids.tolist():  # every box keeps its track alive; only tracks yet to give a person are measured
             tracks.setdefault(key, [frame, [], []])[0] = frame
         todo = np.array([i for i, key in enumerate(ids.tolist()) if tracks[key][1] is not None], dtype=np.int64)
-        b = edges[todo]
+        try:  # only the boxes still measured: a track's later boxes are skipped, undistorted or not
+            b = boxes[todo] if self.lens is None else undistort_boxes(boxes[todo], self.lens)
+        except ValueError as e:
+            raise ValueError(f"frame {frame}: {e}") from None
         rows, slope = implied_horizon_rows(b[:, 3], b[:, 1], self.K[1, 1], self.K[1, 2], self.camera_height_m,
                                            self.height_mean_m)
         sigmas = np.abs(slope) * np.hypot(self.height_sd_m, self.height_mean_m * BOX_SIGMA_PX / (b[:, 3] - b[:, 1]))
