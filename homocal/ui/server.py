@@ -29,6 +29,7 @@ HOST = "127.0.0.1"
 MAX_BODY = 10 * 1024 * 1024  # bytes
 MAX_BOARD_BODY = 128 * 1024 * 1024  # bytes: POST /api/checkerboard's, its photographs in base64 (96 MiB of files, some
 # 50 full-HD PNGs); at most MAX_CONCURRENT such bodies in memory, each with its decoded JSON and photographs
+LARGER_BODIES = {api.checkerboard.__name__: MAX_BOARD_BODY}  # endpoint -> its body bound (others: MAX_BODY)
 MAX_DEPTH = 20  # nesting of JSON arrays and objects (the page's deepest request nests 5)
 MAX_INTEGER_DIGITS = 20  # a seed is below 2**64, 20 digits
 MAX_CONCURRENT = 2  # POSTs read and computed at once (2 cores): at most 2 bodies in memory
@@ -178,7 +179,7 @@ class Handler(BaseHTTPRequestHandler):
         text = self.headers.get("Content-Length", "").strip()
         if not text.isdigit() or len(text) > 12:
             raise BadRequest(400, f"Content-Length: expected a number of bytes, got {text!r}")
-        length, most = int(text), MAX_BOARD_BODY if self.path == "/api/checkerboard" else MAX_BODY
+        length, most = int(text), LARGER_BODIES.get(self.path.removeprefix("/api/"), MAX_BODY)
         if not 0 < length <= most:
             raise BadRequest(413 if length else 400,
                              f"Content-Length: expected a JSON body of 1 byte to {most} bytes, got {length}")
