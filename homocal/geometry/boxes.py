@@ -69,6 +69,29 @@ def undistort_boxes(edges: np.ndarray, lens) -> np.ndarray:
     return np.column_stack([foot[:, 0] - half, head[:, 1], foot[:, 0] + half, foot[:, 1]])
 
 
+HIDDEN_FEET_PX = 1.0
+"""A box whose bottom edge lies below a nearer box's top edge, or within this many px above it, may have its feet
+hidden by the nearer person (hidden_feet)."""
+
+
+def hidden_feet(edges: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    """(N,) bool for boxes edges (N, 4) homocal px (x1, y1, x2, y2) of video frames (N,) int: the box's feet may be
+    hidden by a nearer person, so that its bottom edge is that person's outline, not the sole. A nearer person is
+    a box j of the same frame standing lower (y2_j > y2_i) whose columns overlap the box's and whose top edge
+    reaches down to HIDDEN_FEET_PX above the box's bottom edge or lower (y1_j <= y2_i + HIDDEN_FEET_PX). From the
+    boxes alone, as the image border's rule: a person hidden by a car or a pole is not found. Cost per frame
+    O(n^2) in its n <= MAX_BOXES_PER_FRAME boxes."""
+    edges, frames = np.asarray(edges, dtype=np.float64), np.asarray(frames)
+    hidden = np.zeros(len(edges), bool)
+    order = np.argsort(frames, kind="stable")
+    _, first = np.unique(frames[order], return_index=True)
+    for rows in np.split(order, first[1:]) if len(order) else ():
+        x1, y1, x2, y2 = edges[rows].T[:, :, None]  # each (n, 1): rows i, columns (after .T) j
+        nearer = (y2.T > y2) & (np.minimum(x2, x2.T) > np.maximum(x1, x1.T)) & (y1.T <= y2 + HIDDEN_FEET_PX)
+        hidden[rows] = nearer.any(axis=1)
+    return hidden
+
+
 def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Intersection over union (N, M) of boxes a (N, 4) and b (M, 4) (any shape ending in 4 is read as rows of
     four), edges (x1, y1, x2, y2) in one convention. A box's width and height are max(0, x2 - x1) and

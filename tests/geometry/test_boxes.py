@@ -6,9 +6,38 @@ import numpy as np
 import pytest
 
 import simgen.detection
-from homocal.geometry.boxes import MAX_BOXES_PER_FRAME, box_iou, greedy_pairs, link_tracks
+from homocal.geometry.boxes import HIDDEN_FEET_PX, MAX_BOXES_PER_FRAME, box_iou, greedy_pairs, hidden_feet, link_tracks
 
 BOX = [0.0, 0.0, 10.0, 10.0]
+FAR = [0.0, 0.0, 10.0, 50.0]  # a far person's box: feet at row 50
+
+
+@pytest.mark.parametrize("other,expected", [
+    ([5.0, 40.0, 20.0, 100.0], [True, False]),  # lower, overlapping columns, its head above the far box's feet
+    ([5.0, 50.0 + HIDDEN_FEET_PX, 20.0, 100.0], [True, False]),  # its head HIDDEN_FEET_PX below the feet: hides
+    ([5.0, 50.0 + 2 * HIDDEN_FEET_PX, 20.0, 100.0], [False, False]),  # its head clear below the feet
+    ([10.0, 40.0, 20.0, 100.0], [False, False]),  # columns touching, not overlapping
+    ([-20.0, 40.0, 0.5, 100.0], [True, False]),  # half a pixel of overlap on the left
+    ([5.0, 0.0, 20.0, 50.0], [False, False]),  # the same foot row: neither is nearer
+    ([5.0, 40.0, 20.0, 49.0], [False, True]),  # its feet higher: farther, FAR may hide them
+])
+def test_hidden_feet_pairs(other, expected):
+    assert hidden_feet(np.array([FAR, other]), np.zeros(2, np.int64)).tolist() == expected
+    assert hidden_feet(np.array([FAR, other]), np.arange(2)).tolist() == [False, False]  # other frames
+
+
+def test_hidden_feet_against_every_pair():
+    """Random boxes in three frames against the rule written out pair by pair."""
+    rng = np.random.default_rng(5)
+    n = 60
+    x1, y1 = rng.uniform(0, 200, n), rng.uniform(0, 200, n)
+    edges = np.column_stack([x1, y1, x1 + rng.uniform(1, 40, n), y1 + rng.uniform(1, 80, n)])
+    frames = rng.integers(0, 3, n)
+    expected = [any(frames[j] == frames[i] and edges[j, 3] > edges[i, 3] and edges[j, 1] <= edges[i, 3] + HIDDEN_FEET_PX
+                    and min(edges[i, 2], edges[j, 2]) > max(edges[i, 0], edges[j, 0]) for j in range(n)) for i in range(n)]
+    assert 5 < sum(expected) < n - 5  # the draw holds both kinds
+    assert hidden_feet(edges, frames).tolist() == expected
+    assert hidden_feet(np.zeros((0, 4)), np.zeros(0, np.int64)).shape == (0,)
 
 
 @pytest.mark.parametrize("a,b,expected", [
