@@ -17,6 +17,9 @@ from homocal.lens.lines import DEFAULT_TERMS, TERMS
 MAX_FRAMES = 200  # checkerboard photographs in one calibration
 MAX_FRAME_BYTES = 64 * 2**20  # one image file
 MAX_FRAME_PIXELS = 50_000_000  # one decoded frame (8K is 33 million)
+MAX_SEARCH_PIXELS = 500_000_000  # frames x pixels one calibration searches for the board (40 photographs of 12 MP):
+# findChessboardCorners takes ~2.2 us a pixel on a photograph without a board (26.8 s on 12 MP of noise, one core
+# of the 2-core reference machine), so a calibration searches for at most ~18 min
 MIN_FRAMES = 3  # views of the board calibrateCamera needs for K and five coefficients
 MIN_CORNERS, MAX_CORNERS = 2, 100  # inner corners along each side of the board
 MAX_SQUARE_M = 100.0  # the side of one square, metres (more than 0)
@@ -78,7 +81,8 @@ def calibrate_board(paths: list[Path], pattern: tuple[int, int], square_m: float
     """Calibrate from photographs of a board of ``pattern`` = (columns, rows) inner corners, ``square_m`` apart.
 
     The focal lengths, the principal point and the distortion ``terms`` (a key of TERMS; the others fixed at 0:
-    calibrateCamera's FIX_K2, FIX_K3, ZERO_TANGENT_DIST) are fitted. ValueError: no file, more than MAX_FRAMES, frames of different sizes
+    calibrateCamera's FIX_K2, FIX_K3, ZERO_TANGENT_DIST) are fitted. ValueError: no file, more than MAX_FRAMES or
+    MAX_SEARCH_PIXELS (frames x the first frame's pixels: the search's time), frames of different sizes
     (or not ``image_size`` (W, H), when given: a camera's frame), the board found in fewer than MIN_FRAMES of them,
     a calibrated distortion that folds the frame (Lens.check_folds).
     """
@@ -97,6 +101,9 @@ def calibrate_board(paths: list[Path], pattern: tuple[int, int], square_m: float
             raise ValueError(f"{path}: {gray.shape[1]}x{gray.shape[0]}, {which} is {size[0]}x{size[1]} (one camera, one "
                              "image size)")
         size = gray.shape[::-1]
+        if len(paths) * gray.size > MAX_SEARCH_PIXELS:
+            raise ValueError(f"{len(paths)} frames of {size[0]}x{size[1]} px, {len(paths) * gray.size:,} pixels to search "
+                             f"for the board, more than {MAX_SEARCH_PIXELS:,} (fewer or smaller photographs)")
         ok, c = cv2.findChessboardCorners(gray, pattern)
         if not ok:
             missing.append(str(path))

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from homocal.arguments import number
 from homocal.files import check_output_file, json_format, read_json, write_json_atomic
-from homocal.lens.checkerboard import MAX_FRAMES, MAX_SQUARE_M, calibrate_board, parse_pattern
+from homocal.lens.checkerboard import MAX_FRAMES, MAX_SEARCH_PIXELS, MAX_SQUARE_M, calibrate_board, parse_pattern
 from homocal.lens.edges import fit_frame
 from homocal.lens.lines import DEFAULT_HFOV_DEG, DEFAULT_TERMS, TERMS, fit_lines, intrinsics, read_lines_file
 
@@ -20,7 +20,8 @@ centre say nothing of the distortion. The principal point is taken at the image 
 from --focal, else --hfov (default {DEFAULT_HFOV_DEG:g} degrees): straight lines fix the distortion in pixels, not
 the focal length, so the undistorted pixels do not depend on it (the coefficients scale with it).
 --checkerboard: photographs of a flat board with --pattern COLSxROWS inner corners, --square-m apart, at
-several angles and over the whole frame (at least 3 where the board is found, at most {MAX_FRAMES}).
+several angles and over the whole frame (at least 3 where the board is found, at most {MAX_FRAMES}, and at most
+{MAX_SEARCH_PIXELS:,} pixels in all: the board search's time).
 --frame: one image; straight edges are found in it (no click) and fitted as lines.
 lens.json: {{"K": [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], "distortion": [k1, k2, p1, p2, k3], "image_size": [W, H],
 "fit": {{...}}}} (OpenCV's model and order; "fit" holds how it was estimated and how well)."""

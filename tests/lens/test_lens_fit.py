@@ -229,6 +229,19 @@ def test_frame_size_read_before_decoding(tmp_path, capsys, monkeypatch):
     assert not (tmp_path / "lens.json").exists()
 
 
+def test_board_search_bounded_in_pixels(tmp_path, capsys, monkeypatch):
+    """Frames x pixels beyond MAX_SEARCH_PIXELS: refused before any search, from the first frame's size."""
+    monkeypatch.setattr(checkerboard, "MAX_SEARCH_PIXELS", 3 * 100 * 100 - 1)  # the bound, made small here
+    (tmp_path / "board").mkdir()
+    for i in range(3):
+        cv2.imwrite(str(tmp_path / "board" / f"{i}.png"), np.zeros((100, 100), np.uint8))
+    r = run(tmp_path, capsys, monkeypatch, "--checkerboard", "board/*.png", "--pattern", "9x6", "--square-m", "0.025",
+            "-o", "lens.json")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "3 frames of 100x100 px, 30,000 pixels to search for the board, more than 29,999" in r.stderr
+    assert not (tmp_path / "lens.json").exists()
+
+
 def test_check_lines_counts_the_points_before_converting(monkeypatch):
     monkeypatch.setattr(lines_module, "MAX_POINTS", 10)
     with pytest.raises(ValueError, match="more than 10 points"):
