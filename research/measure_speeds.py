@@ -2,7 +2,7 @@
 supervision's speed recipe (issue 34 item 4; docs/measure.md).
 
     python research/measure_speeds.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--shift 16]
-    python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma | --correlated]
+    python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma | --correlated] [--feet soles]
     python research/measure_speeds.py DATASET --throughput 10 [--correlated]
 
 Per dataset and detector, the clicked trapezoid is the dataset's exact one moved as a tilt error moves it so
@@ -42,6 +42,9 @@ filter's state (measure_tracks(foot_correlation_s=...); homocal measure --foot-n
 --accel-psd Q|fitted: the filter's process noise (homocal measure --accel-psd; default homocal.measure.ACCEL_PSD);
 fitted: per dataset, detector and mapping by maximum likelihood of the filter's innovations on the boxes'
 tracks (homocal.measure.tracks.fit_tracks_accel_psd; no ground truth), printed to stderr.
+--feet soles: homocal's filter measures only the foot points whose bottom edge is the sole (homocal measure
+--feet soles: not a box whose feet a nearer box may hide, nor one whose bottom or side the image border cuts,
+homocal.measure.tracks.foot_status); the recipe and the 1 s differences take every box.
 --throughput MINUTES: the first dataset's segmentation boxes repeated (frames and track ids shifted) into a
 CSV of MINUTES minutes, then `homocal measure` on it as a subprocess (with --correlated: --foot-noise
 correlated; with --accel-psd, that): boxes per second and the child's peak resident memory (ru_maxrss).
@@ -66,7 +69,7 @@ from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer, box_bottom_points
 from homocal.geometry.boxes import link_tracks
 from homocal.measure import ACCEL_PSD, measure_tracks
-from homocal.measure.tracks import fit_tracks_accel_psd, foot_noise_options
+from homocal.measure.tracks import FEET, fit_tracks_accel_psd, foot_noise_options, foot_status
 from homocal.study.perturb import base_quad
 
 BANDS = ((5.0, 15.0), (15.0, 30.0), (30.0, 50.0), (5.0, 50.0))
@@ -134,7 +137,7 @@ def mappings(ds, detector: str, shift: float, frames: np.ndarray, xyxy: np.ndarr
 
 
 def evaluate(paths: list[str], detector: str, shift: float, split: bool = False, box_sigma: bool = False,
-             correlated: bool = False, accel_psd: float | str = ACCEL_PSD) -> dict:
+             correlated: bool = False, accel_psd: float | str = ACCEL_PSD, soles: bool = False) -> dict:
     """{(mapping, estimator): dict of pooled arrays err (m/s), rel (%, NaN below WALKING_MPS), range, cover1/2
     (speeds), pos1/2 (positions)} over the datasets."""
     pooled: dict = collections.defaultdict(lambda: collections.defaultdict(list))
@@ -145,6 +148,7 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
         ids = link_tracks(frames, xyxy)
         feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
         maps, clicked = mappings(ds, detector, shift, frames, xyxy, ids)
+        foot = foot_status(xyxy, frames, ds.camera.image_size) if soles else None
         H = cv2.getPerspectiveTransform(clicked.source.astype(np.float32), clicked.target.astype(np.float32))
         sv_xy = cv2.perspectiveTransform(feet.reshape(-1, 1, 2).astype(np.float32), H).reshape(-1, 2).astype(float)
         rows = {"recipe": (recipe_speeds(sv_xy, frames, ids, fps), None, None, None)}
@@ -156,11 +160,11 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
             noise["split_mapping_error"] |= split
             q = accel_psd
             if q == "fitted":
-                q = fit_tracks_accel_psd(mapping, frames, feet, ids, fps, **noise)
+                q = fit_tracks_accel_psd(mapping, frames, feet, ids, fps, **noise, foot=foot)
                 print(f"{Path(path).name}, {detector}, {name}: q fitted {q:.3g} m^2/s^3", file=sys.stderr)
             for estimator, smooth in (("filter", False), ("smoother", True)):
                 speed, sigma, pos_err, pos_sigma = (np.full(len(frames), np.nan) for _ in range(4))
-                for batch in measure_tracks(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise):
+                for batch in measure_tracks(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise, foot=foot):
                     at = np.array([index[(f, k)] for f, k in zip(batch["frame"], batch["track_id"])])
                     speed[at], sigma[at] = batch["speed_mps"], batch["speed_sigma_mps"]
                     pos_err[at] = np.hypot(batch["x"] - true_xy[at, 0], batch["y"] - true_xy[at, 1])
@@ -276,6 +280,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="--box-sigma with the foot point's error an AR(1) of correlation time FOOT_CORRELATION_S")
     parser.add_argument("--accel-psd", type=lambda s: s if s == "fitted" else float(s), default=ACCEL_PSD,
                         help="the filter's process noise q, m^2/s^3, or fitted (per dataset, detector and mapping)")
+    parser.add_argument("--feet", choices=FEET, default=FEET[0], help="homocal measure --feet")
     parser.add_argument("--spread", action="store_true", help="each dataset on its own: mean [min, max] over them")
     args = parser.parse_args(argv)
     if args.throughput:
@@ -284,10 +289,10 @@ def main(argv: list[str] | None = None) -> int:
     for detector in args.detectors.split(","):
         if args.spread:
             print(spread_table([evaluate([d], detector, args.shift, args.split, args.box_sigma, args.correlated,
-                                         args.accel_psd) for d in args.datasets], detector, args.shift) + "\n")
+                                         args.accel_psd, args.feet == "soles") for d in args.datasets], detector, args.shift) + "\n")
         else:
             print(table(evaluate(args.datasets, detector, args.shift, args.split, args.box_sigma, args.correlated,
-                                 args.accel_psd), detector, args.shift) + "\n")
+                                 args.accel_psd, args.feet == "soles"), detector, args.shift) + "\n")
     return 0
 
 
