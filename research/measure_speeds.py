@@ -44,7 +44,8 @@ fitted: per dataset, detector and mapping by maximum likelihood of the filter's 
 tracks (homocal.measure.tracks.fit_tracks_accel_psd; no ground truth), printed to stderr.
 --feet soles: homocal's filter measures only the foot points whose bottom edge is the sole (homocal measure
 --feet soles: not a box whose feet a nearer box may hide, nor one whose bottom or side the image border cuts,
-homocal.measure.tracks.foot_status); the recipe and the 1 s differences take every box.
+homocal.measure.tracks.foot_status; their shares printed to stderr); the recipe and the 1 s differences take
+every box.
 --throughput MINUTES: the first dataset's segmentation boxes repeated (frames and track ids shifted) into a
 CSV of MINUTES minutes, then `homocal measure` on it as a subprocess (with --correlated: --foot-noise
 correlated; with --accel-psd, that): boxes per second and the child's peak resident memory (ru_maxrss).
@@ -149,6 +150,9 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
         feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
         maps, clicked = mappings(ds, detector, shift, frames, xyxy, ids)
         foot = foot_status(xyxy, frames, ds.camera.image_size) if soles else None
+        if soles:
+            print(f"{Path(path).name}, {detector}: of {len(foot):,} boxes, feet hidden {100 * np.mean(foot == 'hidden'):.1f} %, "
+                  f"on the border {100 * np.mean(foot == 'border'):.1f} %", file=sys.stderr)
         H = cv2.getPerspectiveTransform(clicked.source.astype(np.float32), clicked.target.astype(np.float32))
         sv_xy = cv2.perspectiveTransform(feet.reshape(-1, 1, 2).astype(np.float32), H).reshape(-1, 2).astype(float)
         rows = {"recipe": (recipe_speeds(sv_xy, frames, ids, fps), None, None, None)}
