@@ -48,7 +48,7 @@ homocal.measure.tracks.foot_status; their shares printed to stderr); the recipe 
 every box.
 --throughput MINUTES: the first dataset's segmentation boxes repeated (frames and track ids shifted) into a
 CSV of MINUTES minutes, then `homocal measure` on it as a subprocess (with --correlated: --foot-noise
-correlated; with --accel-psd, that): boxes per second and the child's peak resident memory (ru_maxrss).
+correlated; with --accel-psd, --feet, those): boxes per second and the child's peak resident memory (ru_maxrss).
 """
 from __future__ import annotations
 
@@ -243,7 +243,8 @@ def spread_table(per_dataset: list[dict], detector: str, shift: float) -> str:
     return "\n".join(lines)
 
 
-def throughput(path: str, minutes: float, foot_noise: str = "fixed", accel_psd: float | str = ACCEL_PSD) -> str:
+def throughput(path: str, minutes: float, foot_noise: str = "fixed", accel_psd: float | str = ACCEL_PSD,
+               feet: str = FEET[0]) -> str:
     ds = load_dataset(path)
     boxes = read_boxes(Path(path) / "detections.parquet", "segmentation")
     fps = float(ds.manifest["fps"])
@@ -263,7 +264,7 @@ def throughput(path: str, minutes: float, foot_noise: str = "fixed", accel_psd: 
         start = time.perf_counter()
         subprocess.run([sys.executable, "-m", "homocal.cli", "measure", str(trap), "--boxes", str(csv), "--fps",
                         f"{fps:g}", "--out", str(Path(tmp) / "tracks.parquet"), "--foot-noise", foot_noise,
-                        "--accel-psd", str(accel_psd), "--no-progress"], check=True)
+                        "--accel-psd", str(accel_psd), "--feet", feet, "--no-progress"], check=True)
         seconds = time.perf_counter() - start
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
     return (f"throughput: {n:,} boxes in the file ({copies} copies of {ds.name}'s {length} frames of segmentation boxes, "
@@ -288,7 +289,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--spread", action="store_true", help="each dataset on its own: mean [min, max] over them")
     args = parser.parse_args(argv)
     if args.throughput:
-        print(throughput(args.datasets[0], args.throughput, "correlated" if args.correlated else "fixed", args.accel_psd))
+        print(throughput(args.datasets[0], args.throughput, "correlated" if args.correlated else "fixed", args.accel_psd,
+                         args.feet))
         return 0
     for detector in args.detectors.split(","):
         if args.spread:

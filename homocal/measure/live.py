@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from homocal.correctors.pedestrians import _check_image_size
 from homocal.geometry.boxes import box_bottom_points, box_edges
 from homocal.measure.kalman import ACCEL_PSD, correlated_noise, predict, start_state, update
 from homocal.measure.tracks import (FEET, FOOT, FOOT_NOISE, as_mapping, foot_noise_options, foot_status, map_points,
@@ -67,7 +68,7 @@ class GroundTracker:
             raise ValueError(f"feet: expected one of {', '.join(FEET)}, got {feet!r}")
         self.mapping, self.fps, self.convention = as_mapping(mapping), float(fps), convention
         self.accel_psd, self.click_sigma_px, self.point_sigma_px = accel_psd, click_sigma_px, point_sigma_px
-        self.foot_noise, self.feet, self.image_size = foot_noise, feet, image_size
+        self.foot_noise, self.feet, self.image_size = foot_noise, feet, _check_image_size(image_size)
         self._tracks: dict[int, tuple[np.ndarray, np.ndarray, int, bool]] = {}  # id -> state (d,), covariance (d, d),
         # frame, a foot point measured yet
         self._frame: int | None = None

@@ -99,6 +99,8 @@ def test_live_soles_as_the_file_filter():
     check_against_the_file_filter(out, foot=foot)
     with pytest.raises(ValueError, match="feet: expected one of all, soles"):
         GroundTracker(mapping, FPS, feet="sole")
+    with pytest.raises(ValueError, match="image_size: expected"):
+        GroundTracker(mapping, FPS, feet="soles", image_size=(640.5, 480))
 
 
 def test_measure_soles_writes_why(scene, capsys, monkeypatch):  # noqa: F811 (scene: the fixture)
