@@ -126,3 +126,21 @@ def test_measure_soles_writes_why(scene, capsys, monkeypatch):  # noqa: F811 (sc
     np.testing.assert_array_equal(soles[["x", "y"]], every[["x", "y"]])
     walker = soles[soles.track_id == 0]
     np.testing.assert_allclose(walker[["x_smooth", "y_smooth"]], truth(0, walker.frame.to_numpy()), atol=0.05)
+
+
+def test_measure_soles_on_the_border_of_a_mot_sequence(scene, capsys, monkeypatch):  # noqa: F811 (scene: the fixture)
+    """seqinfo.ini gives the image size (1280 x 470): walker 0's first boxes, cut by the frame's bottom (their
+    bottom edge at the border, as a detector clips them), are "border" with --feet soles, and no other box."""
+    (scene / "SEQ" / "gt").mkdir(parents=True)
+    (scene / "SEQ" / "seqinfo.ini").write_text("[Sequence]\nname=x\nframeRate=10\nseqLength=60\nimWidth=1280\nimHeight=470\n")
+    rows = [(f, k, x1, y1, x2, min(y2, 470.0)) for f, k, x1, y1, x2, y2 in walker_rows()]  # corners: the frame ends at 470
+    lines = [f"{f + 1},{k + 1},{x1 + 1},{y1 + 1},{x2 - x1},{y2 - y1},1,1,1\n" for f, k, x1, y1, x2, y2 in rows]
+    (scene / "SEQ" / "gt" / "gt.txt").write_text("".join(lines))
+    r = homocal_main("measure", "trap.json", "--boxes", "SEQ/gt/gt.txt", "--out", "tracks.parquet", "--feet", "soles",
+                     cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    tracks = pq.read_table(scene / "tracks.parquet").to_pandas()
+    # homocal's edge is the corner's - 0.5, within BORDER_PX of 469.5; the output's frames 0-based
+    cut = {(f, k + 1) for f, k, x1, y1, x2, y2 in rows if y2 >= 470 - BORDER_PX}
+    assert 0 < len(cut) < 10
+    assert {(f, k) for f, k, foot in zip(tracks.frame, tracks.track_id, tracks.foot) if foot == "border"} == cut
