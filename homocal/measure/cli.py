@@ -44,8 +44,8 @@ TRACKS.parquet, one row per track and frame, tracks in increasing id, frames in 
   own covariance (the mapping's error model at --click-sigma-px, --point-sigma-px) and whose process noise
   is a white acceleration of spectral density --accel-psd; foot ({" | ".join(FOOT)}): the foot point measured,
   or with --feet soles not, as a nearer person's box may hide the feet or the image border cuts the box's
-  bottom or a side (seqinfo.ini's or camera.json's image size): the filter predicts through that frame and
-  the smoother fills it in (x, y stay the mapped foot point).
+  bottom or a side (the image size of seqinfo.ini, camera.json or the correction's lens): the filter
+  predicts through that frame and the smoother fills it in (x, y stay the mapped foot point).
 --summary TRACKS_SUMMARY.parquet, one row per track: {", ".join(SUMMARY_COLUMNS)}
   (stationary: smoothed speed under {STATIONARY_MPS:g} m/s).
 --pairs PAIRS.parquet, one row per two people in one frame: {", ".join(PAIR_COLUMNS)}."""
