@@ -2,6 +2,7 @@
 against boxes drawn by hand), and a foot point not used is no measurement: the filter on a track whose feet are
 hidden for some frames is the filter on the track without those frames, and the smoother there the batch
 least-squares solution of the track's model with those measurements left out."""
+import json
 from types import SimpleNamespace
 
 import numpy as np
@@ -144,3 +145,25 @@ def test_measure_soles_on_the_border_of_a_mot_sequence(scene, capsys, monkeypatc
     cut = {(f, k + 1) for f, k, x1, y1, x2, y2 in rows if y2 >= 470 - BORDER_PX}
     assert 0 < len(cut) < 10
     assert {(f, k) for f, k, foot in zip(tracks.frame, tracks.track_id, tracks.foot) if foot == "border"} == cut
+
+
+def test_the_border_is_tested_in_the_cameras_own_pixels(tmp_path, capsys, monkeypatch):
+    """A trapezoid and boxes on a barrel lens's frame, --camera-json: the lens gives the image size (a .csv says
+    none). A box 15 px above the frame's bottom near its corner is used, though undistorted it lies beyond the
+    border; a box whose bottom edge is the frame's is "border"."""
+    from homocal.geometry import Lens
+    from homocal.geometry.boxes import undistort_boxes
+
+    lens = Lens(CAMERA.K, [-0.2, 0.04, 5e-4, -3e-4, -0.002], (1280, 720))
+    (tmp_path / "trap.json").write_text(json.dumps({"image": lens.distort_points(CAMERA.project_ground(GROUND)).tolist(),
+                                                    "map": GROUND.tolist()}))
+    (tmp_path / "lens.json").write_text(json.dumps(lens.to_dict()))
+    inside, cut = [100.0, 600.0, 120.0, 705.0], [600.0, 600.0, 620.0, 720.0]  # CSV corners: the frame ends at 720
+    write_csv(tmp_path / "boxes.csv", [(f, k, *box) for f in range(3) for k, box in enumerate([inside, cut])])
+    assert undistort_boxes(np.array([inside]) - 0.5, lens)[0, 3] > 720  # undistorted, beyond the border
+    r = homocal_main("measure", "trap.json", "--boxes", "boxes.csv", "--fps", "10", "--camera-json", "lens.json",
+                     "--feet", "soles", "--out", "t.parquet", cwd=tmp_path, capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    tracks = pq.read_table(tmp_path / "t.parquet").to_pandas()
+    assert tracks.groupby("track_id").foot.unique().map(list).to_dict() == {0: ["used"], 1: ["border"]}
+    assert np.isnan(tracks.speed_mps[tracks.track_id == 1]).all()  # no foot measured: nothing known
