@@ -15,8 +15,8 @@ from test_measure_cli import scene, truth, walker_rows, write_csv  # noqa: F401 
 from cli_run import homocal_main
 from homocal.geometry import ViewTransformer
 from homocal.geometry.boxes import BORDER_PX, box_edges
-from homocal.measure import GroundTracker, measure_tracks
-from homocal.measure.kalman import ACCEL_PSD
+from homocal.measure import GroundTracker, fit_tracks_accel_psd, measure_tracks
+from homocal.measure.kalman import ACCEL_PSD, ACCEL_PSD_LOG_TOLERANCE
 from homocal.measure.tracks import FOOT, foot_status
 from homocal.uncertainty import ground_uncertainty
 
@@ -72,6 +72,27 @@ def test_a_hidden_foot_is_no_measurement(smooth):
         mean, _ = batch_solution(frames / FPS, z, ground_uncertainty(mapping, feet, 1.5, 1.0), ACCEL_PSD)
         state = np.column_stack([out[c] for c in STATE[:4]])
         np.testing.assert_allclose(state, mean, rtol=0, atol=1e-8 * np.abs(mean).max())
+
+
+def test_a_hidden_foot_is_left_out_of_the_fitted_q():
+    """The innovations' likelihood sums the measured steps only, and the motion model's prediction over two steps
+    is its prediction over their sum: q fitted with feet hidden is q fitted on the tracks without those frames."""
+    mapping = ViewTransformer(CAMERA.project_ground(GROUND), GROUND)
+    rng = np.random.default_rng(9)
+    frames, ids, feet = np.tile(np.arange(40), 3), np.repeat(np.arange(3), 40), []
+    for start in ([-2.0, 12.0], [1.0, 18.0], [0.0, 25.0]):  # walkers whose velocity wanders (q 0.5 m^2/s^3)
+        v = np.array([0.5, 1.0]) + np.cumsum(rng.normal(0, np.sqrt(0.5 / FPS), (40, 2)), axis=0)
+        feet.append(CAMERA.project_ground(start + np.cumsum(v, axis=0) / FPS) + rng.normal(0, 1.0, (40, 2)))
+    feet = np.vstack(feet)
+    foot = np.where((frames % 10 >= 6) & (frames % 10 <= 8), FOOT[1], FOOT[0])  # hidden 3 frames in 10
+    feet[foot == FOOT[1], 1] -= 10  # a hidden foot: the box ends above it
+    kept = foot == FOOT[0]
+    q = fit_tracks_accel_psd(mapping, frames, feet, ids, FPS, foot=foot)
+    alone = fit_tracks_accel_psd(mapping, frames[kept], feet[kept], ids[kept], FPS)
+    every = fit_tracks_accel_psd(mapping, frames, feet, ids, FPS)
+    # the same likelihood to rounding: the same bounded search's answer, within its tolerance in ln q
+    assert abs(np.log(q / alone)) <= ACCEL_PSD_LOG_TOLERANCE, (q, alone)
+    assert abs(np.log(q / every)) > 10 * ACCEL_PSD_LOG_TOLERANCE, (q, every)  # the hidden feet do count otherwise
 
 
 def test_a_track_with_no_foot_measured_has_no_state():
