@@ -1,6 +1,6 @@
 """The foot point's noise against the truth, as a function of the box's height (issue 34; docs/measure.md).
 
-    python research/foot_noise.py DATASET [DATASET ...]
+    python research/foot_noise.py DATASET [DATASET ...] [--feet soles] [--max-lag FRAMES]
 
 Per detector, over the datasets' boxes with an agent (detections.parquet agent_id): the error of the box's foot
 point (homocal's bottom-edge centre, homocal.geometry.box_bottom_points) against the agent's true foot point
@@ -13,6 +13,9 @@ white at the video rate; and the correlation time tau of an AR(1) fitted to them
 of the error in pixels (where the large boxes' large errors weigh most) and of the error over the box's height,
 in units of the sigma the model gives it (FOOT_SIGMA_PER_BOX_HEIGHT x height), each box weighing alike: the
 process the filter's AR(1) is (homocal.measure.tracks.FOOT_CORRELATION_S).
+--feet soles: only the boxes homocal measure --feet soles measures (homocal.measure.tracks.foot_status over all of
+the detector's boxes: not a box whose feet a nearer box may hide, nor one the image border cuts at its bottom or a
+side). --max-lag: the autocorrelation's last lag, frames (default MAX_LAG).
 """
 from __future__ import annotations
 
@@ -22,6 +25,7 @@ import numpy as np
 
 from homocal.dataset import load_dataset
 from homocal.geometry import box_bottom_points
+from homocal.measure.tracks import FEET, foot_status
 
 BIN_EDGES_PX = (0, 20, 30, 40, 60, 80, 120, 160, 240, 400, 10_000)
 MAX_LAG = 5
@@ -29,12 +33,16 @@ MIN_BIN_BOXES = 30
 MAD_TO_SIGMA = 1.4826
 
 
-def foot_errors(path: str, detector: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Of one dataset's boxes of ``detector`` with an agent: foot-point error (N, 2) px (box - truth), box height
-    (N,) px, agent id (N,) and frame (N,)."""
+def foot_errors(path: str, detector: str, soles: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Of one dataset's boxes of ``detector`` with an agent (soles: whose foot_status is "used"): foot-point error
+    (N, 2) px (box - truth), box height (N,) px, agent id (N,) and frame (N,)."""
     ds = load_dataset(path)
     det = ds.table("detections.parquet").to_pandas()
-    det = det[(det.detector == detector) & (det.agent_id >= 0)].reset_index(drop=True)
+    det = det[det.detector == detector].reset_index(drop=True)
+    if soles:
+        det = det[foot_status(det[["x1", "y1", "x2", "y2"]].to_numpy(float), det.frame.to_numpy(),
+                              ds.camera.image_size) == "used"]
+    det = det[det.agent_id >= 0].reset_index(drop=True)
     gt = ds.table("gt.parquet").to_pandas()[["agent_id", "step", "u", "v"]]
     step = np.round(det.frame.to_numpy() / float(ds.manifest["fps"]) / float(ds.manifest["gt_dt"])).astype(np.int64)
     g = det[["agent_id"]].assign(step=step).astype({"agent_id": gt.agent_id.dtype}).merge(
@@ -91,8 +99,8 @@ def correlation_time(acf: np.ndarray, dt: float) -> float:
     return float(-np.sum(lag * lag) / np.sum(lag * np.log(acf)))
 
 
-def report(paths: list[str], detector: str) -> str:
-    parts = [foot_errors(p, detector) for p in paths]
+def report(paths: list[str], detector: str, soles: bool = False, max_lag: int = MAX_LAG) -> str:
+    parts = [foot_errors(p, detector, soles) for p in paths]
     err, height, frames = (np.concatenate([p[i] for p in parts]) for i in (0, 1, 3))
     agents = np.concatenate([p[2] + 1_000_000 * k for k, p in enumerate(parts)])  # an agent of each dataset
     bins = binned_sigma(err, height)
@@ -114,8 +122,8 @@ def report(paths: list[str], detector: str) -> str:
     for what, scale in (("error, px", 1.0), ("error / box height (in units of its modelled sigma)", height)):
         acfs = []
         for c, name in ((0, "u"), (1, "v")):
-            acfs.append([autocorrelation(err[:, c] / scale, agents, frames, lag) for lag in range(1, MAX_LAG + 1)])
-            lines.append(f"autocorrelation of the {name} {what}, at lags 1..{MAX_LAG} frames: "
+            acfs.append([autocorrelation(err[:, c] / scale, agents, frames, lag) for lag in range(1, max_lag + 1)])
+            lines.append(f"autocorrelation of the {name} {what}, at lags 1..{max_lag} frames: "
                          + ", ".join(f"{x:.2f}" for x in acfs[-1]) + f" (AR(1) correlation time "
                          f"{correlation_time(np.array(acfs[-1]), dt):.2f} s)")
         lines.append(f"AR(1) correlation time of u and v together: {correlation_time(np.mean(acfs, axis=0), dt):.2f} s")
@@ -126,6 +134,8 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("datasets", nargs="+")
     parser.add_argument("--detectors", default="segmentation,rgb")
+    parser.add_argument("--feet", choices=FEET, default=FEET[0], help="homocal measure --feet: the boxes taken")
+    parser.add_argument("--max-lag", type=int, default=MAX_LAG, help="the autocorrelation's last lag, frames")
     args = parser.parse_args()
     for detector in args.detectors.split(","):
-        print(report(args.datasets, detector) + "\n")
+        print(report(args.datasets, detector, args.feet == "soles", args.max_lag) + "\n")

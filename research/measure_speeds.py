@@ -2,7 +2,7 @@
 supervision's speed recipe (issue 34 item 4; docs/measure.md).
 
     python research/measure_speeds.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--shift 16]
-    python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma | --correlated]
+    python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma | --correlated] [--feet soles]
     python research/measure_speeds.py DATASET --throughput 10 [--correlated]
 
 Per dataset and detector, the clicked trapezoid is the dataset's exact one moved as a tilt error moves it so
@@ -42,9 +42,13 @@ filter's state (measure_tracks(foot_correlation_s=...); homocal measure --foot-n
 --accel-psd Q|fitted: the filter's process noise (homocal measure --accel-psd; default homocal.measure.ACCEL_PSD);
 fitted: per dataset, detector and mapping by maximum likelihood of the filter's innovations on the boxes'
 tracks (homocal.measure.tracks.fit_tracks_accel_psd; no ground truth), printed to stderr.
+--feet soles: homocal's filter measures only the foot points whose bottom edge is the sole (homocal measure
+--feet soles: not a box whose feet a nearer box may hide, nor one whose bottom or side the image border cuts,
+homocal.measure.tracks.foot_status; their shares printed to stderr); the recipe and the 1 s differences take
+every box.
 --throughput MINUTES: the first dataset's segmentation boxes repeated (frames and track ids shifted) into a
 CSV of MINUTES minutes, then `homocal measure` on it as a subprocess (with --correlated: --foot-noise
-correlated; with --accel-psd, that): boxes per second and the child's peak resident memory (ru_maxrss).
+correlated; with --accel-psd, --feet, those): boxes per second and the child's peak resident memory (ru_maxrss).
 """
 from __future__ import annotations
 
@@ -66,7 +70,7 @@ from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer, box_bottom_points
 from homocal.geometry.boxes import link_tracks
 from homocal.measure import ACCEL_PSD, measure_tracks
-from homocal.measure.tracks import fit_tracks_accel_psd, foot_noise_options
+from homocal.measure.tracks import FEET, fit_tracks_accel_psd, foot_noise_options, foot_status
 from homocal.study.perturb import base_quad
 
 BANDS = ((5.0, 15.0), (15.0, 30.0), (30.0, 50.0), (5.0, 50.0))
@@ -134,7 +138,7 @@ def mappings(ds, detector: str, shift: float, frames: np.ndarray, xyxy: np.ndarr
 
 
 def evaluate(paths: list[str], detector: str, shift: float, split: bool = False, box_sigma: bool = False,
-             correlated: bool = False, accel_psd: float | str = ACCEL_PSD) -> dict:
+             correlated: bool = False, accel_psd: float | str = ACCEL_PSD, soles: bool = False) -> dict:
     """{(mapping, estimator): dict of pooled arrays err (m/s), rel (%, NaN below WALKING_MPS), range, cover1/2
     (speeds), pos1/2 (positions)} over the datasets."""
     pooled: dict = collections.defaultdict(lambda: collections.defaultdict(list))
@@ -145,6 +149,10 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
         ids = link_tracks(frames, xyxy)
         feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
         maps, clicked = mappings(ds, detector, shift, frames, xyxy, ids)
+        foot = foot_status(xyxy, frames, ds.camera.image_size) if soles else None
+        if soles:
+            print(f"{Path(path).name}, {detector}: of {len(foot):,} boxes, feet hidden {100 * np.mean(foot == 'hidden'):.1f} %, "
+                  f"on the border {100 * np.mean(foot == 'border'):.1f} %", file=sys.stderr)
         H = cv2.getPerspectiveTransform(clicked.source.astype(np.float32), clicked.target.astype(np.float32))
         sv_xy = cv2.perspectiveTransform(feet.reshape(-1, 1, 2).astype(np.float32), H).reshape(-1, 2).astype(float)
         rows = {"recipe": (recipe_speeds(sv_xy, frames, ids, fps), None, None, None)}
@@ -156,11 +164,11 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
             noise["split_mapping_error"] |= split
             q = accel_psd
             if q == "fitted":
-                q = fit_tracks_accel_psd(mapping, frames, feet, ids, fps, **noise)
+                q = fit_tracks_accel_psd(mapping, frames, feet, ids, fps, **noise, foot=foot)
                 print(f"{Path(path).name}, {detector}, {name}: q fitted {q:.3g} m^2/s^3", file=sys.stderr)
             for estimator, smooth in (("filter", False), ("smoother", True)):
                 speed, sigma, pos_err, pos_sigma = (np.full(len(frames), np.nan) for _ in range(4))
-                for batch in measure_tracks(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise):
+                for batch in measure_tracks(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise, foot=foot):
                     at = np.array([index[(f, k)] for f, k in zip(batch["frame"], batch["track_id"])])
                     speed[at], sigma[at] = batch["speed_mps"], batch["speed_sigma_mps"]
                     pos_err[at] = np.hypot(batch["x"] - true_xy[at, 0], batch["y"] - true_xy[at, 1])
@@ -235,7 +243,8 @@ def spread_table(per_dataset: list[dict], detector: str, shift: float) -> str:
     return "\n".join(lines)
 
 
-def throughput(path: str, minutes: float, foot_noise: str = "fixed", accel_psd: float | str = ACCEL_PSD) -> str:
+def throughput(path: str, minutes: float, foot_noise: str = "fixed", accel_psd: float | str = ACCEL_PSD,
+               feet: str = FEET[0]) -> str:
     ds = load_dataset(path)
     boxes = read_boxes(Path(path) / "detections.parquet", "segmentation")
     fps = float(ds.manifest["fps"])
@@ -255,7 +264,7 @@ def throughput(path: str, minutes: float, foot_noise: str = "fixed", accel_psd: 
         start = time.perf_counter()
         subprocess.run([sys.executable, "-m", "homocal.cli", "measure", str(trap), "--boxes", str(csv), "--fps",
                         f"{fps:g}", "--out", str(Path(tmp) / "tracks.parquet"), "--foot-noise", foot_noise,
-                        "--accel-psd", str(accel_psd), "--no-progress"], check=True)
+                        "--accel-psd", str(accel_psd), "--feet", feet, "--no-progress"], check=True)
         seconds = time.perf_counter() - start
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
     return (f"throughput: {n:,} boxes in the file ({copies} copies of {ds.name}'s {length} frames of segmentation boxes, "
@@ -276,18 +285,20 @@ def main(argv: list[str] | None = None) -> int:
                         help="--box-sigma with the foot point's error an AR(1) of correlation time FOOT_CORRELATION_S")
     parser.add_argument("--accel-psd", type=lambda s: s if s == "fitted" else float(s), default=ACCEL_PSD,
                         help="the filter's process noise q, m^2/s^3, or fitted (per dataset, detector and mapping)")
+    parser.add_argument("--feet", choices=FEET, default=FEET[0], help="homocal measure --feet")
     parser.add_argument("--spread", action="store_true", help="each dataset on its own: mean [min, max] over them")
     args = parser.parse_args(argv)
     if args.throughput:
-        print(throughput(args.datasets[0], args.throughput, "correlated" if args.correlated else "fixed", args.accel_psd))
+        print(throughput(args.datasets[0], args.throughput, "correlated" if args.correlated else "fixed", args.accel_psd,
+                         args.feet))
         return 0
     for detector in args.detectors.split(","):
         if args.spread:
             print(spread_table([evaluate([d], detector, args.shift, args.split, args.box_sigma, args.correlated,
-                                         args.accel_psd) for d in args.datasets], detector, args.shift) + "\n")
+                                         args.accel_psd, args.feet == "soles") for d in args.datasets], detector, args.shift) + "\n")
         else:
             print(table(evaluate(args.datasets, detector, args.shift, args.split, args.box_sigma, args.correlated,
-                                 args.accel_psd), detector, args.shift) + "\n")
+                                 args.accel_psd, args.feet == "soles"), detector, args.shift) + "\n")
     return 0
 
 

@@ -66,7 +66,8 @@ import numpy as np
 from homocal.correctors.base import Corrector, check_calibration, check_camera_origin, improvement_percent, mean_error
 from homocal.correctors.serialization import float_or_none, integer, number
 from homocal.geometry import ViewTransformer, apply_homography, as_points
-from homocal.geometry.boxes import box_edges, link_tracks, undistort_boxes
+from homocal.geometry.boxes import BORDER_PX, box_edges, link_tracks, undistort_boxes  # noqa: F401 (BORDER_PX, _on_border: this module's names)
+from homocal.geometry.boxes import on_border as _on_border
 from homocal.geometry.camera import tilt_homography
 from homocal.geometry.lens import Lens
 from homocal.study.options import Number, Option, OptionError, YesNo
@@ -89,7 +90,6 @@ MAX_ROUNDS = 20  # inlier-set rounds of fit_tilt at most
 MIN_PEOPLE = 3  # fewer inlier people (tracks) than this is refused
 MAX_OUTLIER_SHARE = 0.5  # more outlier boxes, or people, than this share of those used is refused (PedestrianCorrector.fit)
 LINK_GAP = 5  # frames: boxes this many frames apart at most are linked into one track
-BORDER_PX = 1.0  # a box whose edge is within this of the image border is cut by it and not used
 MIN_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M = 0.5, 100.0  # below half a metre no box of a standing person fits
 MODELS = ("camera", "rotation")  # PedestrianCorrector's corrected mappings (its docstring); the first is the default
 GRID = 128  # tilt grid of the median start over its 90 degree range (then bisection)
@@ -790,10 +790,3 @@ def _check_image_size(image_size) -> tuple[int, int] | None:
 def _check_camera_height(value) -> float:
     """camera_height_m as a float within SETTINGS' bounds; OptionError naming camera_height_m otherwise."""
     return float(SETTINGS["camera_height_m"].check("camera_height_m", value))
-
-
-def _on_border(edges: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """(N,) bool: the box edge lies within BORDER_PX of the image's border (-0.5 .. size - 0.5)."""
-    w, h = size
-    return ((edges[:, 0] <= -0.5 + BORDER_PX) | (edges[:, 1] <= -0.5 + BORDER_PX)
-            | (edges[:, 2] >= w - 0.5 - BORDER_PX) | (edges[:, 3] >= h - 0.5 - BORDER_PX))

@@ -69,6 +69,24 @@ def undistort_boxes(edges: np.ndarray, lens) -> np.ndarray:
     return np.column_stack([foot[:, 0] - half, head[:, 1], foot[:, 0] + half, foot[:, 1]])
 
 
+BORDER_PX = 1.0
+"""A box edge within this many px of the image's border is cut by it: the frame, not the person, ends the box there."""
+
+
+def cut_edges(edges: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """(N, 4) bool for box edges (N, 4) homocal px (x1, y1, x2, y2) in the camera's raw pixels of an image of size
+    (width, height) px: each edge lies within BORDER_PX of the image's border (-0.5 .. size - 0.5)."""
+    w, h = size
+    x1, y1, x2, y2 = np.asarray(edges, dtype=np.float64).T
+    return np.column_stack([x1 <= -0.5 + BORDER_PX, y1 <= -0.5 + BORDER_PX, x2 >= w - 0.5 - BORDER_PX,
+                            y2 >= h - 0.5 - BORDER_PX])
+
+
+def on_border(edges: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """(N,) bool: any edge of the boxes edges (N, 4) is cut by the image's border (``cut_edges``)."""
+    return cut_edges(edges, size).any(axis=1)
+
+
 HIDDEN_FEET_PX = 1.0
 """A box whose bottom edge lies below a nearer box's top edge, or within this many px above it, may have its feet
 hidden by the nearer person (hidden_feet)."""

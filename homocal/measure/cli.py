@@ -17,14 +17,16 @@ from homocal.correctors.catalogue import label
 from homocal.correctors.serialization import FORMAT
 from homocal.files import check_output_file, json_format, write_atomic
 from homocal.geometry import read_trapezoid_file
-from homocal.geometry.boxes import box_bottom_points, link_tracks
+from homocal.geometry.boxes import box_bottom_points, link_tracks, undistort_boxes
 from homocal.measure.kalman import ACCEL_PSD, ACCEL_PSD_BOUNDS
-from homocal.measure.tracks import (COLUMNS, FOOT_CORRELATION_S, FOOT_NOISE, FOOT_SIGMA_PER_BOX_HEIGHT, foot_noise_options, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
-                                    TrapezoidMapping, check_people_per_frame, check_tracks, fit_tracks_accel_psd, measure_tracks, pair_distances, summarise)
+from homocal.measure.tracks import (COLUMNS, FEET, FOOT, FOOT_CORRELATION_S, FOOT_NOISE, FOOT_SIGMA_PER_BOX_HEIGHT, foot_noise_options, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
+                                    TrapezoidMapping, check_people_per_frame, check_tracks, fit_tracks_accel_psd, foot_status, measure_tracks, pair_distances,
+                                    summarise)
 from homocal.progress import add_progress_option, show_progress
 
 """The highest frame rate taken (--fps, or the boxes' file's)."""
 INTEGER_COLUMNS = {"frame", "track_id", "frames", "first_frame", "last_frame", "track_a", "track_b"}
+STRING_COLUMNS = {"foot"}
 
 FORMATS = f"""\
 CORRECTION.json: written by homocal fit (any method, pedestrians too), or a trapezoid file alone (homocal fit
@@ -40,7 +42,10 @@ TRACKS.parquet, one row per track and frame, tracks in increasing id, frames in 
   1-sigma radius, m), x_smooth, y_smooth (m), vx, vy (m/s), speed_mps and speed_sigma_mps (its 1-sigma):
   a constant-velocity Kalman filter with an RTS smoother per track, whose measurement noise is each point's
   own covariance (the mapping's error model at --click-sigma-px, --point-sigma-px) and whose process noise
-  is a white acceleration of spectral density --accel-psd.
+  is a white acceleration of spectral density --accel-psd; foot ({" | ".join(FOOT)}): the foot point measured,
+  or with --feet soles not, as a nearer person's box may hide the feet or the image border cuts the box's
+  bottom or a side (the image size of seqinfo.ini, camera.json or the correction's lens): the filter
+  predicts through that frame and the smoother fills it in (x, y stay the mapped foot point).
 --summary TRACKS_SUMMARY.parquet, one row per track: {", ".join(SUMMARY_COLUMNS)}
   (stationary: smoothed speed under {STATIONARY_MPS:g} m/s).
 --pairs PAIRS.parquet, one row per two people in one frame: {", ".join(PAIR_COLUMNS)}."""
@@ -75,6 +80,10 @@ def add_parser(subparsers) -> None:
                         "(fitted), is, and the shared mapping error goes into the speed's sigma; correlated: as "
                         f"box-height, the foot point's error correlated over {FOOT_CORRELATION_S:g} s (fitted), "
                         "an AR(1) in the filter's state (default fixed)")
+    p.add_argument("--feet", choices=FEET, default=FEET[0],
+                   help="the foot points measured: all; soles: not those whose bottom edge may not be the sole, a box "
+                        "whose feet a nearer person's box may hide or whose bottom or side the image border cuts (the "
+                        f"table's foot column; default {FEET[0]})")
     add_progress_option(p)
     p.set_defaults(handler=handle_measure)
 
@@ -143,7 +152,8 @@ def parquet_columns(path: Path) -> list[str] | None:
 
 
 def schema(columns: tuple[str, ...]) -> pa.Schema:
-    return pa.schema([(c, pa.int64() if c in INTEGER_COLUMNS else pa.float64()) for c in columns])
+    return pa.schema([(c, pa.int64() if c in INTEGER_COLUMNS else pa.string() if c in STRING_COLUMNS else pa.float64())
+                      for c in columns])
 
 
 def write_table(path: Path, columns: tuple[str, ...], batches, bar=None) -> None:
@@ -168,10 +178,12 @@ def handle_measure(args: argparse.Namespace) -> int:
             check_output_file(path, lambda p, c=columns: parquet_columns(p) == list(c), f"table of homocal measure {flag}")
     fps = check_fps(args)
     mapping, what = load_mapping(args.correction, args.camera_json)
-    boxes = read_boxes(args.boxes, args.detector, getattr(mapping, "lens_", None))  # undistorted with the fit's lens
+    lens = getattr(mapping, "lens_", None)
+    boxes = read_boxes(args.boxes, args.detector, lens, undistort=False)  # the camera's pixels: the border is there
     check_image_size(mapping, boxes.image_size, args)
+    xyxy = undistort_boxes(boxes.xyxy, lens)  # as the fit's
     if boxes.track_ids is None:
-        ids, source = link_tracks(boxes.frames, boxes.xyxy), "linked by IoU"
+        ids, source = link_tracks(boxes.frames, xyxy), "linked by IoU"
     else:
         ids, source = boxes.track_ids, "tracks of the file"
         try:
@@ -186,22 +198,24 @@ def handle_measure(args: argparse.Namespace) -> int:
     if counts.max() > MAX_TRACK_FRAMES:
         raise ValueError(f"{args.boxes}: a track of {counts.max():,} frames: at most {MAX_TRACK_FRAMES:,} "
                          "(MAX_TRACK_FRAMES; split the recording)")
-    frames, feet, ids = boxes.frames[keep], box_bottom_points(boxes.xyxy[keep], convention="homocal"), ids[keep]
+    frames, feet, ids = boxes.frames[keep], box_bottom_points(xyxy[keep], convention="homocal"), ids[keep]
+    foot = (foot_status(boxes.xyxy[keep], frames, boxes.image_size) if args.feet == "soles"
+            else np.full(len(frames), FOOT[0]))
     if args.pairs is not None:
         try:
             check_people_per_frame(frames)
         except ValueError as e:
             raise ValueError(f"--pairs: {args.boxes}: {e}") from None
-    noise = foot_noise_options(args.foot_noise, boxes.xyxy[keep], args.point_sigma_px)
+    noise = foot_noise_options(args.foot_noise, xyxy[keep], args.point_sigma_px)
     sigmas = {"click_sigma_px": args.click_sigma_px, "point_sigma_px": noise.pop("point_sigma_px")}
     q, fitted = args.accel_psd, ""
     if q == FITTED:
-        q = fit_tracks_accel_psd(mapping, frames, feet, ids, fps, **noise, **sigmas)
+        q = fit_tracks_accel_psd(mapping, frames, feet, ids, fps, **noise, **sigmas, foot=foot)
         fitted = f" Process noise fitted to the tracks: {q:.3g} m^2/s^3."
     summaries = []
 
     def tracks():
-        for batch in measure_tracks(mapping, frames, feet, ids, fps, accel_psd=q, **noise, **sigmas):
+        for batch in measure_tracks(mapping, frames, feet, ids, fps, accel_psd=q, **noise, **sigmas, foot=foot):
             summaries.append(summarise(batch))
             yield batch
 
@@ -223,7 +237,9 @@ def handle_measure(args: argparse.Namespace) -> int:
         pairs = f"; {sum(count):,} distances written to {args.pairs}"
     dropped = len(counts) - len(summary["track_id"])
     short = f"; {dropped:,} of one frame left out" if dropped else ""
+    unused = ", ".join(f"{np.sum(foot == k):,} {k}" for k in FOOT[1:] if np.any(foot == k))
+    unused = f" Feet not measured (predicted through): {unused}." if unused else ""
     print(f"homocal measure: {len(frames):,} boxes in {len(summary['track_id']):,} tracks ({source}{short}) of "
           f"{args.boxes} mapped with {what} of {args.correction} at {fps:g} fps, smoothed and written to {args.out}"
-          f"{pairs}. Median speed {np.nanmedian(summary['mean_speed_mps']):.2f} m/s over the tracks.{fitted}")
+          f"{pairs}. Median speed {np.nanmedian(summary['mean_speed_mps']):.2f} m/s over the tracks.{unused}{fitted}")
     return 0

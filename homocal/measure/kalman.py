@@ -182,9 +182,9 @@ def rts_smoother(filtered: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarra
 def speed_and_sigma(v: np.ndarray, Pv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Speed |v| (...,) m/s of velocities v (..., 2) and its 1-sigma by the delta method from their covariances
     Pv (..., 2, 2): sigma^2 = v^T Pv v / |v|^2 (the variance along the velocity's direction); at |v| = 0, where
-    the speed's derivative is undefined, the sqrt of Pv's largest eigenvalue."""
+    the speed's derivative is undefined, the sqrt of Pv's largest eigenvalue; NaN for a NaN velocity."""
     speed = np.linalg.norm(v, axis=-1)
     with np.errstate(invalid="ignore", divide="ignore"):
         along = np.einsum("...i,...ij,...j->...", v, Pv, v) / speed**2
     largest = np.linalg.eigvalsh(np.nan_to_num(Pv))[..., -1]
-    return speed, np.sqrt(np.where(speed > 0, along, largest))
+    return speed, np.sqrt(np.where(speed > 0, along, np.where(np.isnan(speed), np.nan, largest)))

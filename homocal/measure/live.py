@@ -8,9 +8,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from homocal.geometry.boxes import box_bottom_points
+from homocal.correctors.pedestrians import _check_image_size
+from homocal.geometry.boxes import box_bottom_points, box_edges
 from homocal.measure.kalman import ACCEL_PSD, correlated_noise, predict, start_state, update
-from homocal.measure.tracks import FOOT_NOISE, as_mapping, foot_noise_options, map_points, point_noise, state_speed
+from homocal.measure.tracks import (FEET, FOOT, FOOT_NOISE, as_mapping, foot_noise_options, foot_status, map_points,
+                                   point_noise, state_speed)
 from homocal.uncertainty import sigma_radius
 
 MAX_AGE_S = 2.0
@@ -24,7 +26,9 @@ class GroundState:
 
     Attributes: tracker_id (N,) int64; xy (N, 2) mapped foot points, metres; sigma_m (N,) their 1-sigma
     radius; xy_filtered (N, 2) and velocity (N, 2) m/s, the forward Kalman filter's state; speed_mps (N,)
-    and speed_sigma_mps (N,) its speed and delta-method 1-sigma (homocal.measure.kalman)."""
+    and speed_sigma_mps (N,) its speed and delta-method 1-sigma (homocal.measure.kalman), NaN for a track not
+    measured yet; foot (N,) str, one of homocal.measure.tracks.FOOT: the foot point measured ("used") or, with
+    feet="soles", predicted through ("hidden", "border")."""
 
     tracker_id: np.ndarray
     xy: np.ndarray
@@ -33,6 +37,7 @@ class GroundState:
     velocity: np.ndarray
     speed_mps: np.ndarray
     speed_sigma_mps: np.ndarray
+    foot: np.ndarray
 
 
 class GroundTracker:
@@ -47,17 +52,25 @@ class GroundTracker:
         accel_psd, click_sigma_px, point_sigma_px: as homocal.measure.measure_tracks.
         foot_noise: the foot point's noise model, one of homocal.measure.tracks.FOOT_NOISE (homocal measure
             --foot-noise): "fixed" (point_sigma_px), "box-height" or "correlated".
+        feet: the foot points measured, one of homocal.measure.tracks.FEET (homocal measure --feet): "all", or
+            "soles": not a box whose feet a nearer box of the frame may hide, nor, with image_size, one whose
+            bottom or side edge the image border cuts (homocal.measure.tracks.foot_status).
+        image_size: (width, height) px of the frames the boxes are in (the camera's pixels), or None.
     """
 
     def __init__(self, mapping, fps: float, *, convention: str = "corners", accel_psd: float = ACCEL_PSD,
-                 click_sigma_px: float = 1.5, point_sigma_px: float = 1.0, foot_noise: str = FOOT_NOISE[0]) -> None:
+                 click_sigma_px: float = 1.5, point_sigma_px: float = 1.0, foot_noise: str = FOOT_NOISE[0],
+                 feet: str = FEET[0], image_size: tuple[int, int] | None = None) -> None:
         if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
             raise ValueError(f"fps: expected a finite number > 0, got {fps!r}")
         foot_noise_options(foot_noise, np.zeros((0, 4)), point_sigma_px)  # ValueError for an unknown model
+        if feet not in FEET:
+            raise ValueError(f"feet: expected one of {', '.join(FEET)}, got {feet!r}")
         self.mapping, self.fps, self.convention = as_mapping(mapping), float(fps), convention
         self.accel_psd, self.click_sigma_px, self.point_sigma_px = accel_psd, click_sigma_px, point_sigma_px
-        self.foot_noise = foot_noise
-        self._tracks: dict[int, tuple[np.ndarray, np.ndarray, int]] = {}  # id -> state (d,), covariance (d, d), frame
+        self.foot_noise, self.feet, self.image_size = foot_noise, feet, _check_image_size(image_size)
+        self._tracks: dict[int, tuple[np.ndarray, np.ndarray, int, bool]] = {}  # id -> state (d,), covariance (d, d),
+        # frame, a foot point measured yet
         self._frame: int | None = None
 
     def update(self, detections, frame: int) -> GroundState:
@@ -76,21 +89,26 @@ class GroundTracker:
             raise ValueError(f"frame: expected an integer larger than the last one ({self._frame}), got {frame!r}")
         self._frame = int(frame)
         self._tracks = {k: s for k, s in self._tracks.items() if (frame - s[2]) / self.fps <= MAX_AGE_S}
-        feet = box_bottom_points(np.asarray(xyxy), convention=self.convention)
+        edges = box_edges(np.asarray(xyxy), convention=self.convention)
+        feet = box_bottom_points(edges, convention="homocal")
+        foot = (foot_status(edges, np.zeros(len(ids), np.int64), self.image_size) if self.feet == "soles"
+                else np.full(len(ids), FOOT[0]))
+        used = foot == FOOT[0]
         noise = foot_noise_options(self.foot_noise, np.asarray(xyxy), self.point_sigma_px)
         xy, cov = map_points(self.mapping, feet, self.click_sigma_px, noise["point_sigma_px"])
-        R, foot = correlated_noise(point_noise(self.mapping, feet, noise["point_sigma_px"])
-                                   if noise["split_mapping_error"] else cov, noise["foot_correlation_s"])
-        x, P = start_state(len(ids), None if foot is None else foot[0])
-        dt = np.zeros(len(ids))
+        R, correlated = correlated_noise(point_noise(self.mapping, feet, noise["point_sigma_px"])
+                                         if noise["split_mapping_error"] else cov, noise["foot_correlation_s"])
+        x, P = start_state(len(ids), None if correlated is None else correlated[0])
+        dt, known = np.zeros(len(ids)), used.copy()
         for i, k in enumerate(ids.tolist()):
             if k in self._tracks:
-                x[i], P[i], last = self._tracks[k]
-                dt[i] = (frame - last) / self.fps
-        x, P, _ = predict(x, P, dt, self.accel_psd, foot)
-        x, P = update(x, P, xy, R)
+                x[i], P[i], last, measured = self._tracks[k]
+                dt[i], known[i] = (frame - last) / self.fps, used[i] or measured
+        x, P, _ = predict(x, P, dt, self.accel_psd, correlated)
+        x, P = update(x, P, np.where(used[:, None], xy, np.nan), R)
         for i, k in enumerate(ids.tolist()):
-            self._tracks[k] = (x[i], P[i], int(frame))
+            self._tracks[k] = (x[i], P[i], int(frame), bool(known[i]))
+        x = np.where(known[:, None], x, np.nan)  # no foot point of the track measured yet: nothing known
         speed, speed_sigma = state_speed(self.mapping, feet, x, P,
                                          self.click_sigma_px if noise["split_mapping_error"] else None)
-        return GroundState(ids.astype(np.int64), xy, sigma_radius(cov), x[:, :2], x[:, 2:4], speed, speed_sigma)
+        return GroundState(ids.astype(np.int64), xy, sigma_radius(cov), x[:, :2], x[:, 2:4], speed, speed_sigma, foot)

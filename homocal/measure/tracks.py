@@ -14,12 +14,13 @@ from typing import Protocol
 import numpy as np
 
 from homocal.geometry import Lens, ViewTransformer
+from homocal.geometry.boxes import cut_edges, hidden_feet
 from homocal.measure.kalman import (ACCEL_PSD, correlated_noise, fit_accel_psd, kalman_filter, rts_smoother,
                                    speed_and_sigma)
 from homocal.uncertainty import STEP, click_jacobian, ground_uncertainty, sigma_radius
 
 COLUMNS = ("frame", "t", "track_id", "u", "v", "x", "y", "sigma_m", "x_smooth", "y_smooth", "vx", "vy", "speed_mps",
-           "speed_sigma_mps")
+           "speed_sigma_mps", "foot")
 """homocal measure's table, one row per track and frame (docs/measure.md has their units)."""
 SUMMARY_COLUMNS = ("track_id", "frames", "first_frame", "last_frame", "duration_s", "path_length_m",
                    "mean_speed_mps", "stationary_s")
@@ -106,6 +107,27 @@ rho = exp(-dt / tau) between frames dt apart): research/foot_noise.py's least-sq
 at lags 1-5 frames (20 fps) of the error over its box's height, the unit process that FOOT_SIGMA_PER_BOX_HEIGHT
 scales, on simgen's scene1 and scene2, seed 0 (0.13 s segmentation, 0.19 s rgb boxes, u and v together; the
 error in pixels, where the large boxes weigh most, gives 0.55-0.59 s)."""
+
+
+FOOT = ("used", "hidden", "border")
+"""homocal measure's foot column: the box's foot point measured ("used"), or not, the filter predicting through
+that frame and the smoother filling it in, as its bottom edge may not be the sole: a nearer person's box may hide
+the feet ("hidden": geometry.boxes.hidden_feet) or the image border cuts the box's bottom or a side edge, which
+moves the bottom edge's centre ("border": geometry.boxes.cut_edges; a cut top edge leaves the feet as they are)."""
+FEET = ("all", "soles")
+"""The foot points measured (homocal measure --feet, GroundTracker's feet): all, every box's; soles, only those
+``foot_status`` finds "used"."""
+
+
+def foot_status(edges: np.ndarray, frames: np.ndarray, image_size: tuple[int, int] | None) -> np.ndarray:
+    """(N,) str, one of FOOT, for box edges (N, 4) homocal px in the camera's raw pixels, of video frames (N,) int,
+    in an image of image_size (width, height) px (None: unknown, no box on the border): "border" before
+    "hidden" (the border's cut is certain, a nearer box's may not hide the feet)."""
+    status = np.full(len(edges), FOOT[0], dtype=f"<U{max(map(len, FOOT))}")
+    status[hidden_feet(edges, frames)] = FOOT[1]
+    if image_size is not None:
+        status[cut_edges(edges, image_size)[:, [0, 2, 3]].any(axis=1)] = FOOT[2]
+    return status
 
 
 def box_height_sigma_px(xyxy: np.ndarray) -> np.ndarray:
@@ -205,10 +227,12 @@ def track_batches(track_ids: np.ndarray, frames: np.ndarray) -> Iterator[list[np
 
 def filter_inputs(mapping: Mapping, frames: np.ndarray, feet: np.ndarray, fps: float, batch: list[np.ndarray],
                   click_sigma_px: float, point_sigma_px: float | np.ndarray, split_mapping_error: bool,
-                  foot_correlation_s: float | None) -> tuple[np.ndarray, np.ndarray, tuple]:
+                  foot_correlation_s: float | None, foot: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, tuple]:
     """A batch of tracks (``track_batches``' row indices) as the filter takes it: the mapped points xy (N, 2) m
     and their covariances (N, 2, 2) m^2 (rows in the batch's order), and kalman_filter's (t, z, R, foot), padded
-    to the longest track (arguments as ``measure_tracks``'; frames (N,), feet (N, 2) px of all rows)."""
+    to the longest track (arguments as ``measure_tracks``'; frames (N,), feet (N, 2) px of all rows); z is NaN
+    (no measurement, R kept for the correlated error's process) where foot is not "used"."""
     rows = np.concatenate(batch)
     sigma = point_sigma_px if np.ndim(point_sigma_px) == 0 else point_sigma_px[rows]
     xy, cov = map_points(mapping, feet[rows], click_sigma_px, sigma)
@@ -220,12 +244,15 @@ def filter_inputs(mapping: Mapping, frames: np.ndarray, feet: np.ndarray, fps: f
         m = len(r)
         t[i, :m], t[i, m:] = frames[r] / fps, frames[r[-1]] / fps
         z[i, :m], R[i, :m] = xy[at[i]:at[i + 1]], noise[at[i]:at[i + 1]]
+        if foot is not None:
+            z[i, :m][foot[r] != FOOT[0]] = np.nan
     return xy, cov, (t, z, *correlated_noise(R, foot_correlation_s))
 
 
 def fit_tracks_accel_psd(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
                          click_sigma_px: float = 1.5, point_sigma_px: float | np.ndarray = 1.0,
-                         split_mapping_error: bool = False, foot_correlation_s: float | None = None) -> float:
+                         split_mapping_error: bool = False, foot_correlation_s: float | None = None,
+                         foot: np.ndarray | None = None) -> float:
     """The filter's process noise q, m^2/s^3, fitted to the tracks by maximum likelihood of its innovations
     (``kalman.fit_accel_psd``; arguments as ``measure_tracks``'): no ground truth, the people's own motion
     under the measurement noise model. Its cost is bounded: the tracks of ``track_batches``' first batch
@@ -235,14 +262,15 @@ def fit_tracks_accel_psd(mapping, frames: np.ndarray, feet: np.ndarray, track_id
     point_sigma_px = point_sigma_px if np.ndim(point_sigma_px) == 0 else np.asarray(point_sigma_px, dtype=np.float64)
     batch = next(track_batches(track_ids, frames))
     _, _, inputs = filter_inputs(mapping, frames, np.asarray(feet, dtype=np.float64), fps, batch, click_sigma_px,
-                                 point_sigma_px, split_mapping_error, foot_correlation_s)
+                                 point_sigma_px, split_mapping_error, foot_correlation_s, foot)
     return fit_accel_psd(*inputs)
 
 
 def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
                    accel_psd: float = ACCEL_PSD, smooth: bool = True, click_sigma_px: float = 1.5,
                    point_sigma_px: float | np.ndarray = 1.0, split_mapping_error: bool = False,
-                   foot_correlation_s: float | None = None) -> Iterator[dict[str, np.ndarray]]:
+                   foot_correlation_s: float | None = None, foot: np.ndarray | None = None
+                   ) -> Iterator[dict[str, np.ndarray]]:
     """homocal measure's table in batches of whole tracks (dicts of COLUMNS, each (rows,)), tracks in
     increasing id, each in frame order.
 
@@ -259,6 +287,9 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
         foot_correlation_s: None: the measurement noise white; tau seconds (FOOT_CORRELATION_S): the foot
             point's own noise correlated over frames, an AR(1) of this correlation time in the filter's state
             (homocal.measure.kalman; with split_mapping_error).
+        foot: (N,) FOOT values (``foot_status``), None: all "used": a foot point not "used" is no measurement
+            (the filter predicts through its frame); the states and speeds are NaN where no foot point is
+            measured yet (filter) or in the whole track (smoother).
     x, y are the mapped foot points, sigma_m their 1-sigma radius (homocal.sigma_radius of the mapping's
     ground_uncertainty at click_sigma_px, point_sigma_px: the filter's measurement noise); x_smooth, y_smooth,
     vx, vy the filter's state; speed_mps = |(vx, vy)| and speed_sigma_mps its delta-method 1-sigma from the
@@ -270,12 +301,15 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
     frames, track_ids = np.asarray(frames, dtype=np.int64), np.asarray(track_ids, dtype=np.int64)
     feet = np.asarray(feet, dtype=np.float64)
     point_sigma_px = point_sigma_px if np.ndim(point_sigma_px) == 0 else np.asarray(point_sigma_px, dtype=np.float64)
+    foot = np.full(len(frames), FOOT[0]) if foot is None else np.asarray(foot)
     for batch in track_batches(track_ids, frames):
         rows = np.concatenate(batch)
-        xy, cov, (t, z, R, foot) = filter_inputs(mapping, frames, feet, fps, batch, click_sigma_px, point_sigma_px,
-                                                 split_mapping_error, foot_correlation_s)
-        filtered = kalman_filter(t, z, R, accel_psd, foot)
+        xy, cov, (t, z, R, correlated) = filter_inputs(mapping, frames, feet, fps, batch, click_sigma_px,
+                                                       point_sigma_px, split_mapping_error, foot_correlation_s, foot)
+        filtered = kalman_filter(t, z, R, accel_psd, correlated)
         x, P = rts_smoother(filtered) if smooth else (filtered["x"], filtered["P"])
+        seen = np.isfinite(z).all(axis=2)  # (n, L): the steps measured
+        x[np.broadcast_to(~seen.any(axis=1, keepdims=True) if smooth else np.cumsum(seen, axis=1) == 0, seen.shape)] = np.nan
         L = t.shape[1]
         used = np.concatenate([np.arange(len(r)) + i * L for i, r in enumerate(batch)])
         d = x.shape[-1]
@@ -283,7 +317,8 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
         speed, speed_sigma = state_speed(mapping, feet[rows], x, P, click_sigma_px if split_mapping_error else None)
         yield {"frame": frames[rows], "t": frames[rows] / fps, "track_id": track_ids[rows], "u": feet[rows, 0],
                "v": feet[rows, 1], "x": xy[:, 0], "y": xy[:, 1], "sigma_m": sigma_radius(cov), "x_smooth": x[:, 0],
-               "y_smooth": x[:, 1], "vx": x[:, 2], "vy": x[:, 3], "speed_mps": speed, "speed_sigma_mps": speed_sigma}
+               "y_smooth": x[:, 1], "vx": x[:, 2], "vy": x[:, 3], "speed_mps": speed, "speed_sigma_mps": speed_sigma,
+               "foot": foot[rows]}
 
 
 def summarise(batch: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

@@ -42,11 +42,11 @@ def run(tracker, make):
     return out
 
 
-def check_against_the_file_filter(out, foot_noise="fixed"):
+def check_against_the_file_filter(out, foot_noise="fixed", foot=None):
     frames, ids, boxes = walkers()
     feet = np.column_stack([(boxes[:, 0] + boxes[:, 2]) / 2 - 0.5, boxes[:, 3] - 0.5])  # corners -> homocal
     mapping = ViewTransformer(CAMERA.project_ground(GROUND), GROUND)
-    for batch in measure_tracks(mapping, frames, feet, ids, FPS, smooth=False,
+    for batch in measure_tracks(mapping, frames, feet, ids, FPS, smooth=False, foot=foot,
                                 **foot_noise_options(foot_noise, boxes, 1.0)):
         for j, (f, k) in enumerate(zip(batch["frame"], batch["track_id"])):
             xy, v, speed, sigma = out[(int(f), int(k))]
