@@ -325,8 +325,11 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
     (N,), the focal length, principal point, camera height and height prior (fit_tilt's), from fit_tilt's result
     ``start`` (roll 0): each person's implied height (the median of its inlier boxes') is a function of (tilt,
     roll) through the derolled rows (derolled_rows) of its foot and head; the Huber score
-    sum_j psi((H_j - mu) / sigma) grad H_j = 0 is solved by Newton (grad H by central differences, DIFF_STEP), the
-    inlier set updated as in fit_tilt until it no longer changes. Uncertainty: the sandwich covariance
+    sum_j psi((H_j - mu) / sigma) grad H_j = 0 is solved by iteratively reweighted least squares (Huber's weights
+    min(1, k / |r|), r = (H_j - mu) / sigma: Gauss-Newton weighted by psi' alone diverges when many people lie beyond
+    k at the start; grad H by central differences, DIFF_STEP), the inlier set updated as in fit_tilt until it no
+    longer changes (on scene3's boxes it does not settle in MAX_ROUNDS: each person's median box moves along their
+    walk as the roll changes, docs/real-camera.md). Uncertainty: the sandwich covariance
     sigma^2 A^-1 (sum psi^2 grad H grad H^T) A^-1, A = sum psi' grad H grad H^T; the prior mean's effect
     d(tilt, roll) / dmu = A^-1 sum psi' grad H.
     Returns a dict: tilt, roll (radians; roll in camera.json's sign), cov (2, 2) radians^2 (people), sensitivity (2,) radians per metre,
@@ -350,9 +353,10 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
                                     for e in (np.array([DIFF_STEP, 0.0]), np.array([0.0, DIFF_STEP]))])
 
         for _ in range(MAX_ROUNDS):
-            psi, dpsi = _huber((people_heights(beta) - mean_m) / sd_m)
+            r = (people_heights(beta) - mean_m) / sd_m
+            psi, weight = _huber(r)[0], np.minimum(1.0, HUBER_K / np.maximum(np.abs(r), 1e-300))
             J = gradient(beta)
-            step = -sd_m * np.linalg.lstsq((J * dpsi[:, None]).T @ J, J.T @ psi, rcond=None)[0]
+            step = -sd_m * np.linalg.lstsq((J * weight[:, None]).T @ J, J.T @ psi, rcond=None)[0]
             beta = beta + step
             if np.abs(step).max() < 1e-12:
                 break
