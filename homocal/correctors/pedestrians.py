@@ -66,7 +66,7 @@ import numpy as np
 from homocal.correctors.base import Corrector, check_calibration, check_camera_origin, improvement_percent, mean_error
 from homocal.correctors.serialization import float_or_none, integer, number
 from homocal.geometry import ViewTransformer, apply_homography, as_points
-from homocal.geometry.boxes import box_edges, link_tracks, undistort_boxes
+from homocal.geometry.boxes import box_edges, hidden_feet, link_tracks, undistort_boxes
 from homocal.geometry.camera import tilt_homography
 from homocal.geometry.lens import Lens
 from homocal.study.options import Number, Option, OptionError, YesNo
@@ -107,6 +107,9 @@ SETTINGS = {
     "estimate_roll": Option("--estimate-roll", YesNo(), "fit the camera's "
                             "roll with its tilt (the horizon as a line) when the people spread across the image",
                             metavar="{yes,no}"),
+    "drop_hidden_feet": Option("--drop-hidden-feet", YesNo(), "leave out the boxes whose feet a nearer person's box "
+                               "may hide (homocal.geometry.hidden_feet, in each video frame; needs the boxes' frames)",
+                               metavar="{yes,no}"),
     "camera_height_m": Option("--camera-height", Number(MIN_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M), "the camera's "
                               "height over the ground", metavar="M", unit="m", none="from the clicked trapezoid with K"),
 }
@@ -386,6 +389,10 @@ class PedestrianCorrector(Corrector):
             horizon_sigma_px_ and of ground_uncertainty. Bounds: SETTINGS.
         estimate_roll: fit the camera's roll with its tilt (fit_tilt_roll) when the people's foot columns spread
             over ROLL_SPREAD of the image width (image_size given); otherwise, and by default, roll 0.
+        drop_hidden_feet: leave out the boxes whose feet a nearer person's box of the same frame may hide
+            (homocal.geometry.hidden_feet on the camera's pixels, after the track linking of all boxes; fit needs
+            frames). Default False, the fit every figure of docs/pedestrians.md was measured with; the option's
+            effect on each dataset is measured there.
         model: the corrected mapping (``transformer_``: the image trapezoid that maps with it onto the clicked
             map trapezoid, whose site-map frame is kept):
             "camera" (the default): the camera's own ground mapping (K, the camera height, the fitted tilt,
@@ -406,24 +413,27 @@ class PedestrianCorrector(Corrector):
     in quadrature), mean_sensitivity_px_per_cm_ (the horizon's move, px, per cm the prior mean is off: not
     reduced by more people), tilt_deg_, rotation_deg_ (delta), focal_px_, principal_point_ (cx, cy), camera_height_m_,
     yaw_deg_ (model "camera"; NaN for "rotation"), focal_source_ and camera_height_source_ ("given" or
-    "clicked mapping"), n_boxes_, n_border_ (cut by the image border, not used), n_outliers_ (beyond
+    "clicked mapping"), n_boxes_, n_border_ (cut by the image border, not used), n_hidden_ (their feet may be
+    hidden, not used: drop_hidden_feet; 0 otherwise), n_outliers_ (beyond
     OUTLIER_SIGMAS), n_people_ (tracks), n_people_used_, roll_estimated_, roll_deg_ (0 unless estimated; camera.json's
     roll_deg: > 0 lowers the camera's right side, the horizon's slope in the image is -tan(roll_deg_)), roll_sigma_deg_
     (NaN unless estimated), tilt_roll_cov_ and tilt_roll_sensitivity_ (the people's 2x2 covariance of (tilt,
     roll), rad^2, and their move per metre of the prior mean; None unless estimated), transformer_, m, plus those
     of ``Corrector`` (error_before_ and error_after_ on check points if fit had them, else NaN). After fit only
-    (not saved): box_status_ (N,) str, each box's part in the fit: "used", "outlier" or "border".
+    (not saved): box_status_ (N,) str, each box's part in the fit: "used", "outlier", "border" or "hidden".
     """
 
     method = "pedestrians"
-    param_names = ("height_mean_m", "height_sd_m", "model", "height_mean_sigma_m", "estimate_roll")
+    param_names = ("height_mean_m", "height_sd_m", "model", "height_mean_sigma_m", "estimate_roll", "drop_hidden_feet")
 
     def __init__(self, height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
                  model: str = "camera", height_mean_sigma_m: float = DEFAULT_HEIGHT_MEAN_SIGMA_M,
-                 estimate_roll: bool = False) -> None:
+                 estimate_roll: bool = False, drop_hidden_feet: bool = False) -> None:
         if model not in MODELS:
             raise ValueError(f"model {model!r}: expected one of {', '.join(MODELS)}")
-        self.model, self.estimate_roll = model, SETTINGS["estimate_roll"].check("estimate_roll", estimate_roll)
+        self.model, self.estimate_roll, self.drop_hidden_feet = model, *(
+            SETTINGS[name].check(name, value) for name, value in (("estimate_roll", estimate_roll),
+                                                                   ("drop_hidden_feet", drop_hidden_feet)))
         self.height_mean_m, self.height_sd_m, self.height_mean_sigma_m = (
             float(SETTINGS[name].check(name, value)) for name, value in (("height_mean_m", height_mean_m), ("height_sd_m", height_sd_m),
                                 ("height_mean_sigma_m", height_mean_sigma_m)))
@@ -442,7 +452,8 @@ class PedestrianCorrector(Corrector):
             xyxy: (N, 4) boxes (x1, y1, x2, y2) of people, pixels, in ``convention`` (homocal.geometry.boxes:
                 "corners" for supervision's Detections.xyxy of YOLO-like models, "homocal" for simgen's).
                 The bottom edge y2 is the foot row, the top edge y1 the head row.
-            frames: (N,) int video frame of each box (to link boxes into tracks); None: each box is a person.
+            frames: (N,) int video frame of each box (to link boxes into tracks, and for drop_hidden_feet, which
+                needs them); None: each box is a person.
             track_ids: (N,) int person of each box (one height per person); None: linked from frames.
             camera_height_m: the optical centre's height over the ground; None: from the clicked mapping with K.
             K: (3, 3) intrinsics (fx = fy, roll 0); None: principal point at the centre of image_size, focal
@@ -493,13 +504,19 @@ class PedestrianCorrector(Corrector):
         border = np.zeros(n, bool) if size is None else _on_border(edges, size)
         if border.all():
             raise ValueError(f"xyxy: all {n} boxes touch the {size[0]}x{size[1]} image's border (cut by it)")
+        if self.drop_hidden_feet and frames is None:
+            raise ValueError("frames: needed with drop_hidden_feet (a nearer person hides feet in the same frame)")
+        hidden = hidden_feet(edges, frames) & ~border if self.drop_hidden_feet else np.zeros(n, bool)
+        if (border | hidden).all():
+            raise ValueError(f"xyxy: all {n} boxes touch the image's border or may have their feet hidden by a nearer "
+                             "person's")
         if tracks is None:
             tracks = np.arange(n) if frames is None else link_tracks(frames, edges, max_gap=LINK_GAP)
         if lens is not None:  # the camera's pixels to the undistorted image, as homocal.boxes.read_boxes does
             edges = undistort_boxes(edges, lens)
         middle = (edges[:, 0] + edges[:, 2]) / 2
         foot, head = np.column_stack([middle, edges[:, 3]]), np.column_stack([middle, edges[:, 1]])
-        used = ~border & np.isfinite(foot).all(axis=1) & np.isfinite(head).all(axis=1)
+        used = ~border & ~hidden & np.isfinite(foot).all(axis=1) & np.isfinite(head).all(axis=1)
         fit = fit_tilt(foot[used, 1], head[used, 1], tracks[used], focal, principal[1], self.camera_height_m_,
                        self.height_mean_m, self.height_sd_m)
         spread = np.subtract(*np.percentile(foot[used, 0], [75, 25])) if used.any() else 0.0
@@ -518,9 +535,9 @@ class PedestrianCorrector(Corrector):
         self.horizon_sigma_people_px_ = focal * secant2 * fit["tilt_sigma"]
         self.mean_sensitivity_px_per_cm_ = abs(focal * secant2 * fit["mean_sensitivity"]) / 100.0
         self._set_horizon_sigma()
-        self.n_boxes_, self.n_border_ = n, int(border.sum())
+        self.n_boxes_, self.n_border_, self.n_hidden_ = n, int(border.sum()), int(hidden.sum())
         self.n_outliers_ = int(used.sum() - fit["inlier_boxes"].sum())
-        self.box_status_ = np.where(border, "border", "outlier")
+        self.box_status_ = np.where(border, "border", np.where(hidden, "hidden", "outlier"))
         self.box_status_[np.flatnonzero(used)[fit["inlier_boxes"]]] = "used"
         self.n_people_, self.n_people_used_ = len(np.unique(tracks[used])), fit["n_people"]
         rejected = {"boxes": (self.n_outliers_, int(used.sum())),
@@ -567,7 +584,7 @@ class PedestrianCorrector(Corrector):
         self._set_horizon_sigma()
         self._set_roll_state(None)
         self.n_boxes_ = self.n_people_ = self.n_people_used_ = integer(n_people, "n_people", MIN_PEOPLE, 2**62)
-        self.n_border_ = self.n_outliers_ = 0
+        self.n_border_ = self.n_hidden_ = self.n_outliers_ = 0
         self.base_transformer_, self.camera_origin_ = transformer, check_camera_origin(camera_origin)
         self._set_transformer()
         self._check_points(None, None)
@@ -714,8 +731,8 @@ class PedestrianCorrector(Corrector):
                 "focal_px": self.focal_px_, "principal_point": list(self.principal_point_),
                 "focal_source": self.focal_source_, "camera_height_m": self.camera_height_m_,
                 "camera_height_source": self.camera_height_source_, "n_boxes": self.n_boxes_,
-                "n_border": self.n_border_, "n_outliers": self.n_outliers_, "n_people": self.n_people_,
-                "n_people_used": self.n_people_used_,
+                "n_border": self.n_border_, "n_hidden": self.n_hidden_, "n_outliers": self.n_outliers_,
+                "n_people": self.n_people_, "n_people_used": self.n_people_used_,
                 "roll": None if not self.roll_estimated_ else {
                     "roll_deg": self.roll_deg_, "tilt_roll_cov_rad2": self.tilt_roll_cov_.tolist(),
                     "tilt_roll_sensitivity_rad_per_m": self.tilt_roll_sensitivity_.tolist()}}
@@ -747,8 +764,10 @@ class PedestrianCorrector(Corrector):
             raise ValueError(f"field fitted.camera_height_m: {e}") from None
         self.n_boxes_ = integer(state["n_boxes"], "fitted.n_boxes", 1, 2**62)
         self.n_border_ = integer(state["n_border"], "fitted.n_border", 0, self.n_boxes_ - 1)
-        self.n_outliers_ = integer(state["n_outliers"], "fitted.n_outliers", 0, self.n_boxes_ - self.n_border_)
-        self.n_people_ = integer(state["n_people"], "fitted.n_people", 1, self.n_boxes_ - self.n_border_)
+        self.n_hidden_ = integer(state.get("n_hidden", 0), "fitted.n_hidden", 0, self.n_boxes_ - self.n_border_ - 1)  # older files: 0
+        left = self.n_boxes_ - self.n_border_ - self.n_hidden_
+        self.n_outliers_ = integer(state["n_outliers"], "fitted.n_outliers", 0, left)
+        self.n_people_ = integer(state["n_people"], "fitted.n_people", 1, left)
         self.n_people_used_ = integer(state["n_people_used"], "fitted.n_people_used", MIN_PEOPLE, self.n_people_)
         self._set_roll_state(state.get("roll"))
         try:

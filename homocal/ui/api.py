@@ -591,7 +591,7 @@ def save(session: Session, req: dict) -> dict:
                  *(f"{PEDESTRIAN_SETTINGS[k].flag} {_flag_text(params[k])}" for k in method.settings)]
     stretch = box_settings.get("stretch") if box_settings else None
     if stretch is not None:  # homocal watch writes it, as the stretch's corrections/<start_s>.json
-        flags = [f for f in flags if not f.startswith(("--estimate-roll", "--height-mean-sigma"))]  # not watch's
+        flags = [f for f in flags if not f.startswith(("--estimate-roll", "--height-mean-sigma", "--drop-hidden-feet"))]  # not watch's
         command = (f"homocal watch --trapezoid {shlex.quote(str(paths[0]))} --fps {session.fps!r} "
                    f"--camera-origin={','.join(repr(float(x)) for x in corrector.camera_origin_)} -o WATCH_DIR "
                    + " ".join(flags) + f" (its corrections/{stretch[0]:.2f}.json; homocal apply WATCH_DIR --at "

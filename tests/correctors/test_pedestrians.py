@@ -30,7 +30,7 @@ from homocal.correctors.pedestrians import (
     roll_homography,
 )
 from homocal.geometry import PinholeCamera, ViewTransformer, apply_homography
-from homocal.geometry.boxes import box_edges, link_tracks, undistort_boxes
+from homocal.geometry.boxes import box_edges, hidden_feet, link_tracks, undistort_boxes
 from homocal.geometry.camera import tilt_homography
 from homocal.geometry.lens import Lens
 from homocal.study.perturb import tilt_shift
@@ -353,6 +353,52 @@ def test_border_boxes_are_not_used():
     assert list(c.box_status_[:13]) == ["border"] * 10 + ["outlier"] * 3
     assert np.count_nonzero(c.box_status_ == "outlier") == c.n_outliers_
     assert np.count_nonzero(c.box_status_ == "used") == 60 - 10 - c.n_outliers_
+
+
+class TestDropHiddenFeet:
+    """drop_hidden_feet: the boxes homocal.geometry.hidden_feet marks (on the boxes as given, frame by frame) are left
+    out, and the fit is the one on the other boxes with the same tracks."""
+
+    def boxes(self):
+        _, boxes, _, _ = people(200, seed=21)
+        frames = np.arange(200) // 8  # eight people a frame: some stand in front of others
+        boxes[0] = [0.0, 300.0, 20.0, 400.0]  # cut by the left border, and standing behind the next one
+        boxes[1] = [5.0, 390.0, 40.0, 500.0]
+        return boxes, frames
+
+    def test_hidden_boxes_are_left_out(self, tmp_path):
+        boxes, frames = self.boxes()
+        hidden = hidden_feet(boxes, frames) & ~np.isin(np.arange(200), [0])  # box 0: border first
+        assert 10 < hidden.sum() < 100
+        args = dict(convention="homocal", frames=frames, track_ids=np.arange(200), K=CAM.K, camera_height_m=4.0,
+                    image_size=SIZE)
+        c = PedestrianCorrector(drop_hidden_feet=True).fit(clicked_mapping(), boxes, **args)
+        assert c.n_hidden_ == hidden.sum() and c.n_border_ == 1 and c.box_status_[0] == "border"
+        assert np.array_equal(c.box_status_ == "hidden", hidden)
+        args.update(frames=frames[~hidden], track_ids=np.arange(200)[~hidden])
+        other = PedestrianCorrector().fit(clicked_mapping(), boxes[~hidden], **args)
+        assert c.horizon_row_ == other.horizon_row_ and np.array_equal(c.m, other.m)
+        assert c.horizon_row_ != PedestrianCorrector().fit(clicked_mapping(), boxes, **{**args, "frames": frames,
+                                                            "track_ids": np.arange(200)}).horizon_row_
+        c.save(tmp_path / "c.json")
+        saved = json.loads((tmp_path / "c.json").read_text())
+        assert saved["params"]["drop_hidden_feet"] is True and saved["fitted"]["n_hidden"] == c.n_hidden_
+        back = load_corrector(tmp_path / "c.json")
+        assert back.drop_hidden_feet and back.n_hidden_ == c.n_hidden_ and np.array_equal(back.m, c.m)
+        del saved["fitted"]["n_hidden"], saved["params"]["drop_hidden_feet"]  # a file written before the option
+        (tmp_path / "old.json").write_text(json.dumps(saved))
+        old = load_corrector(tmp_path / "old.json")
+        assert not old.drop_hidden_feet and old.n_hidden_ == 0
+
+    def test_off_by_default_and_needs_frames(self):
+        boxes, frames = self.boxes()
+        args = dict(convention="homocal", track_ids=np.arange(200), K=CAM.K, camera_height_m=4.0, image_size=SIZE)
+        c = PedestrianCorrector().fit(clicked_mapping(), boxes, frames=frames, **args)
+        assert not c.drop_hidden_feet and c.n_hidden_ == 0 and "hidden" not in c.box_status_
+        with pytest.raises(ValueError, match="^frames: needed with drop_hidden_feet"):
+            PedestrianCorrector(drop_hidden_feet=True).fit(clicked_mapping(), boxes, **args)
+        with pytest.raises(ValueError, match="drop_hidden_feet"):
+            PedestrianCorrector(drop_hidden_feet="yes")
 
 
 class TestBoxes:
