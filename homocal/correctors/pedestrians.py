@@ -463,7 +463,8 @@ class PedestrianCorrector(Corrector):
                 used by the fit, their mean errors before and after are error_before_ and error_after_.
             max_outlier_share: the largest share of outlier boxes, and of rejected people, a fit accepts (1: none
                 refused, to measure what a refused fit reaches; research/pedestrians.py --accept-outliers).
-            lens: the camera's lens (homocal.geometry.Lens, the same K): the boxes are undistorted
+            lens: the camera's lens (homocal.geometry.Lens; its K and image size those given: ValueError naming
+                both otherwise, Lens.check_matches): the boxes are undistorted
                 (homocal.geometry.undistort_boxes: the foot point and the head row exactly; ValueError naming
                 xyxy for a box beyond the lens's fold) after the border test and the track linking, before the
                 fit; the transformer, the check points and the corrected mapping are then in undistorted pixels.
@@ -484,6 +485,8 @@ class PedestrianCorrector(Corrector):
         frames = _check_labels(frames, n, "frames")
         tracks = _check_labels(track_ids, n, "track_ids")
         size = _check_image_size(image_size)
+        if lens is not None:
+            lens.check_matches(K, size)
         self.focal_source_ = "clicked mapping" if K is None else "given"
         K = intrinsics(transformer.m, size, K)
         principal, focal = (float(K[0, 2]), float(K[1, 2])), float(K[1, 1])

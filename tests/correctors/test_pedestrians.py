@@ -679,6 +679,16 @@ class TestRollAndLens:
         assert own.horizon_row_ == read.horizon_row_ and np.array_equal(own.m, read.m)
         assert own.horizon_row_ != PedestrianCorrector(1.7, 0.07).fit(clicked, boxes, **args).horizon_row_
 
+    @pytest.mark.parametrize("lens_K, lens_size, message", [
+        (CAM.K * [[1.01, 1, 1], [1, 1.01, 1], [1, 1, 1]], SIZE, "^K: .* is not the lens's K"),
+        (CAM.K, (1920, 1080), r"^image_size: \(1280, 720\) is not the lens's image size \(1920, 1080\)")])
+    def test_lens_of_another_camera_is_refused(self, lens_K, lens_size, message):
+        """fit(lens=) with a lens whose K or image size is not the K and image_size given: one ValueError."""
+        _, boxes, clicked = self.scene(1.0)
+        with pytest.raises(ValueError, match=message):
+            PedestrianCorrector().fit(clicked, boxes, convention="homocal", track_ids=np.arange(len(boxes)), K=CAM.K,
+                                      camera_height_m=4.0, image_size=SIZE, lens=Lens(lens_K, self.LENS.distortion, lens_size))
+
     def test_no_roll_path_unchanged(self):
         """People in a narrow band of columns (here: moved into the middle 10 % of the width): roll is not
         estimated, and the fit is estimate_roll=False's to the bit."""
