@@ -31,6 +31,32 @@ from research.box_heights import HEIGHT_M, box_heights, true_heights
 STEP_DEG = 1e-4  # central-difference step of the people's heights, degrees
 
 
+def people_heights(edges: np.ndarray, labels: np.ndarray, K: np.ndarray, tilt_deg: float, roll_deg: float,
+                   camera_height_m: float) -> np.ndarray:
+    """(P,) each person's implied height, metres: the median of its undistorted boxes' (N, 4) px, labels (N,) 0..P-1,
+    at the pose (tilt_deg, roll_deg) of a camera with intrinsics K at camera_height_m (box_heights)."""
+    h = box_heights(edges, K, tilt_deg, roll_deg, camera_height_m)
+    return np.array([np.median(h[labels == k]) for k in range(labels.max() + 1)])
+
+
+def linearised(J: np.ndarray, H: np.ndarray, truth: np.ndarray, mean: float, sd: float) -> dict:
+    """The score's root's error at the true pose, linearised (the module docstring), from the people's heights'
+    gradient J (P, 2) m per radian of (tilt, roll), their implied heights H (P,) and true heights truth (P,), m, the
+    prior (mean, sd) m: "share" (P, 2) degrees, each person's part of it; "heights" and "boxes" (2,) degrees, the
+    parts of the people's own heights and of their boxes; "roll_sigma" degrees, the sandwich sigma of the roll."""
+    r = (H - mean) / sd
+    use = np.abs(r) <= OUTLIER_SIGMAS
+    psi, dpsi = np.clip(r, -HUBER_K, HUBER_K) * use, (np.abs(r) <= HUBER_K).astype(float)
+    A_inv = np.linalg.inv((J * dpsi[:, None]).T @ J)
+
+    def error(residual: np.ndarray) -> np.ndarray:  # (P, 2) degrees: each person's share
+        return np.degrees(-sd * (A_inv @ (J * (np.clip(residual, -HUBER_K, HUBER_K) * use)[:, None]).T).T)
+
+    cov = sd**2 * A_inv @ ((J * (psi * psi)[:, None]).T @ J) @ A_inv
+    return {"share": error(r), "heights": error((truth - mean) / sd).sum(0), "boxes": error((H - truth) / sd).sum(0),
+            "roll_sigma": math.degrees(math.sqrt(cov[1, 1]))}
+
+
 def budget(path: Path, detector: str, drop_hidden: bool) -> dict:
     """The module docstring's figures of one dataset and detector."""
     ds, raw = load_dataset(path), read_json(path / "camera.json")
@@ -43,31 +69,17 @@ def budget(path: Path, detector: str, drop_hidden: bool) -> dict:
     edges, agents = undistort_boxes(edges[keep], ds.camera.lens), agents[keep]
     ids, labels = np.unique(agents, return_inverse=True)
     K, h_c = ds.camera.K, ds.camera.mount_height_m
-
-    def people(tilt_deg: float, roll_deg: float) -> np.ndarray:
-        h = box_heights(edges, K, tilt_deg, roll_deg, h_c)
-        return np.array([np.median(h[labels == k]) for k in range(len(ids))])
-
     pose = np.array([raw["tilt_deg"], raw.get("roll_deg", 0.0)])
-    H = people(*pose)
-    J = np.column_stack([(people(*(pose + e)) - people(*(pose - e))) / (2 * math.radians(STEP_DEG))
-                         for e in np.eye(2) * STEP_DEG])  # (P, 2) m per radian
-    mean, sd = HEIGHT_M
+    H = people_heights(edges, labels, K, *pose, h_c)
+    J = np.column_stack([people_heights(edges, labels, K, *(pose + e), h_c) - people_heights(edges, labels, K, *(pose - e), h_c)
+                         for e in np.eye(2) * STEP_DEG]) / (2 * math.radians(STEP_DEG))  # (P, 2) m per radian
     truth = np.array([true_heights(ds.manifest)[a] for a in ids])
-    r = (H - mean) / sd
-    use = np.abs(r) <= OUTLIER_SIGMAS
-    psi, dpsi = np.clip(r, -HUBER_K, HUBER_K) * use, (np.abs(r) <= HUBER_K).astype(float)
-    A_inv = np.linalg.inv((J * dpsi[:, None]).T @ J)
-
-    def error(residual: np.ndarray) -> np.ndarray:  # (P, 2) degrees: each person's share
-        return np.degrees(-sd * (A_inv @ (J * (np.clip(residual, -HUBER_K, HUBER_K) * use)[:, None]).T).T)
-
-    share = error(r)
+    parts = linearised(J, H, truth, *HEIGHT_M)
+    share = parts["share"]
     cols = np.array([np.median((edges[labels == k, 0] + edges[labels == k, 2]) / 2) for k in range(len(ids))]) - K[0, 2]
     rows = np.array([np.median(edges[labels == k, 3]) for k in range(len(ids))])
-    cov = sd**2 * A_inv @ ((J * (psi * psi)[:, None]).T @ J) @ A_inv
-    return {"people": len(ids), "total": share.sum(0), "heights": error((truth - mean) / sd).sum(0),
-            "boxes": error((H - truth) / sd).sum(0), "roll_sigma": math.degrees(math.sqrt(cov[1, 1])),
+    return {"people": len(ids), "total": share.sum(0), "heights": parts["heights"], "boxes": parts["boxes"],
+            "roll_sigma": parts["roll_sigma"],
             "table": sorted(zip(share[:, 1], np.bincount(labels), cols, rows, truth, H), key=lambda x: -abs(x[0]))}
 
 
