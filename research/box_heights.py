@@ -3,7 +3,7 @@ people"): why the pedestrians' fit refuses scene3's rgb boxes.
 
 Run: python research/box_heights.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--lens known|ignore]
 
-Per dataset and detector, every box of detections.parquet clear of the frame's border (BORDER_PX, as the fit
+Per dataset and detector, every box of detections.parquet clear of the frame's border (on_border, as the fit
 leaves them out) is undistorted with camera.json's lens (homocal.geometry.undistort_boxes, as homocal fit
 --camera-json does; --lens ignore: read as a pinhole's, as homocal study --lens ignore does) and its implied height computed at camera.json's tilt_deg and roll_deg and mount_height_m
 (homocal.correctors.pedestrians.implied_heights of the derolled foot and head rows: the fit's own model at the
@@ -23,10 +23,10 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
-from homocal.correctors.pedestrians import BORDER_PX, OUTLIER_SIGMAS, derolled_rows, implied_heights
+from homocal.correctors.pedestrians import OUTLIER_SIGMAS, derolled_rows, implied_heights
 from homocal.dataset import load_dataset
 from homocal.files import read_json
-from homocal.geometry.boxes import undistort_boxes
+from homocal.geometry.boxes import on_border, undistort_boxes
 from homocal.study.inputs import LENS_MODES
 from simgen.agents import Crowd
 from simgen.scene import SHIPPED, load_scene
@@ -58,8 +58,7 @@ def summary(path: Path, detector: str, lens: str = "known") -> dict:
     table = pq.read_table(path / "detections.parquet", columns=["detector", "agent_id", "x1", "y1", "x2", "y2"]).to_pandas()
     table = table[table["detector"] == detector]
     edges = table[["x1", "y1", "x2", "y2"]].to_numpy(np.float64)
-    (w, h), lo = ds.camera.image_size, -0.5 + BORDER_PX
-    inside = (edges[:, 0] > lo) & (edges[:, 1] > lo) & (edges[:, 2] < w - 0.5 - BORDER_PX) & (edges[:, 3] < h - 0.5 - BORDER_PX)
+    inside = ~on_border(edges, ds.camera.image_size)
     edges, agents = edges[inside], table["agent_id"].to_numpy()[inside]
     H = box_heights(undistort_boxes(edges, ds.camera.lens) if lens == "known" else edges, ds.camera.K, raw["tilt_deg"], raw.get("roll_deg", 0.0),
                     ds.camera.mount_height_m)

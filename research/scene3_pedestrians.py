@@ -2,11 +2,11 @@
 (docs/real-camera.md, "The people on scene3").
 
 Run: python research/scene3_pedestrians.py DATASET [--detectors segmentation,rgb] [--height-mean M] [--height-sd M]
-         [--estimate-roll yes|no] [--horizon-shift PX] [--lens known|ignore]
+         [--estimate-roll yes|no] [--drop-hidden-feet yes|no] [--horizon-shift PX] [--lens known|ignore]
 
 Per detector, as a user runs it: `homocal fit --method pedestrians --trapezoid DATASET/trapezoids.json --boxes
-DATASET/detections.parquet --detector D --camera-json DATASET/camera.json --camera-height H --estimate-roll yes`
-(the camera's K, lens and height given, as a user who knows them; H camera.json's mount_height_m; --lens ignore:
+DATASET/detections.parquet --detector D --camera-json DATASET/camera.json --camera-height H --estimate-roll yes
+--drop-hidden-feet no` (the camera's K, lens and height given, as a user who knows them; H camera.json's mount_height_m; --lens ignore:
 camera.json's K with no distortion, so the boxes and the trapezoid are the camera's pixels read as a pinhole's, as
 homocal study --lens ignore reads them), the clicked
 trapezoid the dataset's hand-placed one (--horizon-shift PX: moved as a tilt error moves it so that its horizon
@@ -66,7 +66,7 @@ def median_range_error(corrector, pixels: np.ndarray, ground: np.ndarray, origin
 
 def run(path: Path, detector: str, prior: list[str], estimate_roll: str, shift_px: float | None, folder: Path,
         lens_mode: str = "known") -> dict:
-    """Fit with homocal fit (the module docstring; prior: its --height-mean and --height-sd flags; lens_mode: known
+    """Fit with homocal fit (the module docstring; prior: its --height-mean, --height-sd and --drop-hidden-feet flags; lens_mode: known
     or ignore) into folder; the figures of the saved correction ("refused": True if homocal fit refused the boxes)."""
     ds = load_dataset(path)
     camera_json = path / "camera.json"
@@ -110,6 +110,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--height-mean", help="the people's mean height, m (default: homocal fit's)")
     ap.add_argument("--height-sd", help="their standard deviation, m (default: homocal fit's)")
     ap.add_argument("--estimate-roll", choices=("yes", "no"), default="yes")
+    ap.add_argument("--drop-hidden-feet", choices=("yes", "no"), default="no")
     ap.add_argument("--horizon-shift", type=float, metavar="PX")
     ap.add_argument("--lens", choices=LENS_MODES, default="known",
                     help="ignore: camera.json's K with no distortion (the camera's pixels read as a pinhole's)")
@@ -117,7 +118,7 @@ def main(argv: list[str] | None = None) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for detector in args.detectors.split(","):
             prior = [x for flag, value in (("--height-mean", args.height_mean), ("--height-sd", args.height_sd))
-                     if value is not None for x in (flag, value)]
+                     if value is not None for x in (flag, value)] + ["--drop-hidden-feet", args.drop_hidden_feet]
             e = run(args.dataset, detector, prior, args.estimate_roll, args.horizon_shift, Path(tmp), args.lens)
             if e["refused"]:
                 print(f"{args.dataset} {detector}, lens {args.lens}: homocal fit refused the boxes (its message above)")

@@ -60,7 +60,8 @@ def _hybrid_note(c: HybridCorrector) -> str:
 
 
 def _pedestrians_note(c: PedestrianCorrector) -> str:
-    return (f" Boxes: {c.n_boxes_} read, {c.n_border_} cut by the image border, {c.n_outliers_} outliers; people "
+    hidden = f", {c.n_hidden_} with feet a nearer person may hide" if c.drop_hidden_feet else ""
+    return (f" Boxes: {c.n_boxes_} read, {c.n_border_} cut by the image border{hidden}, {c.n_outliers_} outliers; people "
             f"(tracks): {c.n_people_used_} of {c.n_people_} used. Horizon row {c.horizon_row_:.2f} +- "
             f"{c.horizon_sigma_px_:.2f} px (1 sigma: the people's {c.horizon_sigma_people_px_:.2f} px and "
             f"{c.mean_sensitivity_px_per_cm_:.2f} px per cm of the prior mean's {100 * c.height_mean_sigma_m:g} cm; "

@@ -66,8 +66,7 @@ import numpy as np
 from homocal.correctors.base import Corrector, check_calibration, check_camera_origin, improvement_percent, mean_error
 from homocal.correctors.serialization import float_or_none, integer, number
 from homocal.geometry import ViewTransformer, apply_homography, as_points
-from homocal.geometry.boxes import BORDER_PX, box_edges, link_tracks, undistort_boxes  # noqa: F401 (BORDER_PX, _on_border: this module's names)
-from homocal.geometry.boxes import on_border as _on_border
+from homocal.geometry.boxes import box_edges, hidden_feet, link_tracks, on_border, undistort_boxes
 from homocal.geometry.camera import tilt_homography
 from homocal.geometry.lens import Lens
 from homocal.study.options import Number, Option, OptionError, YesNo
@@ -107,6 +106,9 @@ SETTINGS = {
     "estimate_roll": Option("--estimate-roll", YesNo(), "fit the camera's "
                             "roll with its tilt (the horizon as a line) when the people spread across the image",
                             metavar="{yes,no}"),
+    "drop_hidden_feet": Option("--drop-hidden-feet", YesNo(), "leave out the boxes whose feet a nearer person's box "
+                               "may hide (homocal.geometry.hidden_feet, in each video frame; needs the boxes' frames)",
+                               metavar="{yes,no}"),
     "camera_height_m": Option("--camera-height", Number(MIN_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M), "the camera's "
                               "height over the ground", metavar="M", unit="m", none="from the clicked trapezoid with K"),
 }
@@ -325,8 +327,11 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
     (N,), the focal length, principal point, camera height and height prior (fit_tilt's), from fit_tilt's result
     ``start`` (roll 0): each person's implied height (the median of its inlier boxes') is a function of (tilt,
     roll) through the derolled rows (derolled_rows) of its foot and head; the Huber score
-    sum_j psi((H_j - mu) / sigma) grad H_j = 0 is solved by Newton (grad H by central differences, DIFF_STEP), the
-    inlier set updated as in fit_tilt until it no longer changes. Uncertainty: the sandwich covariance
+    sum_j psi((H_j - mu) / sigma) grad H_j = 0 is solved by iteratively reweighted least squares (Huber's weights
+    min(1, k / |r|), r = (H_j - mu) / sigma: Gauss-Newton weighted by psi' alone diverges when many people lie beyond
+    k at the start; grad H by central differences, DIFF_STEP), the inlier set updated as in fit_tilt until it no
+    longer changes (on scene3's boxes it does not settle in MAX_ROUNDS: each person's median box moves along their
+    walk as the roll changes, docs/real-camera.md). Uncertainty: the sandwich covariance
     sigma^2 A^-1 (sum psi^2 grad H grad H^T) A^-1, A = sum psi' grad H grad H^T; the prior mean's effect
     d(tilt, roll) / dmu = A^-1 sum psi' grad H.
     Returns a dict: tilt, roll (radians; roll in camera.json's sign), cov (2, 2) radians^2 (people), sensitivity (2,) radians per metre,
@@ -350,9 +355,10 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
                                     for e in (np.array([DIFF_STEP, 0.0]), np.array([0.0, DIFF_STEP]))])
 
         for _ in range(MAX_ROUNDS):
-            psi, dpsi = _huber((people_heights(beta) - mean_m) / sd_m)
+            r = (people_heights(beta) - mean_m) / sd_m
+            psi, weight = _huber(r)[0], np.minimum(1.0, HUBER_K / np.maximum(np.abs(r), 1e-300))
             J = gradient(beta)
-            step = -sd_m * np.linalg.lstsq((J * dpsi[:, None]).T @ J, J.T @ psi, rcond=None)[0]
+            step = -sd_m * np.linalg.lstsq((J * weight[:, None]).T @ J, J.T @ psi, rcond=None)[0]
             beta = beta + step
             if np.abs(step).max() < 1e-12:
                 break
@@ -382,6 +388,10 @@ class PedestrianCorrector(Corrector):
             horizon_sigma_px_ and of ground_uncertainty. Bounds: SETTINGS.
         estimate_roll: fit the camera's roll with its tilt (fit_tilt_roll) when the people's foot columns spread
             over ROLL_SPREAD of the image width (image_size given); otherwise, and by default, roll 0.
+        drop_hidden_feet: leave out the boxes whose feet a nearer person's box of the same frame may hide
+            (homocal.geometry.hidden_feet on the camera's pixels, after the track linking of all boxes; fit needs
+            frames). Default False, the fit every figure of docs/pedestrians.md was measured with; the option's
+            effect on each dataset is measured there.
         model: the corrected mapping (``transformer_``: the image trapezoid that maps with it onto the clicked
             map trapezoid, whose site-map frame is kept):
             "camera" (the default): the camera's own ground mapping (K, the camera height, the fitted tilt,
@@ -402,24 +412,27 @@ class PedestrianCorrector(Corrector):
     in quadrature), mean_sensitivity_px_per_cm_ (the horizon's move, px, per cm the prior mean is off: not
     reduced by more people), tilt_deg_, rotation_deg_ (delta), focal_px_, principal_point_ (cx, cy), camera_height_m_,
     yaw_deg_ (model "camera"; NaN for "rotation"), focal_source_ and camera_height_source_ ("given" or
-    "clicked mapping"), n_boxes_, n_border_ (cut by the image border, not used), n_outliers_ (beyond
+    "clicked mapping"), n_boxes_, n_border_ (cut by the image border, not used), n_hidden_ (their feet may be
+    hidden, not used: drop_hidden_feet; 0 otherwise), n_outliers_ (beyond
     OUTLIER_SIGMAS), n_people_ (tracks), n_people_used_, roll_estimated_, roll_deg_ (0 unless estimated; camera.json's
     roll_deg: > 0 lowers the camera's right side, the horizon's slope in the image is -tan(roll_deg_)), roll_sigma_deg_
     (NaN unless estimated), tilt_roll_cov_ and tilt_roll_sensitivity_ (the people's 2x2 covariance of (tilt,
     roll), rad^2, and their move per metre of the prior mean; None unless estimated), transformer_, m, plus those
     of ``Corrector`` (error_before_ and error_after_ on check points if fit had them, else NaN). After fit only
-    (not saved): box_status_ (N,) str, each box's part in the fit: "used", "outlier" or "border".
+    (not saved): box_status_ (N,) str, each box's part in the fit: "used", "outlier", "border" or "hidden".
     """
 
     method = "pedestrians"
-    param_names = ("height_mean_m", "height_sd_m", "model", "height_mean_sigma_m", "estimate_roll")
+    param_names = ("height_mean_m", "height_sd_m", "model", "height_mean_sigma_m", "estimate_roll", "drop_hidden_feet")
 
     def __init__(self, height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
                  model: str = "camera", height_mean_sigma_m: float = DEFAULT_HEIGHT_MEAN_SIGMA_M,
-                 estimate_roll: bool = False) -> None:
+                 estimate_roll: bool = False, drop_hidden_feet: bool = False) -> None:
         if model not in MODELS:
             raise ValueError(f"model {model!r}: expected one of {', '.join(MODELS)}")
-        self.model, self.estimate_roll = model, SETTINGS["estimate_roll"].check("estimate_roll", estimate_roll)
+        self.model, self.estimate_roll, self.drop_hidden_feet = model, *(
+            SETTINGS[name].check(name, value) for name, value in (("estimate_roll", estimate_roll),
+                                                                   ("drop_hidden_feet", drop_hidden_feet)))
         self.height_mean_m, self.height_sd_m, self.height_mean_sigma_m = (
             float(SETTINGS[name].check(name, value)) for name, value in (("height_mean_m", height_mean_m), ("height_sd_m", height_sd_m),
                                 ("height_mean_sigma_m", height_mean_sigma_m)))
@@ -438,17 +451,19 @@ class PedestrianCorrector(Corrector):
             xyxy: (N, 4) boxes (x1, y1, x2, y2) of people, pixels, in ``convention`` (homocal.geometry.boxes:
                 "corners" for supervision's Detections.xyxy of YOLO-like models, "homocal" for simgen's).
                 The bottom edge y2 is the foot row, the top edge y1 the head row.
-            frames: (N,) int video frame of each box (to link boxes into tracks); None: each box is a person.
+            frames: (N,) int video frame of each box (to link boxes into tracks, and for drop_hidden_feet, which
+                needs them); None: each box is a person.
             track_ids: (N,) int person of each box (one height per person); None: linked from frames.
             camera_height_m: the optical centre's height over the ground; None: from the clicked mapping with K.
             K: (3, 3) intrinsics (fx = fy, roll 0); None: principal point at the centre of image_size, focal
                 length from the clicked mapping.
-            image_size: (width, height) px; boxes within BORDER_PX of its border are not used.
+            image_size: (width, height) px; boxes within BORDER_PX (homocal.geometry.boxes) of its border are not used.
             image_points, ground_points, camera_origin: optional check points (N, 2) px, (N, 2) m, (2,) m: not
                 used by the fit, their mean errors before and after are error_before_ and error_after_.
             max_outlier_share: the largest share of outlier boxes, and of rejected people, a fit accepts (1: none
                 refused, to measure what a refused fit reaches; research/pedestrians.py --accept-outliers).
-            lens: the camera's lens (homocal.geometry.Lens, the same K): the boxes are undistorted
+            lens: the camera's lens (homocal.geometry.Lens; its K and image size those given: ValueError naming
+                both otherwise, Lens.check_matches): the boxes are undistorted
                 (homocal.geometry.undistort_boxes: the foot point and the head row exactly; ValueError naming
                 xyxy for a box beyond the lens's fold) after the border test and the track linking, before the
                 fit; the transformer, the check points and the corrected mapping are then in undistorted pixels.
@@ -469,6 +484,8 @@ class PedestrianCorrector(Corrector):
         frames = _check_labels(frames, n, "frames")
         tracks = _check_labels(track_ids, n, "track_ids")
         size = _check_image_size(image_size)
+        if lens is not None:
+            lens.check_matches(K, size)
         self.focal_source_ = "clicked mapping" if K is None else "given"
         K = intrinsics(transformer.m, size, K)
         principal, focal = (float(K[0, 2]), float(K[1, 2])), float(K[1, 1])
@@ -486,16 +503,22 @@ class PedestrianCorrector(Corrector):
         if not (edges[:, 3] > transformer.horizon_row((edges[:, 0] + edges[:, 2]) / 2)).any():  # roughly, in any lens
             raise ValueError(f"xyxy: all {n} boxes have their bottom edge on or above the clicked mapping's horizon "
                              f"(row {clicked_row:.1f} at the principal column): none stands on its ground")
-        border = np.zeros(n, bool) if size is None else _on_border(edges, size)
+        border = np.zeros(n, bool) if size is None else on_border(edges, size)
         if border.all():
             raise ValueError(f"xyxy: all {n} boxes touch the {size[0]}x{size[1]} image's border (cut by it)")
+        if self.drop_hidden_feet and frames is None:
+            raise ValueError("frames: needed with drop_hidden_feet (a nearer person hides feet in the same frame)")
+        hidden = hidden_feet(edges, frames) & ~border if self.drop_hidden_feet else np.zeros(n, bool)
+        if (border | hidden).all():
+            raise ValueError(f"xyxy: all {n} boxes touch the image's border or may have their feet hidden by a nearer "
+                             "person's")
         if tracks is None:
             tracks = np.arange(n) if frames is None else link_tracks(frames, edges, max_gap=LINK_GAP)
         if lens is not None:  # the camera's pixels to the undistorted image, as homocal.boxes.read_boxes does
             edges = undistort_boxes(edges, lens)
         middle = (edges[:, 0] + edges[:, 2]) / 2
         foot, head = np.column_stack([middle, edges[:, 3]]), np.column_stack([middle, edges[:, 1]])
-        used = ~border & np.isfinite(foot).all(axis=1) & np.isfinite(head).all(axis=1)
+        used = ~border & ~hidden & np.isfinite(foot).all(axis=1) & np.isfinite(head).all(axis=1)
         fit = fit_tilt(foot[used, 1], head[used, 1], tracks[used], focal, principal[1], self.camera_height_m_,
                        self.height_mean_m, self.height_sd_m)
         spread = np.subtract(*np.percentile(foot[used, 0], [75, 25])) if used.any() else 0.0
@@ -514,9 +537,9 @@ class PedestrianCorrector(Corrector):
         self.horizon_sigma_people_px_ = focal * secant2 * fit["tilt_sigma"]
         self.mean_sensitivity_px_per_cm_ = abs(focal * secant2 * fit["mean_sensitivity"]) / 100.0
         self._set_horizon_sigma()
-        self.n_boxes_, self.n_border_ = n, int(border.sum())
+        self.n_boxes_, self.n_border_, self.n_hidden_ = n, int(border.sum()), int(hidden.sum())
         self.n_outliers_ = int(used.sum() - fit["inlier_boxes"].sum())
-        self.box_status_ = np.where(border, "border", "outlier")
+        self.box_status_ = np.where(border, "border", np.where(hidden, "hidden", "outlier"))
         self.box_status_[np.flatnonzero(used)[fit["inlier_boxes"]]] = "used"
         self.n_people_, self.n_people_used_ = len(np.unique(tracks[used])), fit["n_people"]
         rejected = {"boxes": (self.n_outliers_, int(used.sum())),
@@ -563,7 +586,7 @@ class PedestrianCorrector(Corrector):
         self._set_horizon_sigma()
         self._set_roll_state(None)
         self.n_boxes_ = self.n_people_ = self.n_people_used_ = integer(n_people, "n_people", MIN_PEOPLE, 2**62)
-        self.n_border_ = self.n_outliers_ = 0
+        self.n_border_ = self.n_hidden_ = self.n_outliers_ = 0
         self.base_transformer_, self.camera_origin_ = transformer, check_camera_origin(camera_origin)
         self._set_transformer()
         self._check_points(None, None)
@@ -710,8 +733,8 @@ class PedestrianCorrector(Corrector):
                 "focal_px": self.focal_px_, "principal_point": list(self.principal_point_),
                 "focal_source": self.focal_source_, "camera_height_m": self.camera_height_m_,
                 "camera_height_source": self.camera_height_source_, "n_boxes": self.n_boxes_,
-                "n_border": self.n_border_, "n_outliers": self.n_outliers_, "n_people": self.n_people_,
-                "n_people_used": self.n_people_used_,
+                "n_border": self.n_border_, "n_hidden": self.n_hidden_, "n_outliers": self.n_outliers_,
+                "n_people": self.n_people_, "n_people_used": self.n_people_used_,
                 "roll": None if not self.roll_estimated_ else {
                     "roll_deg": self.roll_deg_, "tilt_roll_cov_rad2": self.tilt_roll_cov_.tolist(),
                     "tilt_roll_sensitivity_rad_per_m": self.tilt_roll_sensitivity_.tolist()}}
@@ -743,8 +766,10 @@ class PedestrianCorrector(Corrector):
             raise ValueError(f"field fitted.camera_height_m: {e}") from None
         self.n_boxes_ = integer(state["n_boxes"], "fitted.n_boxes", 1, 2**62)
         self.n_border_ = integer(state["n_border"], "fitted.n_border", 0, self.n_boxes_ - 1)
-        self.n_outliers_ = integer(state["n_outliers"], "fitted.n_outliers", 0, self.n_boxes_ - self.n_border_)
-        self.n_people_ = integer(state["n_people"], "fitted.n_people", 1, self.n_boxes_ - self.n_border_)
+        self.n_hidden_ = integer(state.get("n_hidden", 0), "fitted.n_hidden", 0, self.n_boxes_ - self.n_border_ - 1)  # older files: 0
+        left = self.n_boxes_ - self.n_border_ - self.n_hidden_
+        self.n_outliers_ = integer(state["n_outliers"], "fitted.n_outliers", 0, left)
+        self.n_people_ = integer(state["n_people"], "fitted.n_people", 1, left)
         self.n_people_used_ = integer(state["n_people_used"], "fitted.n_people_used", MIN_PEOPLE, self.n_people_)
         self._set_roll_state(state.get("roll"))
         try:

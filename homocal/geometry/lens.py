@@ -98,6 +98,23 @@ class Lens:
                              f"corners reach {reach:.4g}: the radial map is not monotonic there")
         return self
 
+    def check_matches(self, K=None, image_size=None) -> "Lens":
+        """Return self, or ValueError (one line, naming both) unless the lens's K equals K (3, 3) and its image size
+        equals image_size (width, height) px, where given (None: not compared): whoever takes a lens with K and an
+        image size (PedestrianCorrector.fit, homocal.watch.OnlineCalibrator) undistorts with the lens into the
+        image of the lens's K and measures with K. K equal to 1e-9 relative (a JSON round trip is exact)."""
+        try:
+            k = None if K is None else np.asarray(K, dtype=np.float64)
+        except (TypeError, ValueError):  # not numbers, or ragged
+            k = np.full(0, np.nan)
+        if k is not None and not (k.shape == (3, 3) and np.allclose(k, self.K, rtol=1e-9, atol=0.0)):
+            raise ValueError(f"K: {k.tolist() if k.size else K!r} is not the lens's K {self.K.tolist()}: give the lens "
+                             "of this camera")
+        if image_size is not None and tuple(image_size) != self.image_size:
+            raise ValueError(f"image_size: {tuple(image_size)} is not the lens's image size {self.image_size}: give "
+                             "the lens of this camera")
+        return self
+
     # ---- the model --------------------------------------------------------------------
     def distort_points(self, points: np.ndarray) -> np.ndarray:
         """Ideal pinhole pixels (N, 2) of the same K -> distorted pixels (N, 2), as cv2.projectPoints; NaN stays NaN."""

@@ -275,12 +275,12 @@ def fit(session: Session, req: dict) -> dict:
 
 def drawn_boxes(xyxy: np.ndarray, status: np.ndarray) -> dict:
     """The boxes (N, 4) x1, y1, x2, y2 px (the frame's pixels, as the file gave them) a fit from boxes read, by their
-    part in it (status (N,): "used", "outlier", "border"), for the page to draw on the frame: {"used": [outline,
-    ...], "outlier": [...], "border": [...], "total": N, "step": k}, each outline the box's 4 corners and 4 side
+    part in it (status (N,): "used", "outlier", "border", "hidden"), for the page to draw on the frame: {"used":
+    [outline, ...], "outlier": [...], "border": [...], "hidden": [...], "total": N, "step": k}, each outline the box's 4 corners and 4 side
     midpoints (from the top-left, clockwise); every k-th box of each kind, at most MAX_DRAWN_BOXES in all."""
     step = max(1, math.ceil(len(xyxy) / MAX_DRAWN_BOXES))
     out = {}
-    for kind in ("used", "outlier", "border"):
+    for kind in ("used", "outlier", "border", "hidden"):
         x1, y1, x2, y2 = xyxy[status == kind][::step].T
         xc, yc = (x1 + x2) / 2, (y1 + y2) / 2
         outline = np.stack([np.column_stack(p) for p in ((x1, y1), (xc, y1), (x2, y1), (x2, yc), (x2, y2), (xc, y2),
@@ -591,7 +591,7 @@ def save(session: Session, req: dict) -> dict:
                  *(f"{PEDESTRIAN_SETTINGS[k].flag} {_flag_text(params[k])}" for k in method.settings)]
     stretch = box_settings.get("stretch") if box_settings else None
     if stretch is not None:  # homocal watch writes it, as the stretch's corrections/<start_s>.json
-        flags = [f for f in flags if not f.startswith(("--estimate-roll", "--height-mean-sigma"))]  # not watch's
+        flags = [f for f in flags if not f.startswith(("--estimate-roll", "--height-mean-sigma", "--drop-hidden-feet"))]  # not watch's
         command = (f"homocal watch --trapezoid {shlex.quote(str(paths[0]))} --fps {session.fps!r} "
                    f"--camera-origin={','.join(repr(float(x)) for x in corrector.camera_origin_)} -o WATCH_DIR "
                    + " ".join(flags) + f" (its corrections/{stretch[0]:.2f}.json; homocal apply WATCH_DIR --at "

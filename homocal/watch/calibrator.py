@@ -52,14 +52,13 @@ from homocal.correctors.pedestrians import (
     LINK_GAP,
     OUTLIER_SIGMAS,
     PedestrianCorrector,
-    _on_border,
     camera_height_from_homography,
     implied_horizon_rows,
     intrinsics,
 )
 from homocal.boxes import MAX_FPS
 from homocal.geometry import ViewTransformer
-from homocal.geometry.boxes import TrackLinker, undistort_boxes
+from homocal.geometry.boxes import TrackLinker, on_border, undistort_boxes
 from homocal.geometry.lens import Lens
 
 WINDOW_PEOPLE = 200  # people in the sliding estimate: the memory bound
@@ -210,7 +209,7 @@ class OnlineCalibrator:
         sigmas = np.abs(slope) * np.hypot(self.height_sd_m, self.height_mean_m * BOX_SIGMA_PX / (b[:, 3] - b[:, 1]))
         usable = np.isfinite(rows) & np.isfinite(sigmas) & (sigmas > 0)
         if self.image_size is not None:  # cut by the frame: in the camera's pixels
-            usable &= ~_on_border(boxes[todo], self.image_size)
+            usable &= ~on_border(boxes[todo], self.image_size)
         people = []
         for i in np.flatnonzero(usable):
             track = tracks[int(ids[todo[i]])]

@@ -16,7 +16,8 @@ import pyarrow.parquet as pq
 import pytest
 from cli_run import homocal_main
 
-from homocal.correctors.pedestrians import BORDER_PX, PedestrianCorrector, implied_horizon_rows
+from homocal.correctors.pedestrians import PedestrianCorrector, implied_horizon_rows
+from homocal.geometry.boxes import BORDER_PX
 from homocal.geometry import Lens, PinholeCamera, SiteMap, ViewTransformer
 from homocal.geometry.boxes import undistort_boxes
 from homocal.ui import api

@@ -124,3 +124,30 @@ def test_equality_and_dict():
     assert lens == Lens(K.tolist(), tuple(BARREL), [1280, 720]) and lens != Lens(K, STRONG, SIZE)
     assert lens.to_dict() == {"K": K.tolist(), "distortion": BARREL, "image_size": [1280, 720]}
     assert Lens(**lens.to_dict()) == lens
+
+
+OTHER_F = K * [[1.01, 1, 1], [1, 1.01, 1], [1, 1, 1]]  # the focal length 1 % longer
+
+
+@pytest.mark.parametrize("K_, size, field, given", [
+    (OTHER_F, None, "K", str(OTHER_F.tolist())),
+    (K + [[0, 0, 2.0], [0, 0, 0], [0, 0, 0]], SIZE, "K", "641.5"),  # the principal point 2 px right
+    (np.where(np.eye(3) > 0, np.nan, K), SIZE, "K", "nan"),
+    (np.eye(2), SIZE, "K", "[[1.0, 0.0], [0.0, 1.0]]"),
+    ([[1, 2], [3]], SIZE, "K", "[[1, 2], [3]]"),
+    (K, (1920, 1080), "image_size", "(1920, 1080)"),
+    (None, (640, 360), "image_size", "(640, 360)"),
+])
+def test_check_matches_names_both(K_, size, field, given):
+    """A K or image size other than the lens's: one line naming the value given and the lens's own."""
+    lens = Lens(K, BARREL, SIZE)
+    own = str(K.tolist()) if field == "K" else str(SIZE)
+    with pytest.raises(ValueError, match=f"^{field}: [^\n]*$") as e:
+        lens.check_matches(K_, size)
+    assert given in str(e.value) and own in str(e.value)
+
+
+def test_check_matches_accepts_the_same_camera():
+    lens = Lens(K, BARREL, SIZE)
+    assert lens.check_matches(K.tolist(), [1280, 720]) is lens and lens.check_matches() is lens
+    assert lens.check_matches(K * (1 + 1e-12), np.array(SIZE)) is lens  # within a rounding of a text round trip

@@ -420,6 +420,8 @@ def _bad_pedestrian_inputs():
          "argument --height-sd: expected at most height_mean_m / 4 = 0.4125 m, got 0.5"),
         ("estimate roll not yes or no", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--estimate-roll", "1"],
          "argument --estimate-roll: expected yes or no, got '1'"),
+        ("drop hidden feet not yes or no", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--drop-hidden-feet", "1"],
+         "argument --drop-hidden-feet: expected yes or no, got '1'"),
         ("height mean sigma negative", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--height-mean-sigma", "-1"],
          "argument --height-mean-sigma: expected a number in [0, 0.5] (m), got '-1'"),
         ("height mean nan", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--height-mean", "nan"],
@@ -482,3 +484,30 @@ def test_pedestrians_refuse_a_majority_of_outliers(work, capsys, monkeypatch):
     assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
     assert "are outliers" in result.stderr and f"more than {MAX_OUTLIER_SHARE:.0%}" in result.stderr
     assert not (work / "c.json").exists()
+
+
+def test_pedestrians_drop_hidden_feet(work, capsys, monkeypatch):
+    """--drop-hidden-feet yes: the saved correction is the library's fit with drop_hidden_feet=True (its params
+    record it, fitted.n_hidden counts the boxes left out) and fit's line says how many."""
+    from homocal import PedestrianCorrector, read_boxes
+
+    rng = np.random.default_rng(1)
+    xy = np.column_stack([rng.uniform(-4, 4, 120), rng.uniform(8, 40, 120)])
+    foot = CAM.project_ground(xy)
+    head = CAM.project(np.column_stack([xy, rng.normal(1.65, 0.07, 120)]))
+    write_csv(work / "b.csv", ["frame", "x1", "y1", "x2", "y2"],
+              [(i // 6, u - 12, t, u + 12, v) for i, ((u, v), (_, t)) in enumerate(zip(foot, head))])
+    (work / "cam.json").write_text(_CAMERA_JSON)
+    result = homocal_main("fit", "--trapezoid", "trap.json", "-o", "c.json", "--method", "pedestrians", "--boxes",
+                          "b.csv", "--camera-json", "cam.json", "--camera-height", "4", "--drop-hidden-feet", "yes",
+                          cwd=work, capsys=capsys, monkeypatch=monkeypatch)
+    assert result.returncode == 0, result.stderr
+    read = read_boxes(work / "b.csv")
+    reference = PedestrianCorrector(drop_hidden_feet=True).fit(
+        read_trapezoid_file(work / "trap.json")[0], read.xyxy, convention="homocal", frames=read.frames,
+        camera_height_m=4.0, K=CAM.K, image_size=(CAM.width, CAM.height))
+    saved = json.loads((work / "c.json").read_text())
+    assert saved == json.loads(json.dumps(reference.to_dict())) and saved["params"]["drop_hidden_feet"] is True
+    assert saved["fitted"]["n_hidden"] == reference.n_hidden_ > 0
+    assert f", {reference.n_hidden_} with feet a nearer person may hide," in result.stdout
+    (work / "c.json").unlink()

@@ -129,6 +129,14 @@ def tilted_trapezoid(shift_px: float = 16.0) -> dict:
     return {"image": tilt_shift(IMAGE, CAM.K, CAM.horizon_row, shift_px).tolist(), "map": MAP.tolist()}
 
 
+def test_drawn_boxes_by_kind():
+    """Each box under its status (hidden feet a kind of its own), as its 8-point outline from the top-left corner."""
+    xyxy = np.array([[10.0, 20.0, 30.0, 60.0], [40.0, 20.0, 50.0, 70.0], [0.0, 5.0, 9.0, 25.0], [60.0, 10.0, 64.0, 30.0]])
+    drawn = api.drawn_boxes(xyxy, np.array(["used", "hidden", "border", "hidden"]))
+    assert [len(drawn[k]) for k in ("used", "outlier", "border", "hidden")] == [1, 0, 1, 2] and drawn["total"] == 4
+    assert drawn["hidden"][1][0] == [60.0, 10.0] and drawn["hidden"][1][4] == [64.0, 30.0]
+
+
 def test_pedestrians_fit_from_the_launch_boxes(boxes_server):
     """The page's fit is the library's on read_boxes of the launch's file (image size: the frame's); the fitted
     horizon it draws is the camera's, the clicked one 16 px above it; the points only check the fit."""
@@ -157,6 +165,13 @@ def test_pedestrians_fit_from_the_launch_boxes(boxes_server):
     used = np.array(drawn["used"] + drawn["outlier"] + drawn["border"])  # outlines: TL corner 0, BR corner 4
     np.testing.assert_allclose(np.sort(np.hstack([used[:, 0], used[:, 4]]), axis=0), np.sort(boxes.xyxy, axis=0),
                                atol=0.05)  # rounded to 0.1 px
+    assert drawn["hidden"] == []
+    status, dropped = post(boxes_server, "api/fit", request(trapezoid=trap, method="pedestrians", points=[],
+                                                            camera_height_m=4.0, drop_hidden_feet=True))
+    own = PedestrianCorrector(drop_hidden_feet=True).fit(clicked, boxes.xyxy, convention="homocal", frames=boxes.frames,
+                                                         camera_height_m=4.0, image_size=(W, H))
+    assert status == 200 and dropped["correction"] == json.loads(json.dumps(own.to_dict()))
+    assert own.drop_hidden_feet and len(dropped["boxes"]["hidden"]) == own.n_hidden_  # the page's setting reaches the fit
     (u0, v0), (u1, v1) = fit["horizon"]
     at_cx = v0 + (v1 - v0) * (CAM.K[0, 2] - u0) / (u1 - u0)
     assert at_cx == pytest.approx(reference.horizon_row_, abs=1e-6) and abs(at_cx - CAM.horizon_row) < 2.0

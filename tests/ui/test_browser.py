@@ -463,11 +463,11 @@ def test_banners_follow_the_state(page, tiny_dataset):
     # the boxes the fit read: used and outliers drawn, as many as it answered; none once unticked
     boxes = drawn(d, "frame")["boxes"]
     assert boxes["used"] == len(fit["boxes"]["used"]) > 0 and boxes["outlier"] == len(fit["boxes"]["outlier"]) > 0
-    assert len(fit["boxes"]["used"]) + len(fit["boxes"]["outlier"]) + len(fit["boxes"]["border"]) == fit["boxes"]["total"]
+    assert sum(len(fit["boxes"][k]) for k in ("used", "outlier", "border", "hidden")) == fit["boxes"]["total"]
     red = red_pixels(d)
     assert red > 50
     d.find_element(By.ID, "show-boxes").click()
-    assert drawn(d, "frame")["boxes"] == {"used": 0, "outlier": 0, "border": 0}
+    assert drawn(d, "frame")["boxes"] == {"used": 0, "outlier": 0, "border": 0, "hidden": 0}
     assert red_pixels(d) < red / 10
     d.find_element(By.ID, "show-boxes").click()
     assert_labels_apart(d)

@@ -295,7 +295,7 @@ def test_a_move_rearms_the_people_in_view_and_the_new_stretch_is_unbiased():
     and that stretch's horizon is nearer the moved camera's than the change point's people's."""
     from pathlib import Path
 
-    from homocal.correctors.pedestrians import _on_border
+    from homocal.geometry.boxes import on_border
     from homocal.watch.calibrator import PERSON_BOXES
     from simgen.boxstream import box_stream
     from simgen.scene import CameraMove, load_scene
@@ -313,7 +313,7 @@ def test_a_move_rearms_the_people_in_view_and_the_new_stretch_is_unbiased():
     # a finite implied horizon: a person partly in view may have none)
     def usable(xyxy, ids):
         rows = implied_horizon_rows(xyxy[:, 3], xyxy[:, 1], cam.K[1, 1], cam.K[1, 2], cam.mount_height_m, 1.71)[0]
-        return set(ids[np.isfinite(rows) & ~_on_border(xyxy, (cam.width, cam.height))].tolist())
+        return set(ids[np.isfinite(rows) & ~on_border(xyxy, (cam.width, cam.height))].tolist())
     usable = [usable(xyxy, ids) for _, xyxy, ids in frames[d + 1:d + 1 + PERSON_BOXES]]
     in_view = set(frames[d][2].tolist()).intersection(*usable)
     after = states[d + PERSON_BOXES]  # newcomers need PERSON_BOXES boxes after the detection: none is in yet

@@ -174,7 +174,7 @@ const LEADER_PX = 22;
 let drawn = null;  // {frame: {...}, map: {...}} of the last render (newDrawn)
 
 function newDrawn() {
-  const one = () => ({ pending: [], taken: [], labels: [], hidden: [], ellipses: [], boxes: { used: 0, outlier: 0, border: 0 } });
+  const one = () => ({ pending: [], taken: [], labels: [], hidden: [], ellipses: [], boxes: { used: 0, outlier: 0, border: 0, hidden: 0 } });
   return { frame: one(), map: one(), plot: { people: 0, moves: [], band: 0, references: [] } };
 }
 
@@ -262,7 +262,8 @@ function drawTrapezoid(ctx, name, quad) {
   quad.forEach((p, i) => { dot(ctx, name, p, 5, "#33e0ff", true); label(name, [p], CORNERS[i], "#33e0ff", 5); });
 }
 
-const BOX_STYLES = { used: ["rgba(125,255,107,0.55)", []], outlier: ["#ff3b3b", []], border: ["rgba(200,200,200,0.6)", [3, 3]] };
+const BOX_STYLES = { used: ["rgba(125,255,107,0.55)", []], outlier: ["#ff3b3b", []], border: ["rgba(200,200,200,0.6)", [3, 3]],
+                     hidden: ["#ffb000", [2, 2]] };
 // The people's boxes a fit from boxes read, by their part in it (api.drawn_boxes), if "show boxes" is ticked.
 function drawBoxes(ctx) {
   const boxes = S.fit && S.fit.boxes;

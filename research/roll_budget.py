@@ -1,0 +1,105 @@
+"""Where the pedestrians' fitted roll comes from on a dataset (docs/real-camera.md, "Why the roll is not 1"): each
+person's share of the roll and tilt error at the camera's true pose.
+
+Run: python research/roll_budget.py DATASET [--detector segmentation] [--drop-hidden-feet yes|no] [--people 8]
+
+The fit's score (homocal.correctors.pedestrians.fit_tilt_roll) linearised at camera.json's tilt_deg and roll_deg,
+with the dataset's own people (detections.parquet's agent_id: one height per person, the median of its boxes clear
+of the border, and of hidden_feet's boxes with --drop-hidden-feet yes): the error of (tilt, roll) the score's
+root lies at is -sigma A^-1 sum_j grad H_j psi_j (A = sum psi'_j grad H_j grad H_j^T, grad H_j by central
+differences), split into the part of the people's own heights (psi of (true height - mu) / sigma: who walked
+by) and the part of the boxes (psi of (implied - true height) / sigma: how the boxes measure them), the prior
+simgen's people's (box_heights.HEIGHT_M). Prints the three errors, the sandwich sigma of the roll and the people
+who carry the most of it (their share, boxes, median foot column from the principal point and foot row, true
+and implied height).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+
+from homocal.correctors.pedestrians import HUBER_K, OUTLIER_SIGMAS
+from homocal.geometry.boxes import on_border
+from homocal.dataset import load_dataset
+from homocal.files import read_json
+from homocal.geometry.boxes import hidden_feet, undistort_boxes
+from research.box_heights import HEIGHT_M, box_heights, true_heights
+
+STEP_DEG = 1e-4  # central-difference step of the people's heights, degrees
+
+
+def people_heights(edges: np.ndarray, labels: np.ndarray, K: np.ndarray, tilt_deg: float, roll_deg: float,
+                   camera_height_m: float) -> np.ndarray:
+    """(P,) each person's implied height, metres: the median of its undistorted boxes' (N, 4) px, labels (N,) 0..P-1,
+    at the pose (tilt_deg, roll_deg) of a camera with intrinsics K at camera_height_m (box_heights)."""
+    h = box_heights(edges, K, tilt_deg, roll_deg, camera_height_m)
+    return np.array([np.median(h[labels == k]) for k in range(labels.max() + 1)])
+
+
+def linearised(J: np.ndarray, H: np.ndarray, truth: np.ndarray, mean: float, sd: float) -> dict:
+    """The score's root's error at the true pose, linearised (the module docstring), from the people's heights'
+    gradient J (P, 2) m per radian of (tilt, roll), their implied heights H (P,) and true heights truth (P,), m, the
+    prior (mean, sd) m: "share" (P, 2) degrees, each person's part of it; "heights" and "boxes" (2,) degrees, the
+    parts of the people's own heights and of their boxes; "roll_sigma" degrees, the sandwich sigma of the roll."""
+    r = (H - mean) / sd
+    use = np.abs(r) <= OUTLIER_SIGMAS
+    psi, dpsi = np.clip(r, -HUBER_K, HUBER_K) * use, (np.abs(r) <= HUBER_K).astype(float)
+    A_inv = np.linalg.inv((J * dpsi[:, None]).T @ J)
+
+    def error(residual: np.ndarray) -> np.ndarray:  # (P, 2) degrees: each person's share
+        return np.degrees(-sd * (A_inv @ (J * (np.clip(residual, -HUBER_K, HUBER_K) * use)[:, None]).T).T)
+
+    cov = sd**2 * A_inv @ ((J * (psi * psi)[:, None]).T @ J) @ A_inv
+    return {"share": error(r), "heights": error((truth - mean) / sd).sum(0), "boxes": error((H - truth) / sd).sum(0),
+            "roll_sigma": math.degrees(math.sqrt(cov[1, 1]))}
+
+
+def budget(path: Path, detector: str, drop_hidden: bool) -> dict:
+    """The module docstring's figures of one dataset and detector."""
+    ds, raw = load_dataset(path), read_json(path / "camera.json")
+    t = pq.read_table(path / "detections.parquet", columns=["detector", "frame", "agent_id", "x1", "y1", "x2", "y2"]).to_pandas()
+    t = t[t["detector"] == detector]
+    edges, agents = t[["x1", "y1", "x2", "y2"]].to_numpy(np.float64), t["agent_id"].to_numpy()
+    keep = ~on_border(edges, ds.camera.image_size) & (agents >= 0)
+    if drop_hidden:
+        keep &= ~hidden_feet(edges, t["frame"].to_numpy())
+    edges, agents = undistort_boxes(edges[keep], ds.camera.lens), agents[keep]
+    ids, labels = np.unique(agents, return_inverse=True)
+    K, h_c = ds.camera.K, ds.camera.mount_height_m
+    pose = np.array([raw["tilt_deg"], raw.get("roll_deg", 0.0)])
+    H = people_heights(edges, labels, K, *pose, h_c)
+    J = np.column_stack([people_heights(edges, labels, K, *(pose + e), h_c) - people_heights(edges, labels, K, *(pose - e), h_c)
+                         for e in np.eye(2) * STEP_DEG]) / (2 * math.radians(STEP_DEG))  # (P, 2) m per radian
+    truth = np.array([true_heights(ds.manifest)[a] for a in ids])
+    parts = linearised(J, H, truth, *HEIGHT_M)
+    share = parts["share"]
+    cols = np.array([np.median((edges[labels == k, 0] + edges[labels == k, 2]) / 2) for k in range(len(ids))]) - K[0, 2]
+    rows = np.array([np.median(edges[labels == k, 3]) for k in range(len(ids))])
+    return {"people": len(ids), "total": share.sum(0), "heights": parts["heights"], "boxes": parts["boxes"],
+            "roll_sigma": parts["roll_sigma"],
+            "table": sorted(zip(share[:, 1], np.bincount(labels), cols, rows, truth, H), key=lambda x: -abs(x[0]))}
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("dataset", type=Path)
+    ap.add_argument("--detector", default="segmentation")
+    ap.add_argument("--drop-hidden-feet", choices=("yes", "no"), default="no")
+    ap.add_argument("--people", type=int, default=8, help="how many of the people carrying the most roll to list")
+    args = ap.parse_args(argv)
+    b = budget(args.dataset, args.detector, args.drop_hidden_feet == "yes")
+    (tt, tr), (ht, hr), (bt, br) = b["total"], b["heights"], b["boxes"]
+    print(f"{args.dataset} {args.detector}, hidden feet dropped: {args.drop_hidden_feet}; {b['people']} people; at the true "
+          f"pose the score's root is off by roll {tr:+.2f} deg, tilt {tt:+.3f} deg (the people's heights: roll {hr:+.2f}, "
+          f"tilt {ht:+.3f}; the boxes: roll {br:+.2f}, tilt {bt:+.3f}); roll sigma {b['roll_sigma']:.2f} deg")
+    print("roll share (deg), boxes, foot column - cx (px), foot row (px), true height (m), implied height (m)")
+    for row in b["table"][:args.people]:
+        print("%+.3f  %4d  %+5.0f  %4.0f  %.3f  %.3f" % row)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,47 @@
+"""research/roll_budget.py's linearised error of the people's roll fit against the fit itself (fit_tilt_roll's
+nonlinear root) on people seen by a rolled camera, one box each."""
+import importlib.util
+import math
+from pathlib import Path
+
+import numpy as np
+
+from homocal.correctors.pedestrians import fit_tilt, fit_tilt_roll
+from homocal.geometry import PinholeCamera
+
+SCRIPT = Path(__file__).resolve().parents[2] / "research" / "roll_budget.py"
+spec = importlib.util.spec_from_file_location("roll_budget", SCRIPT)
+script = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(script)
+CAM = PinholeCamera(tilt_deg=15.0, roll_deg=1.0)
+
+
+def test_linearised_error_is_the_fits():
+    """People whose heights scatter about the prior mean (their boxes exact): the roll and tilt errors the budget
+    predicts at the true pose are the fit's own, to second order (a tenth of them, or 0.01 degrees: 0.52 and 0.53
+    degrees of roll here); the boxes' part is small (the box's centre column stands for the sole's and the
+    crown's) and the heights' carries it; the roll's sigma is the fit's."""
+    rng = np.random.default_rng(4)
+    xy = np.column_stack([rng.uniform(-8, 8, 120), rng.uniform(8, 40, 120)])
+    height = rng.normal(1.71, 0.09, 120)
+    sole, crown = CAM.project(np.column_stack([xy, np.zeros(120)])), CAM.project(np.column_stack([xy, height]))
+    boxes = np.column_stack([np.minimum(sole[:, 0], crown[:, 0]) - 4, crown[:, 1], np.maximum(sole[:, 0], crown[:, 0]) + 4,
+                             sole[:, 1]])
+    labels = np.arange(120)
+    step = math.radians(1e-4)
+    H = script.people_heights(boxes, labels, CAM.K, 15.0, 1.0, 4.0)
+    J = np.column_stack([script.people_heights(boxes, labels, CAM.K, 15.0 + d[0], 1.0 + d[1], 4.0)
+                         - script.people_heights(boxes, labels, CAM.K, 15.0 - d[0], 1.0 - d[1], 4.0)
+                         for d in np.eye(2) * 1e-4]) / (2 * step)
+    parts = script.linearised(J, H, height, 1.71, 0.09)
+    predicted = parts["share"].sum(0)  # degrees: tilt, roll
+    mid = (boxes[:, 0] + boxes[:, 2]) / 2
+    foot, head = np.column_stack([mid, boxes[:, 3]]), np.column_stack([mid, boxes[:, 1]])
+    pp = tuple(CAM.K[:2, 2])
+    start = fit_tilt(foot[:, 1], head[:, 1], labels, CAM.focal_px, pp[1], 4.0, 1.71, 0.09)
+    fit = fit_tilt_roll(foot, head, labels, CAM.focal_px, pp, 4.0, 1.71, 0.09, start)
+    actual = np.degrees([fit["tilt"], fit["roll"]]) - [15.0, 1.0]
+    assert abs(actual[1]) > 0.05  # an error worth predicting
+    np.testing.assert_allclose(predicted, actual, rtol=0.1, atol=0.01)
+    assert abs(parts["boxes"][1]) < 0.1 < abs(parts["heights"][1])  # the boxes': 0.05 degrees here
+    np.testing.assert_allclose(parts["roll_sigma"], math.degrees(math.sqrt(fit["cov"][1, 1])), rtol=0.1)
