@@ -3,6 +3,8 @@ supervision's speed recipe (issue 34 item 4; docs/measure.md).
 
     python research/measure_speeds.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--shift 16]
     python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma | --correlated] [--feet soles]
+    python research/measure_speeds.py DATASET [DATASET ...] --exact --spread [--split | --box-sigma | --correlated] [--feet soles]
+    python research/measure_speeds.py DATASET [DATASET ...] --horizons 10
     python research/measure_speeds.py DATASET --throughput 10 [--correlated]
 
 Per dataset and detector, the clicked trapezoid is the dataset's exact one moved as a tilt error moves it so
@@ -42,10 +44,16 @@ filter's state (measure_tracks(foot_correlation_s=...); homocal measure --foot-n
 --accel-psd Q|fitted: the filter's process noise (homocal measure --accel-psd; default homocal.measure.ACCEL_PSD);
 fitted: per dataset, detector and mapping by maximum likelihood of the filter's innovations on the boxes'
 tracks (homocal.measure.tracks.fit_tracks_accel_psd; no ground truth), printed to stderr.
+--exact: the part of the error that is the track's own, apart from the mapping's: the dataset's true mapping
+(its exact trapezoid, the ground rectangle's projection, undistorted; ``exact_transformer``) alone, measured at
+click sigma 0, so the bars hold the foot point's noise (each --split/--box-sigma/--correlated model's) and the
+motion model's, no mapping error; no recipe row.
 --feet soles: homocal's filter measures only the foot points whose bottom edge is the sole (homocal measure
 --feet soles: not a box whose feet a nearer box may hide, nor one whose bottom or side the image border cuts,
 homocal.measure.tracks.foot_status; their shares printed to stderr); the recipe and the 1 s differences take
 every box.
+--horizons SECONDS: instead, the pedestrians' correction (as the tables fit it) on every disjoint window of
+SECONDS of each dataset, its fitted horizon's error over its sigma (``horizon_table``; each fit printed to stderr).
 --throughput MINUTES: the first dataset's segmentation boxes repeated (frames and track ids shifted) into a
 CSV of MINUTES minutes, then `homocal measure` on it as a subprocess (with --correlated: --foot-noise
 correlated; with --accel-psd, --feet, those): boxes per second and the child's peak resident memory (ru_maxrss).
@@ -70,7 +78,7 @@ from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer, box_bottom_points
 from homocal.geometry.boxes import link_tracks
 from homocal.measure import ACCEL_PSD, measure_tracks
-from homocal.measure.tracks import FEET, fit_tracks_accel_psd, foot_noise_options, foot_status
+from homocal.measure.tracks import FEET, TrapezoidMapping, fit_tracks_accel_psd, foot_noise_options, foot_status
 from homocal.study.perturb import base_quad
 
 BANDS = ((5.0, 15.0), (15.0, 30.0), (30.0, 50.0), (5.0, 50.0))
@@ -118,29 +126,65 @@ def undistorted(ds, points: np.ndarray) -> np.ndarray:
     return points if lens.is_identity else lens.undistort_points(points)
 
 
-def mappings(ds, detector: str, shift: float, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> dict:
-    K, true_row = ds.camera.K, ds.camera.horizon_row
+def exact_transformer(ds) -> ViewTransformer:
+    """The dataset's true ground mapping: its exact trapezoid (the ground rectangle's projection) from the
+    undistorted image to metres."""
     exact = ds.trapezoids["exact"]
-    target = ds.site_map.to_metres(np.asarray(exact["map"], float))
-    image = undistorted(ds, np.asarray(exact["image"], float))
-    row = float(ViewTransformer(image, target).horizon_row(K[0, 2]))
-    clicked = ViewTransformer(base_quad(image, K, row, true_row, shift, np.zeros(8)), target)
+    return ViewTransformer(undistorted(ds, np.asarray(exact["image"], float)),
+                           ds.site_map.to_metres(np.asarray(exact["map"], float)))
+
+
+def clicked_transformer(ds, shift: float) -> ViewTransformer:
+    """The clicked trapezoid: the exact one moved as a tilt error moves it, its horizon shift px above the true one."""
+    K, exact = ds.camera.K, exact_transformer(ds)
+    row = float(exact.horizon_row(K[0, 2]))
+    return ViewTransformer(base_quad(exact.source, K, row, ds.camera.horizon_row, shift, np.zeros(8)), exact.target)
+
+
+def mappings(ds, shift: float, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> dict:
+    clicked = clicked_transformer(ds, shift)
     q, g, distance = ds.calibration_points("segmentation")
     ahead = np.abs(g[:, 0] - ds.camera_origin[0]) < 1.0
     pick = [np.flatnonzero(ahead)[np.argmin(np.abs(distance[ahead] - r))] for r in REFERENCE_RANGES_M]
     least = LeastChangeCorrector().fit(clicked, undistorted(ds, q[pick]), g[pick], ds.camera_origin)
+    return {"uncorrected": clicked, "least change": least, "pedestrians": pedestrians(ds, clicked, frames, xyxy, ids)}, clicked
+
+
+def pedestrians(ds, clicked: ViewTransformer, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> PedestrianCorrector:
+    """The pedestrians' correction of the clicked mapping from boxes xyxy (N, 4) homocal px of frames (N,) and
+    tracks ids (N,): the default height prior, K, the camera height and the lens given, the roll estimated on a
+    rolled camera."""
     rolled = bool(abs(ds.camera.horizon[0]) > 1e-9)  # a horizon that is not a row
-    peds = PedestrianCorrector(estimate_roll=rolled).fit(
-        clicked, xyxy, convention="homocal", frames=frames, track_ids=ids, K=K, camera_height_m=ds.camera.mount_height_m,
-        image_size=ds.camera.image_size, camera_origin=ds.camera_origin,
+    return PedestrianCorrector(estimate_roll=rolled).fit(
+        clicked, xyxy, convention="homocal", frames=frames, track_ids=ids, K=ds.camera.K,
+        camera_height_m=ds.camera.mount_height_m, image_size=ds.camera.image_size, camera_origin=ds.camera_origin,
         lens=None if ds.camera.lens.is_identity else ds.camera.lens)
-    return {"uncorrected": clicked, "least change": least, "pedestrians": peds}, clicked
+
+
+def horizon_errors(path: str, detector: str, shift: float, seconds: float) -> list[dict]:
+    """The pedestrians' fitted horizon against the true one, one dict per disjoint window of ``seconds`` of the
+    dataset's boxes of ``detector`` (those ``truth`` keeps, as the speed tables fit them): start (s), error
+    (fitted minus true row at the principal column, px), sigma (horizon_sigma_px_: the people's and the prior
+    mean's) and sigma_people (horizon_sigma_people_px_), px."""
+    ds = load_dataset(path)
+    fps = float(ds.manifest["fps"])
+    frames, xyxy = truth(ds, detector)[:2]
+    clicked = clicked_transformer(ds, shift)
+    out = []
+    for k in range(int(float(ds.manifest["seconds"]) // seconds)):
+        sel = (frames >= k * seconds * fps) & (frames < (k + 1) * seconds * fps)
+        c = pedestrians(ds, clicked, frames[sel], xyxy[sel], link_tracks(frames[sel], xyxy[sel]))
+        out.append({"dataset": Path(path).name, "detector": detector, "start": k * seconds,
+                    "error": c.horizon_row_ - ds.camera.horizon_row, "sigma": c.horizon_sigma_px_,
+                    "sigma_people": c.horizon_sigma_people_px_})
+    return out
 
 
 def evaluate(paths: list[str], detector: str, shift: float, split: bool = False, box_sigma: bool = False,
-             correlated: bool = False, accel_psd: float | str = ACCEL_PSD, soles: bool = False) -> dict:
+             correlated: bool = False, accel_psd: float | str = ACCEL_PSD, soles: bool = False,
+             exact: bool = False) -> dict:
     """{(mapping, estimator): dict of pooled arrays err (m/s), rel (%, NaN below WALKING_MPS), range, cover1/2
-    (speeds), pos1/2 (positions)} over the datasets."""
+    (speeds), pos1/2 (positions)} over the datasets; exact: the true mapping alone, bars of no mapping error."""
     pooled: dict = collections.defaultdict(lambda: collections.defaultdict(list))
     for path in paths:
         ds = load_dataset(path)
@@ -148,20 +192,25 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
         frames, xyxy, true_xy, true_speed, rng = truth(ds, detector)
         ids = link_tracks(frames, xyxy)
         feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
-        maps, clicked = mappings(ds, detector, shift, frames, xyxy, ids)
         foot = foot_status(xyxy, frames, ds.camera.image_size) if soles else None
         if soles:
             print(f"{Path(path).name}, {detector}: of {len(foot):,} boxes, feet hidden {100 * np.mean(foot == 'hidden'):.1f} %, "
                   f"on the border {100 * np.mean(foot == 'border'):.1f} %", file=sys.stderr)
-        H = cv2.getPerspectiveTransform(clicked.source.astype(np.float32), clicked.target.astype(np.float32))
-        sv_xy = cv2.perspectiveTransform(feet.reshape(-1, 1, 2).astype(np.float32), H).reshape(-1, 2).astype(float)
-        rows = {"recipe": (recipe_speeds(sv_xy, frames, ids, fps), None, None, None)}
+        if exact:
+            maps, rows = {"exact": TrapezoidMapping(exact_transformer(ds), ds.camera.lens)}, {}
+        else:
+            maps, clicked = mappings(ds, shift, frames, xyxy, ids)
+            H = cv2.getPerspectiveTransform(clicked.source.astype(np.float32), clicked.target.astype(np.float32))
+            sv_xy = cv2.perspectiveTransform(feet.reshape(-1, 1, 2).astype(np.float32), H).reshape(-1, 2).astype(float)
+            rows = {"recipe": (recipe_speeds(sv_xy, frames, ids, fps), None, None, None)}
         index = {(f, k): i for i, (f, k) in enumerate(zip(frames, ids))}
         first, last = (np.array([f(frames[ids == k]) for k in range(ids.max() + 1)]) for f in (np.min, np.max))
         inner = (frames - first[ids] >= fps) & (last[ids] - frames >= fps)  # at least 1 s from its track's ends
         for name, mapping in maps.items():
             noise = foot_noise_options("correlated" if correlated else "box-height" if box_sigma else "fixed", xyxy, 1.0)
             noise["split_mapping_error"] |= split
+            if exact:
+                noise["click_sigma_px"] = 0.0
             q = accel_psd
             if q == "fitted":
                 q = fit_tracks_accel_psd(mapping, frames, feet, ids, fps, **noise, foot=foot)
@@ -243,6 +292,22 @@ def spread_table(per_dataset: list[dict], detector: str, shift: float) -> str:
     return "\n".join(lines)
 
 
+def horizon_table(rows: list[dict]) -> str:
+    """Per detector, the fitted horizons' z = error / sigma over ``horizon_errors``' rows (each an independent
+    fit): the share of |z| < 1 and < 2 (68 / 95 % if the sigma is honest), the RMS and mean of z (1 and 0), for
+    the whole sigma and the people's alone."""
+    lines = ["| detector | fits | error RMS, px | sigma median, px | whole sigma: |z| < 1, < 2, RMS z, mean z | "
+             "people's sigma: median px; |z| < 1, < 2, RMS z |", "|---|---:|---:|---:|---:|---:|"]
+    for detector in dict.fromkeys(r["detector"] for r in rows):
+        e, s, sp = (np.array([r[k] for r in rows if r["detector"] == detector]) for k in ("error", "sigma", "sigma_people"))
+        z, zp = e / s, e / sp
+        share = lambda z, k: 100 * np.mean(np.abs(z) < k)  # noqa: E731
+        lines.append(f"| {detector} | {len(e)} | {np.sqrt(np.mean(e**2)):.2f} | {np.median(s):.2f} | {share(z, 1):.0f} %, "
+                     f"{share(z, 2):.0f} %, {np.sqrt(np.mean(z**2)):.2f}, {np.mean(z):+.2f} | {np.median(sp):.2f}; "
+                     f"{share(zp, 1):.0f} %, {share(zp, 2):.0f} %, {np.sqrt(np.mean(zp**2)):.2f} |")
+    return "\n".join(lines)
+
+
 def throughput(path: str, minutes: float, foot_noise: str = "fixed", accel_psd: float | str = ACCEL_PSD,
                feet: str = FEET[0]) -> str:
     ds = load_dataset(path)
@@ -287,7 +352,19 @@ def main(argv: list[str] | None = None) -> int:
                         help="the filter's process noise q, m^2/s^3, or fitted (per dataset, detector and mapping)")
     parser.add_argument("--feet", choices=FEET, default=FEET[0], help="homocal measure --feet")
     parser.add_argument("--spread", action="store_true", help="each dataset on its own: mean [min, max] over them")
+    parser.add_argument("--exact", action="store_true",
+                        help="the true mapping (the exact trapezoid) alone, bars of no mapping error (click sigma 0)")
+    parser.add_argument("--horizons", type=float, metavar="SECONDS",
+                        help="the pedestrians' fitted horizon's error over its sigma on disjoint windows of SECONDS")
     args = parser.parse_args(argv)
+    if args.horizons:
+        rows = [r for detector in args.detectors.split(",") for d in args.datasets
+                for r in horizon_errors(d, detector, args.shift, args.horizons)]
+        for r in rows:
+            print(f"{r['dataset']}, {r['detector']}, {r['start']:g} s: error {r['error']:+.2f} px, sigma {r['sigma']:.2f} "
+                  f"(people {r['sigma_people']:.2f})", file=sys.stderr)
+        print(horizon_table(rows))
+        return 0
     if args.throughput:
         print(throughput(args.datasets[0], args.throughput, "correlated" if args.correlated else "fixed", args.accel_psd,
                          args.feet))
@@ -295,10 +372,10 @@ def main(argv: list[str] | None = None) -> int:
     for detector in args.detectors.split(","):
         if args.spread:
             print(spread_table([evaluate([d], detector, args.shift, args.split, args.box_sigma, args.correlated,
-                                         args.accel_psd, args.feet == "soles") for d in args.datasets], detector, args.shift) + "\n")
+                                         args.accel_psd, args.feet == "soles", args.exact) for d in args.datasets], detector, args.shift) + "\n")
         else:
             print(table(evaluate(args.datasets, detector, args.shift, args.split, args.box_sigma, args.correlated,
-                                 args.accel_psd, args.feet == "soles"), detector, args.shift) + "\n")
+                                 args.accel_psd, args.feet == "soles", args.exact), detector, args.shift) + "\n")
     return 0
 
 

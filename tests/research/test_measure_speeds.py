@@ -36,3 +36,25 @@ def test_spread_over_datasets_is_mean_min_max_of_each_ones_figures():
     assert row[1:5] == ["3.0 [2.0, 4.0]"] * 4  # each band's median: 2 % in one dataset, 4 % in the other
     assert row[5] == "3.0 [2.0, 4.0]"  # the 5-50 m 90th percentile
     assert row[6:] == ["75.0 [50.0, 100.0]", "100.0 [100.0, 100.0]", "-", "-"]  # 1-sigma: all, half; no positions
+
+
+def test_exact_mapping_is_the_cameras_own_through_its_lens(tmp_path):
+    from homocal.dataset import load_dataset
+    from synthetic_dataset import write_dataset
+
+    barrel = [-0.2, 0.04, 5e-4, -3e-4, 0.0]
+    ds = load_dataset(write_dataset(tmp_path / "d", "lensy", n_test=30, distortion=barrel))
+    gt = ds.table("gt.parquet").to_pandas()
+    pixels, ground = gt[["u", "v"]].to_numpy(float), gt[["x", "y"]].to_numpy(float)  # the camera's projections
+    mapped = script.exact_transformer(ds).transform_points(script.undistorted(ds, pixels))
+    # the lens's inverse converges to about 1e-6 px; a pixel is at most 0.3 m at 45 m on this camera
+    np.testing.assert_allclose(mapped, ground, atol=1e-5)
+
+
+def test_horizon_table_counts_z_within_one_and_two_sigma():
+    rows = [{"detector": "rgb", "error": e, "sigma": 2.0, "sigma_people": 1.0} for e in (-1.0, 3.0, 5.0, 0.4)]
+    row = [c.strip() for c in script.horizon_table(rows).splitlines()[-1].strip("|").split("|")]
+    # z = -0.5, 1.5, 2.5, 0.2 against the whole sigma; -1, 3, 5, 0.4 against the people's
+    assert row[:4] == ["rgb", "4", f"{np.sqrt((1 + 9 + 25 + 0.16) / 4):.2f}", "2.00"]
+    assert row[4] == f"50 %, 75 %, {np.sqrt((0.25 + 2.25 + 6.25 + 0.04) / 4):.2f}, {(-0.5 + 1.5 + 2.5 + 0.2) / 4:+.2f}"
+    assert row[5] == f"1.00; 25 %, 50 %, {np.sqrt((1 + 9 + 25 + 0.16) / 4):.2f}"
