@@ -165,7 +165,7 @@ def horizon_errors(path: str, detector: str, shift: float, seconds: float) -> li
     """The pedestrians' fitted horizon against the true one, one dict per disjoint window of ``seconds`` of the
     dataset's boxes of ``detector`` (those ``truth`` keeps, as the speed tables fit them): start (s), error
     (fitted minus true row at the principal column, px), sigma (horizon_sigma_px_: the people's and the prior
-    mean's) and sigma_people (horizon_sigma_people_px_), px."""
+    mean's) and sigma_people (horizon_sigma_people_px_), px; NaN and refusal (its message) where the fit refuses."""
     ds = load_dataset(path)
     fps = float(ds.manifest["fps"])
     frames, xyxy = truth(ds, detector)[:2]
@@ -173,10 +173,14 @@ def horizon_errors(path: str, detector: str, shift: float, seconds: float) -> li
     out = []
     for k in range(int(float(ds.manifest["seconds"]) // seconds)):
         sel = (frames >= k * seconds * fps) & (frames < (k + 1) * seconds * fps)
-        c = pedestrians(ds, clicked, frames[sel], xyxy[sel], link_tracks(frames[sel], xyxy[sel]))
-        out.append({"dataset": Path(path).name, "detector": detector, "start": k * seconds,
-                    "error": c.horizon_row_ - ds.camera.horizon_row, "sigma": c.horizon_sigma_px_,
-                    "sigma_people": c.horizon_sigma_people_px_})
+        row = {"dataset": Path(path).name, "detector": detector, "start": k * seconds}
+        try:
+            c = pedestrians(ds, clicked, frames[sel], xyxy[sel], link_tracks(frames[sel], xyxy[sel]))
+        except ValueError as e:  # the fit refuses the window's boxes
+            out.append(row | {"error": np.nan, "sigma": np.nan, "sigma_people": np.nan, "refusal": str(e)})
+            continue
+        out.append(row | {"error": c.horizon_row_ - ds.camera.horizon_row, "sigma": c.horizon_sigma_px_,
+                          "sigma_people": c.horizon_sigma_people_px_})
     return out
 
 
@@ -294,15 +298,16 @@ def spread_table(per_dataset: list[dict], detector: str, shift: float) -> str:
 
 def horizon_table(rows: list[dict]) -> str:
     """Per detector, the fitted horizons' z = error / sigma over ``horizon_errors``' rows (each an independent
-    fit): the share of |z| < 1 and < 2 (68 / 95 % if the sigma is honest), the RMS and mean of z (1 and 0), for
-    the whole sigma and the people's alone."""
-    lines = ["| detector | fits | error RMS, px | sigma median, px | whole sigma: |z| < 1, < 2, RMS z, mean z | "
+    fit; those refused counted apart): the share of |z| < 1 and < 2 (68 / 95 % if the sigma is honest), the RMS
+    and mean of z (1 and 0), for the whole sigma and the people's alone."""
+    lines = ["| detector | fits (refused) | error RMS, px | sigma median, px | whole sigma: |z| < 1, < 2, RMS z, mean z | "
              "people's sigma: median px; |z| < 1, < 2, RMS z |", "|---|---:|---:|---:|---:|---:|"]
     for detector in dict.fromkeys(r["detector"] for r in rows):
-        e, s, sp = (np.array([r[k] for r in rows if r["detector"] == detector]) for k in ("error", "sigma", "sigma_people"))
+        mine = [r for r in rows if r["detector"] == detector]
+        e, s, sp = (np.array([r[k] for r in mine if "refusal" not in r]) for k in ("error", "sigma", "sigma_people"))
         z, zp = e / s, e / sp
         share = lambda z, k: 100 * np.mean(np.abs(z) < k)  # noqa: E731
-        lines.append(f"| {detector} | {len(e)} | {np.sqrt(np.mean(e**2)):.2f} | {np.median(s):.2f} | {share(z, 1):.0f} %, "
+        lines.append(f"| {detector} | {len(e)} ({len(mine) - len(e)}) | {np.sqrt(np.mean(e**2)):.2f} | {np.median(s):.2f} | {share(z, 1):.0f} %, "
                      f"{share(z, 2):.0f} %, {np.sqrt(np.mean(z**2)):.2f}, {np.mean(z):+.2f} | {np.median(sp):.2f}; "
                      f"{share(zp, 1):.0f} %, {share(zp, 2):.0f} %, {np.sqrt(np.mean(zp**2)):.2f} |")
     return "\n".join(lines)
@@ -361,8 +366,8 @@ def main(argv: list[str] | None = None) -> int:
         rows = [r for detector in args.detectors.split(",") for d in args.datasets
                 for r in horizon_errors(d, detector, args.shift, args.horizons)]
         for r in rows:
-            print(f"{r['dataset']}, {r['detector']}, {r['start']:g} s: error {r['error']:+.2f} px, sigma {r['sigma']:.2f} "
-                  f"(people {r['sigma_people']:.2f})", file=sys.stderr)
+            print(f"{r['dataset']}, {r['detector']}, {r['start']:g} s: " + (f"refused: {r['refusal']}" if "refusal" in r else
+                  f"error {r['error']:+.2f} px, sigma {r['sigma']:.2f} (people {r['sigma_people']:.2f})"), file=sys.stderr)
         print(horizon_table(rows))
         return 0
     if args.throughput:
