@@ -5,6 +5,7 @@ supervision's speed recipe (issue 34 item 4; docs/measure.md).
     python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma | --correlated] [--feet soles]
     python research/measure_speeds.py DATASET [DATASET ...] --exact --spread [--split | --box-sigma | --correlated] [--feet soles]
     python research/measure_speeds.py DATASET [DATASET ...] --horizons 10
+    python research/measure_speeds.py DATASET [DATASET ...] --draws 2000 [--correlated] [--feet soles] [--accel-psd fitted]
     python research/measure_speeds.py DATASET --throughput 10 [--correlated]
 
 Per dataset and detector, the clicked trapezoid is the dataset's exact one moved as a tilt error moves it so
@@ -54,6 +55,10 @@ homocal.measure.tracks.foot_status; their shares printed to stderr); the recipe 
 every box.
 --horizons SECONDS: instead, the pedestrians' correction (as the tables fit it) on every disjoint window of
 SECONDS of each dataset, its fitted horizon's error over its sigma (``horizon_table``; each fit printed to stderr).
+--draws N: instead, the pedestrians' smoothed speeds' 1/2-sigma coverage pooled over the datasets (the split
+model: box-height, or --correlated) against what it would be were the bars honest, each box's error its
+camera's shared mapping error (``bar_parts``' a, times the camera's z) plus its own normal error: at the cameras'
+realised horizon z, and over N draws of them (``pooled_coverage_table``).
 --throughput MINUTES: the first dataset's segmentation boxes repeated (frames and track ids shifted) into a
 CSV of MINUTES minutes, then `homocal measure` on it as a subprocess (with --correlated: --foot-noise
 correlated; with --accel-psd, --feet, those): boxes per second and the child's peak resident memory (ru_maxrss).
@@ -71,6 +76,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from scipy.special import ndtr
 
 from homocal.boxes import read_boxes
 from homocal.correctors import LeastChangeCorrector, PedestrianCorrector
@@ -78,7 +84,9 @@ from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer, box_bottom_points
 from homocal.geometry.boxes import link_tracks
 from homocal.measure import ACCEL_PSD, measure_tracks
-from homocal.measure.tracks import FEET, TrapezoidMapping, fit_tracks_accel_psd, foot_noise_options, foot_status
+from homocal.measure.kalman import speed_and_sigma
+from homocal.measure.tracks import (FEET, TrapezoidMapping, fit_tracks_accel_psd, foot_noise_options, foot_status,
+                                    mapping_velocity_covariance)
 from homocal.study.perturb import base_quad
 
 BANDS = ((5.0, 15.0), (15.0, 30.0), (30.0, 50.0), (5.0, 50.0))
@@ -296,6 +304,62 @@ def spread_table(per_dataset: list[dict], detector: str, shift: float) -> str:
     return "\n".join(lines)
 
 
+def bar_parts(path: str, detector: str, shift: float, foot_noise: str, accel_psd: float | str, soles: bool) -> dict:
+    """The pedestrians' correction's smoothed speeds at the 5-50 m boxes with a true speed, as the tables measure
+    them with a split FOOT_NOISE model (box-height or correlated): err (M,) speed - true, m/s; S (M,) its
+    1-sigma; a (M,) the shared mapping error's part of it (the speed's delta-method sigma of
+    ``mapping_velocity_covariance``, m/s; the track's own part is sqrt(S^2 - a^2)); z, the fit's horizon error
+    over its sigma (horizon_sigma_px_)."""
+    ds = load_dataset(path)
+    fps = float(ds.manifest["fps"])
+    frames, xyxy, _, true_speed, rng = truth(ds, detector)
+    ids = link_tracks(frames, xyxy)
+    feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
+    peds = pedestrians(ds, clicked_transformer(ds, shift), frames, xyxy, ids)
+    foot = foot_status(xyxy, frames, ds.camera.image_size) if soles else None
+    noise = foot_noise_options(foot_noise, xyxy, 1.0)
+    q = fit_tracks_accel_psd(peds, frames, feet, ids, fps, **noise, foot=foot) if accel_psd == "fitted" else accel_psd
+    index = {(f, k): i for i, (f, k) in enumerate(zip(frames, ids))}
+    speed, S, a = (np.full(len(frames), np.nan) for _ in range(3))
+    for batch in measure_tracks(peds, frames, feet, ids, fps, accel_psd=q, **noise, foot=foot):
+        at = np.array([index[(f, k)] for f, k in zip(batch["frame"], batch["track_id"])])
+        v = np.column_stack([batch["vx"], batch["vy"]])
+        speed[at], S[at] = batch["speed_mps"], batch["speed_sigma_mps"]
+        a[at] = speed_and_sigma(v, mapping_velocity_covariance(peds, feet[at], v, 1.5))[1]
+    keep = np.isfinite(speed) & np.isfinite(true_speed) & (rng >= BANDS[-1][0]) & (rng < BANDS[-1][1])
+    return {"err": (speed - true_speed)[keep], "S": S[keep], "a": a[keep],
+            "z": (peds.horizon_row_ - ds.camera.horizon_row) / peds.horizon_sigma_px_}
+
+
+def expected_coverage(S: np.ndarray, a: np.ndarray, z: np.ndarray, k: float) -> np.ndarray:
+    """The share of boxes whose speed error lies within k S if each box's error is a z + e, e ~ N(0, S^2 - a^2)
+    (the track's own part honest and normal), for each of the mapping error's draws z (D,) (a camera's error
+    in its sigmas, shared by its boxes): (D,) fractions (boxes S, a (M,) m/s)."""
+    b = np.sqrt(np.maximum(S**2 - a**2, 1e-12))
+    shift = np.outer(z, a)
+    return (ndtr((k * S - shift) / b) - ndtr((-k * S - shift) / b)).mean(axis=1)
+
+
+def pooled_coverage_table(parts: list[dict], draws: int, seed: int = 0) -> str:
+    """The 1/2-sigma speed coverage pooled over the datasets of ``bar_parts``: measured; expected with both
+    parts honest at each camera's realised horizon z; and over ``draws`` draws of the cameras' z ~ N(0, 1)
+    (mean, 5th and 95th percentile): how far a pooled coverage over these cameras moves with part (a) alone."""
+    rng = np.random.default_rng(seed)
+    Z = rng.standard_normal((draws, len(parts)))
+    n = np.array([len(p["S"]) for p in parts])
+    lines = ["| k sigma | measured | expected at the realised z | expected over draws of z: mean [5th, 95th pct] | "
+             "a camera alone at z = 0 |", "|---|---:|---:|---:|---:|"]
+    for k in (1, 2):
+        measured = 100 * np.mean(np.concatenate([np.abs(p["err"]) <= k * p["S"] for p in parts]))
+        realised = 100 * np.average([expected_coverage(p["S"], p["a"], np.array([p["z"]]), k)[0] for p in parts], weights=n)
+        drawn = 100 * np.average(np.column_stack([expected_coverage(p["S"], p["a"], Z[:, j], k)
+                                                  for j, p in enumerate(parts)]), axis=1, weights=n)
+        centre = 100 * np.average([expected_coverage(p["S"], p["a"], np.zeros(1), k)[0] for p in parts], weights=n)
+        lines.append(f"| {k} | {measured:.1f} % | {realised:.1f} % | {drawn.mean():.1f} % [{np.percentile(drawn, 5):.1f}, "
+                     f"{np.percentile(drawn, 95):.1f}] | {centre:.1f} % |")
+    return "\n".join(lines)
+
+
 def horizon_table(rows: list[dict]) -> str:
     """Per detector, the fitted horizons' z = error / sigma over ``horizon_errors``' rows (each an independent
     fit; those refused counted apart): the share of |z| < 1 and < 2 (68 / 95 % if the sigma is honest), the RMS
@@ -361,7 +425,18 @@ def main(argv: list[str] | None = None) -> int:
                         help="the true mapping (the exact trapezoid) alone, bars of no mapping error (click sigma 0)")
     parser.add_argument("--horizons", type=float, metavar="SECONDS",
                         help="the pedestrians' fitted horizon's error over its sigma on disjoint windows of SECONDS")
+    parser.add_argument("--draws", type=int, metavar="N",
+                        help="the pooled speed coverage against what honest parts give over N draws of the cameras' mapping errors")
     args = parser.parse_args(argv)
+    if args.draws:
+        for detector in args.detectors.split(","):
+            parts = [bar_parts(d, detector, args.shift, "correlated" if args.correlated else "box-height",
+                               args.accel_psd, args.feet == "soles") for d in args.datasets]
+            for d, p in zip(args.datasets, parts):
+                share = np.median(p["a"] / p["S"])
+                print(f"{Path(d).name}, {detector}: horizon z {p['z']:+.2f}, mapping part a / S median {share:.2f}", file=sys.stderr)
+            print(f"{detector} boxes, pedestrians, smoother, {len(parts)} datasets pooled\n\n" + pooled_coverage_table(parts, args.draws) + "\n")
+        return 0
     if args.horizons:
         rows = [r for detector in args.detectors.split(",") for d in args.datasets
                 for r in horizon_errors(d, detector, args.shift, args.horizons)]

@@ -59,3 +59,18 @@ def test_horizon_table_counts_z_within_one_and_two_sigma():
     assert row[:4] == ["rgb", "4 (1)", f"{np.sqrt((1 + 9 + 25 + 0.16) / 4):.2f}", "2.00"]
     assert row[4] == f"50 %, 75 %, {np.sqrt((0.25 + 2.25 + 6.25 + 0.04) / 4):.2f}, {(-0.5 + 1.5 + 2.5 + 0.2) / 4:+.2f}"
     assert row[5] == f"1.00; 25 %, 50 %, {np.sqrt((1 + 9 + 25 + 0.16) / 4):.2f}"
+
+
+def test_expected_coverage_against_sampled_errors():
+    S, a = np.array([1.0, 2.0]), np.array([0.6, 0.0])  # one box mostly the track's error, one all of it
+    z = np.array([0.0, 0.5, 3.0])
+    rng = np.random.default_rng(1)
+    n = 50_000
+    for k in (1, 2):
+        got = script.expected_coverage(S, a, z, k)
+        for d, zd in enumerate(z):  # each box's error a z + e, e ~ N(0, S^2 - a^2), sampled
+            e = a * zd + np.sqrt(S**2 - a**2) * rng.standard_normal((n, 2))
+            # a share of n samples: its sd is at most 0.5 / sqrt(n) ~ 0.0022; 5 sd
+            assert abs(got[d] - np.mean(np.abs(e) <= k * S)) < 0.011
+    # no shared part: the normal's own 68.3 / 95.4 %
+    np.testing.assert_allclose(script.expected_coverage(S, np.zeros(2), np.array([1.7]), 1), 0.6827, atol=1e-4)
