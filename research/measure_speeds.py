@@ -362,16 +362,16 @@ def pooled_coverage_table(parts: list[dict], draws: int, seed: int = 0) -> str:
 
 def horizon_table(rows: list[dict]) -> str:
     """Per detector, the fitted horizons' z = error / sigma over ``horizon_errors``' rows (each an independent
-    fit; those refused counted apart): the share of |z| < 1 and < 2 (68 / 95 % if the sigma is honest), the RMS
-    and mean of z (1 and 0), for the whole sigma and the people's alone."""
-    lines = ["| detector | fits (refused) | error RMS, px | sigma median, px | whole sigma: |z| < 1, < 2, RMS z, mean z | "
-             "people's sigma: median px; |z| < 1, < 2, RMS z |", "|---|---:|---:|---:|---:|---:|"]
+    fit; those refused counted apart): the errors' RMS, mean and sd (px), the share of |z| < 1 and < 2 (68 / 95 %
+    if the sigma is honest), the RMS and mean of z (1 and 0), for the whole sigma and the people's alone."""
+    lines = ["| detector | fits (refused) | error RMS, px | error mean, sd, px | sigma median, px | whole sigma: |z| < 1, "
+             "< 2, RMS z, mean z | people's sigma: median px; |z| < 1, < 2, RMS z |", "|---|---:|---:|---:|---:|---:|---:|"]
     for detector in dict.fromkeys(r["detector"] for r in rows):
         mine = [r for r in rows if r["detector"] == detector]
         e, s, sp = (np.array([r[k] for r in mine if "refusal" not in r]) for k in ("error", "sigma", "sigma_people"))
         z, zp = e / s, e / sp
         share = lambda z, k: 100 * np.mean(np.abs(z) < k)  # noqa: E731
-        lines.append(f"| {detector} | {len(e)} ({len(mine) - len(e)}) | {np.sqrt(np.mean(e**2)):.2f} | {np.median(s):.2f} | {share(z, 1):.0f} %, "
+        lines.append(f"| {detector} | {len(e)} ({len(mine) - len(e)}) | {np.sqrt(np.mean(e**2)):.2f} | {np.mean(e):+.2f}, {np.std(e, ddof=1):.2f} | {np.median(s):.2f} | {share(z, 1):.0f} %, "
                      f"{share(z, 2):.0f} %, {np.sqrt(np.mean(z**2)):.2f}, {np.mean(z):+.2f} | {np.median(sp):.2f}; "
                      f"{share(zp, 1):.0f} %, {share(zp, 2):.0f} %, {np.sqrt(np.mean(zp**2)):.2f} |")
     return "\n".join(lines)

@@ -56,9 +56,12 @@ def test_horizon_table_counts_z_within_one_and_two_sigma():
     rows.append({"detector": "rgb", "error": np.nan, "sigma": np.nan, "sigma_people": np.nan, "refusal": "too few"})
     row = [c.strip() for c in script.horizon_table(rows).splitlines()[-1].strip("|").split("|")]
     # z = -0.5, 1.5, 2.5, 0.2 against the whole sigma; -1, 3, 5, 0.4 against the people's
-    assert row[:4] == ["rgb", "4 (1)", f"{np.sqrt((1 + 9 + 25 + 0.16) / 4):.2f}", "2.00"]
-    assert row[4] == f"50 %, 75 %, {np.sqrt((0.25 + 2.25 + 6.25 + 0.04) / 4):.2f}, {(-0.5 + 1.5 + 2.5 + 0.2) / 4:+.2f}"
-    assert row[5] == f"1.00; 25 %, 50 %, {np.sqrt((1 + 9 + 25 + 0.16) / 4):.2f}"
+    assert row[:3] == ["rgb", "4 (1)", f"{np.sqrt((1 + 9 + 25 + 0.16) / 4):.2f}"]
+    mean = (-1 + 3 + 5 + 0.4) / 4
+    assert row[3] == f"{mean:+.2f}, {np.sqrt(sum((e - mean) ** 2 for e in (-1, 3, 5, 0.4)) / 3):.2f}"
+    assert row[4] == "2.00"
+    assert row[5] == f"50 %, 75 %, {np.sqrt((0.25 + 2.25 + 6.25 + 0.04) / 4):.2f}, {(-0.5 + 1.5 + 2.5 + 0.2) / 4:+.2f}"
+    assert row[6] == f"1.00; 25 %, 50 %, {np.sqrt((1 + 9 + 25 + 0.16) / 4):.2f}"
 
 
 def test_expected_coverage_against_sampled_errors():
