@@ -67,6 +67,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import inspect
 import resource
 import subprocess
 import sys
@@ -192,6 +193,18 @@ def horizon_errors(path: str, detector: str, shift: float, seconds: float) -> li
     return out
 
 
+def per_box(mapping, frames: np.ndarray, feet: np.ndarray, ids: np.ndarray, fps: float, **options) -> dict:
+    """``measure_tracks``' columns (N,) in the boxes' order (frames, feet, ids (N,) as it takes them; options its
+    keywords)."""
+    index = {(f, k): i for i, (f, k) in enumerate(zip(frames, ids))}
+    out: dict = {}
+    for batch in measure_tracks(mapping, frames, feet, ids, fps, **options):
+        at = np.array([index[(f, k)] for f, k in zip(batch["frame"], batch["track_id"])])
+        for key, values in batch.items():
+            out.setdefault(key, np.full(len(frames), np.nan, dtype=values.dtype if key == "foot" else np.float64))[at] = values
+    return out
+
+
 def evaluate(paths: list[str], detector: str, shift: float, split: bool = False, box_sigma: bool = False,
              correlated: bool = False, accel_psd: float | str = ACCEL_PSD, soles: bool = False,
              exact: bool = False) -> dict:
@@ -215,7 +228,6 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
             H = cv2.getPerspectiveTransform(clicked.source.astype(np.float32), clicked.target.astype(np.float32))
             sv_xy = cv2.perspectiveTransform(feet.reshape(-1, 1, 2).astype(np.float32), H).reshape(-1, 2).astype(float)
             rows = {"recipe": (recipe_speeds(sv_xy, frames, ids, fps), None, None, None)}
-        index = {(f, k): i for i, (f, k) in enumerate(zip(frames, ids))}
         first, last = (np.array([f(frames[ids == k]) for k in range(ids.max() + 1)]) for f in (np.min, np.max))
         inner = (frames - first[ids] >= fps) & (last[ids] - frames >= fps)  # at least 1 s from its track's ends
         for name, mapping in maps.items():
@@ -228,13 +240,9 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
                 q = fit_tracks_accel_psd(mapping, frames, feet, ids, fps, **noise, foot=foot)
                 print(f"{Path(path).name}, {detector}, {name}: q fitted {q:.3g} m^2/s^3", file=sys.stderr)
             for estimator, smooth in (("filter", False), ("smoother", True)):
-                speed, sigma, pos_err, pos_sigma = (np.full(len(frames), np.nan) for _ in range(4))
-                for batch in measure_tracks(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise, foot=foot):
-                    at = np.array([index[(f, k)] for f, k in zip(batch["frame"], batch["track_id"])])
-                    speed[at], sigma[at] = batch["speed_mps"], batch["speed_sigma_mps"]
-                    pos_err[at] = np.hypot(batch["x"] - true_xy[at, 0], batch["y"] - true_xy[at, 1])
-                    pos_sigma[at] = batch["sigma_m"]
-                rows[f"{name}, {estimator}"] = (speed, sigma, pos_err, pos_sigma)
+                m = per_box(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise, foot=foot)
+                pos_err = np.hypot(m["x"] - true_xy[:, 0], m["y"] - true_xy[:, 1])
+                rows[f"{name}, {estimator}"] = (m["speed_mps"], m["speed_sigma_mps"], pos_err, m["sigma_m"])
             rows[f"{name}, 1 s diff"] = (recipe_speeds(mapping.transform_points(feet), frames, ids, fps), None, None, None)
         for key, (speed, sigma, pos_err, pos_sigma) in rows.items():
             ok = np.isfinite(true_speed) & np.isfinite(speed)
@@ -319,13 +327,10 @@ def bar_parts(path: str, detector: str, shift: float, foot_noise: str, accel_psd
     foot = foot_status(xyxy, frames, ds.camera.image_size) if soles else None
     noise = foot_noise_options(foot_noise, xyxy, 1.0)
     q = fit_tracks_accel_psd(peds, frames, feet, ids, fps, **noise, foot=foot) if accel_psd == "fitted" else accel_psd
-    index = {(f, k): i for i, (f, k) in enumerate(zip(frames, ids))}
-    speed, S, a = (np.full(len(frames), np.nan) for _ in range(3))
-    for batch in measure_tracks(peds, frames, feet, ids, fps, accel_psd=q, **noise, foot=foot):
-        at = np.array([index[(f, k)] for f, k in zip(batch["frame"], batch["track_id"])])
-        v = np.column_stack([batch["vx"], batch["vy"]])
-        speed[at], S[at] = batch["speed_mps"], batch["speed_sigma_mps"]
-        a[at] = speed_and_sigma(v, mapping_velocity_covariance(peds, feet[at], v, 1.5))[1]
+    click = inspect.signature(measure_tracks).parameters["click_sigma_px"].default  # the tables' click sigma
+    m = per_box(peds, frames, feet, ids, fps, accel_psd=q, click_sigma_px=click, **noise, foot=foot)
+    speed, S, v = m["speed_mps"], m["speed_sigma_mps"], np.column_stack([m["vx"], m["vy"]])
+    a = speed_and_sigma(v, mapping_velocity_covariance(peds, feet, v, click))[1]
     keep = np.isfinite(speed) & np.isfinite(true_speed) & (rng >= BANDS[-1][0]) & (rng < BANDS[-1][1])
     return {"err": (speed - true_speed)[keep], "S": S[keep], "a": a[keep],
             "z": (peds.horizon_row_ - ds.camera.horizon_row) / peds.horizon_sigma_px_}
