@@ -3,6 +3,9 @@ supervision's speed recipe (issue 34 item 4; docs/measure.md).
 
     python research/measure_speeds.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--shift 16]
     python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma | --correlated] [--feet soles]
+    python research/measure_speeds.py DATASET [DATASET ...] --exact --spread [--split | --box-sigma | --correlated] [--feet soles]
+    python research/measure_speeds.py DATASET [DATASET ...] --horizons 10
+    python research/measure_speeds.py DATASET [DATASET ...] --draws 2000 [--correlated] [--feet soles] [--accel-psd fitted]
     python research/measure_speeds.py DATASET --throughput 10 [--correlated]
 
 Per dataset and detector, the clicked trapezoid is the dataset's exact one moved as a tilt error moves it so
@@ -42,10 +45,20 @@ filter's state (measure_tracks(foot_correlation_s=...); homocal measure --foot-n
 --accel-psd Q|fitted: the filter's process noise (homocal measure --accel-psd; default homocal.measure.ACCEL_PSD);
 fitted: per dataset, detector and mapping by maximum likelihood of the filter's innovations on the boxes'
 tracks (homocal.measure.tracks.fit_tracks_accel_psd; no ground truth), printed to stderr.
+--exact: the part of the error that is the track's own, apart from the mapping's: the dataset's true mapping
+(its exact trapezoid, the ground rectangle's projection, undistorted; ``exact_transformer``) alone, measured at
+click sigma 0, so the bars hold the foot point's noise (each --split/--box-sigma/--correlated model's) and the
+motion model's, no mapping error; no recipe row.
 --feet soles: homocal's filter measures only the foot points whose bottom edge is the sole (homocal measure
 --feet soles: not a box whose feet a nearer box may hide, nor one whose bottom or side the image border cuts,
 homocal.measure.tracks.foot_status; their shares printed to stderr); the recipe and the 1 s differences take
 every box.
+--horizons SECONDS: instead, the pedestrians' correction (as the tables fit it) on every disjoint window of
+SECONDS of each dataset, its fitted horizon's error over its sigma (``horizon_table``; each fit printed to stderr).
+--draws N: instead, the pedestrians' smoothed speeds' 1/2-sigma coverage pooled over the datasets (the split
+model: box-height, or --correlated) against what it would be were the bars honest, each box's error its
+camera's shared mapping error (``bar_parts``' a, times the camera's z) plus its own normal error: at the cameras'
+realised horizon z, and over N draws of them (``pooled_coverage_table``).
 --throughput MINUTES: the first dataset's segmentation boxes repeated (frames and track ids shifted) into a
 CSV of MINUTES minutes, then `homocal measure` on it as a subprocess (with --correlated: --foot-noise
 correlated; with --accel-psd, --feet, those): boxes per second and the child's peak resident memory (ru_maxrss).
@@ -54,6 +67,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import inspect
 import resource
 import subprocess
 import sys
@@ -63,6 +77,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from scipy.special import ndtr
 
 from homocal.boxes import read_boxes
 from homocal.correctors import LeastChangeCorrector, PedestrianCorrector
@@ -70,7 +85,9 @@ from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer, box_bottom_points
 from homocal.geometry.boxes import link_tracks
 from homocal.measure import ACCEL_PSD, measure_tracks
-from homocal.measure.tracks import FEET, fit_tracks_accel_psd, foot_noise_options, foot_status
+from homocal.measure.kalman import speed_and_sigma
+from homocal.measure.tracks import (FEET, TrapezoidMapping, fit_tracks_accel_psd, foot_noise_options, foot_status,
+                                    mapping_velocity_covariance)
 from homocal.study.perturb import base_quad
 
 BANDS = ((5.0, 15.0), (15.0, 30.0), (30.0, 50.0), (5.0, 50.0))
@@ -118,29 +135,81 @@ def undistorted(ds, points: np.ndarray) -> np.ndarray:
     return points if lens.is_identity else lens.undistort_points(points)
 
 
-def mappings(ds, detector: str, shift: float, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> dict:
-    K, true_row = ds.camera.K, ds.camera.horizon_row
+def exact_transformer(ds) -> ViewTransformer:
+    """The dataset's true ground mapping: its exact trapezoid (the ground rectangle's projection) from the
+    undistorted image to metres."""
     exact = ds.trapezoids["exact"]
-    target = ds.site_map.to_metres(np.asarray(exact["map"], float))
-    image = undistorted(ds, np.asarray(exact["image"], float))
-    row = float(ViewTransformer(image, target).horizon_row(K[0, 2]))
-    clicked = ViewTransformer(base_quad(image, K, row, true_row, shift, np.zeros(8)), target)
+    return ViewTransformer(undistorted(ds, np.asarray(exact["image"], float)),
+                           ds.site_map.to_metres(np.asarray(exact["map"], float)))
+
+
+def clicked_transformer(ds, shift: float) -> ViewTransformer:
+    """The clicked trapezoid: the exact one moved as a tilt error moves it, its horizon shift px above the true one."""
+    K, exact = ds.camera.K, exact_transformer(ds)
+    row = float(exact.horizon_row(K[0, 2]))
+    return ViewTransformer(base_quad(exact.source, K, row, ds.camera.horizon_row, shift, np.zeros(8)), exact.target)
+
+
+def mappings(ds, shift: float, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> dict:
+    clicked = clicked_transformer(ds, shift)
     q, g, distance = ds.calibration_points("segmentation")
     ahead = np.abs(g[:, 0] - ds.camera_origin[0]) < 1.0
     pick = [np.flatnonzero(ahead)[np.argmin(np.abs(distance[ahead] - r))] for r in REFERENCE_RANGES_M]
     least = LeastChangeCorrector().fit(clicked, undistorted(ds, q[pick]), g[pick], ds.camera_origin)
+    return {"uncorrected": clicked, "least change": least, "pedestrians": pedestrians(ds, clicked, frames, xyxy, ids)}, clicked
+
+
+def pedestrians(ds, clicked: ViewTransformer, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> PedestrianCorrector:
+    """The pedestrians' correction of the clicked mapping from boxes xyxy (N, 4) homocal px of frames (N,) and
+    tracks ids (N,): the default height prior, K, the camera height and the lens given, the roll estimated on a
+    rolled camera."""
     rolled = bool(abs(ds.camera.horizon[0]) > 1e-9)  # a horizon that is not a row
-    peds = PedestrianCorrector(estimate_roll=rolled).fit(
-        clicked, xyxy, convention="homocal", frames=frames, track_ids=ids, K=K, camera_height_m=ds.camera.mount_height_m,
-        image_size=ds.camera.image_size, camera_origin=ds.camera_origin,
+    return PedestrianCorrector(estimate_roll=rolled).fit(
+        clicked, xyxy, convention="homocal", frames=frames, track_ids=ids, K=ds.camera.K,
+        camera_height_m=ds.camera.mount_height_m, image_size=ds.camera.image_size, camera_origin=ds.camera_origin,
         lens=None if ds.camera.lens.is_identity else ds.camera.lens)
-    return {"uncorrected": clicked, "least change": least, "pedestrians": peds}, clicked
+
+
+def horizon_errors(path: str, detector: str, shift: float, seconds: float) -> list[dict]:
+    """The pedestrians' fitted horizon against the true one, one dict per disjoint window of ``seconds`` of the
+    dataset's boxes of ``detector`` (those ``truth`` keeps, as the speed tables fit them): start (s), error
+    (fitted minus true row at the principal column, px), sigma (horizon_sigma_px_: the people's and the prior
+    mean's) and sigma_people (horizon_sigma_people_px_), px; NaN and refusal (its message) where the fit refuses."""
+    ds = load_dataset(path)
+    fps = float(ds.manifest["fps"])
+    frames, xyxy = truth(ds, detector)[:2]
+    clicked = clicked_transformer(ds, shift)
+    out = []
+    for k in range(int(float(ds.manifest["seconds"]) // seconds)):
+        sel = (frames >= k * seconds * fps) & (frames < (k + 1) * seconds * fps)
+        row = {"dataset": Path(path).name, "detector": detector, "start": k * seconds}
+        try:
+            c = pedestrians(ds, clicked, frames[sel], xyxy[sel], link_tracks(frames[sel], xyxy[sel]))
+        except ValueError as e:  # the fit refuses the window's boxes
+            out.append(row | {"error": np.nan, "sigma": np.nan, "sigma_people": np.nan, "refusal": str(e)})
+            continue
+        out.append(row | {"error": c.horizon_row_ - ds.camera.horizon_row, "sigma": c.horizon_sigma_px_,
+                          "sigma_people": c.horizon_sigma_people_px_})
+    return out
+
+
+def per_box(mapping, frames: np.ndarray, feet: np.ndarray, ids: np.ndarray, fps: float, **options) -> dict:
+    """``measure_tracks``' columns (N,) in the boxes' order (frames, feet, ids (N,) as it takes them; options its
+    keywords)."""
+    index = {(f, k): i for i, (f, k) in enumerate(zip(frames, ids))}
+    out: dict = {}
+    for batch in measure_tracks(mapping, frames, feet, ids, fps, **options):
+        at = np.array([index[(f, k)] for f, k in zip(batch["frame"], batch["track_id"])])
+        for key, values in batch.items():
+            out.setdefault(key, np.full(len(frames), np.nan, dtype=values.dtype if key == "foot" else np.float64))[at] = values
+    return out
 
 
 def evaluate(paths: list[str], detector: str, shift: float, split: bool = False, box_sigma: bool = False,
-             correlated: bool = False, accel_psd: float | str = ACCEL_PSD, soles: bool = False) -> dict:
+             correlated: bool = False, accel_psd: float | str = ACCEL_PSD, soles: bool = False,
+             exact: bool = False) -> dict:
     """{(mapping, estimator): dict of pooled arrays err (m/s), rel (%, NaN below WALKING_MPS), range, cover1/2
-    (speeds), pos1/2 (positions)} over the datasets."""
+    (speeds), pos1/2 (positions)} over the datasets; exact: the true mapping alone, bars of no mapping error."""
     pooled: dict = collections.defaultdict(lambda: collections.defaultdict(list))
     for path in paths:
         ds = load_dataset(path)
@@ -148,32 +217,32 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
         frames, xyxy, true_xy, true_speed, rng = truth(ds, detector)
         ids = link_tracks(frames, xyxy)
         feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
-        maps, clicked = mappings(ds, detector, shift, frames, xyxy, ids)
         foot = foot_status(xyxy, frames, ds.camera.image_size) if soles else None
         if soles:
             print(f"{Path(path).name}, {detector}: of {len(foot):,} boxes, feet hidden {100 * np.mean(foot == 'hidden'):.1f} %, "
                   f"on the border {100 * np.mean(foot == 'border'):.1f} %", file=sys.stderr)
-        H = cv2.getPerspectiveTransform(clicked.source.astype(np.float32), clicked.target.astype(np.float32))
-        sv_xy = cv2.perspectiveTransform(feet.reshape(-1, 1, 2).astype(np.float32), H).reshape(-1, 2).astype(float)
-        rows = {"recipe": (recipe_speeds(sv_xy, frames, ids, fps), None, None, None)}
-        index = {(f, k): i for i, (f, k) in enumerate(zip(frames, ids))}
+        if exact:
+            maps, rows = {"exact": TrapezoidMapping(exact_transformer(ds), ds.camera.lens)}, {}
+        else:
+            maps, clicked = mappings(ds, shift, frames, xyxy, ids)
+            H = cv2.getPerspectiveTransform(clicked.source.astype(np.float32), clicked.target.astype(np.float32))
+            sv_xy = cv2.perspectiveTransform(feet.reshape(-1, 1, 2).astype(np.float32), H).reshape(-1, 2).astype(float)
+            rows = {"recipe": (recipe_speeds(sv_xy, frames, ids, fps), None, None, None)}
         first, last = (np.array([f(frames[ids == k]) for k in range(ids.max() + 1)]) for f in (np.min, np.max))
         inner = (frames - first[ids] >= fps) & (last[ids] - frames >= fps)  # at least 1 s from its track's ends
         for name, mapping in maps.items():
             noise = foot_noise_options("correlated" if correlated else "box-height" if box_sigma else "fixed", xyxy, 1.0)
             noise["split_mapping_error"] |= split
+            if exact:
+                noise["click_sigma_px"] = 0.0
             q = accel_psd
             if q == "fitted":
                 q = fit_tracks_accel_psd(mapping, frames, feet, ids, fps, **noise, foot=foot)
                 print(f"{Path(path).name}, {detector}, {name}: q fitted {q:.3g} m^2/s^3", file=sys.stderr)
             for estimator, smooth in (("filter", False), ("smoother", True)):
-                speed, sigma, pos_err, pos_sigma = (np.full(len(frames), np.nan) for _ in range(4))
-                for batch in measure_tracks(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise, foot=foot):
-                    at = np.array([index[(f, k)] for f, k in zip(batch["frame"], batch["track_id"])])
-                    speed[at], sigma[at] = batch["speed_mps"], batch["speed_sigma_mps"]
-                    pos_err[at] = np.hypot(batch["x"] - true_xy[at, 0], batch["y"] - true_xy[at, 1])
-                    pos_sigma[at] = batch["sigma_m"]
-                rows[f"{name}, {estimator}"] = (speed, sigma, pos_err, pos_sigma)
+                m = per_box(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise, foot=foot)
+                pos_err = np.hypot(m["x"] - true_xy[:, 0], m["y"] - true_xy[:, 1])
+                rows[f"{name}, {estimator}"] = (m["speed_mps"], m["speed_sigma_mps"], pos_err, m["sigma_m"])
             rows[f"{name}, 1 s diff"] = (recipe_speeds(mapping.transform_points(feet), frames, ids, fps), None, None, None)
         for key, (speed, sigma, pos_err, pos_sigma) in rows.items():
             ok = np.isfinite(true_speed) & np.isfinite(speed)
@@ -243,6 +312,76 @@ def spread_table(per_dataset: list[dict], detector: str, shift: float) -> str:
     return "\n".join(lines)
 
 
+def bar_parts(path: str, detector: str, shift: float, foot_noise: str, accel_psd: float | str, soles: bool) -> dict:
+    """The pedestrians' correction's smoothed speeds at the 5-50 m boxes with a true speed, as the tables measure
+    them with a split FOOT_NOISE model (box-height or correlated): err (M,) speed - true, m/s; S (M,) its
+    1-sigma; a (M,) the shared mapping error's part of it (the speed's delta-method sigma of
+    ``mapping_velocity_covariance``, m/s; the track's own part is sqrt(S^2 - a^2)); z, the fit's horizon error
+    over its sigma (horizon_sigma_px_)."""
+    ds = load_dataset(path)
+    fps = float(ds.manifest["fps"])
+    frames, xyxy, _, true_speed, rng = truth(ds, detector)
+    ids = link_tracks(frames, xyxy)
+    feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
+    peds = pedestrians(ds, clicked_transformer(ds, shift), frames, xyxy, ids)
+    foot = foot_status(xyxy, frames, ds.camera.image_size) if soles else None
+    noise = foot_noise_options(foot_noise, xyxy, 1.0)
+    q = fit_tracks_accel_psd(peds, frames, feet, ids, fps, **noise, foot=foot) if accel_psd == "fitted" else accel_psd
+    click = inspect.signature(measure_tracks).parameters["click_sigma_px"].default  # the tables' click sigma
+    m = per_box(peds, frames, feet, ids, fps, accel_psd=q, click_sigma_px=click, **noise, foot=foot)
+    speed, S, v = m["speed_mps"], m["speed_sigma_mps"], np.column_stack([m["vx"], m["vy"]])
+    a = speed_and_sigma(v, mapping_velocity_covariance(peds, feet, v, click))[1]
+    keep = np.isfinite(speed) & np.isfinite(true_speed) & (rng >= BANDS[-1][0]) & (rng < BANDS[-1][1])
+    return {"err": (speed - true_speed)[keep], "S": S[keep], "a": a[keep],
+            "z": (peds.horizon_row_ - ds.camera.horizon_row) / peds.horizon_sigma_px_}
+
+
+def expected_coverage(S: np.ndarray, a: np.ndarray, z: np.ndarray, k: float) -> np.ndarray:
+    """The share of boxes whose speed error lies within k S if each box's error is a z + e, e ~ N(0, S^2 - a^2)
+    (the track's own part honest and normal), for each of the mapping error's draws z (D,) (a camera's error
+    in its sigmas, shared by its boxes): (D,) fractions (boxes S, a (M,) m/s)."""
+    b = np.sqrt(np.maximum(S**2 - a**2, 1e-12))
+    shift = np.outer(z, a)
+    return (ndtr((k * S - shift) / b) - ndtr((-k * S - shift) / b)).mean(axis=1)
+
+
+def pooled_coverage_table(parts: list[dict], draws: int, seed: int = 0) -> str:
+    """The 1/2-sigma speed coverage pooled over the datasets of ``bar_parts``: measured; expected with both
+    parts honest at each camera's realised horizon z; and over ``draws`` draws of the cameras' z ~ N(0, 1)
+    (mean, 5th and 95th percentile): how far a pooled coverage over these cameras moves with part (a) alone."""
+    rng = np.random.default_rng(seed)
+    Z = rng.standard_normal((draws, len(parts)))
+    n = np.array([len(p["S"]) for p in parts])
+    lines = ["| k sigma | measured | expected at the realised z | expected over draws of z: mean [5th, 95th pct] | "
+             "a camera alone at z = 0 |", "|---|---:|---:|---:|---:|"]
+    for k in (1, 2):
+        measured = 100 * np.mean(np.concatenate([np.abs(p["err"]) <= k * p["S"] for p in parts]))
+        realised = 100 * np.average([expected_coverage(p["S"], p["a"], np.array([p["z"]]), k)[0] for p in parts], weights=n)
+        drawn = 100 * np.average(np.column_stack([expected_coverage(p["S"], p["a"], Z[:, j], k)
+                                                  for j, p in enumerate(parts)]), axis=1, weights=n)
+        centre = 100 * np.average([expected_coverage(p["S"], p["a"], np.zeros(1), k)[0] for p in parts], weights=n)
+        lines.append(f"| {k} | {measured:.1f} % | {realised:.1f} % | {drawn.mean():.1f} % [{np.percentile(drawn, 5):.1f}, "
+                     f"{np.percentile(drawn, 95):.1f}] | {centre:.1f} % |")
+    return "\n".join(lines)
+
+
+def horizon_table(rows: list[dict]) -> str:
+    """Per detector, the fitted horizons' z = error / sigma over ``horizon_errors``' rows (each an independent
+    fit; those refused counted apart): the errors' RMS, mean and sd (px), the share of |z| < 1 and < 2 (68 / 95 %
+    if the sigma is honest), the RMS and mean of z (1 and 0), for the whole sigma and the people's alone."""
+    lines = ["| detector | fits (refused) | error RMS, px | error mean, sd, px | sigma median, px | whole sigma: |z| < 1, "
+             "< 2, RMS z, mean z | people's sigma: median px; |z| < 1, < 2, RMS z |", "|---|---:|---:|---:|---:|---:|---:|"]
+    for detector in dict.fromkeys(r["detector"] for r in rows):
+        mine = [r for r in rows if r["detector"] == detector]
+        e, s, sp = (np.array([r[k] for r in mine if "refusal" not in r]) for k in ("error", "sigma", "sigma_people"))
+        z, zp = e / s, e / sp
+        share = lambda z, k: 100 * np.mean(np.abs(z) < k)  # noqa: E731
+        lines.append(f"| {detector} | {len(e)} ({len(mine) - len(e)}) | {np.sqrt(np.mean(e**2)):.2f} | {np.mean(e):+.2f}, {np.std(e, ddof=1):.2f} | {np.median(s):.2f} | {share(z, 1):.0f} %, "
+                     f"{share(z, 2):.0f} %, {np.sqrt(np.mean(z**2)):.2f}, {np.mean(z):+.2f} | {np.median(sp):.2f}; "
+                     f"{share(zp, 1):.0f} %, {share(zp, 2):.0f} %, {np.sqrt(np.mean(zp**2)):.2f} |")
+    return "\n".join(lines)
+
+
 def throughput(path: str, minutes: float, foot_noise: str = "fixed", accel_psd: float | str = ACCEL_PSD,
                feet: str = FEET[0]) -> str:
     ds = load_dataset(path)
@@ -287,7 +426,30 @@ def main(argv: list[str] | None = None) -> int:
                         help="the filter's process noise q, m^2/s^3, or fitted (per dataset, detector and mapping)")
     parser.add_argument("--feet", choices=FEET, default=FEET[0], help="homocal measure --feet")
     parser.add_argument("--spread", action="store_true", help="each dataset on its own: mean [min, max] over them")
+    parser.add_argument("--exact", action="store_true",
+                        help="the true mapping (the exact trapezoid) alone, bars of no mapping error (click sigma 0)")
+    parser.add_argument("--horizons", type=float, metavar="SECONDS",
+                        help="the pedestrians' fitted horizon's error over its sigma on disjoint windows of SECONDS")
+    parser.add_argument("--draws", type=int, metavar="N",
+                        help="the pooled speed coverage against what honest parts give over N draws of the cameras' mapping errors")
     args = parser.parse_args(argv)
+    if args.draws:
+        for detector in args.detectors.split(","):
+            parts = [bar_parts(d, detector, args.shift, "correlated" if args.correlated else "box-height",
+                               args.accel_psd, args.feet == "soles") for d in args.datasets]
+            for d, p in zip(args.datasets, parts):
+                share = np.median(p["a"] / p["S"])
+                print(f"{Path(d).name}, {detector}: horizon z {p['z']:+.2f}, mapping part a / S median {share:.2f}", file=sys.stderr)
+            print(f"{detector} boxes, pedestrians, smoother, {len(parts)} datasets pooled\n\n" + pooled_coverage_table(parts, args.draws) + "\n")
+        return 0
+    if args.horizons:
+        rows = [r for detector in args.detectors.split(",") for d in args.datasets
+                for r in horizon_errors(d, detector, args.shift, args.horizons)]
+        for r in rows:
+            print(f"{r['dataset']}, {r['detector']}, {r['start']:g} s: " + (f"refused: {r['refusal']}" if "refusal" in r else
+                  f"error {r['error']:+.2f} px, sigma {r['sigma']:.2f} (people {r['sigma_people']:.2f})"), file=sys.stderr)
+        print(horizon_table(rows))
+        return 0
     if args.throughput:
         print(throughput(args.datasets[0], args.throughput, "correlated" if args.correlated else "fixed", args.accel_psd,
                          args.feet))
@@ -295,10 +457,10 @@ def main(argv: list[str] | None = None) -> int:
     for detector in args.detectors.split(","):
         if args.spread:
             print(spread_table([evaluate([d], detector, args.shift, args.split, args.box_sigma, args.correlated,
-                                         args.accel_psd, args.feet == "soles") for d in args.datasets], detector, args.shift) + "\n")
+                                         args.accel_psd, args.feet == "soles", args.exact) for d in args.datasets], detector, args.shift) + "\n")
         else:
             print(table(evaluate(args.datasets, detector, args.shift, args.split, args.box_sigma, args.correlated,
-                                 args.accel_psd, args.feet == "soles"), detector, args.shift) + "\n")
+                                 args.accel_psd, args.feet == "soles", args.exact), detector, args.shift) + "\n")
     return 0
 
 

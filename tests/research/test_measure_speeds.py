@@ -36,3 +36,86 @@ def test_spread_over_datasets_is_mean_min_max_of_each_ones_figures():
     assert row[1:5] == ["3.0 [2.0, 4.0]"] * 4  # each band's median: 2 % in one dataset, 4 % in the other
     assert row[5] == "3.0 [2.0, 4.0]"  # the 5-50 m 90th percentile
     assert row[6:] == ["75.0 [50.0, 100.0]", "100.0 [100.0, 100.0]", "-", "-"]  # 1-sigma: all, half; no positions
+
+
+def test_exact_mapping_is_the_cameras_own_through_its_lens(tmp_path):
+    from homocal.dataset import load_dataset
+    from synthetic_dataset import write_dataset
+
+    barrel = [-0.2, 0.04, 5e-4, -3e-4, 0.0]
+    ds = load_dataset(write_dataset(tmp_path / "d", "lensy", n_test=30, distortion=barrel))
+    gt = ds.table("gt.parquet").to_pandas()
+    pixels, ground = gt[["u", "v"]].to_numpy(float), gt[["x", "y"]].to_numpy(float)  # the camera's projections
+    mapped = script.exact_transformer(ds).transform_points(script.undistorted(ds, pixels))
+    # the lens's inverse converges to about 1e-6 px; a pixel is at most 0.3 m at 45 m on this camera
+    np.testing.assert_allclose(mapped, ground, atol=1e-5)
+
+
+def test_horizon_table_counts_z_within_one_and_two_sigma():
+    rows = [{"detector": "rgb", "error": e, "sigma": 2.0, "sigma_people": 1.0} for e in (-1.0, 3.0, 5.0, 0.4)]
+    rows.append({"detector": "rgb", "error": np.nan, "sigma": np.nan, "sigma_people": np.nan, "refusal": "too few"})
+    row = [c.strip() for c in script.horizon_table(rows).splitlines()[-1].strip("|").split("|")]
+    # z = -0.5, 1.5, 2.5, 0.2 against the whole sigma; -1, 3, 5, 0.4 against the people's
+    assert row[:3] == ["rgb", "4 (1)", f"{np.sqrt((1 + 9 + 25 + 0.16) / 4):.2f}"]
+    mean = (-1 + 3 + 5 + 0.4) / 4
+    assert row[3] == f"{mean:+.2f}, {np.sqrt(sum((e - mean) ** 2 for e in (-1, 3, 5, 0.4)) / 3):.2f}"
+    assert row[4] == "2.00"
+    assert row[5] == f"50 %, 75 %, {np.sqrt((0.25 + 2.25 + 6.25 + 0.04) / 4):.2f}, {(-0.5 + 1.5 + 2.5 + 0.2) / 4:+.2f}"
+    assert row[6] == f"1.00; 25 %, 50 %, {np.sqrt((1 + 9 + 25 + 0.16) / 4):.2f}"
+
+
+def test_expected_coverage_against_sampled_errors():
+    S, a = np.array([1.0, 2.0]), np.array([0.6, 0.0])  # one box mostly the track's error, one all of it
+    z = np.array([0.0, 0.5, 3.0])
+    rng = np.random.default_rng(1)
+    n = 50_000
+    for k in (1, 2):
+        got = script.expected_coverage(S, a, z, k)
+        for d, zd in enumerate(z):  # each box's error a z + e, e ~ N(0, S^2 - a^2), sampled
+            e = a * zd + np.sqrt(S**2 - a**2) * rng.standard_normal((n, 2))
+            # a share of n samples: its sd is at most 0.5 / sqrt(n) ~ 0.0022; 5 sd
+            assert abs(got[d] - np.mean(np.abs(e) <= k * S)) < 0.011
+    # no shared part: the normal's own 68.3 / 95.4 %
+    np.testing.assert_allclose(script.expected_coverage(S, np.zeros(2), np.array([1.7]), 1), 0.6827, atol=1e-4)
+
+
+def walkers(tmp_path, speed: float = 1.4, seconds: float = 4.0, fps: int = 20):
+    """A synthetic dataset (tests/synthetic_dataset.py's pinhole camera) of three people walking straight at
+    ``speed`` m/s, their boxes' foot points the exact projections of their true ground points."""
+    import json
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from homocal.geometry import PinholeCamera
+    from synthetic_dataset import write_dataset
+
+    path = write_dataset(tmp_path / "d", n_test=10)
+    manifest = json.loads((path / "manifest.json").read_text())
+    (path / "manifest.json").write_text(json.dumps(manifest | {"fps": fps, "gt_dt": 1 / fps, "seconds": seconds}))
+    steps = np.arange(int(seconds * fps))
+    starts, headings = np.array([[-2.0, 10.0], [1.0, 30.0], [3.0, 15.0]]), np.array([[0.6, 0.8], [-1.0, 0.0], [0.0, 1.0]])
+    xy = starts[:, None] + speed * headings[:, None] * steps[None, :, None] / fps  # (agents, steps, 2) m
+    uv = PinholeCamera().project_ground(xy.reshape(-1, 2))
+    agent, step = np.repeat(np.arange(3, dtype=np.int32), len(steps)), np.tile(steps, 3)
+    height = 4000 / np.hypot(*xy.reshape(-1, 2).T)  # px, shrinking with range (its value sets only the bars)
+    pq.write_table(pa.table({"agent_id": agent, "step": step, "t": step / fps, "x": xy[..., 0].ravel(),
+                             "y": xy[..., 1].ravel(), "u": uv[:, 0], "v": uv[:, 1], "in_frame": np.ones(len(agent), bool)}),
+             path / "gt.parquet")
+    pq.write_table(pa.table({"detector": ["segmentation"] * len(agent), "frame": step, "agent_id": agent,
+                             "x1": uv[:, 0] - height / 4, "y1": uv[:, 1] - height, "x2": uv[:, 0] + height / 4,
+                             "y2": uv[:, 1], "u": uv[:, 0], "v": uv[:, 1], "gt_x": xy[..., 0].ravel(),
+                             "gt_y": xy[..., 1].ravel()}), path / "detections.parquet")
+    return path
+
+
+def test_exact_path_measures_the_true_speeds_of_exact_foot_points(tmp_path):
+    path = str(walkers(tmp_path))
+    for noise in ({}, {"box_sigma": True}, {"correlated": True}):
+        p = script.evaluate([path], "segmentation", 16, exact=True, **noise)
+        assert set(p) == {"exact, filter", "exact, smoother", "exact, 1 s diff"}
+        # noise-free points on a straight walk: the smoother is exact but for its start's velocity prior (0 +- 10
+        # m/s) near a track's ends; the clicked trapezoid's horizon 16 px off errs by tens of percent (docs/measure.md)
+        assert np.nanpercentile(p["exact, smoother"]["rel"], 90) < 1.0
+        # the recipe's n - 1 steps over n / fps s, once its deque holds fps positions: 1 / fps short, 5 %
+        np.testing.assert_allclose(np.nanmedian(p["exact, 1 s diff"]["rel"]), 100 / 20, rtol=1e-6)
