@@ -333,8 +333,8 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
                   start: dict) -> dict:
     """The camera's tilt and roll together from people's foot and head points (N, 2) px (undistorted), tracks
     (N,), the focal length, principal point, camera height and height prior (fit_tilt's), from fit_tilt's result
-    ``start`` (roll 0): each person's implied height is that of its median box (the mean of the two middle ones
-    for an even count) at the start, held through the fit, a smooth function of (tilt, roll) through the
+    ``start`` (roll 0): each person's implied height is that of its median inlier box at the start (fit_tilt's
+    inliers; the mean of the two middle ones for an even count), held through the fit, a smooth function of (tilt, roll) through the
     derolled rows (derolled_rows) of the box's foot and head (re-chosen as the roll moves, the median box moved
     along the person's walk to a box in another column, with another pull on the roll, and the fit did not
     settle on scene3's boxes); the Huber score
@@ -353,9 +353,10 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
         rows = [np.arctan((derolled_rows(x, b[1], principal) - principal[1]) / focal_px) for x in (f, h)]
         return _heights(rows[0], rows[1], b[0], camera_height_m)[0]
 
-    _, labels, starts, counts = _people(tracks, mean_m)
-    lo, hi = _median_pairs(box_heights(beta, foot, head), labels, starts, counts)
-    everyone = np.ones(len(lo), bool)  # each person's median box(es) at the start, held
+    pick = np.flatnonzero(start["inlier_boxes"])  # fit_tilt's inlier boxes: a person's height is their median's
+    _, labels, starts, counts = _people(tracks[pick], mean_m)
+    lo, hi = pick[_median_pairs(box_heights(beta, foot[pick], head[pick]), labels, starts, counts)]
+    everyone = np.ones(len(lo), bool)  # each person's median inlier box(es) at the start, held
 
     def held_heights(b: np.ndarray, which: np.ndarray) -> np.ndarray:
         return 0.5 * (box_heights(b, foot[lo[which]], head[lo[which]]) + box_heights(b, foot[hi[which]], head[hi[which]]))
