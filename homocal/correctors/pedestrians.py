@@ -95,6 +95,8 @@ GRID = 128  # tilt grid of the median start over its 90 degree range (then bisec
 ROLL_SPREAD = 0.1  # estimate_roll fits roll when the people's foot columns' interquartile range spans this share of the width
 MAX_ROLL_DEG = 10.0  # a fitted roll beyond this is refused (a camera on a pole is rolled a degree or two)
 DIFF_STEP = 1e-7  # radians: central-difference step of the people's heights in fit_tilt_roll
+STEP_TOLERANCE = 1e-9  # radians: fit_tilt_roll stops at a step this small, the size of the rounding in its
+# gradient (a height's 2e-16 relative rounding over DIFF_STEP)
 SETTINGS = {
     "height_mean_m": Option("--height-mean", Number(0.5, 2.5), "the people's mean height (the default: adults, "
                             "docs/pedestrians.md)", metavar="M", unit="m"),
@@ -234,9 +236,15 @@ def _group_medians(values: np.ndarray, slopes: np.ndarray, labels: np.ndarray, s
     """(median, its slope) (G,) per group of values (M,) with dense labels (M,) 0..G-1, groups starting at
     starts (G,) with counts (G,) in label order: the middle value (mean of the two middle ones for an even count)
     and the same combination of slopes."""
-    order = np.lexsort((values, labels))
-    lo, hi = order[starts + (counts - 1) // 2], order[starts + counts // 2]
+    lo, hi = _median_pairs(values, labels, starts, counts)
     return 0.5 * (values[lo] + values[hi]), 0.5 * (slopes[lo] + slopes[hi])
+
+
+def _median_pairs(values: np.ndarray, labels: np.ndarray, starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """(2, G) indices into values (M,) of each group's two middle values (one twice for an odd count); the groups
+    as _group_medians'."""
+    order = np.lexsort((values, labels))
+    return np.stack([order[starts + (counts - 1) // 2], order[starts + counts // 2]])
 
 
 def _people(tracks: np.ndarray, mean_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -325,30 +333,40 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
                   start: dict) -> dict:
     """The camera's tilt and roll together from people's foot and head points (N, 2) px (undistorted), tracks
     (N,), the focal length, principal point, camera height and height prior (fit_tilt's), from fit_tilt's result
-    ``start`` (roll 0): each person's implied height (the median of its inlier boxes') is a function of (tilt,
-    roll) through the derolled rows (derolled_rows) of its foot and head; the Huber score
+    ``start`` (roll 0): each person's implied height is that of its median inlier box at the start (fit_tilt's
+    inliers; the mean of the two middle ones for an even count), held through the fit, a smooth function of (tilt, roll) through the
+    derolled rows (derolled_rows) of the box's foot and head (re-chosen as the roll moves, the median box moved
+    along the person's walk to a box in another column, with another pull on the roll, and the fit did not
+    settle on scene3's boxes); the Huber score
     sum_j psi((H_j - mu) / sigma) grad H_j = 0 is solved by iteratively reweighted least squares (Huber's weights
     min(1, k / |r|), r = (H_j - mu) / sigma: Gauss-Newton weighted by psi' alone diverges when many people lie beyond
-    k at the start; grad H by central differences, DIFF_STEP), the inlier set updated as in fit_tilt until it no
-    longer changes (on scene3's boxes it does not settle in MAX_ROUNDS: each person's median box moves along their
-    walk as the roll changes, docs/real-camera.md). Uncertainty: the sandwich covariance
-    sigma^2 A^-1 (sum psi^2 grad H grad H^T) A^-1, A = sum psi' grad H grad H^T; the prior mean's effect
+    k at the start; grad H by central differences, DIFF_STEP; until a step is below STEP_TOLERANCE), the inlier
+    people (their heights within OUTLIER_SIGMAS sd of mu) updated until they no longer change. Uncertainty: the
+    sandwich covariance sigma^2 A^-1 (sum psi^2 grad H grad H^T) A^-1, A = sum psi' grad H grad H^T; the prior mean's effect
     d(tilt, roll) / dmu = A^-1 sum psi' grad H.
     Returns a dict: tilt, roll (radians; roll in camera.json's sign), cov (2, 2) radians^2 (people), sensitivity (2,) radians per metre,
-    inlier_boxes (N,) bool, n_people, rounds. ValueError as fit_tilt, or for a roll beyond MAX_ROLL_DEG."""
-    inliers, beta = start["inlier_boxes"], np.array([start["tilt"], 0.0])
+    inlier_boxes (N,) bool (each box's implied height within OUTLIER_SIGMAS sd of mu at the fitted tilt and roll),
+    n_people, rounds. ValueError as fit_tilt, or for a roll beyond MAX_ROLL_DEG."""
+    beta = np.array([start["tilt"], 0.0])
 
     def box_heights(b: np.ndarray, f: np.ndarray, h: np.ndarray) -> np.ndarray:
         rows = [np.arctan((derolled_rows(x, b[1], principal) - principal[1]) / focal_px) for x in (f, h)]
         return _heights(rows[0], rows[1], b[0], camera_height_m)[0]
 
+    pick = np.flatnonzero(start["inlier_boxes"])  # fit_tilt's inlier boxes: a person's height is their median's
+    _, labels, starts, counts = _people(tracks[pick], mean_m)
+    lo, hi = pick[_median_pairs(box_heights(beta, foot[pick], head[pick]), labels, starts, counts)]
+    everyone = np.ones(len(lo), bool)  # each person's median inlier box(es) at the start, held
+
+    def held_heights(b: np.ndarray, which: np.ndarray) -> np.ndarray:
+        return 0.5 * (box_heights(b, foot[lo[which]], head[lo[which]]) + box_heights(b, foot[hi[which]], head[hi[which]]))
+
+    inliers = everyone
     for rounds in range(1, MAX_ROUNDS + 1):
-        people, labels, starts, counts = _people(tracks[inliers], mean_m)
-        f_in, h_in = foot[inliers], head[inliers]
+        people = _people(tracks[lo[inliers]], mean_m)[0]
 
         def people_heights(b: np.ndarray) -> np.ndarray:
-            hb = box_heights(b, f_in, h_in)
-            return _group_medians(hb, hb, labels, starts, counts)[0]
+            return held_heights(b, inliers)
 
         def gradient(b: np.ndarray) -> np.ndarray:  # (P, 2) dH / d(tilt, roll)
             return np.column_stack([(people_heights(b + e) - people_heights(b - e)) / (2 * DIFF_STEP)
@@ -360,12 +378,12 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
             J = gradient(beta)
             step = -sd_m * np.linalg.lstsq((J * weight[:, None]).T @ J, J.T @ psi, rcond=None)[0]
             beta = beta + step
-            if np.abs(step).max() < 1e-12:
+            if np.abs(step).max() < STEP_TOLERANCE:
                 break
         if abs(math.degrees(beta[1])) > MAX_ROLL_DEG:
             raise ValueError(f"the people imply a roll of {math.degrees(beta[1]):.1f} degrees, beyond "
                              f"{MAX_ROLL_DEG:g}: are these boxes of standing people?")
-        new = np.abs(box_heights(beta, foot, head) - mean_m) <= OUTLIER_SIGMAS * sd_m
+        new = np.abs(held_heights(beta, everyone) - mean_m) <= OUTLIER_SIGMAS * sd_m
         if np.array_equal(new, inliers):
             break
         inliers = new
@@ -374,7 +392,8 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
     A_inv = np.linalg.pinv((J * dpsi[:, None]).T @ J)
     cov = sd_m**2 * A_inv @ ((J * (psi * psi)[:, None]).T @ J) @ A_inv
     return {"tilt": float(beta[0]), "roll": float(beta[1]), "cov": cov, "sensitivity": A_inv @ (J.T @ dpsi),
-            "inlier_boxes": inliers, "n_people": len(people), "rounds": rounds}
+            "inlier_boxes": np.abs(box_heights(beta, foot, head) - mean_m) <= OUTLIER_SIGMAS * sd_m,
+            "n_people": len(people), "rounds": rounds}
 
 
 class PedestrianCorrector(Corrector):
