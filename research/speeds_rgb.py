@@ -108,7 +108,7 @@ def report(path: str, grid: bool) -> None:
             band = has & (rng >= lo) & (rng < hi)
             q = lambda e: f"{np.nanmedian(e[band]):+.1f} (IQR {np.subtract(*np.nanpercentile(e[band], [75, 25])):.1f})"  # noqa: E731
             print(f"    {lo:g}-{hi:g} m ({band.sum():,} boxes): foot row {q(foot_err)} px, box height {q(height_err)} px")
-        maps, _ = mappings(ds, detector, 16.0, frames, xyxy, ids)
+        maps, _ = mappings(ds, 16.0, frames, xyxy, ids)
         peds = maps["pedestrians"]
         print(f"    pedestrians' horizon {peds.horizon_row_:.1f} +- {peds.horizon_sigma_px_:.1f} px "
               f"({peds.horizon_row_ - ds.camera.horizon_row:+.1f} px from the true one)")
