@@ -142,10 +142,10 @@ def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure:
     true height, the people's own height prior) into ``out``, measured against the dataset's true camera
     (load_dataset's pose track): its motion and start (``motion``), the alarms before it (false: the static
     minutes), the first alarm after it on the side the horizon moved (the detection; none on a swaying camera:
-    every alarm is false), the other alarms after it; with ``measure``, the horizon RMS (px) before the move and from the detection on (a sway: over
-    the whole recording), and the median range error at 5-50 m (%) of the static and the watched calibration (the
+    every alarm is false), the other alarms after it; with ``measure``, the horizon RMS (px) before the move and from the detection on (a
+    missed move: from the move on; a sway: over the whole recording), and the median range error at 5-50 m (%) of the static and the watched calibration (the
     online estimate at that time) 10 s before the move and 0, 30, 60 s after its detection (those within the
-    recording)."""
+    recording) and at its last frame."""
     ds = load_dataset(dataset)
     with contextlib.redirect_stdout(io.StringIO()):  # its one summary line; the figures are printed here
         code = homocal_main(["watch", "--trapezoid", str(dataset / "trapezoids.json"), "--boxes", str(dataset / "detections.parquet"),
@@ -189,19 +189,21 @@ def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure:
 
     detected = result["detected"]
     result["rms_before"] = rms(np.ones(len(t_s), bool) if t_move is None or sway else t_s < t_move)
-    result["rms_after"] = rms(t_s >= detected) if detected is not None else math.nan
+    result["rms_after"] = math.nan if t_move is None or sway else rms(t_s >= (t_move if detected is None else detected))
     clicked = read_trapezoid_file(dataset / "trapezoids.json", cameras[0].lens)[0]
-    ground, ranges = ground_grid(), []
-    whens = [] if t_move is None or sway else [t_move - 10] + ([] if detected is None else [detected, detected + 30, detected + 60])
-    for when in whens:
+    ground = ground_grid()
+
+    def ranges_at(when: float) -> tuple[float, float] | None:
         i = np.searchsorted(t_s, when, side="right") - 1
         if when < 0 or when > seconds or i < 0 or not np.isfinite(row[i]):
-            ranges.append(None)
-            continue
+            return None
         cam = cameras[step_of(when)]
         watched = PedestrianCorrector(*HEIGHT).from_horizon(clicked, row[i], 0.0, cam.K, static.mount_height_m, 3).transformer_
-        ranges.append((range_error(clicked, cam, ground), range_error(watched, cam, ground)))
-    return {**result, "ranges": ranges, "people": len(t_s)}
+        return range_error(clicked, cam, ground), range_error(watched, cam, ground)
+
+    whens = [] if t_move is None or sway else [t_move - 10] + ([] if detected is None else [detected, detected + 30, detected + 60])
+    return {**result, "ranges": [ranges_at(when) for when in whens], "end": ranges_at(seconds - 1 / ds.manifest["fps"]),
+            "people": len(t_s)}
 
 
 def pooled(results: list[dict]) -> dict:
@@ -251,11 +253,13 @@ def datasets_main(args) -> None:
             r = watch_dataset(dataset, detector, Path(args.work) / f"{dataset.name}_{detector}", args.case_arl0)
             results.append(r)
             ranges = "; ".join("-" if x is None else f"{x[0]:.1f} -> {x[1]:.1f}" for x in r["ranges"])
+            end = "-" if r["end"] is None else f"{r['end'][0]:.1f} -> {r['end'][1]:.1f}"
             move = r["case"] if r["t_move"] is None else f"{r['case']} at {r['t_move']:g} s"
             delay = "-" if r["detected"] is None else f"{r['detected'] - r['t_move']:.1f} s"
             print(f"  {dataset.name}: {move}, {r['people']} people; delay {delay}; {r['false']} alarms before, "
                   f"{r['later']} more after; horizon RMS {r['rms_before']:.2f} px before, {r['rms_after']:.2f} px from "
-                  f"detection; range error static -> watched (%) at -10 s; detection; +30 s; +60 s: {ranges}")
+                  f"detection (or the move); range error static -> watched (%) at -10 s; detection; +30 s; +60 s: {ranges}; at the "
+                  f"last frame: {end}")
         p = pooled(results)
         for case, c in p["cases"].items():
             d = np.array(c["delays"])
