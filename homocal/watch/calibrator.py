@@ -5,7 +5,10 @@ h_c: the horizon row at which a person of the prior's mean height spans that box
 (``homocal.correctors.pedestrians.implied_horizon_rows``, the inverse of the pedestrians' implied heights), and
 its 1-sigma spread sigma = |dv/dH| sqrt(sd^2 + (mu BOX_SIGMA_PX / p)^2) (the people's height spread sd and a
 box edge error of BOX_SIGMA_PX on a box p px tall, as a height error); a box cut by the image border (tested in
-the camera's pixels, as PedestrianCorrector.fit does, before a lens's undistortion) is not used. Boxes are linked
+the camera's pixels, as PedestrianCorrector.fit does, before a lens's undistortion) is not used, nor a box whose
+feet a nearer person's box of the same frame may hide (``homocal.geometry.boxes.hidden_feet``, on all the frame's
+boxes, in the camera's pixels): its bottom edge is then the nearer person's outline, above the sole, and its implied
+horizon row far below the camera's, by many sigmas (a far person's 2-3 px sigma against an error of 10-25 px). Boxes are linked
 into people (tracks: given, or ``TrackLinker``); a person is one observation, the median of its first PERSON_BOXES
 boxes' rows with the sigma of the median box, given once (one person, one height: their boxes are not independent).
 
@@ -58,7 +61,7 @@ from homocal.correctors.pedestrians import (
 )
 from homocal.boxes import MAX_FPS
 from homocal.geometry import ViewTransformer
-from homocal.geometry.boxes import TrackLinker, on_border, undistort_boxes
+from homocal.geometry.boxes import MAX_BOXES_PER_FRAME, TrackLinker, hidden_feet, on_border, undistort_boxes
 from homocal.geometry.lens import Lens
 
 WINDOW_PEOPLE = 200  # people in the sliding estimate: the memory bound
@@ -124,7 +127,9 @@ class State:
     """The calibrator after an update: t_s (the frame's time), the current stretch's start, the horizon row
     and its 1-sigma (px; NaN before any person), the people in its estimate, the CUSUM statistics S+ and S-
     and threshold (NaN while the stretch has fewer than MIN_PEOPLE), and the move detected at this update, if
-    any. person_rows / person_sigmas: the people observed at this update (their implied horizon rows, px)."""
+    any. person_rows / person_sigmas: the people observed at this update (their implied horizon rows, px).
+    hidden_boxes: how many of the boxes measured at this update (of tracks yet to give their person) may have
+    hidden feet (not used)."""
 
     t_s: float
     stretch_start_s: float
@@ -137,6 +142,7 @@ class State:
     move: Move | None
     person_rows: tuple = ()
     person_sigmas: tuple = ()
+    hidden_boxes: int = 0
 
 
 class OnlineCalibrator:
@@ -146,7 +152,8 @@ class OnlineCalibrator:
     Args:
         K: (3, 3) intrinsics (fx = fy). camera_height_m: the optical centre's height, metres.
         fps: frames per second of the stream (time = frame / fps).
-        image_size: (width, height) px; boxes at the border are not used (None: all used).
+        image_size: (width, height) px; boxes at the border are not used (None: all used). Boxes whose feet a
+            nearer person's box may hide are not used either (module docstring).
         height_mean_m, height_sd_m: the prior of people's heights (PedestrianCorrector's).
         arl0_people: the mean number of people between false alarms on a steady camera (the threshold follows).
         lens: the camera's lens (homocal.geometry.Lens, the same K and image size): update takes the camera's
@@ -182,12 +189,15 @@ class OnlineCalibrator:
     # ---- boxes -> people ------------------------------------------------------------------------
     def update(self, frame: int, boxes: np.ndarray, track_ids: np.ndarray | None = None) -> State:
         """Take the boxes (N, 4) homocal's pixel edges (x1, y1, x2, y2) of video frame ``frame`` (int, not before
-        the last one; N may be 0; the camera's pixels) with their track ids (N,) int or None (linked by overlap);
-        return the State. ValueError for a frame going backwards, a box not finite or upside down, or beyond the
-        lens's fold."""
+        the last one; 0 <= N <= MAX_BOXES_PER_FRAME; the camera's pixels) with their track ids (N,) int or None
+        (linked by overlap); return the State. ValueError for a frame going backwards, too many boxes, a box not
+        finite or upside down, or beyond the lens's fold."""
         if self._last_frame is not None and frame < self._last_frame:
             raise ValueError(f"frame {frame} after frame {self._last_frame}: boxes must come in time order")
         boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+        if len(boxes) > MAX_BOXES_PER_FRAME:
+            raise ValueError(f"frame {frame}: {len(boxes):,} boxes, more than {MAX_BOXES_PER_FRAME:,} (the most per "
+                             "frame homocal reads)")
         bad = np.flatnonzero(~(np.isfinite(boxes).all(axis=1) & (boxes[:, 3] > boxes[:, 1]) & (boxes[:, 2] > boxes[:, 0])))
         if bad.size:
             raise ValueError(f"frame {frame}: box {boxes[bad[0]].tolist()} is not finite or is upside down or empty")
@@ -210,6 +220,8 @@ class OnlineCalibrator:
         usable = np.isfinite(rows) & np.isfinite(sigmas) & (sigmas > 0)
         if self.image_size is not None:  # cut by the frame: in the camera's pixels
             usable &= ~on_border(boxes[todo], self.image_size)
+        hidden = hidden_feet(boxes, np.zeros(len(boxes), np.int64))[todo] if todo.size else np.zeros(0, bool)
+        usable &= ~hidden
         people = []
         for i in np.flatnonzero(usable):
             track = tracks[int(ids[todo[i]])]
@@ -235,7 +247,7 @@ class OnlineCalibrator:
         armed = len(self._people) >= MIN_PEOPLE
         return State(t, self.stretch_start_s, row, sigma, self.n_people,
                      *(self._cusum if armed else (math.nan, math.nan)), self.threshold if armed else math.nan, move,
-                     tuple(p[1] for p in observed), tuple(p[2] for p in observed))
+                     tuple(p[1] for p in observed), tuple(p[2] for p in observed), int(hidden.sum()))
 
     # ---- people -> estimate and test ------------------------------------------------------------
     def _observe(self, person: tuple[float, float, float]) -> Move | None:

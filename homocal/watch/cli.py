@@ -27,7 +27,7 @@ from homocal.correctors.cli import add_pedestrian_flags, pedestrian_flag_error
 from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.files import create_temporary, output_folder, write_json_atomic
 from homocal.geometry import ViewTransformer, read_trapezoid_file
-from homocal.geometry.boxes import box_edges
+from homocal.geometry.boxes import MAX_BOXES_PER_FRAME, box_edges
 from homocal.study.options import OptionError
 from homocal.watch.calibrator import DEFAULT_ARL0_PEOPLE, MIN_PEOPLE, OnlineCalibrator, by_frame, camera_of
 from homocal.watch.folder import MARKER, TOOL
@@ -104,7 +104,8 @@ def handle_watch(args: argparse.Namespace) -> int:
         finally:
             signal.signal(signal.SIGTERM, previous)
             run.finish()
-            write_json_atomic(folder.marker, {**settings, "ended": ended, "boxes_read": run.boxes, "people": run.people,
+            write_json_atomic(folder.marker, {**settings, "ended": ended, "boxes_read": run.boxes,
+                                              "boxes_hidden": run.hidden, "people": run.people,
                                               "moves": len(run.moves)})
     if error is not None:
         raise error
@@ -126,7 +127,7 @@ class _Run:
         self.lens = None if lens is None or lens.is_identity else lens  # saved with each stretch's correction
         self.moves: list = []
         self.rows: list = []
-        self.boxes = self.people = self.stretches = 0
+        self.boxes = self.people = self.stretches = self.hidden = 0
         self.stretch_start = 0.0
         self.tmp = create_temporary(path / "horizon.parquet")
         schema = pa.schema([(c, pa.int64() if c == "n_people" else pa.float64()) for c in HORIZON_COLUMNS])
@@ -137,6 +138,7 @@ class _Run:
         cal = self.calibrator
         state = cal.update(frame, xyxy, ids)
         self.boxes += len(xyxy)
+        self.hidden += state.hidden_boxes
         if state.move is not None:
             if len(self.moves) == MAX_MOVES:
                 raise ValueError(f"more than {MAX_MOVES:,} moves: the camera is not steady enough to watch")
@@ -192,8 +194,9 @@ def _open_boxes(args, lens=None):
 
 def _stdin_boxes(f):
     """Frames of CSV lines from the text stream f (a header line, then frame,x1,y1,x2,y2[,track_id], corner
-    pixels), each frame given when the next one starts. ValueError naming the line for a bad line or a frame
-    going backwards; a last line cut short (no newline, not parseable) is dropped with a warning."""
+    pixels), each frame given when the next one starts. ValueError naming the line for a bad line, a frame
+    going backwards or one of more than MAX_BOXES_PER_FRAME boxes; a last line cut short (no newline, not
+    parseable) is dropped with a warning."""
     header = [h.strip() for h in f.readline(MAX_LINE_CHARS + 1).split(",")]
     missing = [c for c in CSV_COLUMNS if c not in header]
     if missing:
@@ -235,6 +238,9 @@ def _stdin_boxes(f):
                 None if track_col is None else np.array(ids, np.int64)
             boxes, ids = [], []
         frame = n
+        if len(boxes) == MAX_BOXES_PER_FRAME:
+            raise ValueError(f"standard input, line {number_}: frame {n} has more than {MAX_BOXES_PER_FRAME:,} boxes "
+                             "(the most per frame homocal reads)")
         boxes.append(values[1:])
         ids.append(0 if track is None else int(track))
     if frame is not None:

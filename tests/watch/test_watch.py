@@ -152,12 +152,59 @@ def test_a_gap_is_not_a_move_and_ends_every_track():
     (5, [[0, 0, 10, 10]], "frame 5 after frame 9: boxes must come in time order"),
     (10, [[0, np.nan, 10, 10]], "not finite or is upside down"),
     (10, [[0, 20, 10, 10]], "not finite or is upside down"),
+    (10, [[0, 0, 10, 10]] * 501, "frame 10: 501 boxes, more than 500"),
 ])
 def test_bad_boxes_are_refused(frame, box, message):
     cal = OnlineCalibrator(CAM.K, 4.0, FPS)
     cal.update(9, np.zeros((0, 4)))
     with pytest.raises(ValueError, match=message.replace("(", r"\(")):
         cal.update(frame, np.array(box, float))
+
+
+def person_box(cam, x, y, height=1.70):
+    """The box (4,) homocal edges of a person standing at ground (x, y) m, 0.5 m wide, seen by cam."""
+    foot, head = cam.project(np.array([[x, y, 0.0], [x, y, height]]))
+    half = 0.25 * cam.focal_px / y
+    return np.array([foot[0] - half, head[1], foot[0] + half, foot[1]])
+
+
+def test_a_person_whose_feet_a_nearer_person_hides_gives_no_observation():
+    """A (25 m ahead) stands behind B (18 m, walking across in front) for 10 frames, then alone for 5. While B's
+    body covers A's foot point (checked by projection), a detector sees A only down to B's head: that box implies
+    a horizon far below the camera's. With B's box in the frame, A's cut boxes are left out and A's observation
+    comes from its 5 whole boxes after B has gone; without it (B not detected) the cut boxes make A's
+    observation."""
+    a_whole = person_box(CAM, 0.0, 25.0)
+    frames = []
+    for f in range(15):
+        b = person_box(CAM, -0.25 + 0.05 * f, 18.0) if f < 10 else None
+        a = a_whole.copy()
+        if b is not None:
+            foot = CAM.project(np.array([[0.0, 25.0, 0.0]]))[0]
+            assert b[0] < foot[0] < b[2] and b[1] < foot[1] < b[3]  # A's sole is behind B's body
+            a[3] = b[1]  # A seen down to B's head
+        frames.append((f, a, b))
+    truth = CAM.horizon_row
+    cut_row = implied_horizon_rows(np.array([b[1] for _, _, b in frames[:1]]), a_whole[1:2], CAM.focal_px, CAM.K[1, 2],
+                                   4.0, 1.70)[0][0]
+    assert cut_row - truth > 20  # the cut box's horizon, independently: far below the camera's
+
+    def observed(with_b):
+        cal = OnlineCalibrator(CAM.K, 4.0, FPS, (CAM.width, CAM.height), 1.70, 0.07)
+        out = []
+        for f, a, b in frames:
+            boxes, ids = (np.array([a, b]), [1, 2]) if with_b and b is not None else (a[None], [1])
+            s = cal.update(f, boxes, np.array(ids))
+            out += [(f, row, sigma) for row, sigma in zip(s.person_rows, s.person_sigmas)]
+            assert s.hidden_boxes == int(with_b and b is not None)  # A's cut boxes, while B is in front
+        return out
+
+    with_b = observed(True)
+    assert [f for f, *_ in with_b] == [4, 14]  # B after its 5 boxes, A after its 5 whole boxes
+    assert all(abs(row - truth) < 0.01 for _, row, _ in with_b)  # exact boxes, no noise
+    without = observed(False)
+    assert len(without) == 1 and without[0][0] == 4 and abs(without[0][1] - cut_row) < 1e-6
+    assert without[0][1] - truth > 5 * without[0][2]  # it would enter the estimate many sigmas off
 
 
 # ---- the commands ------------------------------------------------------------------------------
@@ -236,11 +283,33 @@ def test_watch_reads_standard_input_and_drops_a_cut_last_line(tmp_path, capsys, 
     assert pq.read_table(tmp_path / "out/horizon.parquet").num_rows >= MIN_PEOPLE
 
 
+def test_watch_on_a_file_and_on_standard_input_agree(tmp_path, capsys, monkeypatch):
+    """The same boxes (3 people a second: some in front of others, whose boxes are left out) read from a file and
+    from standard input give the same horizon.parquet, moves and counts."""
+    frames = list(stream(60, rate=3, seed=8))
+    flags = write_inputs(tmp_path, frames)
+    r = homocal_main("watch", *flags, "--boxes", "boxes.csv", "--out", "file", cwd=tmp_path, capsys=capsys,
+                     monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    r = stdin_run(tmp_path, capsys, monkeypatch, csv_text(frames), out="stdin")
+    assert r.returncode == 0, r.stderr
+    file, stdin = (json.loads((tmp_path / f"{d}/watch.json").read_text()) for d in ("file", "stdin"))
+    assert file["boxes_hidden"] > 0 and file["people"] >= MIN_PEOPLE
+    assert {k: file[k] for k in ("boxes_read", "boxes_hidden", "people", "moves")} == \
+        {k: stdin[k] for k in ("boxes_read", "boxes_hidden", "people", "moves")}
+    file, stdin = (pq.read_table(tmp_path / f"{d}/horizon.parquet").to_pydict() for d in ("file", "stdin"))
+    assert file.keys() == stdin.keys()
+    for column in file:  # NaN where the stretch is too young to test: equal here
+        np.testing.assert_array_equal(file[column], stdin[column], err_msg=column)
+    assert (tmp_path / "file/moves.json").read_text() == (tmp_path / "stdin/moves.json").read_text()
+
+
 @pytest.mark.parametrize("tail, message", [
     ("5,1,1,20,40,1\n", "frame 5 after frame 99: boxes must come in time order"),
     ("300,nan,1,20,40,1\n", "a value is not a finite number"),
     ("300,1,1,20\n", "not 6 numbers"),
     (b"300,1,1,20,40,\xff\n", "not UTF-8 text"),
+    pytest.param("300,1,1,20,40,1\n" * 501, "frame 300 has more than 500 boxes", id="crowded frame"),
 ])
 def test_watch_stops_at_bad_standard_input_with_whole_files(tmp_path, capsys, monkeypatch, tail, message):
     text = csv_text(stream(20, seed=7))
@@ -295,25 +364,26 @@ def test_a_move_rearms_the_people_in_view_and_the_new_stretch_is_unbiased():
     and that stretch's horizon is nearer the moved camera's than the change point's people's."""
     from pathlib import Path
 
-    from homocal.geometry.boxes import on_border
+    from homocal.geometry.boxes import hidden_feet, on_border
     from homocal.watch.calibrator import PERSON_BOXES
     from simgen.boxstream import box_stream
     from simgen.scene import CameraMove, load_scene
 
     scene = load_scene(Path(__file__).resolve().parents[2] / "simgen" / "scenes" / "scene1")
     moving = dataclasses.replace(scene, moves=(CameraMove(60.0, tilt_deg=2.0),))
-    frames = list(box_stream(moving, 2, 80.0, FPS))
+    frames = list(box_stream(moving, 2, 90.0, FPS))
     cam = scene.camera
     cal = OnlineCalibrator(cam.K, cam.mount_height_m, FPS, (cam.width, cam.height), 1.71, 0.09)
     states = [cal.update(f, b, i) for f, b, i in frames]
     detected = [k for k, s in enumerate(states) if s.move]
     assert len(detected) == 1 and states[detected[0]].move.detected_s > 60.0
     d = detected[0]
-    # the people in view at the detection whose next PERSON_BOXES boxes are all usable (not at the image border,
-    # a finite implied horizon: a person partly in view may have none)
+    # the people in view at the detection whose next PERSON_BOXES boxes are all usable (not at the image border, no
+    # nearer person's box over their feet, a finite implied horizon: a person partly in view may have none)
     def usable(xyxy, ids):
         rows = implied_horizon_rows(xyxy[:, 3], xyxy[:, 1], cam.K[1, 1], cam.K[1, 2], cam.mount_height_m, 1.71)[0]
-        return set(ids[np.isfinite(rows) & ~on_border(xyxy, (cam.width, cam.height))].tolist())
+        hidden = hidden_feet(xyxy, np.zeros(len(xyxy), np.int64))
+        return set(ids[np.isfinite(rows) & ~on_border(xyxy, (cam.width, cam.height)) & ~hidden].tolist())
     usable = [usable(xyxy, ids) for _, xyxy, ids in frames[d + 1:d + 1 + PERSON_BOXES]]
     in_view = set(frames[d][2].tolist()).intersection(*usable)
     after = states[d + PERSON_BOXES]  # newcomers need PERSON_BOXES boxes after the detection: none is in yet
