@@ -156,7 +156,8 @@ class OnlineCalibrator:
             nearer person's box may hide are not used either (module docstring).
         height_mean_m, height_sd_m: the prior of people's heights (PedestrianCorrector's).
         arl0_people: the mean number of people between false alarms on a steady camera (the threshold follows).
-        lens: the camera's lens (homocal.geometry.Lens, the same K and image size): update takes the camera's
+        lens: the camera's lens (homocal.geometry.Lens, the same K and image size: ValueError naming both
+            otherwise, Lens.check_matches): update takes the camera's
             pixels, tests the border there (PedestrianCorrector.fit(lens=)'s rule) and then undistorts the boxes
             (undistort_boxes); the horizon rows are then the undistorted image's. None: a pinhole.
     """
@@ -173,7 +174,7 @@ class OnlineCalibrator:
         if not (isinstance(arl0_people, (int, float)) and 10 <= arl0_people <= 1e9):
             raise ValueError(f"arl0_people must be in [10, 1e9] people, got {arl0_people!r}")
         self.K, self.camera_height_m, self.fps, self.image_size = K, float(camera_height_m), float(fps), image_size
-        self.lens = lens
+        self.lens = None if lens is None else lens.check_matches(K, image_size)
         self.height_mean_m, self.height_sd_m = float(height_mean_m), float(height_sd_m)
         self.arl0_people, self.threshold = float(arl0_people), cusum_threshold(arl0_people)
         self._linker = TrackLinker(max_gap=LINK_GAP)

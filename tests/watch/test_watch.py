@@ -14,6 +14,7 @@ from homocal.correctors.base import load_corrector
 from homocal.correctors.pedestrians import implied_heights, implied_horizon_rows
 from homocal.geometry import PinholeCamera
 from homocal.geometry.boxes import TrackLinker, link_tracks
+from homocal.geometry.lens import Lens
 from homocal.watch import OnlineCalibrator
 from homocal.watch.calibrator import (
     CLIP,
@@ -159,6 +160,16 @@ def test_bad_boxes_are_refused(frame, box, message):
     cal.update(9, np.zeros((0, 4)))
     with pytest.raises(ValueError, match=message.replace("(", r"\(")):
         cal.update(frame, np.array(box, float))
+
+
+@pytest.mark.parametrize("lens_K, lens_size, message", [
+    (CAM.K * [[1.01, 1, 1], [1, 1.01, 1], [1, 1, 1]], (CAM.width, CAM.height), "^K: .* is not the lens's K"),
+    (CAM.K, (1920, 1080), r"^image_size: \(1280, 720\) is not the lens's image size \(1920, 1080\)")])
+def test_lens_of_another_camera_is_refused(lens_K, lens_size, message):
+    """OnlineCalibrator(lens=) with a lens whose K or image size is not the K and image_size given: one ValueError."""
+    with pytest.raises(ValueError, match=message):
+        OnlineCalibrator(CAM.K, 4.0, FPS, image_size=(CAM.width, CAM.height),
+                         lens=Lens(lens_K, np.array([-0.2, 0, 0, 0, 0]), lens_size))
 
 
 def person_box(cam, x, y, height=1.70):
