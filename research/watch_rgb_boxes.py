@@ -104,11 +104,12 @@ def main() -> None:
                                             ("gt boxes of those, with ids", same, True), ("segmentation boxes, with ids", seg[seg.agent_id >= 0], True))):
         t_s, row, alarms = watched_rows(dataset, boxes, work / f"run{i}", ids)
         err = row - truth[np.minimum(np.round(t_s / dt).astype(int), len(truth) - 1)]
-        line = f"  {name}: {err[t_s < t_move][-1]:+.1f}"
+        before = err[t_s < t_move]  # none where the move starts with the recording (a sway)
+        line = f"  {name}: {before[-1]:+.1f}" if before.size else f"  {name}: -"
         after = [a for a in alarms if a >= t_move]
         if after:
             line += "; " + ", ".join(f"{err[t_s <= after[0] + s][-1]:+.1f}" for s in (0.5, 10, 30))
-        print(line + f" (alarms at {', '.join(f'{a:g}' for a in alarms)} s)")
+        print(line + (f" (alarms at {', '.join(f'{a:g}' for a in alarms)} s)" if alarms else " (no alarm)"))
 
 
 if __name__ == "__main__":
