@@ -90,6 +90,7 @@ MIN_PEOPLE = 3  # fewer inlier people (tracks) than this is refused
 MAX_OUTLIER_SHARE = 0.5  # more outlier boxes, or people, than this share of those used is refused (PedestrianCorrector.fit)
 LINK_GAP = 5  # frames: boxes this many frames apart at most are linked into one track
 MIN_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M = 0.5, 100.0  # below half a metre no box of a standing person fits
+BOX_STATUS = ("used", "outlier", "border", "hidden")  # a box's part in a fit (box_status_), the page draws each kind
 MODELS = ("camera", "rotation")  # PedestrianCorrector's corrected mappings (its docstring); the first is the default
 GRID = 128  # tilt grid of the median start over its 90 degree range (then bisection)
 ROLL_SPREAD = 0.1  # estimate_roll fits roll when the people's foot columns' interquartile range spans this share of the width
@@ -438,7 +439,7 @@ class PedestrianCorrector(Corrector):
     (NaN unless estimated), tilt_roll_cov_ and tilt_roll_sensitivity_ (the people's 2x2 covariance of (tilt,
     roll), rad^2, and their move per metre of the prior mean; None unless estimated), transformer_, m, plus those
     of ``Corrector`` (error_before_ and error_after_ on check points if fit had them, else NaN). After fit only
-    (not saved): box_status_ (N,) str, each box's part in the fit: "used", "outlier", "border" or "hidden".
+    (not saved): box_status_ (N,) str, each box's part in the fit, one of BOX_STATUS: "used", "outlier", "border" or "hidden".
     """
 
     method = "pedestrians"
@@ -558,8 +559,9 @@ class PedestrianCorrector(Corrector):
         self._set_horizon_sigma()
         self.n_boxes_, self.n_border_, self.n_hidden_ = n, int(border.sum()), int(hidden.sum())
         self.n_outliers_ = int(used.sum() - fit["inlier_boxes"].sum())
-        self.box_status_ = np.where(border, "border", np.where(hidden, "hidden", "outlier"))
-        self.box_status_[np.flatnonzero(used)[fit["inlier_boxes"]]] = "used"
+        used_, outlier, cut, hid = BOX_STATUS
+        self.box_status_ = np.where(border, cut, np.where(hidden, hid, outlier))
+        self.box_status_[np.flatnonzero(used)[fit["inlier_boxes"]]] = used_
         self.n_people_, self.n_people_used_ = len(np.unique(tracks[used])), fit["n_people"]
         rejected = {"boxes": (self.n_outliers_, int(used.sum())),
                     "people (tracks)": (self.n_people_ - self.n_people_used_, self.n_people_)}

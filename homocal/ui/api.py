@@ -31,7 +31,7 @@ from homocal.correctors.base import MAX_REFERENCE_POINTS, Corrector, load_correc
 from homocal.correctors.catalogue import Method, fit_note, get_method, method_of, quality
 from homocal.correctors.hybrid import DEFAULT_THRESHOLD
 from homocal.correctors.pedestrians import SETTINGS as PEDESTRIAN_SETTINGS
-from homocal.correctors.pedestrians import PedestrianCorrector
+from homocal.correctors.pedestrians import BOX_STATUS, PedestrianCorrector
 from homocal.correctors.serialization import float_or_none
 from homocal.files import read_json, read_points_csv, write_atomic, write_json_atomic, write_text_atomic
 from homocal.geometry import MAX_COORDINATE, SiteMap, ViewTransformer, signed_area, validate_quad
@@ -42,6 +42,7 @@ from homocal.ui.errorbars import error_bars
 from homocal.ui.session import Session, undistorted, use_lens
 from homocal.watch import OnlineCalibrator
 from homocal.watch.calibrator import PERSON_BOXES, by_frame, camera_of
+from homocal.watch.cli import WATCH_SETTINGS
 from homocal.watch.folder import correction_at
 
 TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE = "trapezoid.json", "reference_points.csv", "correction.json"
@@ -51,6 +52,7 @@ CAMERA_FILE = "camera_intrinsics.json"  # Save's --camera-json of a fit from box
 MAX_SIGMA_PX = 100.0  # the error bars' sigmas (pixels): a clicking error beyond this is no click
 MAX_TOLERANCE_M = 1e6
 MAX_SEED = 2**64 - 1
+NOT_WATCHS = tuple(PEDESTRIAN_SETTINGS[k].flag for k in PEDESTRIAN_SETTINGS if k not in WATCH_SETTINGS)  # fit's, not watch's
 MAX_DRAWN_BOXES = 5000  # people's boxes a fit answers for the page to draw (every k-th beyond it)
 MAX_PLOT_POINTS = 2000  # points of each curve of the horizon over time the page is sent (every k-th beyond it)
 
@@ -275,12 +277,12 @@ def fit(session: Session, req: dict) -> dict:
 
 def drawn_boxes(xyxy: np.ndarray, status: np.ndarray) -> dict:
     """The boxes (N, 4) x1, y1, x2, y2 px (the frame's pixels, as the file gave them) a fit from boxes read, by their
-    part in it (status (N,): "used", "outlier", "border", "hidden"), for the page to draw on the frame: {"used":
+    part in it (status (N,), one of BOX_STATUS), for the page to draw on the frame: {"used":
     [outline, ...], "outlier": [...], "border": [...], "hidden": [...], "total": N, "step": k}, each outline the box's 4 corners and 4 side
     midpoints (from the top-left, clockwise); every k-th box of each kind, at most MAX_DRAWN_BOXES in all."""
     step = max(1, math.ceil(len(xyxy) / MAX_DRAWN_BOXES))
     out = {}
-    for kind in ("used", "outlier", "border", "hidden"):
+    for kind in BOX_STATUS:
         x1, y1, x2, y2 = xyxy[status == kind][::step].T
         xc, yc = (x1 + x2) / 2, (y1 + y2) / 2
         outline = np.stack([np.column_stack(p) for p in ((x1, y1), (xc, y1), (x2, y1), (x2, yc), (x2, y2), (xc, y2),
@@ -591,7 +593,7 @@ def save(session: Session, req: dict) -> dict:
                  *(f"{PEDESTRIAN_SETTINGS[k].flag} {_flag_text(params[k])}" for k in method.settings)]
     stretch = box_settings.get("stretch") if box_settings else None
     if stretch is not None:  # homocal watch writes it, as the stretch's corrections/<start_s>.json
-        flags = [f for f in flags if not f.startswith(("--estimate-roll", "--height-mean-sigma", "--drop-hidden-feet"))]  # not watch's
+        flags = [f for f in flags if not f.startswith(NOT_WATCHS)]
         command = (f"homocal watch --trapezoid {shlex.quote(str(paths[0]))} --fps {session.fps!r} "
                    f"--camera-origin={','.join(repr(float(x)) for x in corrector.camera_origin_)} -o WATCH_DIR "
                    + " ".join(flags) + f" (its corrections/{stretch[0]:.2f}.json; homocal apply WATCH_DIR --at "

@@ -33,6 +33,7 @@ from homocal.watch.calibrator import DEFAULT_ARL0_PEOPLE, MIN_PEOPLE, OnlineCali
 from homocal.watch.folder import MARKER, TOOL
 
 PRIOR = ("height_mean_m", "height_sd_m")  # the people's height prior: with camera_height_m, watch's pedestrian settings
+WATCH_SETTINGS = ("camera_height_m", *PRIOR)  # the pedestrian settings (PEDESTRIAN_SETTINGS) homocal watch takes
 ROW_GROUP = 4096  # horizon.parquet rows held before they are written
 MAX_MOVES = 10_000  # moves (and stretches) one run records at most: past it the run stops
 HORIZON_COLUMNS = ("t_s", "person_row_px", "person_sigma_px", "horizon_row_px", "horizon_sigma_px", "n_people",
@@ -54,7 +55,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--fps", required=True, type=number(float, 0, MAX_FPS, low_open=True), help="frames per second of the boxes' video")
     p.add_argument("--camera-json", type=Path, metavar="CAMERA.json", help="the image size and intrinsics K (default: "
                    "those beside the boxes file); needed for a CSV or standard input")
-    add_pedestrian_flags(p, ("camera_height_m", *PRIOR))
+    add_pedestrian_flags(p, WATCH_SETTINGS)
     p.add_argument("--arl0-people", type=number(float, 10, 1e9), default=DEFAULT_ARL0_PEOPLE, metavar="N",
                    help="mean number of people between false alarms on a steady camera (default %(default)g; "
                         "the CUSUM threshold follows)")
