@@ -125,6 +125,7 @@ BAD = [  # (writes the boxes, extra arguments, the error's words)
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "1e9"], "argument --fps: must be a finite number in (0, 1000]"),
     (walker_rows, ["--boxes", "boxes.csv"], "--fps: required (boxes.csv does not say its frame rate)"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--foot-noise", "bogus"], "argument --foot-noise: invalid choice"),
+    (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--feet", "heels"], "argument --feet: invalid choice: 'heels'"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--accel-psd", "fast"],
      "argument --accel-psd: fitted or a number: expected a number, got 'fast'"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--accel-psd", "0"],
