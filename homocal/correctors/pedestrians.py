@@ -340,6 +340,15 @@ def roll_homography(K: np.ndarray, roll: float) -> np.ndarray:
     return K @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.linalg.inv(K)
 
 
+def walk_weight(slopes: np.ndarray, psi: np.ndarray, dpsi: np.ndarray, labels: np.ndarray, n_people: int) -> float:
+    """The walks' weight c = A_W / B_W in fit_tilt_roll (at most 1; 0 for walks with no spread), from the walk
+    residuals' roll slopes dr_j / droll (n,), psi(r_j) and psi'(r_j) (n,) and their people labels (n,) 0..P-1:
+    A_W = sum psi'_j slope_j^2, B_W = P times the sample variance over people of sum_j psi_j slope_j."""
+    walks = np.bincount(labels, slopes * psi, n_people)
+    spread = np.sum((walks - walks.mean()) ** 2) * n_people / (n_people - 1)
+    return min(1.0, float(np.sum(dpsi * slopes**2)) / spread) if spread > 0 else 0.0
+
+
 def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_px: float,
                   principal: tuple[float, float], camera_height_m: float, mean_m: float, sd_m: float,
                   start: dict) -> dict:
@@ -352,9 +361,8 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
     did not settle on scene3's boxes) and each box's r_j = (H_j - mean_p H) / (BOX_HEIGHT_SD mu), its height about
     its person's mean (the walk: the person's own height cancels). The equations
     sum psi(r) m grad r = 0 weigh the people's (tilt, roll) by m = (1, 1) and the walks' by m = (0, c): the walks
-    give the roll alone, c = A_W / B_W (at most 1) their roll information as if their boxes were independent
-    (A_W = sum psi'_j (dr_j / droll)^2) over its spread among the people (B_W, the sample variance of the people's
-    walk scores sum_j psi_j dr_j / droll times their number), set at the start of each inlier round; solved by
+    give the roll alone, c their roll information as if their boxes were independent over its spread among the
+    people (walk_weight), set at the start of each inlier round; solved by
     iteratively reweighted least squares (Huber's weights min(1, k / |r|); grad r by central differences,
     DIFF_STEP; until a step is below STEP_TOLERANCE), the inlier boxes (within OUTLIER_SIGMAS sd of mu) updated
     until they settle or return to an earlier set. Uncertainty: the sandwich A^-1 (sum_p s_p s_p^T) A^-T over the
@@ -394,9 +402,7 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
                                     for e in (np.array([DIFF_STEP, 0.0]), np.array([0.0, DIFF_STEP]))])
 
         J, psi, dpsi = gradient(beta), *_huber(residuals(beta))
-        walks = np.bincount(labels, J[:n, 1] * psi[:n], P)  # each person's walk's roll score
-        spread = np.sum((walks - walks.mean()) ** 2) * P / (P - 1)
-        c = min(1.0, float(np.sum(dpsi[:n] * J[:n, 1] ** 2)) / spread) if spread > 0 else 0.0
+        c = walk_weight(J[:n, 1], psi[:n], dpsi[:n], labels, P)
         m = np.where(np.arange(n + P)[:, None] < n, [0.0, c], [1.0, 1.0])
         for _ in range(MAX_ROUNDS):
             r, J = residuals(beta), gradient(beta)
