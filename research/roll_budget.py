@@ -81,6 +81,14 @@ def walk_residuals(edges: np.ndarray, labels: np.ndarray, K: np.ndarray, tilt_de
     return (h - mean[labels]) / (BOX_HEIGHT_SD * HEIGHT_M[0])
 
 
+def at_pose(fn, edges: np.ndarray, labels: np.ndarray, K: np.ndarray, pose: np.ndarray, camera_height_m: float):
+    """(value, its gradient (M, 2) per radian of (tilt, roll) by central differences, STEP_DEG) of fn (people_heights
+    or walk_residuals, (M,)) at pose (tilt_deg, roll_deg) (2,) for the boxes (n, 4) px and labels (n,)."""
+    J = np.column_stack([fn(edges, labels, K, *(pose + d), camera_height_m) - fn(edges, labels, K, *(pose - d), camera_height_m)
+                         for d in np.eye(2) * STEP_DEG]) / (2 * math.radians(STEP_DEG))
+    return fn(edges, labels, K, *pose, camera_height_m), J
+
+
 def budget(path: Path, detector: str, drop_hidden: bool, walks: bool = True) -> dict:
     """The module docstring's figures of one dataset and detector."""
     ds, raw = load_dataset(path), read_json(path / "camera.json")
@@ -94,15 +102,11 @@ def budget(path: Path, detector: str, drop_hidden: bool, walks: bool = True) -> 
     ids, labels = np.unique(agents, return_inverse=True)
     K, h_c = ds.camera.K, ds.camera.mount_height_m
     pose = np.array([raw["tilt_deg"], raw.get("roll_deg", 0.0)])
-    H = people_heights(edges, labels, K, *pose, h_c)
-    J = np.column_stack([people_heights(edges, labels, K, *(pose + e), h_c) - people_heights(edges, labels, K, *(pose - e), h_c)
-                         for e in np.eye(2) * STEP_DEG]) / (2 * math.radians(STEP_DEG))  # (P, 2) m per radian
+    H, J = at_pose(people_heights, edges, labels, K, pose, h_c)  # (P,) m, (P, 2) m per radian
     truth = np.array([true_heights(ds.manifest)[a] for a in ids])
     inlier = np.abs(box_heights(edges, K, *pose, h_c) - HEIGHT_M[0]) <= OUTLIER_SIGMAS * HEIGHT_M[1]
-    e, lab = edges[inlier], labels[inlier]
-    Jw = np.column_stack([walk_residuals(e, lab, K, *(pose + d), h_c) - walk_residuals(e, lab, K, *(pose - d), h_c)
-                          for d in np.eye(2) * STEP_DEG]) / (2 * math.radians(STEP_DEG))  # (n, 2) per radian
-    parts = linearised(J, H, truth, *HEIGHT_M, (walk_residuals(e, lab, K, *pose, h_c), Jw, lab) if walks else None)
+    parts = linearised(J, H, truth, *HEIGHT_M,
+                       (*at_pose(walk_residuals, edges[inlier], labels[inlier], K, pose, h_c), labels[inlier]) if walks else None)
     share = parts["share"]
     cols = np.array([np.median((edges[labels == k, 0] + edges[labels == k, 2]) / 2) for k in range(len(ids))]) - K[0, 2]
     rows = np.array([np.median(edges[labels == k, 3]) for k in range(len(ids))])
