@@ -24,6 +24,7 @@ from homocal.correctors.pedestrians import (
     PedestrianCorrector,
     camera_height_from_homography,
     fit_tilt,
+    fit_tilt_roll,
     focal_from_homography,
     horizon_row,
     implied_heights,
@@ -743,6 +744,33 @@ class TestRollAndLens:
         assert 10 < right.sum() < 30 and walks.n_people_used_ == n and walks.roll_estimated_ and alone.roll_estimated_
         assert abs(alone.roll_deg_ - degrees) > 4 * alone.roll_sigma_deg_
         assert abs(walks.roll_deg_ - degrees) < 3 * walks.roll_sigma_deg_
+
+    @pytest.mark.slow
+    def test_roll_sigma_covers_walks(self):
+        """The roll's sigma over people (the sandwich clustered by person) against an independent simulation: each
+        of 150 trials draws 40 people N(1.71, 0.09) m walking 6 m in random directions 8-35 m ahead of a camera
+        rolled 1 degree, 15 points each by the pinhole's projection, 0.5 px off, the feet's rows swinging 3 px with
+        the stride (correlated along the walk, so the walks' weight falls to about half). The roll's error is
+        within 1 sigma in 68 % of trials and within 2 in 95 % if the sigma is honest; 150 trials give a binomial sd
+        of 3.8 and 1.7 pp: within 10 and 5 pp."""
+        cam, n, k = PinholeCamera(roll_deg=1.0), 40, 15
+        pp, z = tuple(cam.K[:2, 2]), []
+        for trial in range(150):
+            rng = np.random.default_rng(trial)
+            start = np.column_stack([rng.uniform(-12, 12, n), rng.uniform(8, 35, n)])
+            heading = rng.uniform(0, 2 * np.pi, n)
+            feet = (start[:, None, :] + np.linspace(0, 6, k)[None, :, None]
+                    * np.stack([np.cos(heading), np.sin(heading)], -1)[:, None, :]).reshape(-1, 2)
+            heights = np.repeat(rng.normal(1.71, 0.09, n), k)
+            f, t = (cam.project(np.column_stack([feet, z_m])) + rng.normal(0, 0.5, (n * k, 2))
+                    for z_m in (np.zeros(n * k), heights))
+            f[:, 1] += 3.0 * np.sin(np.repeat(rng.uniform(0, 2 * np.pi, n), k) + np.tile(np.arange(k), n) * 0.8)
+            people = np.repeat(np.arange(n), k)
+            start_fit = fit_tilt(f[:, 1], t[:, 1], people, cam.focal_px, pp[1], 4.0, 1.71, 0.09)
+            fit = fit_tilt_roll(f, t, people, cam.focal_px, pp, 4.0, 1.71, 0.09, start_fit)
+            z.append(abs(math.degrees(fit["roll"]) - 1.0) / math.degrees(math.sqrt(fit["cov"][1, 1])))
+        z = np.array(z)
+        assert abs(np.mean(z < 1) - 0.683) < 0.10 and abs(np.mean(z < 2) - 0.954) < 0.05, (np.mean(z < 1), np.mean(z < 2))
 
     def test_lens_is_read_boxes_undistortion(self):
         """fit(lens=) on the camera's boxes is fit on the boxes undistorted as read_boxes(lens=) gives them
