@@ -386,7 +386,8 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
 
     people, inliers, seen = np.ones(len(lo), bool), start["inlier_boxes"], set()
     for rounds in range(1, MAX_ROUNDS + 1):
-        kept = _people(tracks[lo[people]], mean_m)[0]  # their tracks, sorted
+        used = people  # this round's people (people is the next round's after it)
+        kept = _people(tracks[lo[used]], mean_m)[0]  # their tracks, sorted
         walk = inliers & np.isin(tracks, kept)  # the inlier boxes of those people
         f, h, n, P, labels = foot[walk], head[walk], int(walk.sum()), len(kept), np.searchsorted(kept, tracks[walk])
         counts = np.maximum(np.bincount(labels, minlength=P), 1)
@@ -395,7 +396,7 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
         def residuals(b: np.ndarray) -> np.ndarray:  # (n + P,): the walks' r_j, the people's r_p
             H = box_heights(b, f, h)
             return np.concatenate([(H - (np.bincount(labels, H, P) / counts)[labels]) / box_sd,
-                                   (held(b, people) - mean_m) / sd_m])
+                                   (held(b, used) - mean_m) / sd_m])
 
         def gradient(b: np.ndarray) -> np.ndarray:  # (n + P, 2)
             return np.column_stack([(residuals(b + e) - residuals(b - e)) / (2 * DIFF_STEP)
