@@ -69,11 +69,12 @@ def summary(path: Path, detector: str, lens: str = "known") -> dict:
     inlier = seen & (np.abs(H - HEIGHT_M[0]) <= OUTLIER_SIGMAS * HEIGHT_M[1])
     ids, labels = np.unique(agents[inlier], return_inverse=True)
     about = H[inlier] / np.array([np.median(H[inlier][labels == k]) for k in range(len(ids))])[labels] - 1
-    return {"walk_spread_pct": 100 * 1.4826 * float(np.median(np.abs(about))),"boxes": len(H), "median_m": float(np.median(H)),
+    return {"boxes": len(H), "median_m": float(np.median(H)),
             "outside_pct": 100 * float(np.mean(np.abs(H - HEIGHT_M[0]) > OUTLIER_SIGMAS * HEIGHT_M[1])),
             "ratio": float(np.median(H[seen] / true)), "seen_true_m": float(np.median(true)),
             "unassociated_pct": 100 * float(np.mean(~seen)),
-            "unassociated_m": float(np.median(H[~seen])) if (~seen).any() else math.nan}
+            "unassociated_m": float(np.median(H[~seen])) if (~seen).any() else math.nan,
+            "walk_spread_pct": 100 * 1.4826 * float(np.median(np.abs(about)))}
 
 
 def main(argv: list[str] | None = None) -> None:
