@@ -12,7 +12,8 @@ shipped scene the manifest names, its seed and seconds). Prints per detector: th
 height and the share beyond 3 sd (OUTLIER_SIGMAS x 0.09 m) of 1.71 m (simgen's people); of the boxes associated
 with an agent (agent_id >= 0), the median of implied / true height and the median true height of the agents
 seen (over their boxes); of the others (agent_id -1: blobs of no one person, or of several), their share and
-median implied height.
+median implied height; and the walks' spread: 1.4826 times the median absolute deviation of the associated boxes'
+implied heights within 3 sd about their agent's median (pedestrians.BOX_HEIGHT_SD).
 """
 from __future__ import annotations
 
@@ -65,11 +66,15 @@ def summary(path: Path, detector: str, lens: str = "known") -> dict:
     truth = true_heights(ds.manifest)
     seen = agents >= 0
     true = np.array([truth[a] for a in agents[seen]])
+    inlier = seen & (np.abs(H - HEIGHT_M[0]) <= OUTLIER_SIGMAS * HEIGHT_M[1])
+    ids, labels = np.unique(agents[inlier], return_inverse=True)
+    about = H[inlier] / np.array([np.median(H[inlier][labels == k]) for k in range(len(ids))])[labels] - 1
     return {"boxes": len(H), "median_m": float(np.median(H)),
             "outside_pct": 100 * float(np.mean(np.abs(H - HEIGHT_M[0]) > OUTLIER_SIGMAS * HEIGHT_M[1])),
             "ratio": float(np.median(H[seen] / true)), "seen_true_m": float(np.median(true)),
             "unassociated_pct": 100 * float(np.mean(~seen)),
-            "unassociated_m": float(np.median(H[~seen])) if (~seen).any() else math.nan}
+            "unassociated_m": float(np.median(H[~seen])) if (~seen).any() else math.nan,
+            "walk_spread_pct": 100 * 1.4826 * float(np.median(np.abs(about)))}
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -84,7 +89,8 @@ def main(argv: list[str] | None = None) -> None:
             print(f"{path} {detector}, lens {args.lens}: {e['boxes']} boxes, implied height median {e['median_m']:.3f} m, "
                   f"{e['outside_pct']:.1f} % beyond {OUTLIER_SIGMAS:g} sd of {HEIGHT_M[0]:g} m; associated: implied / "
                   f"true {e['ratio']:.3f}, the agents seen {e['seen_true_m']:.3f} m tall (median over boxes); "
-                  f"no agent: {e['unassociated_pct']:.0f} % of the boxes, implied {e['unassociated_m']:.3f} m")
+                  f"no agent: {e['unassociated_pct']:.0f} % of the boxes, implied {e['unassociated_m']:.3f} m; "
+                  f"walk spread {e['walk_spread_pct']:.1f} %")
 
 
 if __name__ == "__main__":

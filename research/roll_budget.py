@@ -1,17 +1,21 @@
 """Where the pedestrians' fitted roll comes from on a dataset (docs/real-camera.md, "Why the roll is not 1"): each
 person's share of the roll and tilt error at the camera's true pose.
 
-Run: python research/roll_budget.py DATASET [--detector segmentation] [--drop-hidden-feet yes|no] [--people 8]
+Run: python research/roll_budget.py DATASET [--detector segmentation] [--drop-hidden-feet yes|no] [--walks yes|no]
+         [--people 8]
 
-The fit's score (homocal.correctors.pedestrians.fit_tilt_roll) linearised at camera.json's tilt_deg and roll_deg,
-with the dataset's own people (detections.parquet's agent_id: one height per person, the median of its boxes clear
-of the border, and of hidden_feet's boxes with --drop-hidden-feet yes): the error of (tilt, roll) the score's
-root lies at is -sigma A^-1 sum_j grad H_j psi_j (A = sum psi'_j grad H_j grad H_j^T, grad H_j by central
+The fit's equations (homocal.correctors.pedestrians.fit_tilt_roll) linearised at camera.json's tilt_deg and
+roll_deg, with the dataset's own people (detections.parquet's agent_id; their boxes clear of the border, and of
+hidden_feet's boxes with --drop-hidden-feet yes, within 3 sd of the prior mean): each person's height r_p = (H_p -
+mu) / sigma (H_p the median of its boxes') and, with --walks yes (the fit's), each box's r_j = (H_j - mean_p H) /
+(BOX_HEIGHT_SD mu) about its person's mean, weighted m = (1, 1) and (0, c) (c = walk_weight). The error of (tilt,
+roll) their root lies at is -A^-1 sum m psi(r) grad r (A = sum psi' m grad r grad r^T, grad r by central
 differences), split into the part of the people's own heights (psi of (true height - mu) / sigma: who walked
-by) and the part of the boxes (psi of (implied - true height) / sigma: how the boxes measure them), the prior
-simgen's people's (box_heights.HEIGHT_M). Prints the three errors, the sandwich sigma of the roll and the people
-who carry the most of it (their share, boxes, median foot column from the principal point and foot row, true
-and implied height).
+by) and the part of the boxes (the people's psi of (implied - true height) / sigma, and the walks': how the
+boxes measure them), the prior simgen's people's (box_heights.HEIGHT_M). --walks no: the people's heights alone
+(each person one box's height: the fit before the walks). Prints the three errors, the sandwich sigma of the roll
+over the people, the walks' weight and the people who carry the most of it (their share, boxes, median foot
+column from the principal point and foot row, true and implied height).
 """
 from __future__ import annotations
 
@@ -22,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
-from homocal.correctors.pedestrians import HUBER_K, OUTLIER_SIGMAS
+from homocal.correctors.pedestrians import BOX_HEIGHT_SD, HUBER_K, OUTLIER_SIGMAS, walk_weight
 from homocal.geometry.boxes import on_border
 from homocal.dataset import load_dataset
 from homocal.files import read_json
@@ -40,25 +44,52 @@ def people_heights(edges: np.ndarray, labels: np.ndarray, K: np.ndarray, tilt_de
     return np.array([np.median(h[labels == k]) for k in range(labels.max() + 1)])
 
 
-def linearised(J: np.ndarray, H: np.ndarray, truth: np.ndarray, mean: float, sd: float) -> dict:
-    """The score's root's error at the true pose, linearised (the module docstring), from the people's heights'
+def linearised(J: np.ndarray, H: np.ndarray, truth: np.ndarray, mean: float, sd: float,
+               walks: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> dict:
+    """The equations' root's error at the true pose, linearised (the module docstring), from the people's heights'
     gradient J (P, 2) m per radian of (tilt, roll), their implied heights H (P,) and true heights truth (P,), m, the
-    prior (mean, sd) m: "share" (P, 2) degrees, each person's part of it; "heights" and "boxes" (2,) degrees, the
-    parts of the people's own heights and of their boxes; "roll_sigma" degrees, the sandwich sigma of the roll."""
+    prior (mean, sd) m, and walks: None (the people alone) or the walk residuals' (r (n,), their gradient (n, 2) per
+    radian, their people labels (n,) 0..P-1): "share" (P, 2) degrees, each person's part of it; "heights" and
+    "boxes" (2,) degrees, the parts of the people's own heights and of their boxes; "roll_sigma" degrees, the
+    sandwich sigma of the roll over the people; "walk_weight" c."""
     r = (H - mean) / sd
-    use = np.abs(r) <= OUTLIER_SIGMAS
-    psi, dpsi = np.clip(r, -HUBER_K, HUBER_K) * use, (np.abs(r) <= HUBER_K).astype(float)
-    A_inv = np.linalg.inv((J * dpsi[:, None]).T @ J)
+    use = (np.abs(r) <= OUTLIER_SIGMAS).astype(float)
+    rw, Jw, labels = walks if walks is not None else (np.zeros(0), np.zeros((0, 2)), np.zeros(0, int))
+    psi_w, dpsi_w = np.clip(rw, -HUBER_K, HUBER_K), (np.abs(rw) <= HUBER_K).astype(float)
+    c = walk_weight(Jw[:, 1], psi_w, dpsi_w, labels, len(H)) if len(rw) else 0.0
+    Jp, mw = J / sd, np.array([0.0, c])
+    dpsi = (np.abs(r) <= HUBER_K).astype(float)
+    A_inv = np.linalg.inv((Jp * dpsi[:, None]).T @ Jp + (mw * Jw * dpsi_w[:, None]).T @ Jw)
+    walk_share = np.column_stack([np.bincount(labels, mw[k] * Jw[:, k] * psi_w, len(H)) for k in range(2)])  # (P, 2)
 
-    def error(residual: np.ndarray) -> np.ndarray:  # (P, 2) degrees: each person's share
-        return np.degrees(-sd * (A_inv @ (J * (np.clip(residual, -HUBER_K, HUBER_K) * use)[:, None]).T).T)
+    def error(residual: np.ndarray, walk: bool) -> np.ndarray:  # (P, 2) degrees: each person's share
+        return np.degrees(-(A_inv @ ((Jp * (np.clip(residual, -HUBER_K, HUBER_K) * use)[:, None]) + walk * walk_share).T).T)
 
-    cov = sd**2 * A_inv @ ((J * (psi * psi)[:, None]).T @ J) @ A_inv
-    return {"share": error(r), "heights": error((truth - mean) / sd).sum(0), "boxes": error((H - truth) / sd).sum(0),
-            "roll_sigma": math.degrees(math.sqrt(cov[1, 1]))}
+    scores = Jp * (np.clip(r, -HUBER_K, HUBER_K) * use)[:, None] + walk_share
+    cov = A_inv @ scores.T @ scores @ A_inv.T
+    return {"share": error(r, True), "heights": error((truth - mean) / sd, False).sum(0),
+            "boxes": error((H - truth) / sd, True).sum(0), "roll_sigma": math.degrees(math.sqrt(cov[1, 1])),
+            "walk_weight": c}
 
 
-def budget(path: Path, detector: str, drop_hidden: bool) -> dict:
+def walk_residuals(edges: np.ndarray, labels: np.ndarray, K: np.ndarray, tilt_deg: float, roll_deg: float,
+                   camera_height_m: float) -> np.ndarray:
+    """(n,) each box's implied height about its person's mean over the boxes given, in BOX_HEIGHT_SD of the prior
+    mean (fit_tilt_roll's walk residuals), the boxes (n, 4) px and labels (n,) 0..P-1 as people_heights'."""
+    h = box_heights(edges, K, tilt_deg, roll_deg, camera_height_m)
+    mean = np.bincount(labels, h) / np.maximum(np.bincount(labels), 1)
+    return (h - mean[labels]) / (BOX_HEIGHT_SD * HEIGHT_M[0])
+
+
+def at_pose(fn, edges: np.ndarray, labels: np.ndarray, K: np.ndarray, pose: np.ndarray, camera_height_m: float):
+    """(value, its gradient (M, 2) per radian of (tilt, roll) by central differences, STEP_DEG) of fn (people_heights
+    or walk_residuals, (M,)) at pose (tilt_deg, roll_deg) (2,) for the boxes (n, 4) px and labels (n,)."""
+    J = np.column_stack([fn(edges, labels, K, *(pose + d), camera_height_m) - fn(edges, labels, K, *(pose - d), camera_height_m)
+                         for d in np.eye(2) * STEP_DEG]) / (2 * math.radians(STEP_DEG))
+    return fn(edges, labels, K, *pose, camera_height_m), J
+
+
+def budget(path: Path, detector: str, drop_hidden: bool, walks: bool = True) -> dict:
     """The module docstring's figures of one dataset and detector."""
     ds, raw = load_dataset(path), read_json(path / "camera.json")
     t = pq.read_table(path / "detections.parquet", columns=["detector", "frame", "agent_id", "x1", "y1", "x2", "y2"]).to_pandas()
@@ -71,16 +102,16 @@ def budget(path: Path, detector: str, drop_hidden: bool) -> dict:
     ids, labels = np.unique(agents, return_inverse=True)
     K, h_c = ds.camera.K, ds.camera.mount_height_m
     pose = np.array([raw["tilt_deg"], raw.get("roll_deg", 0.0)])
-    H = people_heights(edges, labels, K, *pose, h_c)
-    J = np.column_stack([people_heights(edges, labels, K, *(pose + e), h_c) - people_heights(edges, labels, K, *(pose - e), h_c)
-                         for e in np.eye(2) * STEP_DEG]) / (2 * math.radians(STEP_DEG))  # (P, 2) m per radian
+    H, J = at_pose(people_heights, edges, labels, K, pose, h_c)  # (P,) m, (P, 2) m per radian
     truth = np.array([true_heights(ds.manifest)[a] for a in ids])
-    parts = linearised(J, H, truth, *HEIGHT_M)
+    inlier = np.abs(box_heights(edges, K, *pose, h_c) - HEIGHT_M[0]) <= OUTLIER_SIGMAS * HEIGHT_M[1]
+    parts = linearised(J, H, truth, *HEIGHT_M,
+                       (*at_pose(walk_residuals, edges[inlier], labels[inlier], K, pose, h_c), labels[inlier]) if walks else None)
     share = parts["share"]
     cols = np.array([np.median((edges[labels == k, 0] + edges[labels == k, 2]) / 2) for k in range(len(ids))]) - K[0, 2]
     rows = np.array([np.median(edges[labels == k, 3]) for k in range(len(ids))])
     return {"people": len(ids), "total": share.sum(0), "heights": parts["heights"], "boxes": parts["boxes"],
-            "roll_sigma": parts["roll_sigma"],
+            "roll_sigma": parts["roll_sigma"], "walk_weight": parts["walk_weight"],
             "table": sorted(zip(share[:, 1], np.bincount(labels), cols, rows, truth, H), key=lambda x: -abs(x[0]))}
 
 
@@ -89,12 +120,14 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("dataset", type=Path)
     ap.add_argument("--detector", default="segmentation")
     ap.add_argument("--drop-hidden-feet", choices=("yes", "no"), default="no")
+    ap.add_argument("--walks", choices=("yes", "no"), default="yes",
+                    help="no: the people's heights alone, one height each (the fit before the walks)")
     ap.add_argument("--people", type=int, default=8, help="how many of the people carrying the most roll to list")
     args = ap.parse_args(argv)
-    b = budget(args.dataset, args.detector, args.drop_hidden_feet == "yes")
+    b = budget(args.dataset, args.detector, args.drop_hidden_feet == "yes", args.walks == "yes")
     (tt, tr), (ht, hr), (bt, br) = b["total"], b["heights"], b["boxes"]
-    print(f"{args.dataset} {args.detector}, hidden feet dropped: {args.drop_hidden_feet}; {b['people']} people; at the true "
-          f"pose the score's root is off by roll {tr:+.2f} deg, tilt {tt:+.3f} deg (the people's heights: roll {hr:+.2f}, "
+    print(f"{args.dataset} {args.detector}, hidden feet dropped: {args.drop_hidden_feet}, walks: {args.walks} (weight "
+          f"{b['walk_weight']:.3f}); {b['people']} people; at the true pose the equations' root is off by roll {tr:+.2f} deg, tilt {tt:+.3f} deg (the people's heights: roll {hr:+.2f}, "
           f"tilt {ht:+.3f}; the boxes: roll {br:+.2f}, tilt {bt:+.3f}); roll sigma {b['roll_sigma']:.2f} deg")
     print("roll share (deg), boxes, foot column - cx (px), foot row (px), true height (m), implied height (m)")
     for row in b["table"][:args.people]:

@@ -14,7 +14,8 @@ lies PX above the true one at the principal column, homocal.study.perturb.tilt_s
 correction:
   - the horizon line: the fitted one (horizon_row_ at the principal column, slope -tan(roll_deg_) in camera.json's
     roll convention) against camera.json's horizon (a u + b v + c = 0, the undistorted image), RMS of their row
-    difference over the image's pixel columns 0..W-1 (``horizon_rms``); the fitted roll and its sigma;
+    difference over the image's pixel columns 0..W-1 (``horizon_rms``); the fitted roll, its sigma and its move
+    per centimetre of the prior mean (tilt_roll_sensitivity_);
   - the median relative range error of the ground truth's in-frame foot points 5-50 m from the camera's ground
     point (gt.parquet's u, v: the camera's pixels, undistorted with the correction's lens, as they are without one,
     then mapped):
@@ -96,7 +97,9 @@ def run(path: Path, detector: str, prior: list[str], estimate_roll: str, shift_p
     r = np.hypot(*(ground - ds.camera_origin).T)
     near = (r >= RANGE_M[0]) & (r <= RANGE_M[1])
     return {"detector": detector, "refused": False, "people": c.n_people_used_, "boxes": c.n_boxes_, "roll_deg": c.roll_deg_,
-            "roll_sigma_deg": c.roll_sigma_deg_, "true_roll_deg": json.loads((path / "camera.json").read_text()).get("roll_deg", 0.0),
+            "roll_sigma_deg": c.roll_sigma_deg_,
+            "roll_per_cm_deg": math.degrees(c.tilt_roll_sensitivity_[1]) / 100 if c.roll_estimated_ else math.nan,
+            "true_roll_deg": json.loads((path / "camera.json").read_text()).get("roll_deg", 0.0),
             "horizon_rms_px": horizon_rms(c.horizon_row_, c.roll_deg_, c.principal_point_, ds.camera.horizon,
                                           ds.camera.image_size[0]),
             "horizon_sigma_px": c.horizon_sigma_px_, "points": int(near.sum()),
@@ -124,7 +127,8 @@ def main(argv: list[str] | None = None) -> None:
                 print(f"{args.dataset} {detector}, lens {args.lens}: homocal fit refused the boxes (its message above)")
                 continue
             print(f"{args.dataset} {detector}, lens {args.lens}: {e['people']} people of {e['boxes']} boxes; roll {e['roll_deg']:.2f} "
-                  f"+- {e['roll_sigma_deg']:.2f} deg (camera.json {e['true_roll_deg']:g}); horizon line RMS "
+                  f"+- {e['roll_sigma_deg']:.2f} deg (camera.json {e['true_roll_deg']:g}; {e['roll_per_cm_deg']:+.3f} deg per cm of "
+                  f"the prior mean); horizon line RMS "
                   f"{e['horizon_rms_px']:.2f} px (sigma {e['horizon_sigma_px']:.2f}); median relative range error "
                   f"{e['median_range_error_pct']:.2f} % ({e['points']} foot points at {RANGE_M[0]:g}-{RANGE_M[1]:g} m)")
 

@@ -47,8 +47,16 @@ Roll (``fit_tilt_roll``, PedestrianCorrector(estimate_roll=True)): a camera roll
 axis (simgen's camera.json convention, data_schema.md: phi > 0 lowers the camera's right side) sees the unrolled
 camera's image turned by -phi about the principal point, so the same heights hold for the rows of the foot and
 head points turned back by phi (``derolled_rows``); tilt and roll are fitted
-together when the people's foot columns spread over ROLL_SPREAD of the image width. Lens distortion: the
-boxes' foot and head points are undistorted first (``homocal.geometry.Lens``).
+together when the people's foot columns spread over ROLL_SPREAD of the image width. On a rolled camera a short
+person on one side and a rolled horizon look alike: each person's one height against the prior fixes the roll only
+as well as who happened to walk by. A person's own walk does not depend on their height: their boxes' implied
+heights H_j(tilt, roll) must stay their own h_p along the walk, however tall, and how they drift with the column
+is the roll. So ``fit_tilt_roll`` takes the roll from both (the people's heights against the prior, and each
+box's height about its person's mean, h_p profiled out: a free height per person), the tilt from the people's heights
+alone as fit_tilt does (within a walk the nearest sole's edge makes near boxes look taller, which reads as a tilt),
+and weighs the walks by their honest information: a person's boxes are not independent (consecutive frames, the
+gait), so the walks' weight is their information as if independent over its spread among the people. Lens
+distortion: the boxes' foot and head points are undistorted first (``homocal.geometry.Lens``).
 
 What it takes from the clicked mapping: nothing for theta when K and h_c are given. Without K: the focal
 length from the clicked homography (``focal_from_homography``: principal point at the image centre, square
@@ -93,6 +101,9 @@ MIN_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M = 0.5, 100.0  # below half a metre no b
 BOX_STATUS = ("used", "outlier", "border", "hidden")  # a box's part in a fit (box_status_), the page draws each kind
 MODELS = ("camera", "rotation")  # PedestrianCorrector's corrected mappings (its docstring); the first is the default
 GRID = 128  # tilt grid of the median start over its 90 degree range (then bisection)
+BOX_HEIGHT_SD = 0.02  # a box's implied height about its person's, relative 1-sigma: Huber's scale of a walk's boxes
+# (fit_tilt_roll); scene1's and scene2's boxes spread 1.7-1.9 % about their person's at the true pose, both detectors
+# (1.4826 MAD, research/box_heights.py: docs/real-camera.md, "The people on scene3")
 ROLL_SPREAD = 0.1  # estimate_roll fits roll when the people's foot columns' interquartile range spans this share of the width
 MAX_ROLL_DEG = 10.0  # a fitted roll beyond this is refused (a camera on a pole is rolled a degree or two)
 DIFF_STEP = 1e-7  # radians: central-difference step of the people's heights in fit_tilt_roll
@@ -329,26 +340,38 @@ def roll_homography(K: np.ndarray, roll: float) -> np.ndarray:
     return K @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.linalg.inv(K)
 
 
+def walk_weight(slopes: np.ndarray, psi: np.ndarray, dpsi: np.ndarray, labels: np.ndarray, n_people: int) -> float:
+    """The walks' weight c = A_W / B_W in fit_tilt_roll (at most 1; 0 for walks with no spread), from the walk
+    residuals' roll slopes dr_j / droll (n,), psi(r_j) and psi'(r_j) (n,) and their people labels (n,) 0..P-1:
+    A_W = sum psi'_j slope_j^2, B_W = P times the sample variance over people of sum_j psi_j slope_j."""
+    walks = np.bincount(labels, slopes * psi, n_people)
+    spread = np.sum((walks - walks.mean()) ** 2) * n_people / (n_people - 1)
+    return min(1.0, float(np.sum(dpsi * slopes**2)) / spread) if spread > 0 else 0.0
+
+
 def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_px: float,
                   principal: tuple[float, float], camera_height_m: float, mean_m: float, sd_m: float,
                   start: dict) -> dict:
     """The camera's tilt and roll together from people's foot and head points (N, 2) px (undistorted), tracks
     (N,), the focal length, principal point, camera height and height prior (fit_tilt's), from fit_tilt's result
-    ``start`` (roll 0): each person's implied height is that of its median inlier box at the start (fit_tilt's
-    inliers; the mean of the two middle ones for an even count), held through the fit, a smooth function of (tilt, roll) through the
-    derolled rows (derolled_rows) of the box's foot and head (re-chosen as the roll moves, the median box moved
-    along the person's walk to a box in another column, with another pull on the roll, and the fit did not
-    settle on scene3's boxes); the Huber score
-    sum_j psi((H_j - mu) / sigma) grad H_j = 0 is solved by iteratively reweighted least squares (Huber's weights
-    min(1, k / |r|), r = (H_j - mu) / sigma: Gauss-Newton weighted by psi' alone diverges when many people lie beyond
-    k at the start; grad H by central differences, DIFF_STEP; until a step is below STEP_TOLERANCE), the inlier
-    people (their heights within OUTLIER_SIGMAS sd of mu) updated until they no longer change. Uncertainty: the
-    sandwich covariance sigma^2 A^-1 (sum psi^2 grad H grad H^T) A^-1, A = sum psi' grad H grad H^T; the prior mean's effect
-    d(tilt, roll) / dmu = A^-1 sum psi' grad H.
-    Returns a dict: tilt, roll (radians; roll in camera.json's sign), cov (2, 2) radians^2 (people), sensitivity (2,) radians per metre,
-    inlier_boxes (N,) bool (each box's implied height within OUTLIER_SIGMAS sd of mu at the fitted tilt and roll),
-    n_people, rounds. ValueError as fit_tilt, or for a roll beyond MAX_ROLL_DEG."""
-    beta = np.array([start["tilt"], 0.0])
+    ``start`` (roll 0), by the module docstring's Roll: the inlier boxes' implied heights H_j(tilt, roll) through
+    the derolled rows (derolled_rows) of their foot and head give two kinds of residual, each person's
+    r_p = (H_p - mu) / sigma (H_p its median inlier box's at the start, the mean of the two middle ones for an even
+    count, held through the fit: chosen anew as the roll moves, the median box moved along the walk and the rounds
+    did not settle on scene3's boxes) and each box's r_j = (H_j - mean_p H) / (BOX_HEIGHT_SD mu), its height about
+    its person's mean (the walk: the person's own height cancels). The equations
+    sum psi(r) m grad r = 0 weigh the people's (tilt, roll) by m = (1, 1) and the walks' by m = (0, c): the walks
+    give the roll alone, c their roll information as if their boxes were independent over its spread among the
+    people (walk_weight), set at the start of each inlier round; solved by
+    iteratively reweighted least squares (Huber's weights min(1, k / |r|); grad r by central differences,
+    DIFF_STEP; until a step is below STEP_TOLERANCE), the inlier boxes (within OUTLIER_SIGMAS sd of mu) updated
+    until they settle or return to an earlier set. Uncertainty: the sandwich A^-1 (sum_p s_p s_p^T) A^-T over the
+    people, A = sum psi' m grad r grad r^T and s_p = sum psi m grad r over the person's own residual and its boxes'
+    (a person's boxes are not independent); the prior mean's effect d(tilt, roll) / dmu = A^-1 sum_p psi'_p grad r_p / sigma.
+    Returns a dict: tilt, roll (radians; roll in camera.json's sign), cov (2, 2) radians^2 (people), sensitivity (2,)
+    radians per metre, inlier_boxes (N,) bool (each box's implied height within OUTLIER_SIGMAS sd of mu at the fitted
+    tilt and roll), n_people, walk_weight (c), rounds. ValueError as fit_tilt, or for a roll beyond MAX_ROLL_DEG."""
+    beta, box_sd = np.array([start["tilt"], 0.0]), BOX_HEIGHT_SD * mean_m
 
     def box_heights(b: np.ndarray, f: np.ndarray, h: np.ndarray) -> np.ndarray:
         rows = [np.arctan((derolled_rows(x, b[1], principal) - principal[1]) / focal_px) for x in (f, h)]
@@ -357,44 +380,52 @@ def fit_tilt_roll(foot: np.ndarray, head: np.ndarray, tracks: np.ndarray, focal_
     pick = np.flatnonzero(start["inlier_boxes"])  # fit_tilt's inlier boxes: a person's height is their median's
     _, labels, starts, counts = _people(tracks[pick], mean_m)
     lo, hi = pick[_median_pairs(box_heights(beta, foot[pick], head[pick]), labels, starts, counts)]
-    everyone = np.ones(len(lo), bool)  # each person's median inlier box(es) at the start, held
 
-    def held_heights(b: np.ndarray, which: np.ndarray) -> np.ndarray:
+    def held(b: np.ndarray, which: np.ndarray) -> np.ndarray:  # the people's held heights H_p
         return 0.5 * (box_heights(b, foot[lo[which]], head[lo[which]]) + box_heights(b, foot[hi[which]], head[hi[which]]))
 
-    inliers = everyone
+    people, inliers, seen = np.ones(len(lo), bool), start["inlier_boxes"], set()
     for rounds in range(1, MAX_ROUNDS + 1):
-        people = _people(tracks[lo[inliers]], mean_m)[0]
+        used = people  # this round's people (people is the next round's after it)
+        kept = _people(tracks[lo[used]], mean_m)[0]  # their tracks, sorted
+        walk = inliers & np.isin(tracks, kept)  # the inlier boxes of those people
+        f, h, n, P, labels = foot[walk], head[walk], int(walk.sum()), len(kept), np.searchsorted(kept, tracks[walk])
+        counts = np.maximum(np.bincount(labels, minlength=P), 1)
+        owner = np.concatenate([labels, np.arange(P)])  # the person of each residual: the boxes', then the people's
 
-        def people_heights(b: np.ndarray) -> np.ndarray:
-            return held_heights(b, inliers)
+        def residuals(b: np.ndarray) -> np.ndarray:  # (n + P,): the walks' r_j, the people's r_p
+            H = box_heights(b, f, h)
+            return np.concatenate([(H - (np.bincount(labels, H, P) / counts)[labels]) / box_sd,
+                                   (held(b, used) - mean_m) / sd_m])
 
-        def gradient(b: np.ndarray) -> np.ndarray:  # (P, 2) dH / d(tilt, roll)
-            return np.column_stack([(people_heights(b + e) - people_heights(b - e)) / (2 * DIFF_STEP)
+        def gradient(b: np.ndarray) -> np.ndarray:  # (n + P, 2)
+            return np.column_stack([(residuals(b + e) - residuals(b - e)) / (2 * DIFF_STEP)
                                     for e in (np.array([DIFF_STEP, 0.0]), np.array([0.0, DIFF_STEP]))])
 
+        J, psi, dpsi = gradient(beta), *_huber(residuals(beta))
+        c = walk_weight(J[:n, 1], psi[:n], dpsi[:n], labels, P)
+        m = np.where(np.arange(n + P)[:, None] < n, [0.0, c], [1.0, 1.0])
         for _ in range(MAX_ROUNDS):
-            r = (people_heights(beta) - mean_m) / sd_m
-            psi, weight = _huber(r)[0], np.minimum(1.0, HUBER_K / np.maximum(np.abs(r), 1e-300))
-            J = gradient(beta)
-            step = -sd_m * np.linalg.lstsq((J * weight[:, None]).T @ J, J.T @ psi, rcond=None)[0]
+            r, J = residuals(beta), gradient(beta)
+            weights = np.minimum(1.0, HUBER_K / np.maximum(np.abs(r), 1e-300))
+            step = -np.linalg.solve((m * J * weights[:, None]).T @ J, (m * J).T @ _huber(r)[0])
             beta = beta + step
             if np.abs(step).max() < STEP_TOLERANCE:
                 break
         if abs(math.degrees(beta[1])) > MAX_ROLL_DEG:
             raise ValueError(f"the people imply a roll of {math.degrees(beta[1]):.1f} degrees, beyond "
                              f"{MAX_ROLL_DEG:g}: are these boxes of standing people?")
-        new = np.abs(held_heights(beta, everyone) - mean_m) <= OUTLIER_SIGMAS * sd_m
-        if np.array_equal(new, inliers):
+        seen.add(people.tobytes() + inliers.tobytes())
+        people = np.abs(held(beta, np.ones(len(lo), bool)) - mean_m) <= OUTLIER_SIGMAS * sd_m
+        inliers = np.abs(box_heights(beta, foot, head) - mean_m) <= OUTLIER_SIGMAS * sd_m
+        if people.tobytes() + inliers.tobytes() in seen:  # settled, or back to an earlier round's
             break
-        inliers = new
-    psi, dpsi = _huber((people_heights(beta) - mean_m) / sd_m)
-    J = gradient(beta)
-    A_inv = np.linalg.pinv((J * dpsi[:, None]).T @ J)
-    cov = sd_m**2 * A_inv @ ((J * (psi * psi)[:, None]).T @ J) @ A_inv
-    return {"tilt": float(beta[0]), "roll": float(beta[1]), "cov": cov, "sensitivity": A_inv @ (J.T @ dpsi),
-            "inlier_boxes": np.abs(box_heights(beta, foot, head) - mean_m) <= OUTLIER_SIGMAS * sd_m,
-            "n_people": len(people), "rounds": rounds}
+    J, (psi, dpsi) = gradient(beta), _huber(residuals(beta))
+    A_inv = np.linalg.inv((m * J * dpsi[:, None]).T @ J)
+    scores = np.column_stack([np.bincount(owner, m[:, k] * J[:, k] * psi, P) for k in range(2)])  # (P, 2) each person's share
+    return {"tilt": float(beta[0]), "roll": float(beta[1]), "cov": A_inv @ scores.T @ scores @ A_inv.T,
+            "sensitivity": A_inv @ (J[n:].T @ dpsi[n:]) / sd_m, "inlier_boxes": inliers, "n_people": P,
+            "walk_weight": c, "rounds": rounds}
 
 
 class PedestrianCorrector(Corrector):
