@@ -22,9 +22,11 @@ rises) wherever the foot is below the horizon and theta + beta_t + theta + beta_
 
 Fit (``fit_tilt``). With the prior N(mu, sigma^2) of the people's heights, theta is the robust maximum
 likelihood estimate: start where the median implied height of all boxes is mu (bisection); then repeat,
-at most MAX_ROUNDS times, until the set of inlier boxes no longer changes: the inliers are the boxes whose
-implied height is within OUTLIER_SIGMAS sigma of mu (occluded or border-cut boxes, sitting people, children
-and false detections fall outside), each person (track) is one height, the median of its inlier boxes',
+at most MAX_ROUNDS times, until the set of inlier boxes no longer changes or comes back to an earlier round's
+(the rounds can cycle between two sets: the fit stops at the return, at the set before it, whatever MAX_ROUNDS
+is): the inliers are the boxes whose implied height is within OUTLIER_SIGMAS sigma of mu (occluded or
+border-cut boxes, sitting people, children and false detections fall outside), each person (track) is one
+height, the median of its inlier boxes',
 and theta solves the Huber score equation
 
     sum_j psi((H_j(theta) - mu) / sigma) H_j'(theta) = 0,    psi(r) = max(-k, min(k, r)), k = HUBER_K
@@ -295,11 +297,12 @@ def fit_tilt(foot_rows: np.ndarray, head_rows: np.ndarray, tracks: np.ndarray, f
                          "are these boxes of standing people, and is the camera height right?")
     tilt = _bisect(median_excess, grid[below[0] - 1], grid[below[0]])
 
-    inliers = None
+    inliers, seen = None, set()
     for rounds in range(1, MAX_ROUNDS + 1):
         new = np.abs(_heights(beta_f, beta_t, tilt, camera_height_m)[0] - mean_m) <= OUTLIER_SIGMAS * sd_m
-        if inliers is not None and np.array_equal(new, inliers):
+        if new.tobytes() in seen:  # settled, or back to an earlier round's set
             break
+        seen.add(new.tobytes())
         inliers = new
         people, labels, starts, counts = _people(tracks[inliers], mean_m)
         bf, bt = beta_f[inliers], beta_t[inliers]

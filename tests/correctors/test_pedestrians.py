@@ -140,6 +140,27 @@ class TestFitTilt:
         assert tracked["n_people"] == 60 and tracked["tilt_sigma"] > 2.5 * untracked["tilt_sigma"]
 
 
+    def test_rounds_that_cycle_stop_whatever_max_rounds(self, monkeypatch):
+        """28 people of 5 boxes each (heights N(1.65, 0.12) m, edges 1.5 px off, 30 % of the boxes with their feet cut
+        up to half the box): the inlier rounds cycle between two sets, and the tilt was that of whichever set round
+        MAX_ROUNDS landed on (20 and 21 rounds 0.006 degrees apart). The fit stops at the return: the same bits
+        for 20, 21 and 200 rounds, well before any of them."""
+        rng = np.random.default_rng(5)
+        n, k = int(rng.integers(5, 40)), int(rng.integers(1, 6))
+        xy = np.column_stack([rng.uniform(-10, 10, n * k), rng.uniform(6, 45, n * k)])
+        h = np.repeat(rng.normal(1.65, 0.12, n), k)
+        foot = CAM.project(np.column_stack([xy, np.zeros(n * k)]))[:, 1] + rng.normal(0, 1.5, n * k)
+        head = CAM.project(np.column_stack([xy, h]))[:, 1] + rng.normal(0, 1.5, n * k)
+        cut = rng.random(n * k) < 0.3
+        foot[cut] -= rng.uniform(0, 0.5, cut.sum()) * (foot[cut] - head[cut])
+        fits = []
+        for rounds in (20, 21, 200):
+            monkeypatch.setattr(pedestrians, "MAX_ROUNDS", rounds)
+            fits.append(fit_tilt(foot, head, np.repeat(np.arange(n), k), CAM.focal_px, CAM.K[1, 2], 4.0, 1.65, 0.09))
+        assert (n, k) == (28, 5) and all(f["rounds"] < 20 for f in fits)
+        assert fits[0]["tilt"] == fits[1]["tilt"] == fits[2]["tilt"]
+
+
 class TestOutlierShare:
     """fit's max_outlier_share: past it a fit is refused (default MAX_OUTLIER_SHARE); 1 refuses none, and then the fit
     is the one fit_tilt gives on the same boxes."""
