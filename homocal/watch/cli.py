@@ -52,8 +52,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "watch", help="watch a camera for moves from people's boxes, with a correction per stretch",
         description="Read people's boxes in time order, keep the camera's horizon estimated from them, detect "
-                    "moves (a two-sided CUSUM whose false-alarm rate is --arl0-people) and write a correction "
-                    "per stretch between moves (docs/moving-camera.md).")
+                    "moves (a two-sided CUSUM, with --estimate-roll yes one on the row and one on the roll, whose "
+                    "false-alarm rate together is --arl0-people) and write a correction per stretch between moves "
+                    "(docs/moving-camera.md).")
     p.add_argument("--trapezoid", required=True, type=Path, metavar="TRAP.json", help="the clicked trapezoid (as homocal fit's)")
     p.add_argument("--boxes", required=True, metavar="BOXES", help="a MOT .txt, a detections.parquet (--detector), a "
                    f".csv of {','.join(CSV_COLUMNS)}[,track_id] (corner pixels), or - for such CSV lines on standard "
@@ -65,7 +66,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     add_pedestrian_flags(p, WATCH_SETTINGS)
     p.add_argument("--arl0-people", type=number(float, 10, 1e9), default=DEFAULT_ARL0_PEOPLE, metavar="N",
                    help="mean number of people between false alarms on a steady camera (default %(default)g; "
-                        "the CUSUM threshold follows)")
+                        "the CUSUM thresholds follow)")
     p.add_argument("--camera-origin", type=xy_pair, default=(0.0, 0.0), metavar="X,Y",
                    help="ground point under the camera, metres (default 0,0)")
     p.add_argument("-o", "--out", required=True, type=Path, metavar="DIR", help="a new output folder")
