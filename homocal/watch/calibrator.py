@@ -244,9 +244,9 @@ class Line:
 
     def predicted(self, w: float) -> tuple[float, float]:
         """(implied row, its variance px^2) of a person whose roll regressor is w (px; module docstring)."""
-        var = self.cov[0, 0] if not math.isfinite(self.cov[1, 1]) else (
-            self.cov[0, 0] - 2 * w * self.cov[0, 1] + w * w * self.cov[1, 1])
-        return self.row - self.tan_roll * w, var
+        if not math.isfinite(self.cov[1, 1]):  # no roll fitted: the row, whatever w
+            return self.row, self.cov[0, 0]
+        return self.row - self.tan_roll * w, self.cov[0, 0] - 2 * w * self.cov[0, 1] + w * w * self.cov[1, 1]
 
 
 NO_LINE = Line(math.nan, 0.0, np.full((2, 2), math.nan), 1.0)  # before any person
@@ -331,7 +331,7 @@ class OnlineCalibrator:
             raise ValueError(f"frame {frame}: {e}") from None
         rows, slope, ws, columns = implied_line_terms(b, self.K, self.camera_height_m, self.height_mean_m)
         sigmas = np.abs(slope) * np.hypot(self.height_sd_m, self.height_mean_m * BOX_SIGMA_PX / (b[:, 3] - b[:, 1]))
-        usable = np.isfinite(rows) & np.isfinite(sigmas) & (sigmas > 0) & np.isfinite(ws)
+        usable = np.isfinite(rows) & np.isfinite(sigmas) & (sigmas > 0) & (np.isfinite(ws) | (not self.estimate_roll))
         if self.image_size is not None:  # cut by the frame: in the camera's pixels
             usable &= ~on_border(boxes[todo], self.image_size)
         hidden = hidden_feet(boxes, np.zeros(len(boxes), np.int64))[todo] if todo.size else np.zeros(0, bool)
