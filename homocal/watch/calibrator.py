@@ -23,13 +23,13 @@ row (computed as if roll 0) is then v = v_0 - tan(phi) w, w = a_f x_f + a_t x_t,
 v_0 is the horizon's row at the principal column and a_f, a_t the implied row's change per pixel of the foot and
 the head row (central differences of implied_horizon_rows): 0.02 sd off per squared degree on people 6 m ahead
 of a 4 m camera (tests/watch/test_watch.py), where the horizon line's own slope through the box's middle (w = x)
-is 0.2 sd off per degree. With lens distortion, the columns and rows are the undistorted box's.
+is more than 0.1 sd off per degree. With lens distortion, the columns and rows are the undistorted box's.
 
 Estimate (``robust_line``): over the last WINDOW_PEOPLE people of the current stretch, the Huber M-estimate of
 the line (v_0, tan phi) (psi clipping standardised residuals at +-CLIP) with a scale s (the median absolute
 standardised residual / 0.6745, at least 1: a prior sd too small or extra pixel noise is absorbed) and its
-sandwich 2x2 covariance; the roll only when the people's columns spread over ROLL_SPREAD of the image width
-(PedestrianCorrector's rule), else v_0 alone with phi = 0.
+sandwich 2x2 covariance; the roll only with estimate_roll and when the people's columns spread over ROLL_SPREAD of
+the image width (PedestrianCorrector's rule), else v_0 alone with phi = 0.
 
 Change tests: two two-sided CUSUMs (Page 1954) on each new person's standardised residual against the estimate
 at the person's column, z = (v - v_0 + tan(phi) w) / sqrt(s^2 sigma^2 + var), var the estimate's variance there,
@@ -39,11 +39,12 @@ reference for a shift of 2k = 1 sd per person). The roll test: the same on u g /
 sigma^2 + var) the person's standardised roll regressor and g_rms its root mean square over the estimate's
 people (so the increments have unit variance on a steady camera, and a roll change moves them in proportion to
 the person's leverage on the roll: the score of a roll change), with k = tan(ROLL_REF_DEG) g_rms / 2, the optimal
-reference for a roll change of ROLL_REF_DEG; it rests (its statistics 0) while the roll is not fitted. The row
+reference for a roll change of ROLL_REF_DEG; it runs with estimate_roll and rests (its statistics 0) while
+the roll is not fitted. The row
 test sees a change of v_0 (a tilt); the roll test a turn of the horizon about the principal column, which moves
 the people on either side oppositely and leaves the row test's mean unchanged. A move is declared when a
-statistic exceeds its test's h, where h gives a mean of 2 ``arl0_people`` people between false alarms
-of the test on a steady camera, by Siegmund's approximation of a one-sided CUSUM's run length (normal
+statistic exceeds its test's h, where h gives a mean of 2 ``arl0_people`` people (with estimate_roll; else
+``arl0_people``, the row test alone) between false alarms of the test on a steady camera, by Siegmund's approximation of a one-sided CUSUM's run length (normal
 increments; Siegmund 1985, "Sequential analysis"; two sides: half of it): ARL0 = (exp(2 k b) - 2 k b - 1) /
 (2 k^2) / 2, b = h + 1.166 (``cusum_threshold``); the two tests together then alarm every ``arl0_people``
 people (1 / ARL0 adds up over independent tests; the two share each person's |z|, which lengthens their
@@ -51,8 +52,7 @@ joint run a little: tests/watch/test_watch.py simulates it). Each person is test
 the people before it, then joins it (a self-starting CUSUM, as Hawkins 1987). A person tells of a roll by
 tan(phi) w / sigma sd: a lateral offset X m at a person of height H under a camera h_c high gives about tan(phi)
 a X H / (h_c sd), 0.09 sd per metre of X per degree of roll on a 4 m camera (people 1.7 +- 0.09 m), against 1-3
-sd per degree of tilt: a roll of a degree takes the people of a wide view to be seen, hundreds in a narrow one
-(docs/moving-camera.md measures it). At a move, the people since the alarming statistic's last 0 (its change point estimate) give
+sd per degree of tilt: a roll takes many more people to notice than a tilt (docs/moving-camera.md measures it). At a move, the people since the alarming statistic's last 0 (its change point estimate) give
 the move's horizon after, and the new stretch (from that change point on) starts from their estimate; then
 every live track is re-armed: each person in view gives a new observation from their boxes after the
 detection, so the stretch fills at once from the people in view, not only from newcomers. The new stretch
