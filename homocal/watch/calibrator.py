@@ -196,17 +196,19 @@ class State:
     roll_threshold: float = math.nan
 
 
-def implied_line_terms(boxes: np.ndarray, K: np.ndarray, camera_height_m: float, height_m: float):
+def implied_line_terms(boxes: np.ndarray, K: np.ndarray, camera_height_m: float, height_m: float, roll: bool = True):
     """Per box (N, 4) homocal's pixel edges (undistorted), of a person height_m metres tall under a camera with
     intrinsics K (3, 3) camera_height_m metres high: the implied horizon row (N,) px (roll 0:
     pedestrians.implied_horizon_rows) and its change per metre of the person's height (N,) px/m, the roll
-    regressor w (N,) px (the row is v_0 - tan(roll) w: module docstring, Roll) and the box middle's column from
-    the principal point (N,) px."""
+    regressor w (N,) px (the row is v_0 - tan(roll) w: module docstring, Roll; NaN without ``roll``) and the box
+    middle's column from the principal point (N,) px."""
     f, cy = K[1, 1], K[1, 2]
     rows, slope = implied_horizon_rows(boxes[:, 3], boxes[:, 1], f, cy, camera_height_m, height_m)
+    columns = (boxes[:, 0] + boxes[:, 2]) / 2 - K[0, 2]
+    if not roll:
+        return rows, slope, np.full(len(rows), math.nan), columns
     partial = [implied_horizon_rows(boxes[:, 3] + df, boxes[:, 1] + dt, f, cy, camera_height_m, height_m)[0]
                for df, dt in ((0.5, 0), (-0.5, 0), (0, 0.5), (0, -0.5))]  # the row's change per px of each edge
-    columns = (boxes[:, 0] + boxes[:, 2]) / 2 - K[0, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
         nadir = cy + f * f / (cy - rows)  # the verticals' vanishing row
         ratio = (nadir - boxes[:, 1]) / (nadir - boxes[:, 3])  # the head's column over the foot's, from the principal one
@@ -329,7 +331,8 @@ class OnlineCalibrator:
             b = boxes[todo] if self.lens is None else undistort_boxes(boxes[todo], self.lens)
         except ValueError as e:
             raise ValueError(f"frame {frame}: {e}") from None
-        rows, slope, ws, columns = implied_line_terms(b, self.K, self.camera_height_m, self.height_mean_m)
+        rows, slope, ws, columns = implied_line_terms(b, self.K, self.camera_height_m, self.height_mean_m,
+                                                      self.estimate_roll)
         sigmas = np.abs(slope) * np.hypot(self.height_sd_m, self.height_mean_m * BOX_SIGMA_PX / (b[:, 3] - b[:, 1]))
         usable = np.isfinite(rows) & np.isfinite(sigmas) & (sigmas > 0) & (np.isfinite(ws) | (not self.estimate_roll))
         if self.image_size is not None:  # cut by the frame: in the camera's pixels
