@@ -218,8 +218,8 @@ def implied_line_terms(boxes: np.ndarray, K: np.ndarray, camera_height_m: float,
 
 @dataclass(frozen=True)
 class Line:
-    """A stretch's horizon (``robust_line``): row, its row at the principal column (px), tan_roll (its slope in the
-    image is -tan_roll: tan of the roll, camera.json's sign), their covariance cov (2, 2) (px^2, px, 1; only
+    """A stretch's horizon (``robust_line``): row, the horizon's row at the principal column (px), tan_roll (its
+    slope in the image is -tan_roll: tan of the roll, camera.json's sign), their covariance cov (2, 2) (px^2, px, 1; only
     cov[0, 0] where the roll is not fitted: tan_roll 0, the rest NaN), scale the robust scale s, roll_rms the
     root mean square of the people's standardised roll regressors w_i / (s sigma_i) (NaN where the roll is not
     fitted: the roll test then rests)."""
