@@ -365,7 +365,8 @@ def watch(session: Session, req: dict) -> dict:
             "summary": f"{len(people)} people over {run['states'][-1].t_s:.1f} s: {len(moves)} move"
                        f"{'' if len(moves) == 1 else 's'} detected" + "".join(
                            f"; at {m.t_s:.1f} s the horizon row went {m.horizon_before:.1f} -> {m.horizon_after:.1f} px"
-                           for m in moves)}
+                           + (f", the roll {m.roll_before_deg:.2f} -> {m.roll_after_deg:.2f} degrees"
+                              if run["calibrator"].estimate_roll else "") for m in moves)}
 
 
 def _terms(req: dict) -> str:
