@@ -31,9 +31,10 @@ pooled per detector:
 
     python research/watch.py --datasets DIR [DIR ...] --detectors segmentation,rgb --work WORK
     python research/watch.py --datasets DIR [DIR ...] --detectors segmentation,rgb --work WORK2 --static-only --arl0 1000,20000
+    python research/watch.py --datasets DIR [DIR ...] --detectors segmentation,rgb --work WORK3 --estimate-roll yes
 
 (the second: the false alarms on the static minutes, the static recordings and the parts before each move, at each
---arl0).
+--arl0; the third: with the roll estimated and tested, the watched calibration with each stretch's roll).
 """
 from __future__ import annotations
 
@@ -58,7 +59,7 @@ from homocal.dataset import load_dataset  # noqa: E402
 from homocal.geometry import PinholeCamera, ViewTransformer, read_trapezoid_file  # noqa: E402
 from homocal.geometry.boxes import hidden_feet  # noqa: E402
 from homocal.watch import OnlineCalibrator  # noqa: E402
-from homocal.watch.calibrator import DEFAULT_ARL0_PEOPLE  # noqa: E402
+from homocal.watch.calibrator import DEFAULT_ARL0_PEOPLE, stretch_correction  # noqa: E402
 from simgen.boxstream import body_points, boxes_of  # noqa: E402
 from simgen.scene import CameraMove, Sway, load_scene  # noqa: E402
 
@@ -137,9 +138,9 @@ def motion(pose, gt_dt: float) -> tuple[str, float | None]:
     return f"ramp {name} {x[-1]:+.3g} over {(reach - i + 1) * gt_dt:.3g} s", float(pose.t[i - 1])
 
 
-def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure: bool = True) -> dict:
+def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure: bool = True, roll: str = "no") -> dict:
     """``homocal watch`` on a dataset's boxes of ``detector`` (its hand-placed trapezoid, camera.json, the camera's
-    true height, the people's own height prior) into ``out``, measured against the dataset's true camera
+    true height, the people's own height prior, --estimate-roll ``roll``) into ``out``, measured against the dataset's true camera
     (load_dataset's pose track): its motion and start (``motion``), the alarms before it (false: the static
     minutes), the first alarm after it on the side the horizon moved (the detection; none on a swaying camera:
     every alarm is false), the other alarms after it; with ``measure``, the horizon RMS (px) before the move and from the detection on (a
@@ -151,19 +152,24 @@ def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure:
         code = homocal_main(["watch", "--trapezoid", str(dataset / "trapezoids.json"), "--boxes", str(dataset / "detections.parquet"),
                              "--detector", detector, "--fps", str(ds.manifest["fps"]), "--camera-json", str(dataset / "camera.json"),
                              "--camera-height", str(ds.camera.mount_height_m), "--height-mean", str(HEIGHT[0]),
-                             "--height-sd", str(HEIGHT[1]), "--arl0-people", str(arl0), "--out", str(out)])
+                             "--height-sd", str(HEIGHT[1]), "--arl0-people", str(arl0), "--estimate-roll", roll,
+                             "--out", str(out)])
     assert code == 0, f"homocal watch failed on {dataset} ({detector})"
     case, t_move = motion(ds.pose, ds.manifest["gt_dt"])
     seconds = float(ds.manifest["seconds"])
-    alarms = [(m["detected_s"], m["direction"]) for m in json.loads((out / "moves.json").read_text())["moves"]]
+    alarms = [(m["detected_s"], m["direction"], m["test"]) for m in json.loads((out / "moves.json").read_text())["moves"]]
     sway = case.startswith("sway")
-    before = [a for a, _ in alarms if t_move is None or a < t_move or sway]
-    after = [(a, side) for a, side in alarms if a not in before]
-    # the detection: the first alarm after the move's start whose side is the horizon's move (+1: down the image;
-    # any side when the horizon's row at the principal column moves less than a pixel: a roll or a yaw)
+    before = [a for a, _, _ in alarms if t_move is None or a < t_move or sway]
+    after = [(a, side, test) for a, side, test in alarms if a not in before]
+    # the detection: the first alarm after the move's start of the row test on the side the horizon's row at the
+    # principal column moved (+1: down the image), or of the roll test on the side the roll moved (+1: the horizon
+    # down on the right, the roll smaller); any alarm when neither moved (a row by less than a pixel, a roll by
+    # less than 0.1 degree: a yaw)
     rows = None if ds.pose is None else ds.pose.horizon_rows(ds.camera.K[0, 2])
     shift = 0.0 if rows is None else rows[-1] - rows[0]
-    found = [a for a, side in after if abs(shift) < 1.0 or side == np.sign(shift)]
+    turn = 0.0 if ds.pose is None else ds.pose.roll_deg[-1] - ds.pose.roll_deg[0]
+    found = [a for a, side, test in after if (abs(shift) < 1.0 and abs(turn) < 0.1) or (
+        side == np.sign(shift) if test == "row" else abs(turn) >= 0.1 and side == -np.sign(turn))]
     result = {"case": case, "t_move": t_move, "seconds": seconds, "static_s": seconds if t_move is None else t_move,
               "false": len(before), "detected": found[0] if found else None, "later": len(after) - bool(found)}
     if not measure:
@@ -180,7 +186,8 @@ def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure:
                    for a, b, c in zip(ds.pose.tilt_deg, ds.pose.roll_deg, ds.pose.yaw_deg)]
         true_rows = rows
     horizon = pq.read_table(out / "horizon.parquet").to_pydict()
-    t_s, row = np.array(horizon["t_s"]), np.array(horizon["horizon_row_px"])
+    t_s, row, roll = (np.array(horizon[c]) for c in ("t_s", "horizon_row_px", "roll_deg"))
+    roll_sigma = np.array(horizon["roll_sigma_deg"])
     step_of = lambda t: np.minimum(np.round(np.asarray(t) / ds.manifest["gt_dt"]).astype(int), steps - 1)  # noqa: E731
     err = row - true_rows[step_of(t_s)]
 
@@ -192,18 +199,19 @@ def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure:
     result["rms_after"] = math.nan if t_move is None or sway else rms(t_s >= (t_move if detected is None else detected))
     clicked = read_trapezoid_file(dataset / "trapezoids.json", cameras[0].lens)[0]
     ground = ground_grid()
+    prior = OnlineCalibrator(static.K, static.mount_height_m, ds.manifest["fps"], (static.width, static.height), *HEIGHT)
 
     def ranges_at(when: float) -> tuple[float, float] | None:
         i = np.searchsorted(t_s, when, side="right") - 1
         if when < 0 or when > seconds or i < 0 or not np.isfinite(row[i]):
             return None
         cam = cameras[step_of(when)]
-        watched = PedestrianCorrector(*HEIGHT).from_horizon(clicked, row[i], 0.0, cam.K, static.mount_height_m, 3).transformer_
+        watched = stretch_correction(clicked, prior, row[i], 0.0, roll[i], roll_sigma[i], 3).transformer_
         return range_error(clicked, cam, ground), range_error(watched, cam, ground)
 
     whens = [] if t_move is None or sway else [t_move - 10] + ([] if detected is None else [detected, detected + 30, detected + 60])
     return {**result, "ranges": [ranges_at(when) for when in whens], "end": ranges_at(seconds - 1 / ds.manifest["fps"]),
-            "people": len(t_s)}
+            "people": len(t_s), "roll_end": (roll[-1], roll_sigma[-1], cameras[-1].roll_deg) if len(t_s) else None}
 
 
 def pooled(results: list[dict]) -> dict:
@@ -244,13 +252,15 @@ def datasets_main(args) -> None:
         if args.static_only:
             print(f"\n{detector} boxes: false alarms on the static minutes by ARL0 (people)")
             for arl0 in [float(a) for a in args.arl0.split(",")]:
-                p = pooled([watch_dataset(d, detector, Path(args.work) / f"{d.name}_{detector}_{arl0:.0f}", arl0, False) for d in datasets])
+                p = pooled([watch_dataset(d, detector, Path(args.work) / f"{d.name}_{detector}_{arl0:.0f}", arl0, False,
+                                          args.estimate_roll) for d in datasets])
                 print(f"  ARL0 {arl0:>9,.0f}: {p['false']} alarms in {p['static_minutes']:.1f} min = {p['false_per_hour']:.1f} per hour")
             continue
         print(f"\n{detector} boxes, --arl0-people {args.case_arl0:,.0f}:")
         results = []
         for dataset in datasets:
-            r = watch_dataset(dataset, detector, Path(args.work) / f"{dataset.name}_{detector}", args.case_arl0)
+            r = watch_dataset(dataset, detector, Path(args.work) / f"{dataset.name}_{detector}", args.case_arl0,
+                              roll=args.estimate_roll)
             results.append(r)
             ranges = "; ".join("-" if x is None else f"{x[0]:.1f} -> {x[1]:.1f}" for x in r["ranges"])
             end = "-" if r["end"] is None else f"{r['end'][0]:.1f} -> {r['end'][1]:.1f}"
@@ -259,7 +269,8 @@ def datasets_main(args) -> None:
             print(f"  {dataset.name}: {move}, {r['people']} people; delay {delay}; {r['false']} alarms before, "
                   f"{r['later']} more after; horizon RMS {r['rms_before']:.2f} px before, {r['rms_after']:.2f} px from "
                   f"detection (or the move); range error static -> watched (%) at -10 s; detection; +30 s; +60 s: {ranges}; at the "
-                  f"last frame: {end}")
+                  f"last frame: {end}; roll at the last person "
+                  + ("-" if r["roll_end"] is None else "{:.2f} +- {:.2f} deg (true {:.2f})".format(*r["roll_end"])))
         p = pooled(results)
         for case, c in p["cases"].items():
             d = np.array(c["delays"])
@@ -283,6 +294,7 @@ def main() -> None:
     ap.add_argument("--datasets", nargs="+", metavar="DIR", help="rendered simgen datasets instead (module docstring)")
     ap.add_argument("--detectors", default="segmentation,rgb", help="--datasets: the detectors whose boxes are watched")
     ap.add_argument("--work", default="watch-runs", help="--datasets: a folder for the homocal watch outputs (new)")
+    ap.add_argument("--estimate-roll", choices=("yes", "no"), default="no", help="--datasets: homocal watch's --estimate-roll")
     args = ap.parse_args()
     if args.datasets:
         return datasets_main(args)

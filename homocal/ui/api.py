@@ -41,8 +41,8 @@ from homocal.ui import overlay
 from homocal.ui.errorbars import error_bars
 from homocal.ui.session import Session, undistorted, use_lens
 from homocal.watch import OnlineCalibrator
-from homocal.watch.calibrator import PERSON_BOXES, by_frame, camera_of
-from homocal.watch.cli import WATCH_SETTINGS
+from homocal.watch.calibrator import PERSON_BOXES, by_frame, camera_of, stretch_correction
+from homocal.watch.cli import PRIOR, WATCH_SETTINGS
 from homocal.watch.folder import correction_at
 
 TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE = "trapezoid.json", "reference_points.csv", "correction.json"
@@ -295,29 +295,30 @@ def _watched(session: Session, req: dict) -> dict:
     """Run homocal.watch's OnlineCalibrator over the session's boxes (of the request's detector, at its camera
     height and height prior, K and the camera height as homocal watch takes them: watch.camera_of), in time order at
     the session's fps. Returns {"states": [State per frame], "moves": [Move], "stretches": [(start_s, horizon row,
-    1-sigma px, people)] (as homocal watch's corrections/: each stretch's estimate when it ended, the last one's
-    at the end of the boxes; stretches of fewer than 3 people left out), "K", "camera_height_m", "prior"
-    (height_mean_m, height_sd_m), "transformer"}."""
+    1-sigma px, people, roll degrees, its 1-sigma)] (as homocal watch's corrections/: each stretch's estimate when it ended, the last one's
+    at the end of the boxes; stretches of fewer than 3 people left out), "K", "camera_height_m", "transformer",
+    "calibrator" (the OnlineCalibrator after them: its prior and settings)}."""
     if session.fps is None:
         raise ValueError(f"fps: {session.boxes.name if session.boxes else 'the boxes'} does not say its frame rate: "
                          "start homocal ui with --fps")
     transformer = _complete_transformer(session, req)
     settings = _box_settings(session, req)
-    prior = PedestrianCorrector(**{k: req[k] for k in ("height_mean_m", "height_sd_m") if req.get(k) is not None})
+    prior = PedestrianCorrector(**{k: req[k] for k in PRIOR if req.get(k) is not None})
     K, height = camera_of(transformer, settings["image_size"], settings["K"], settings["camera_height_m"])
     calibrator = OnlineCalibrator(K, height, session.fps, settings["image_size"], prior.height_mean_m,
-                                  prior.height_sd_m, lens=session.lens)
+                                  prior.height_sd_m, lens=session.lens, estimate_roll=prior.estimate_roll)
     boxes = settings["boxes"]
     states = [calibrator.update(*frame) for frame in by_frame(boxes.frames, boxes.xyxy, boxes.track_ids,
                                                               str(session.boxes))]
     moves = [s.move for s in states if s.move is not None]
-    stretches = [(start, m.horizon_before, m.sigma_before, m.n_before)
+    stretches = [(start, m.horizon_before, m.sigma_before, m.n_before, m.roll_before_deg, m.roll_sigma_before_deg)
                  for start, m in zip([0.0] + [m.t_s for m in moves], moves)]
     if states:
         last = states[-1]
-        stretches.append((last.stretch_start_s, last.horizon_row, last.horizon_sigma_px, last.n_people))
+        stretches.append((last.stretch_start_s, last.horizon_row, last.horizon_sigma_px, last.n_people, last.roll_deg,
+                          last.roll_sigma_deg))
     return {"states": states, "moves": moves, "stretches": [s for s in stretches if s[3] >= 3], "K": K,
-            "camera_height_m": height, "prior": prior, "transformer": transformer}
+            "camera_height_m": height, "transformer": transformer, "calibrator": calibrator}
 
 
 def _stretch(session: Session, req: dict) -> tuple[PedestrianCorrector, dict]:
@@ -329,11 +330,9 @@ def _stretch(session: Session, req: dict) -> tuple[PedestrianCorrector, dict]:
     if not run["stretches"]:
         raise ValueError("at_s: no stretch of the boxes has 3 people yet")
     picked = correction_at([(s[0], None) for s in run["stretches"]], np.array([at]))[0]
-    start, row, sigma, n = run["stretches"][int(picked)]
-    prior = run["prior"]
-    corrector = PedestrianCorrector(prior.height_mean_m, prior.height_sd_m).from_horizon(
-        run["transformer"], row, sigma if math.isfinite(sigma) else 0.0, run["K"], run["camera_height_m"], n,
-        _camera_origin(req))
+    start, row, sigma, n, roll, roll_sigma = run["stretches"][int(picked)]
+    corrector = stretch_correction(run["transformer"], run["calibrator"], row, sigma, roll, roll_sigma, n,
+                                   _camera_origin(req))
     corrector.lens_ = session.lens
     return corrector, {**_box_settings(session, req), "stretch": (start, at)}
 
@@ -360,12 +359,14 @@ def watch(session: Session, req: dict) -> dict:
     cx = float(run["K"][0, 2])
     moves, stretches = run["moves"], run["stretches"]
     return {"people": thinned(people), "estimate": thinned(estimate), "moves": [m.to_dict() for m in moves],
-            "stretches": [{"start_s": a, "horizon_row": b, "sigma_px": c, "n_people": n} for a, b, c, n in stretches],
+            "stretches": [{"start_s": a, "horizon_row": b, "sigma_px": c, "n_people": n, "roll_deg": r,
+                           "roll_sigma_deg": float_or_none(rs)} for a, b, c, n, r, rs in stretches],
             "clicked_row": float(run["transformer"].horizon_row(cx)), "column": cx,
             "summary": f"{len(people)} people over {run['states'][-1].t_s:.1f} s: {len(moves)} move"
                        f"{'' if len(moves) == 1 else 's'} detected" + "".join(
                            f"; at {m.t_s:.1f} s the horizon row went {m.horizon_before:.1f} -> {m.horizon_after:.1f} px"
-                           for m in moves)}
+                           + (f", the roll {m.roll_before_deg:.2f} -> {m.roll_after_deg:.2f} degrees"
+                              if run["calibrator"].estimate_roll else "") for m in moves)}
 
 
 def _terms(req: dict) -> str:

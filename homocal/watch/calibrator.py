@@ -10,22 +10,49 @@ feet a nearer person's box of the same frame may hide (``homocal.geometry.boxes.
 boxes, in the camera's pixels): its bottom edge is then the nearer person's outline, above the sole, and its implied
 horizon row far below the camera's, by many sigmas (a far person's 2-3 px sigma against an error of 10-25 px). Boxes are linked
 into people (tracks: given, or ``TrackLinker``); a person is one observation, the median of its first PERSON_BOXES
-boxes' rows with the sigma of the median box, given once (one person, one height: their boxes are not independent).
+boxes' rows with the sigma, column and roll regressor (below) of the median box, given once (one person, one
+height: their boxes are not independent).
 
-Estimate: over the last WINDOW_PEOPLE people of the current stretch, the Huber M-estimate of the horizon row
-(psi clipping standardised residuals at +-CLIP) with a scale s (the median absolute standardised residual /
-0.6745, at least 1: a prior sd too small or extra pixel noise is absorbed) and its sandwich 1-sigma
-(``robust_location``).
+Roll: a camera rolled by phi (camera.json's sign, as PedestrianCorrector's: > 0 lowers its right side) sees the
+unrolled camera's image turned by -phi about the principal point (``pedestrians.derolled_rows``): a point x = u -
+cx px right of the principal column is tan(phi) x px higher than the unrolled camera would see it (and its row
+scaled by 1 / cos(phi) about cy: second order). A person's foot and head are at different columns x_f and x_t
+(a vertical runs to the verticals' vanishing point, row cy + f^2 / (cy - v_h) on the principal column:
+x_t / x_f = (that row - v_t) / (that row - v_f)), the box's middle column at (x_f + x_t) / 2. The box's implied
+row (computed as if roll 0) is then v = v_0 - tan(phi) w, w = a_f x_f + a_t x_t, to first order in phi, where
+v_0 is the horizon's row at the principal column and a_f, a_t the implied row's change per pixel of the foot and
+the head row (central differences of implied_horizon_rows): 0.02 sd off per squared degree on people 6 m ahead
+of a 4 m camera (tests/watch/test_watch.py), where the horizon line's own slope through the box's middle (w = x)
+is more than 0.1 sd off per degree. With lens distortion, the columns and rows are the undistorted box's.
 
-Change test: a two-sided CUSUM (Page 1954) on each new person's standardised residual against the estimate,
-z = (v - mu) / sqrt(s^2 sigma^2 + sigma_mu^2), clipped at +-CLIP (the estimate's own psi) and scaled to
-unit variance under the normal (u = psi(z) / SD_CLIPPED): S+ = max(0, S+ + u - k), S- = max(0, S- - u - k),
-k = CUSUM_K (the optimal reference for a shift of 2k = 1 sd per person). A move is declared when S+ or S- exceeds h, where h
-gives a mean of ``arl0_people`` people between false alarms on a steady camera by Siegmund's approximation
-of a one-sided CUSUM's run length (normal increments; Siegmund 1985, "Sequential analysis"; two sides:
-half of it): ARL0 = (exp(2 k b) - 2 k b - 1) / (2 k^2) / 2, b = h + 1.166 (``cusum_threshold``).
-Each person is tested against the estimate of the people before it, then joins it (a self-starting CUSUM,
-as Hawkins 1987). At a move, the people since the alarming statistic's last 0 (its change point estimate) give
+Estimate (``robust_line``): over the last WINDOW_PEOPLE people of the current stretch, the Huber M-estimate of
+the line (v_0, tan phi) (psi clipping standardised residuals at +-CLIP) with a scale s (the median absolute
+standardised residual / 0.6745, at least 1: a prior sd too small or extra pixel noise is absorbed) and its
+sandwich 2x2 covariance; the roll only with estimate_roll and when the people's columns spread over ROLL_SPREAD of
+the image width (PedestrianCorrector's rule), else v_0 alone with phi = 0.
+
+Change tests: two two-sided CUSUMs (Page 1954) on each new person's standardised residual against the estimate
+at the person's column, z = (v - v_0 + tan(phi) w) / sqrt(s^2 sigma^2 + var), var the estimate's variance there,
+clipped at +-CLIP (the estimate's own psi) and scaled to unit variance under the normal (u = psi(z) /
+SD_CLIPPED). The row test: S+ = max(0, S+ + u - k), S- = max(0, S- - u - k), k = CUSUM_K (the optimal
+reference for a shift of 2k = 1 sd per person). The roll test: the same on u g / g_rms, g = w / sqrt(s^2
+sigma^2 + var) the person's standardised roll regressor and g_rms its root mean square over the estimate's
+people (so the increments have unit variance on a steady camera, and a roll change moves them in proportion to
+the person's leverage on the roll: the score of a roll change), with k = tan(ROLL_REF_DEG) g_rms / 2, the optimal
+reference for a roll change of ROLL_REF_DEG; it runs with estimate_roll and rests (its statistics 0) while
+the roll is not fitted. The row
+test sees a change of v_0 (a tilt); the roll test a turn of the horizon about the principal column, which moves
+the people on either side oppositely and leaves the row test's mean unchanged. A move is declared when a
+statistic exceeds its test's h, where h gives a mean of 2 ``arl0_people`` people (with estimate_roll; else
+``arl0_people``, the row test alone) between false alarms of the test on a steady camera, by Siegmund's approximation of a one-sided CUSUM's run length (normal
+increments; Siegmund 1985, "Sequential analysis"; two sides: half of it): ARL0 = (exp(2 k b) - 2 k b - 1) /
+(2 k^2) / 2, b = h + 1.166 (``cusum_threshold``); the two tests together then alarm every ``arl0_people``
+people (1 / ARL0 adds up over independent tests; the two share each person's |z|, which lengthens their
+joint run a little: tests/watch/test_watch.py simulates it). Each person is tested against the estimate of
+the people before it, then joins it (a self-starting CUSUM, as Hawkins 1987). A person tells of a roll by
+tan(phi) w / sigma sd: a lateral offset X m at a person of height H under a camera h_c high gives about tan(phi)
+a X H / (h_c sd), 0.09 sd per metre of X per degree of roll on a 4 m camera (people 1.7 +- 0.09 m), against 1-3
+sd per degree of tilt: a roll takes many more people to notice than a tilt (docs/moving-camera.md measures it). At a move, the people since the alarming statistic's last 0 (its change point estimate) give
 the move's horizon after, and the new stretch (from that change point on) starts from their estimate; then
 every live track is re-armed: each person in view gives a new observation from their boxes after the
 detection, so the stretch fills at once from the people in view, not only from newcomers. The new stretch
@@ -53,7 +80,9 @@ from homocal.correctors.pedestrians import (
     DEFAULT_HEIGHT_MEAN_M,
     DEFAULT_HEIGHT_SD_M,
     LINK_GAP,
+    MAX_ROLL_DEG,
     OUTLIER_SIGMAS,
+    ROLL_SPREAD,
     PedestrianCorrector,
     camera_height_from_homography,
     implied_horizon_rows,
@@ -72,6 +101,8 @@ CUSUM_K = 0.5  # the CUSUM's reference value, sd: optimal for a shift of 2 k = 1
 DEFAULT_ARL0_PEOPLE = 20_000  # mean people between false alarms (about 14 h at scene1's 1,400 people an hour)
 CLIP = OUTLIER_SIGMAS  # sd: Huber's psi of the estimate and the test clips standardised residuals here
 MAX_TRACKS = 10_000  # live tracks with given ids at most (a stream naming more at once is refused)
+TESTS = ("row", "roll")  # the change tests (module docstring), each a two-sided CUSUM at len(TESTS) times arl0_people
+ROLL_REF_DEG = 1.0  # degrees: the roll test's reference value is optimal for a roll change of this size
 
 
 def _clipped_sd(c: float) -> float:
@@ -92,8 +123,11 @@ def cusum_arl0(h: float, k: float = CUSUM_K) -> float:
 
 
 def cusum_threshold(arl0_people: float, k: float = CUSUM_K) -> float:
-    """The threshold h at which cusum_arl0(h, k) = arl0_people (bisection on [0, 100])."""
+    """The threshold h at which cusum_arl0(h, k) = arl0_people (bisection on [0, hi], hi doubled from 100 until it
+    is above it), k > 0."""
     lo, hi = 0.0, 100.0
+    while cusum_arl0(hi, k) < arl0_people:
+        hi *= 2
     for _ in range(60):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if cusum_arl0(mid, k) < arl0_people else (lo, mid)
@@ -103,9 +137,11 @@ def cusum_threshold(arl0_people: float, k: float = CUSUM_K) -> float:
 @dataclass(frozen=True)
 class Move:
     """A detected move: t_s the change point estimate (the first person of the new stretch), detected_s when
-    the test fired, the horizon row before and after (px) with their 1-sigma, the CUSUM statistic and
-    threshold at the alarm, direction +1 (the horizon went down the image) or -1, n_before the people of the
-    estimate before."""
+    the test fired, the horizon row before and after (px, at the principal column) with their 1-sigma, the
+    CUSUM statistic and threshold at the alarm, direction +1 (the horizon went down the image; for the roll
+    test: on the image's right side) or -1, n_before the people of the estimate before; test, the test that
+    fired (one of TESTS); the roll before and after (degrees, camera.json's sign) with their 1-sigma (0 and NaN
+    where not fitted: ``robust_line``)."""
 
     t_s: float
     detected_s: float
@@ -117,19 +153,28 @@ class Move:
     threshold: float
     direction: int
     n_before: int
+    test: str
+    roll_before_deg: float
+    roll_sigma_before_deg: float
+    roll_after_deg: float
+    roll_sigma_after_deg: float
 
     def to_dict(self) -> dict:
-        return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in self.__dict__.items()}
+        """The fields, floats rounded to 6 decimals, a number that is not finite (a roll not fitted) None."""
+        return {k: (round(v, 6) if math.isfinite(v) else None) if isinstance(v, float) else v for k, v in self.__dict__.items()}
 
 
 @dataclass(frozen=True)
 class State:
     """The calibrator after an update: t_s (the frame's time), the current stretch's start, the horizon row
-    and its 1-sigma (px; NaN before any person), the people in its estimate, the CUSUM statistics S+ and S-
-    and threshold (NaN while the stretch has fewer than MIN_PEOPLE), and the move detected at this update, if
-    any. person_rows / person_sigmas: the people observed at this update (their implied horizon rows, px).
-    hidden_boxes: how many of the boxes measured at this update (of tracks yet to give their person) may have
-    hidden feet (not used)."""
+    at the principal column and its 1-sigma (px; NaN before any person), the people in its estimate, the row
+    test's CUSUM statistics S+ and S- and threshold (NaN while the stretch has fewer than MIN_PEOPLE), and the
+    move detected at this update, if any. person_rows / person_sigmas / person_columns: the people observed at
+    this update (their implied horizon rows, px, and the column of their box's middle, px). hidden_boxes: how
+    many of the boxes measured at this update (of tracks yet to give their person) may have hidden feet (not
+    used). roll_deg, roll_sigma_deg: the estimate's roll (degrees, camera.json's sign: the horizon's slope in the
+    image is -tan(roll)) and its 1-sigma (0 and NaN where not fitted); cusum_roll_up, cusum_roll_down,
+    roll_threshold: the roll test's statistics and threshold (NaN as the row's, and while the roll is not fitted)."""
 
     t_s: float
     stretch_start_s: float
@@ -143,6 +188,70 @@ class State:
     person_rows: tuple = ()
     person_sigmas: tuple = ()
     hidden_boxes: int = 0
+    person_columns: tuple = ()
+    roll_deg: float = 0.0
+    roll_sigma_deg: float = math.nan
+    cusum_roll_up: float = math.nan
+    cusum_roll_down: float = math.nan
+    roll_threshold: float = math.nan
+
+
+def implied_line_terms(boxes: np.ndarray, K: np.ndarray, camera_height_m: float, height_m: float, roll: bool = True):
+    """Per box (N, 4) homocal's pixel edges (undistorted), of a person height_m metres tall under a camera with
+    intrinsics K (3, 3) camera_height_m metres high: the implied horizon row (N,) px (roll 0:
+    pedestrians.implied_horizon_rows) and its change per metre of the person's height (N,) px/m, the roll
+    regressor w (N,) px (the row is v_0 - tan(roll) w: module docstring, Roll; NaN without ``roll``) and the box
+    middle's column from the principal point (N,) px."""
+    f, cy = K[1, 1], K[1, 2]
+    rows, slope = implied_horizon_rows(boxes[:, 3], boxes[:, 1], f, cy, camera_height_m, height_m)
+    columns = (boxes[:, 0] + boxes[:, 2]) / 2 - K[0, 2]
+    if not roll:
+        return rows, slope, np.full(len(rows), math.nan), columns
+    partial = [implied_horizon_rows(boxes[:, 3] + df, boxes[:, 1] + dt, f, cy, camera_height_m, height_m)[0]
+               for df, dt in ((0.5, 0), (-0.5, 0), (0, 0.5), (0, -0.5))]  # the row's change per px of each edge
+    with np.errstate(divide="ignore", invalid="ignore"):
+        nadir = cy + f * f / (cy - rows)  # the verticals' vanishing row
+        ratio = (nadir - boxes[:, 1]) / (nadir - boxes[:, 3])  # the head's column over the foot's, from the principal one
+    foot = 2 * columns / (1 + ratio)
+    return rows, slope, (partial[0] - partial[1]) * foot + (partial[2] - partial[3]) * ratio * foot, columns
+
+
+@dataclass(frozen=True)
+class Line:
+    """A stretch's horizon (``robust_line``): row, the horizon's row at the principal column (px), tan_roll (its
+    slope in the image is -tan_roll: tan of the roll, camera.json's sign), their covariance cov (2, 2) (px^2, px, 1; only
+    cov[0, 0] where the roll is not fitted: tan_roll 0, the rest NaN), scale the robust scale s, roll_rms the
+    root mean square of the people's standardised roll regressors w_i / (s sigma_i) (NaN where the roll is not
+    fitted: the roll test then rests)."""
+
+    row: float
+    tan_roll: float
+    cov: np.ndarray
+    scale: float
+    roll_rms: float = math.nan
+
+    @property
+    def sigma(self) -> float:
+        """The row's 1-sigma, px."""
+        return math.sqrt(self.cov[0, 0])
+
+    @property
+    def roll_deg(self) -> float:
+        return math.degrees(math.atan(self.tan_roll))
+
+    @property
+    def roll_sigma_deg(self) -> float:
+        """The roll's 1-sigma, degrees (NaN where not fitted)."""
+        return math.degrees(math.sqrt(self.cov[1, 1]) / (1 + self.tan_roll ** 2))
+
+    def predicted(self, w: float) -> tuple[float, float]:
+        """(implied row, its variance px^2) of a person whose roll regressor is w (px; module docstring)."""
+        if not math.isfinite(self.cov[1, 1]):  # no roll fitted: the row, whatever w
+            return self.row, self.cov[0, 0]
+        return self.row - self.tan_roll * w, self.cov[0, 0] - 2 * w * self.cov[0, 1] + w * w * self.cov[1, 1]
+
+
+NO_LINE = Line(math.nan, 0.0, np.full((2, 2), math.nan), 1.0)  # before any person
 
 
 class OnlineCalibrator:
@@ -152,10 +261,14 @@ class OnlineCalibrator:
     Args:
         K: (3, 3) intrinsics (fx = fy). camera_height_m: the optical centre's height, metres.
         fps: frames per second of the stream (time = frame / fps).
-        image_size: (width, height) px; boxes at the border are not used (None: all used). Boxes whose feet a
+        image_size: (width, height) px; boxes at the border are not used (None: all used, and no roll fitted:
+            ROLL_SPREAD is a share of the width). Boxes whose feet a
             nearer person's box may hide are not used either (module docstring).
         height_mean_m, height_sd_m: the prior of people's heights (PedestrianCorrector's).
-        arl0_people: the mean number of people between false alarms on a steady camera (the threshold follows).
+        arl0_people: the mean number of people between false alarms on a steady camera (the thresholds follow).
+        estimate_roll: estimate the roll with the row, and test it (module docstring), when the people spread over
+            ROLL_SPREAD of the width (image_size given); otherwise, and by default (PedestrianCorrector's), the
+            row alone, roll 0, and the row test alone at arl0_people.
         lens: the camera's lens (homocal.geometry.Lens, the same K and image size: ValueError naming both
             otherwise, Lens.check_matches): update takes the camera's
             pixels, tests the border there (PedestrianCorrector.fit(lens=)'s rule) and then undistorts the boxes
@@ -164,8 +277,8 @@ class OnlineCalibrator:
 
     def __init__(self, K, camera_height_m: float, fps: float, image_size: tuple[int, int] | None = None,
                  height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
-                 arl0_people: float = DEFAULT_ARL0_PEOPLE, lens: Lens | None = None) -> None:
-        PedestrianCorrector(height_mean_m, height_sd_m)  # the prior's checks
+                 arl0_people: float = DEFAULT_ARL0_PEOPLE, lens: Lens | None = None, estimate_roll: bool = False) -> None:
+        self.estimate_roll = PedestrianCorrector(height_mean_m, height_sd_m, estimate_roll=estimate_roll).estimate_roll
         K = intrinsics(None, None, K)
         if not (isinstance(camera_height_m, (int, float)) and 0 < camera_height_m <= 100):
             raise ValueError(f"camera_height_m must be in (0, 100] m, got {camera_height_m!r}")
@@ -176,15 +289,18 @@ class OnlineCalibrator:
         self.K, self.camera_height_m, self.fps, self.image_size = K, float(camera_height_m), float(fps), image_size
         self.lens = None if lens is None else lens.check_matches(K, image_size)
         self.height_mean_m, self.height_sd_m = float(height_mean_m), float(height_sd_m)
-        self.arl0_people, self.threshold = float(arl0_people), cusum_threshold(arl0_people)
+        self._tests = len(TESTS) if self.estimate_roll else 1  # the tests run: each at this many times arl0_people
+        self.arl0_people, self.threshold = float(arl0_people), cusum_threshold(self._tests * arl0_people)
+        self._roll_width = ROLL_SPREAD * image_size[0] if self.estimate_roll and image_size is not None else None
         self._linker = TrackLinker(max_gap=LINK_GAP)
-        self._tracks: dict[int, list] = {}  # live track id -> [last frame, rows, sigmas] until it gives its person
+        self._tracks: dict[int, list] = {}  # live track id -> [last frame, rows, sigmas, ws, columns] until it gives its person
         self._last_frame: int | None = None
-        self._people: deque = deque(maxlen=WINDOW_PEOPLE)  # (t_s, row, sigma) of the current stretch
-        self._since_zero = [0, 0]  # people since S+, S- were last 0
-        self._cusum = [0.0, 0.0]
+        self._people: deque = deque(maxlen=WINDOW_PEOPLE)  # (t_s, row, sigma, w, column) of the current stretch
+        self._since_zero = [0] * 2 * len(TESTS)  # people since each one-sided statistic was last 0
+        self._cusum = [0.0] * 2 * len(TESTS)  # row S+, S-, roll S+, S-
         self.stretch_start_s = 0.0
-        self.estimate = (math.nan, math.nan, 1.0)  # horizon row, sigma, scale s
+        self.estimate = NO_LINE
+        self.roll_threshold = math.nan  # the roll test's threshold, from the estimate's roll_rms
         self.n_people = 0  # the people behind the estimate
 
     # ---- boxes -> people ------------------------------------------------------------------------
@@ -209,16 +325,16 @@ class OnlineCalibrator:
         ids = self._linker.link(frame, boxes) if track_ids is None else np.asarray(track_ids, dtype=np.int64)
         tracks = self._tracks
         for key in ids.tolist():  # every box keeps its track alive; only tracks yet to give a person are measured
-            tracks.setdefault(key, [frame, [], []])[0] = frame
+            tracks.setdefault(key, [frame, [], [], [], []])[0] = frame
         todo = np.array([i for i, key in enumerate(ids.tolist()) if tracks[key][1] is not None], dtype=np.int64)
         try:  # only the boxes still measured: a track's later boxes are skipped, undistorted or not
             b = boxes[todo] if self.lens is None else undistort_boxes(boxes[todo], self.lens)
         except ValueError as e:
             raise ValueError(f"frame {frame}: {e}") from None
-        rows, slope = implied_horizon_rows(b[:, 3], b[:, 1], self.K[1, 1], self.K[1, 2], self.camera_height_m,
-                                           self.height_mean_m)
+        rows, slope, ws, columns = implied_line_terms(b, self.K, self.camera_height_m, self.height_mean_m,
+                                                      self.estimate_roll)
         sigmas = np.abs(slope) * np.hypot(self.height_sd_m, self.height_mean_m * BOX_SIGMA_PX / (b[:, 3] - b[:, 1]))
-        usable = np.isfinite(rows) & np.isfinite(sigmas) & (sigmas > 0)
+        usable = np.isfinite(rows) & np.isfinite(sigmas) & (sigmas > 0) & (np.isfinite(ws) | (not self.estimate_roll))
         if self.image_size is not None:  # cut by the frame: in the camera's pixels
             usable &= ~on_border(boxes[todo], self.image_size)
         hidden = hidden_feet(boxes, np.zeros(len(boxes), np.int64))[todo] if todo.size else np.zeros(0, bool)
@@ -228,12 +344,12 @@ class OnlineCalibrator:
             track = tracks[int(ids[todo[i]])]
             if track[1] is None:  # a second box of the same track in this frame gave it
                 continue
-            track[1].append(rows[i])
-            track[2].append(sigmas[i])
+            for values, k in ((rows, 1), (sigmas, 2), (ws, 3), (columns, 4)):
+                track[k].append(values[i])
             if len(track[1]) == PERSON_BOXES:
                 middle = np.argsort(track[1])[PERSON_BOXES // 2]
-                people.append((t, float(track[1][middle]), float(track[2][middle])))
-                track[1] = track[2] = None  # given: its later boxes are skipped
+                people.append((t, *(float(track[k][middle]) for k in (1, 2, 3, 4))))
+                track[1:] = [None] * 4  # given: its later boxes are skipped
         for key in [k for k, v in self._tracks.items() if frame - v[0] > LINK_GAP]:
             del self._tracks[key]
         if len(self._tracks) > MAX_TRACKS:
@@ -244,80 +360,135 @@ class OnlineCalibrator:
             move = self._observe(person)
             if move:  # the tracks are re-armed: this frame's other people give new observations later
                 break
-        row, sigma, _ = self.estimate
+        line = self.estimate
         armed = len(self._people) >= MIN_PEOPLE
-        return State(t, self.stretch_start_s, row, sigma, self.n_people,
-                     *(self._cusum if armed else (math.nan, math.nan)), self.threshold if armed else math.nan, move,
-                     tuple(p[1] for p in observed), tuple(p[2] for p in observed), int(hidden.sum()))
+        stats = self._cusum if armed else [math.nan] * len(self._cusum)
+        roll = stats[2:] + [self.roll_threshold] if armed and math.isfinite(self.roll_threshold) else [math.nan] * 3
+        cx = float(self.K[0, 2])
+        return State(t, self.stretch_start_s, line.row, line.sigma, self.n_people, *stats[:2],
+                     self.threshold if armed else math.nan, move, tuple(p[1] for p in observed),
+                     tuple(p[2] for p in observed), int(hidden.sum()), tuple(cx + p[4] for p in observed),
+                     line.roll_deg, line.roll_sigma_deg, *roll)
 
     # ---- people -> estimate and test ------------------------------------------------------------
-    def _observe(self, person: tuple[float, float, float]) -> Move | None:
+    def _observe(self, person: tuple) -> Move | None:
         """Test the person against the stretch's estimate, then add it (module docstring)."""
         people = self._people
         armed = len(people) >= MIN_PEOPLE
+        thresholds = (self.threshold,) * 2 + (self.roll_threshold,) * 2
         if armed:
-            row, sigma, scale = self.estimate
-            z = (person[1] - row) / math.hypot(scale * person[2], sigma)
-            u = max(-CLIP, min(CLIP, z)) / SD_CLIPPED
-            for side, step in enumerate((u, -u)):
-                self._cusum[side] = max(0.0, self._cusum[side] + step - CUSUM_K)
-                self._since_zero[side] = 0 if self._cusum[side] == 0.0 else self._since_zero[side] + 1
+            line = self.estimate
+            row, var = line.predicted(person[3])
+            spread = math.sqrt((line.scale * person[2]) ** 2 + var)
+            u = max(-CLIP, min(CLIP, (person[1] - row) / spread)) / SD_CLIPPED
+            roll = person[3] / spread / line.roll_rms  # NaN while the roll is not fitted: its test rests
+            k = (CUSUM_K,) * 2 + (0.5 * math.tan(math.radians(ROLL_REF_DEG)) * line.roll_rms,) * 2
+            for i, step in enumerate((u, -u, roll * u, -roll * u)):  # row S+, S-; roll S+, S-
+                if math.isfinite(step):
+                    self._cusum[i] = max(0.0, self._cusum[i] + step - k[i])
+                    self._since_zero[i] = 0 if self._cusum[i] == 0.0 else self._since_zero[i] + 1
         people.append(person)
-        side = int(np.argmax(self._cusum))
-        if armed and self._cusum[side] > self.threshold:
-            return self._move(side, person[0])
-        self.estimate, self.n_people = robust_location(people), len(people)
+        over = [i for i in range(len(thresholds)) if self._cusum[i] > thresholds[i]]
+        if armed and over:
+            return self._move(max(over, key=lambda i: self._cusum[i] / thresholds[i]), person[0], thresholds)
+        self.estimate, self.n_people = robust_line(people, self._roll_width), len(people)
+        rms = self.estimate.roll_rms
+        self.roll_threshold = cusum_threshold(self._tests * self.arl0_people, 0.5 * math.tan(math.radians(ROLL_REF_DEG))
+                                              * rms) if math.isfinite(rms) and rms > 0 else math.nan
+        if not math.isfinite(self.roll_threshold):
+            self._cusum[2:], self._since_zero[2:] = [0.0, 0.0], [0, 0]
         return None
 
-    def _move(self, side: int, now: float) -> Move:
-        """Split the stretch at the alarming statistic's last 0, whose people give the new stretch's first estimate;
-        empty the stretch and re-arm every live track (module docstring)."""
+    def _move(self, i: int, now: float, thresholds: tuple) -> Move:
+        """Split the stretch at the alarming statistic's (i) last 0, whose people give the new stretch's first
+        estimate; empty the stretch and re-arm every live track (module docstring)."""
         people = list(self._people)
-        start = len(people) - min(self._since_zero[side], len(people) - 1)
-        before, after = robust_location(people[:start]), robust_location(people[start:])
-        move = Move(people[start][0], now, before[0], before[1], after[0], after[1], self._cusum[side], self.threshold,
-                    1 if side == 0 else -1, start)
+        start = len(people) - min(self._since_zero[i], len(people) - 1)
+        before, after = (robust_line(p, self._roll_width) for p in (people[:start], people[start:]))
+        move = Move(people[start][0], now, before.row, before.sigma, after.row, after.sigma, self._cusum[i],
+                    thresholds[i], 1 if i % 2 == 0 else -1, start, TESTS[i // 2], before.roll_deg,
+                    before.roll_sigma_deg, after.roll_deg, after.roll_sigma_deg)
         self._people = deque(maxlen=WINDOW_PEOPLE)
         for track in self._tracks.values():
-            track[1], track[2] = [], []
-        self._since_zero, self._cusum = [0, 0], [0.0, 0.0]
+            track[1:] = [[] for _ in range(4)]
+        self._since_zero, self._cusum = [0] * len(self._cusum), [0.0] * len(self._cusum)
         self.stretch_start_s, self.estimate, self.n_people = people[start][0], after, len(people) - start
+        self.roll_threshold = math.nan  # the test re-arms at MIN_PEOPLE people (its threshold with the estimate then)
         return move
 
     # ---- corrections ---------------------------------------------------------------------------
     def correction(self, transformer: ViewTransformer, camera_origin=(0.0, 0.0)) -> PedestrianCorrector:
-        """The current stretch's correction of a clicked mapping: a PedestrianCorrector (model "camera") whose
-        horizon is the current estimate (``PedestrianCorrector.from_horizon``). ValueError before any person."""
-        row, sigma, _ = self.estimate
-        if not math.isfinite(row):
+        """The current stretch's correction of a clicked mapping (``stretch_correction`` of the current estimate).
+        ValueError before any person."""
+        line = self.estimate
+        if not math.isfinite(line.row):
             raise ValueError("no person seen yet: no horizon to correct with")
-        return PedestrianCorrector(self.height_mean_m, self.height_sd_m).from_horizon(
-            transformer, row, sigma, self.K, self.camera_height_m, self.n_people, camera_origin)
+        return stretch_correction(transformer, self, line.row, line.sigma, line.roll_deg, line.roll_sigma_deg,
+                                  self.n_people, camera_origin)
 
 
-def robust_location(people) -> tuple[float, float, float]:
-    """(row, 1-sigma, scale) of the people [(t_s, row, sigma_i), ...]: the Huber M-estimate whose score is the
-    change test's, sum psi((v_i - row) / (s sigma_i)) = 0 (so the test's increments have mean 0 on a steady
-    camera whatever the residuals' skew), by iteratively reweighted least squares (20 rounds from the median; a
-    person's weight psi(r) / r / sigma_i). From MIN_PEOPLE people on, the scale s is the median absolute
-    standardised residual / 0.6745, at least 1 (a sigma model that overstates some people's spread, such as
-    the pixel term of boxes without pixel noise, would otherwise shrink s and overstate the others' residuals:
-    false alarms), and the 1-sigma the sandwich s sqrt(sum psi^2) / sum (psi' / sigma_i); before, s = 1 (the
-    prior's) and the 1-sigma sqrt(n) / sum (1 / sigma_i)."""
-    v = np.array([p[1] for p in people])
-    s = np.array([p[2] for p in people])
-    mu = float(np.median(v))
-    scale = max(float(np.median(np.abs(v - mu) / s)) / 0.6745, 1.0) if len(v) >= MIN_PEOPLE else 1.0
-    for _ in range(20):
-        r = np.abs(v - mu) / (scale * s)
-        weight = np.minimum(1.0, CLIP / np.maximum(r, 1e-12)) / s
-        mu = float(np.sum(weight * v) / np.sum(weight))
-    if len(v) < MIN_PEOPLE:  # too few for the sandwich: the model's own sigma
-        return mu, math.sqrt(len(v)) / float(np.sum(1.0 / s)), scale
-    r = (v - mu) / (scale * s)
-    psi, dpsi = np.clip(r, -CLIP, CLIP), (np.abs(r) <= CLIP).astype(float)
-    bread = float(np.sum(dpsi / s))
-    return mu, (scale * math.sqrt(float(np.sum(psi * psi))) / bread if bread > 0 else math.inf), scale
+def stretch_correction(transformer: ViewTransformer, calibrator: OnlineCalibrator, row: float, sigma: float,
+                       roll_deg: float, roll_sigma_deg: float, n_people: int, camera_origin=(0.0, 0.0)) -> PedestrianCorrector:
+    """A stretch's correction of a clicked mapping: a PedestrianCorrector (model "camera", the calibrator's prior,
+    K and camera height) whose horizon is the row (px at the principal column, 1-sigma sigma; NaN: 0) and,
+    where fitted (roll_sigma_deg finite), the roll (degrees) of the stretch's estimate
+    (``PedestrianCorrector.from_horizon``, then its roll state as a fit with roll stores it: the (tilt, roll)
+    covariance from the two sigmas, their correlation left out, and no sensitivity to the prior mean)."""
+    corrector = PedestrianCorrector(calibrator.height_mean_m, calibrator.height_sd_m).from_horizon(
+        transformer, row, sigma if math.isfinite(sigma) else 0.0, calibrator.K, calibrator.camera_height_m,
+        n_people, camera_origin)
+    if math.isfinite(roll_sigma_deg):
+        f, cy = corrector.focal_px_, corrector.principal_point_[1]
+        roll = math.radians(roll_deg)
+        secant2 = 1 + ((cy - row) * math.cos(roll) / f) ** 2  # sec^2 of the tilt: d tilt / d row = -cos(roll) / (f sec^2)
+        tilt_sigma = (sigma if math.isfinite(sigma) else 0.0) * math.cos(roll) / (f * secant2)
+        corrector._set_roll_state({"roll_deg": roll_deg, "tilt_roll_sensitivity_rad_per_m": [0.0, 0.0],
+                                   "tilt_roll_cov_rad2": np.diag([tilt_sigma, math.radians(roll_sigma_deg)]) ** 2})
+        corrector._set_transformer()
+    return corrector
+
+
+def robust_line(people, roll_width: float | None = None) -> Line:
+    """The horizon line of the people [(t_s, row, sigma_i, w_i, column_i), ...] (module docstring: the implied
+    rows v_i = row - tan_roll w_i): the Huber M-estimate whose score is the change tests',
+    sum psi(r_i) x_i = 0, r_i = (v_i - x_i . beta) / (s sigma_i), x_i = (1, -w_i), beta = (row, tan_roll), so the
+    row test's increments have mean 0 on a steady camera whatever the residuals' skew; by iteratively reweighted
+    least squares (20 rounds from the median; a person's weight psi(r) / r / sigma_i). The roll is fitted where
+    roll_width (px) is given and the people's columns' interquartile range spans it (PedestrianCorrector's
+    ROLL_SPREAD rule), and then believed up to MAX_ROLL_DEG (beyond: not fitted); otherwise tan_roll is 0. From
+    MIN_PEOPLE people on, the scale s is the median absolute standardised residual / 0.6745, at least 1 (a sigma
+    model that overstates some people's spread, such as the pixel term of boxes without pixel noise, would
+    otherwise shrink s and overstate the others' residuals: false alarms), taken at the median start and, with the
+    roll, again at the first fit (the start's residuals hold the roll), and the covariance the sandwich
+    s^2 B^-1 (sum psi^2 x x^T) B^-1, B = sum psi' x x^T / sigma_i; before, s = 1 (the prior's) and psi(r) = r."""
+    v, s, w, col = (np.array([p[k] for p in people]) for k in (1, 2, 3, 4))
+    n = len(v)
+    roll = roll_width is not None and n >= 3 and np.subtract(*np.percentile(col, [75, 25])) >= roll_width
+    X = np.column_stack([np.ones(n), -w]) if roll else np.ones((n, 1))
+    beta = np.zeros(X.shape[1])
+    beta[0] = float(np.median(v))
+    robust, scale = n >= MIN_PEOPLE, 1.0
+    for _ in range(1 + roll):
+        if robust:
+            scale = max(float(np.median(np.abs(v - X @ beta) / s)) / 0.6745, 1.0)
+        for _ in range(20):
+            r = np.abs(v - X @ beta) / (scale * s)
+            weight = np.minimum(1.0, CLIP / np.maximum(r, 1e-12)) / s
+            beta = np.linalg.lstsq((X * weight[:, None]).T @ X, (X * weight[:, None]).T @ v, rcond=None)[0]
+    if roll and abs(math.degrees(math.atan(beta[1]))) > MAX_ROLL_DEG:
+        return robust_line(people)
+    r = (v - X @ beta) / (scale * s)
+    psi, dpsi = (np.clip(r, -CLIP, CLIP), (np.abs(r) <= CLIP).astype(float)) if robust else (r, np.ones(n))
+    bread = (X * (dpsi / s)[:, None]).T @ X
+    meat = (X * (psi * psi if robust else np.ones(n))[:, None]).T @ X
+    cov = np.full((2, 2), math.nan)
+    if np.linalg.matrix_rank(bread) == len(bread):
+        inv = np.linalg.inv(bread)
+        cov[:len(bread), :len(bread)] = scale ** 2 * inv @ meat @ inv
+    else:
+        cov[0, 0] = math.inf
+    return Line(float(beta[0]), float(beta[1]) if roll else 0.0, cov, scale,
+                float(np.sqrt(np.mean((w / (scale * s)) ** 2))) if roll else math.nan)
 
 
 def camera_of(transformer: ViewTransformer, image_size: tuple[int, int] | None, K=None,

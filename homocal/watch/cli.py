@@ -24,20 +24,27 @@ import pyarrow.parquet as pq
 from homocal.arguments import camera_json, number, xy_pair
 from homocal.boxes import CSV_COLUMNS, CSV_CONVENTION, MAX_FPS, MAX_LINE_CHARS, read_boxes
 from homocal.correctors.cli import add_pedestrian_flags, pedestrian_flag_error
-from homocal.correctors.pedestrians import PedestrianCorrector
 from homocal.files import create_temporary, output_folder, write_json_atomic
 from homocal.geometry import ViewTransformer, read_trapezoid_file
 from homocal.geometry.boxes import MAX_BOXES_PER_FRAME, box_edges
 from homocal.study.options import OptionError
-from homocal.watch.calibrator import DEFAULT_ARL0_PEOPLE, MIN_PEOPLE, OnlineCalibrator, by_frame, camera_of
+from homocal.watch.calibrator import (
+    DEFAULT_ARL0_PEOPLE,
+    MIN_PEOPLE,
+    OnlineCalibrator,
+    by_frame,
+    camera_of,
+    stretch_correction,
+)
 from homocal.watch.folder import MARKER, TOOL
 
-PRIOR = ("height_mean_m", "height_sd_m")  # the people's height prior: with camera_height_m, watch's pedestrian settings
+PRIOR = ("height_mean_m", "height_sd_m", "estimate_roll")  # the people's height prior and the roll: with camera_height_m, watch's pedestrian settings
 WATCH_SETTINGS = ("camera_height_m", *PRIOR)  # the pedestrian settings (PEDESTRIAN_SETTINGS) homocal watch takes
 ROW_GROUP = 4096  # horizon.parquet rows held before they are written
 MAX_MOVES = 10_000  # moves (and stretches) one run records at most: past it the run stops
 HORIZON_COLUMNS = ("t_s", "person_row_px", "person_sigma_px", "horizon_row_px", "horizon_sigma_px", "n_people",
-                   "stretch_start_s", "cusum_up", "cusum_down", "threshold")
+                   "stretch_start_s", "cusum_up", "cusum_down", "threshold", "person_column_px", "roll_deg",
+                   "roll_sigma_deg", "cusum_roll_up", "cusum_roll_down")
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -45,8 +52,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "watch", help="watch a camera for moves from people's boxes, with a correction per stretch",
         description="Read people's boxes in time order, keep the camera's horizon estimated from them, detect "
-                    "moves (a two-sided CUSUM whose false-alarm rate is --arl0-people) and write a correction "
-                    "per stretch between moves (docs/moving-camera.md).")
+                    "moves (a two-sided CUSUM, with --estimate-roll yes one on the row and one on the roll, whose "
+                    "false-alarm rate together is --arl0-people) and write a correction per stretch between moves "
+                    "(docs/moving-camera.md).")
     p.add_argument("--trapezoid", required=True, type=Path, metavar="TRAP.json", help="the clicked trapezoid (as homocal fit's)")
     p.add_argument("--boxes", required=True, metavar="BOXES", help="a MOT .txt, a detections.parquet (--detector), a "
                    f".csv of {','.join(CSV_COLUMNS)}[,track_id] (corner pixels), or - for such CSV lines on standard "
@@ -58,7 +66,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     add_pedestrian_flags(p, WATCH_SETTINGS)
     p.add_argument("--arl0-people", type=number(float, 10, 1e9), default=DEFAULT_ARL0_PEOPLE, metavar="N",
                    help="mean number of people between false alarms on a steady camera (default %(default)g; "
-                        "the CUSUM threshold follows)")
+                        "the CUSUM thresholds follow)")
     p.add_argument("--camera-origin", type=xy_pair, default=(0.0, 0.0), metavar="X,Y",
                    help="ground point under the camera, metres (default 0,0)")
     p.add_argument("-o", "--out", required=True, type=Path, metavar="DIR", help="a new output folder")
@@ -85,7 +93,7 @@ def handle_watch(args: argparse.Namespace) -> int:
     settings = {"format": TOOL, "boxes": str(args.boxes), "detector": args.detector, "fps": args.fps,
                 "camera_height_m": height, "K": K.tolist(), "image_size": None if size is None else list(size),
                 "height_mean_m": calibrator.height_mean_m, "height_sd_m": calibrator.height_sd_m,
-                "arl0_people": args.arl0_people, "threshold": calibrator.threshold}
+                "estimate_roll": calibrator.estimate_roll, "arl0_people": args.arl0_people, "threshold": calibrator.threshold}
     with output_folder(args.out, TOOL, resume=False, marker=MARKER, resumable=False) as folder:
         write_json_atomic(folder.marker, {**settings, "ended": None})
         (folder.path / "corrections").mkdir()
@@ -145,24 +153,26 @@ class _Run:
                 raise ValueError(f"more than {MAX_MOVES:,} moves: the camera is not steady enough to watch")
             m = state.move
             if m.n_before >= 3:
-                self._save(self.stretch_start, m.horizon_before, m.sigma_before, m.n_before)
+                self._save(self.stretch_start, m.horizon_before, m.sigma_before, m.roll_before_deg,
+                           m.roll_sigma_before_deg, m.n_before)
             self.moves.append(m.to_dict())
             write_json_atomic(self.path / "moves.json", {"moves": self.moves})
         self.stretch_start = state.stretch_start_s
-        for row, sigma in zip(state.person_rows, state.person_sigmas):
+        for row, sigma, column in zip(state.person_rows, state.person_sigmas, state.person_columns):
             self.people += 1
             self.rows.append((state.t_s, row, sigma, state.horizon_row, state.horizon_sigma_px, state.n_people,
-                              state.stretch_start_s, state.cusum_up, state.cusum_down, state.threshold))
+                              state.stretch_start_s, state.cusum_up, state.cusum_down, state.threshold, column,
+                              state.roll_deg, state.roll_sigma_deg, state.cusum_roll_up, state.cusum_roll_down))
         if state.person_rows and state.n_people % MIN_PEOPLE == 0:
-            self._save(state.stretch_start_s, state.horizon_row, state.horizon_sigma_px, state.n_people)
+            self._save(state.stretch_start_s, state.horizon_row, state.horizon_sigma_px, state.roll_deg,
+                       state.roll_sigma_deg, state.n_people)
         if len(self.rows) >= ROW_GROUP:
             self._flush()
 
-    def _save(self, start: float, row: float, sigma: float, n: int) -> None:
-        """Write the stretch's correction, corrections/<start_s>.json."""
-        corrector = PedestrianCorrector(self.calibrator.height_mean_m, self.calibrator.height_sd_m).from_horizon(
-            self.transformer, row, sigma if math.isfinite(sigma) else 0.0, self.calibrator.K,
-            self.calibrator.camera_height_m, n, self.origin)
+    def _save(self, start: float, row: float, sigma: float, roll_deg: float, roll_sigma_deg: float, n: int) -> None:
+        """Write the stretch's correction, corrections/<start_s>.json (``stretch_correction``)."""
+        corrector = stretch_correction(self.transformer, self.calibrator, row, sigma, roll_deg, roll_sigma_deg, n,
+                                       self.origin)
         corrector.lens_ = self.lens  # apply undistorts the feet it is given
         name = self.path / "corrections" / f"{start:.2f}.json"
         self.stretches += not name.exists()
@@ -178,7 +188,8 @@ class _Run:
         cal = self.calibrator
         n = cal.n_people
         if n >= 3:
-            self._save(cal.stretch_start_s, cal.estimate[0], cal.estimate[1], n)
+            line = cal.estimate
+            self._save(cal.stretch_start_s, line.row, line.sigma, line.roll_deg, line.roll_sigma_deg, n)
         self._flush()
         self.writer.close()
         self.tmp.replace(self.path / "horizon.parquet")

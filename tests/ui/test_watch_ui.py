@@ -75,6 +75,23 @@ def test_the_api_gives_the_move_and_the_horizon_over_time(files, tmp_path):
 
 
 @slow
+def test_with_the_roll_the_stretches_and_their_correction_carry_it(files, tmp_path):
+    """The request's estimate_roll (the pedestrians fit's) makes the watch estimate the roll: each stretch has a roll
+    with its sigma, the summary gives each move's, and the picked stretch's correction is that roll's."""
+    session = from_files(files["frame"], files["map"], SITE, (0.0, 0.0), tmp_path, boxes=files["moved"], fps=FPS)
+    req = {"trapezoid": TRAP, "camera_origin": [0, 0], "camera_height_m": CAM.mount_height_m, **PRIOR,
+           "estimate_roll": True}
+    w = api.watch(session, req)
+    assert len(w["moves"]) == 1 and all(s["roll_sigma_deg"] is not None for s in w["stretches"])
+    m = w["moves"][0]
+    assert f"the roll {m['roll_before_deg']:.2f} -> {m['roll_after_deg']:.2f} degrees" in w["summary"]
+    corrector, settings = api._stretch(session, {**req, "at_s": SECONDS - 1.0})
+    assert settings["stretch"] == (m["t_s"], SECONDS - 1.0) and corrector.roll_estimated_
+    assert corrector.roll_deg_ == pytest.approx(w["stretches"][-1]["roll_deg"], abs=1e-9)
+    assert corrector.roll_sigma_deg_ == pytest.approx(w["stretches"][-1]["roll_sigma_deg"], rel=1e-9)
+
+
+@slow
 def test_a_steady_camera_shows_no_move(files, tmp_path):
     w = watched(files, tmp_path, "static")
     assert w["moves"] == [] and len(w["stretches"]) == 1

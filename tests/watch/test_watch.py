@@ -1,5 +1,5 @@
 """homocal.watch: the per-box implied horizon, the CUSUM's threshold, OnlineCalibrator on synthetic streams from a
-PinholeCamera whose tilt changes, and the homocal watch / apply --at commands."""
+PinholeCamera whose tilt or roll changes, and the homocal watch / apply --at commands."""
 import dataclasses
 import io
 import json
@@ -21,9 +21,11 @@ from homocal.watch.calibrator import (
     CUSUM_K,
     MIN_PEOPLE,
     SD_CLIPPED,
+    TESTS,
     WINDOW_PEOPLE,
     cusum_arl0,
     cusum_threshold,
+    implied_line_terms,
 )
 
 CAM = PinholeCamera()  # 1280x720, 95 degrees, 4 m high, tilted 15 degrees down
@@ -31,28 +33,33 @@ FPS = 5
 GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])
 
 
-def stream(seconds, tilt=lambda t: 0.0, rate=1.5, seed=0, noise_px=0.3):
+def stream(seconds, tilt=lambda t: 0.0, rate=1.5, seed=0, noise_px=0.3, roll=lambda t: 0.0, side=6.0):
     """Frames (frame, xyxy (N, 4) homocal edges, track ids) of people 1.70 +- 0.07 m tall standing 1 s each at
-    random places 8-45 m ahead, arriving at ``rate`` a second, seen by CAM tilted tilt(t) degrees further down;
-    their foot and head points projected exactly, each box edge plus normal noise of noise_px."""
+    random places 8-45 m ahead and up to ``side`` m to either side, arriving at ``rate`` a second, seen by CAM
+    tilted tilt(t) degrees further down and rolled by roll(t) degrees; their foot and head points projected
+    exactly, the box spanning both columns, each box edge plus normal noise of noise_px."""
     rng = np.random.default_rng(seed)
     n = int(seconds * rate)
     start = np.sort(rng.uniform(0, seconds - 1, n))
-    xy = np.column_stack([rng.uniform(-6, 6, n), rng.uniform(8, 45, n)])
+    xy = np.column_stack([rng.uniform(-side, side, n), rng.uniform(8, 45, n)])
     height = rng.normal(1.70, 0.07, n)
     for frame in range(int(seconds * FPS)):
         t = frame / FPS
-        cam = dataclasses.replace(CAM, tilt_deg=CAM.tilt_deg + tilt(t))
+        cam = dataclasses.replace(CAM, tilt_deg=CAM.tilt_deg + tilt(t), roll_deg=roll(t))
         on = np.flatnonzero((start <= t) & (t < start + 1))
         foot = cam.project(np.column_stack([xy[on], np.zeros(len(on))]))
         head = cam.project(np.column_stack([xy[on], height[on]]))
         half = 0.25 * cam.focal_px / xy[on, 1]
-        boxes = np.column_stack([foot[:, 0] - half, head[:, 1], foot[:, 0] + half, foot[:, 1]])
+        boxes = np.column_stack([np.minimum(foot[:, 0], head[:, 0]) - half, head[:, 1],
+                                 np.maximum(foot[:, 0], head[:, 0]) + half, foot[:, 1]])
         yield frame, boxes + rng.normal(0, noise_px, boxes.shape), on
 
 
-def horizon(tilt_deg):
-    return dataclasses.replace(CAM, tilt_deg=CAM.tilt_deg + tilt_deg).horizon_row
+def horizon(tilt_deg, roll_deg=0.0):
+    """The horizon's row at the principal column (px) of CAM tilted tilt_deg further down and rolled roll_deg
+    (its horizon line a u + b v + c = 0)."""
+    a, b, c = dataclasses.replace(CAM, tilt_deg=CAM.tilt_deg + tilt_deg, roll_deg=roll_deg).horizon
+    return -(a * CAM.K[0, 2] + c) / b
 
 
 def run(frames, **kwargs):
@@ -78,6 +85,27 @@ def test_implied_horizon_rows_inverts_implied_heights():
         assert np.allclose(slope, (up - rows) / 1e-5, rtol=1e-3)
     # a box from row 10 to row 700 is a person of more than 1.7 m under a 4 m camera at every tilt
     assert np.isnan(implied_horizon_rows(np.array([700.0]), np.array([10.0]), CAM.focal_px, CAM.K[1, 2], 4.0, 1.7)).all()
+
+
+def test_a_rolled_camera_puts_the_implied_rows_on_its_horizon_line():
+    """People 6-45 m ahead seen by CAM rolled 1 and -2 degrees, each box spanning its foot and head points: each box's
+    implied row is v_0 - tan(roll) w (implied_line_terms, calibrator docstring), v_0 and the roll from PinholeCamera's
+    horizon line; the model is first order in the roll: within 0.025 roll^2 sd (0.018 measured, on the nearest
+    people), where the horizon line's own slope through the box's middle is off by more than 0.1 |roll| sd."""
+    rng = np.random.default_rng(4)
+    xy = np.column_stack([rng.uniform(-12, 12, 200), rng.uniform(6, 45, 200)])
+    for roll in (1.0, -2.0):
+        cam = dataclasses.replace(CAM, roll_deg=roll)
+        foot, head = (cam.project(np.column_stack([xy, z])) for z in (np.zeros(200), np.full(200, 1.7)))
+        inside = (foot[:, 0] > 0) & (foot[:, 0] < cam.width) & (foot[:, 1] < cam.height)
+        foot, head = foot[inside], head[inside]
+        boxes = np.column_stack([np.minimum(foot[:, 0], head[:, 0]) - 5, head[:, 1], np.maximum(foot[:, 0], head[:, 0]) + 5,
+                                 foot[:, 1]])
+        rows, slope, w, x = implied_line_terms(boxes, CAM.K, 4.0, 1.7)
+        sd = np.abs(slope) * 0.09
+        tan = math.tan(math.radians(roll))
+        assert (np.abs(rows - (horizon(0.0, roll) - tan * w)) / sd).max() < 0.025 * roll ** 2
+        assert (np.abs(rows - (horizon(0.0, roll) - tan * x)) / sd).max() > 0.1 * abs(roll)
 
 
 def test_track_linker_keeps_only_live_tracks():
@@ -120,12 +148,66 @@ def test_siegmund_arl_against_simulation():
     assert abs(length.mean() / 200 - 1) < 0.1
 
 
+def test_the_row_and_roll_tests_together_alarm_at_the_stated_rate():
+    """The four one-sided CUSUMs of a steady camera (the row test's on u, the roll test's on u g at k =
+    tan(ROLL_REF_DEG) g_rms / 2; u the clipped standardised normal, g the people's roll regressors, here uniform
+    with unit RMS), each test at its Siegmund threshold for len(TESTS) x ARL0, alarm every ARL0 people in the mean
+    (Monte Carlo, 4000 runs at ARL0 200, roll references 0.15 and 0.3 sd: the mean's standard error is 1.6 %;
+    Siegmund's approximation is within a few %, and the tests share each person's |u|, which lengthens their joint
+    run: under 20 %; fully dependent tests would double it)."""
+    arl0, runs = 200, 4000
+    for k_roll in (0.15, 0.3):
+        h = np.array([cusum_threshold(len(TESTS) * arl0)] * 2 + [cusum_threshold(len(TESTS) * arl0, k_roll)] * 2)[:, None]
+        k = np.array([CUSUM_K] * 2 + [k_roll] * 2)[:, None]
+        rng = np.random.default_rng(5)
+        stats, alive, length = np.zeros((4, runs)), np.ones(runs, bool), np.zeros(runs)
+        for step in range(1, 100_000):
+            u = np.clip(rng.standard_normal(runs), -CLIP, CLIP) / SD_CLIPPED
+            g = rng.uniform(-math.sqrt(3), math.sqrt(3), runs)
+            stats = np.maximum(0, stats + np.stack([u, -u, g * u, -g * u]) - k)
+            fired = alive & (stats > h).any(axis=0)
+            length[fired], alive = step, alive & ~fired
+            if not alive.any():
+                break
+        assert 0.95 < length.mean() / arl0 < 1.2, (k_roll, length.mean())
+
+
 def test_steady_camera_tracks_its_horizon_in_bounded_memory():
     cal, states = run(stream(300))
     assert [s.move for s in states if s.move] == []
     last = states[-1]
     assert last.n_people == WINDOW_PEOPLE and len(cal._people) == WINDOW_PEOPLE and len(cal._tracks) <= 10
     assert abs(last.horizon_row - horizon(0)) < 4 * last.horizon_sigma_px < 2.0
+
+
+@pytest.mark.parametrize("roll", [1.5, -1.0])
+def test_a_rolled_camera_gives_its_horizon_line(roll):
+    """A steady camera rolled by ``roll`` degrees, people spread over the width, estimate_roll: no move; the
+    estimate's row at the principal column and its roll within 4 sigma of PinholeCamera's horizon line, the roll's
+    sigma under 0.2 degree. Without estimate_roll, the roll is 0 with a NaN sigma and only the row is tested."""
+    _, states = run(stream(100, roll=lambda t: roll, side=12.0, seed=1), estimate_roll=True)
+    assert [s.move for s in states if s.move] == []
+    last = states[-1]
+    assert abs(last.horizon_row - horizon(0.0, roll)) < 4 * last.horizon_sigma_px
+    assert abs(last.roll_deg - roll) < 4 * last.roll_sigma_deg < 0.8
+    cal, states = run(stream(60, roll=lambda t: roll, side=12.0, seed=1))
+    assert states[-1].roll_deg == 0.0 and math.isnan(states[-1].roll_sigma_deg) and math.isnan(states[-1].cusum_roll_up)
+    assert cal.threshold == cusum_threshold(cal.arl0_people)
+
+
+def test_a_roll_step_is_a_move_of_the_roll_test():
+    """The camera rolls 2 degrees at 60 s (its horizon's row at the principal column unchanged), estimate_roll: one
+    move, of the roll test, direction -1 (the horizon rose on the right), found within 30 s, its change point
+    within 5 s of the move; the roll before it within 4 sigma of 0, after it and at the end within 4 sigma of 2
+    degrees, the row unchanged."""
+    _, states = run(stream(150, roll=lambda t: 2.0 if t >= 60 else 0.0, side=12.0, seed=2), estimate_roll=True)
+    moves = [s.move for s in states if s.move]
+    assert len(moves) == 1
+    m = moves[0]
+    assert m.test == "roll" and m.direction == -1 and abs(m.t_s - 60) < 5 and 60 < m.detected_s < 90
+    assert abs(m.roll_before_deg) < 4 * m.roll_sigma_before_deg and abs(m.roll_after_deg - 2) < 4 * m.roll_sigma_after_deg
+    last = states[-1]
+    assert abs(last.roll_deg - 2) < 4 * last.roll_sigma_deg and abs(last.horizon_row - horizon(0.0, 2.0)) < 4 * last.horizon_sigma_px
 
 
 @pytest.mark.parametrize("change, at", [(1.0, 100.0), (-2.0, 100.0), (0.5, 150.0)])
@@ -269,6 +351,36 @@ def test_watch_and_apply_at(tmp_path, capsys, monkeypatch):
         assert r.returncode == 2 and message in r.stderr and r.stderr.count("\n") == 1, r.stderr
     assert np.all(np.abs(late[:, 1] - ground[:, 1]) / ground[:, 1] < 0.03)
     assert np.abs(early[-1, 1] - ground[-1, 1]) / ground[-1, 1] > 0.1
+
+
+def test_watch_with_the_roll_writes_it_and_apply_uses_it(tmp_path, capsys, monkeypatch):
+    """--estimate-roll yes on a camera that rolls 2 degrees at 60 s: moves.json (strict JSON) has the roll test's
+    move with the roll before and after, horizon.parquet the roll columns after the others, and the stretch's
+    correction maps ground points seen by the rolled camera within 2 % in range (the one before, roll 0, does
+    not: its points to the sides are off by more)."""
+    flags = write_inputs(tmp_path, stream(150, roll=lambda t: 2.0 if t >= 60 else 0.0, side=12.0, seed=2))
+    r = homocal_main("watch", *flags, "--estimate-roll", "yes", "--boxes", "boxes.csv", "--out", "out", cwd=tmp_path,
+                     capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    moves = json.loads((tmp_path / "out/moves.json").read_text(), parse_constant=lambda c: pytest.fail(c))["moves"]
+    assert [m["test"] for m in moves] == ["roll"] and moves[0]["roll_after_deg"] > 1.0
+    assert json.loads((tmp_path / "out/watch.json").read_text())["estimate_roll"] is True
+    table = pq.read_table(tmp_path / "out/horizon.parquet")
+    assert table.column_names[-5:] == ["person_column_px", "roll_deg", "roll_sigma_deg", "cusum_roll_up", "cusum_roll_down"]
+    last = table.slice(table.num_rows - 1).to_pylist()[0]
+    assert abs(last["roll_deg"] - 2.0) < 4 * last["roll_sigma_deg"]
+    rolled = dataclasses.replace(CAM, roll_deg=2.0)
+    ground = np.array([[-8.0, 12.0], [8.0, 12.0], [0.0, 25.0], [-10.0, 40.0], [10.0, 40.0]])
+    uv = rolled.project_ground(ground)
+    (tmp_path / "feet.csv").write_text("u,v\n" + "".join(f"{float(u)!r},{float(v)!r}\n" for u, v in uv))
+    errors = []
+    for at in (140, 30):
+        r = homocal_main("apply", "out", "--at", str(at), "--points", "feet.csv", "-o", f"at{at}.csv", cwd=tmp_path,
+                         capsys=capsys, monkeypatch=monkeypatch)
+        assert r.returncode == 0, r.stderr
+        got = np.loadtxt(tmp_path / f"at{at}.csv", delimiter=",", skiprows=1, usecols=(2, 3))
+        errors.append(np.abs(np.hypot(*got.T) - np.hypot(*ground.T)) / np.hypot(*ground.T))
+    assert errors[0].max() < 0.02 < errors[1].max()
 
 
 def stdin_run(tmp_path, capsys, monkeypatch, text, out="out"):
