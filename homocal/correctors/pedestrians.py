@@ -625,10 +625,14 @@ class PedestrianCorrector(Corrector):
         return other
 
     def from_horizon(self, transformer: ViewTransformer, horizon_row_px: float, horizon_sigma_px: float, K: np.ndarray,
-                     camera_height_m: float, n_people: int, camera_origin=(0.0, 0.0)) -> PedestrianCorrector:
-        """Set up as fit would from a horizon row (px, with its 1-sigma) found elsewhere from n_people people (each
-        one box: homocal.watch.OnlineCalibrator's estimate), with K and the camera height given and no check
-        points. Returns self; ValueError naming the argument for bad input."""
+                     camera_height_m: float, n_people: int, camera_origin=(0.0, 0.0), roll_deg: float | None = None,
+                     roll_sigma_deg: float = 0.0) -> PedestrianCorrector:
+        """Set up as fit would from a horizon row (px at the principal column, with its 1-sigma) found elsewhere from
+        n_people people (each one box: homocal.watch.OnlineCalibrator's estimate), with K and the camera height given
+        and no check points; with roll_deg (degrees, camera.json's sign; its 1-sigma roll_sigma_deg) the camera's
+        roll found with the row, stored as a fit with roll stores it: the (tilt, roll) covariance from the two
+        sigmas (their correlation left out), no sensitivity to the prior mean. Returns self; ValueError naming the
+        argument for bad input."""
         if not isinstance(transformer, ViewTransformer):
             raise TypeError(f"transformer: expected a homocal.ViewTransformer, got {type(transformer).__name__}")
         K = np.asarray(K, dtype=np.float64)
@@ -639,7 +643,14 @@ class PedestrianCorrector(Corrector):
         self.horizon_sigma_people_px_ = number(horizon_sigma_px, "horizon_sigma_px", minimum=0)
         self.mean_sensitivity_px_per_cm_ = math.nan  # the estimate's sigma is all there is: horizon_sigma_px_ is it
         self._set_horizon_sigma()
-        self._set_roll_state(None)
+        roll = None
+        if roll_deg is not None:  # d tilt / d row = -cos(roll) / (f sec^2(tilt)) at the principal column
+            phi = math.radians(number(roll_deg, "roll_deg"))
+            secant2 = 1 + ((self.principal_point_[1] - self.horizon_row_) * math.cos(phi) / self.focal_px_) ** 2
+            tilt_sigma = self.horizon_sigma_people_px_ * math.cos(phi) / (self.focal_px_ * secant2)
+            roll = {"roll_deg": roll_deg, "tilt_roll_sensitivity_rad_per_m": [0.0, 0.0], "tilt_roll_cov_rad2":
+                    np.diag([tilt_sigma, math.radians(number(roll_sigma_deg, "roll_sigma_deg", minimum=0))]) ** 2}
+        self._set_roll_state(roll)
         self.n_boxes_ = self.n_people_ = self.n_people_used_ = integer(n_people, "n_people", MIN_PEOPLE, 2**62)
         self.n_border_ = self.n_hidden_ = self.n_outliers_ = 0
         self.base_transformer_, self.camera_origin_ = transformer, check_camera_origin(camera_origin)

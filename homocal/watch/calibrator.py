@@ -432,20 +432,11 @@ def stretch_correction(transformer: ViewTransformer, calibrator: OnlineCalibrato
     """A stretch's correction of a clicked mapping: a PedestrianCorrector (model "camera", the calibrator's prior,
     K and camera height) whose horizon is the row (px at the principal column, 1-sigma sigma; NaN: 0) and,
     where fitted (roll_sigma_deg finite), the roll (degrees) of the stretch's estimate
-    (``PedestrianCorrector.from_horizon``, then its roll state as a fit with roll stores it: the (tilt, roll)
-    covariance from the two sigmas, their correlation left out, and no sensitivity to the prior mean)."""
-    corrector = PedestrianCorrector(calibrator.height_mean_m, calibrator.height_sd_m).from_horizon(
+    (``PedestrianCorrector.from_horizon``)."""
+    fitted = math.isfinite(roll_sigma_deg)
+    return PedestrianCorrector(calibrator.height_mean_m, calibrator.height_sd_m).from_horizon(
         transformer, row, sigma if math.isfinite(sigma) else 0.0, calibrator.K, calibrator.camera_height_m,
-        n_people, camera_origin)
-    if math.isfinite(roll_sigma_deg):
-        f, cy = corrector.focal_px_, corrector.principal_point_[1]
-        roll = math.radians(roll_deg)
-        secant2 = 1 + ((cy - row) * math.cos(roll) / f) ** 2  # sec^2 of the tilt: d tilt / d row = -cos(roll) / (f sec^2)
-        tilt_sigma = (sigma if math.isfinite(sigma) else 0.0) * math.cos(roll) / (f * secant2)
-        corrector._set_roll_state({"roll_deg": roll_deg, "tilt_roll_sensitivity_rad_per_m": [0.0, 0.0],
-                                   "tilt_roll_cov_rad2": np.diag([tilt_sigma, math.radians(roll_sigma_deg)]) ** 2})
-        corrector._set_transformer()
-    return corrector
+        n_people, camera_origin, roll_deg if fitted else None, roll_sigma_deg if fitted else 0.0)
 
 
 def robust_line(people, roll_width: float | None = None) -> Line:

@@ -742,6 +742,28 @@ class TestRollAndLens:
         assert first.roll_estimated_ and first.roll_deg_ == again.roll_deg_ and first.horizon_row_ == again.horizon_row_
         assert abs(first.roll_deg_ - 1.0) < 3 * first.roll_sigma_deg_
 
+    def test_from_horizon_with_a_roll_is_the_fits_mapping(self):
+        """from_horizon given a fit's horizon row, roll and their sigmas (as homocal watch's stretches are) maps every
+        image point where the fit's own corrected mapping does, and reports the same roll; a roll that is not a
+        number is refused naming it."""
+        rng = np.random.default_rng(3)
+        n = 60
+        start, heading = np.column_stack([rng.uniform(-15, 15, n), rng.uniform(8, 35, n)]), rng.uniform(0, 2 * np.pi, n)
+        cam = PinholeCamera(roll_deg=1.0)
+        boxes, people = self.walkers(cam, start, heading, rng.normal(1.71, 0.09, n), rng)
+        fit = self.walk_fit(cam, boxes, people)
+        a, b, h = cam.horizon
+        clicked = ViewTransformer(tilt_shift(cam.project_ground(GROUND), cam.K, -(a * cam.K[0, 2] + h) / b, 16.0), GROUND)
+        given = PedestrianCorrector(1.71, 0.09).from_horizon(
+            clicked, fit.horizon_row_, fit.horizon_sigma_px_, cam.K, 4.0, fit.n_people_used_,
+            roll_deg=fit.roll_deg_, roll_sigma_deg=fit.roll_sigma_deg_)
+        q = np.column_stack([rng.uniform(0, 1280, 200), rng.uniform(300, 720, 200)])
+        assert fit.roll_estimated_ and given.roll_estimated_ and given.roll_deg_ == fit.roll_deg_
+        assert math.isclose(given.roll_sigma_deg_, fit.roll_sigma_deg_, rel_tol=1e-9)
+        np.testing.assert_allclose(given.transformer_.transform_points(q), fit.transformer_.transform_points(q), atol=1e-9)
+        with pytest.raises(ValueError, match="roll_deg"):
+            PedestrianCorrector().from_horizon(clicked, 200.0, 1.0, cam.K, 4.0, 10, roll_deg=math.nan)
+
     @pytest.mark.parametrize("degrees", [1.0, 0.0])
     def test_walks_give_the_roll_whoever_walks_by(self, degrees):
         """40 people walking 10 m to the right across scene3's camera (its lens and yaw; rolled 1 degree, or not) at
