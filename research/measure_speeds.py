@@ -4,6 +4,7 @@ supervision's speed recipe (issue 34 item 4; docs/measure.md).
     python research/measure_speeds.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--shift 16]
     python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma | --correlated] [--feet soles]
     python research/measure_speeds.py DATASET [DATASET ...] --exact --spread [--split | --box-sigma | --correlated] [--feet soles]
+    python research/measure_speeds.py DATASET [DATASET ...] --steadiness [--exact] [--box-sigma | --correlated] [--feet soles] [--accel-psd fitted]
     python research/measure_speeds.py DATASET [DATASET ...] --horizons 10
     python research/measure_speeds.py DATASET [DATASET ...] --draws 2000 [--correlated] [--feet soles] [--accel-psd fitted]
     python research/measure_speeds.py DATASET --throughput 10 [--correlated]
@@ -53,6 +54,9 @@ motion model's, no mapping error; no recipe row.
 --feet soles: not a box whose feet a nearer box may hide, nor one whose bottom or side the image border cuts,
 homocal.measure.tracks.foot_status; their shares printed to stderr); the recipe and the 1 s differences take
 every box.
+--steadiness: instead, the smoothed speeds' 1/2-sigma coverage at 5-50 m pooled over the datasets per bin of the
+true velocity's change over STEADY_S about the box (STEADINESS_BINS_MPS; ``steadiness_table``): a walker at a
+steady pace or standing against one who turns, starts or stops.
 --horizons SECONDS: instead, the pedestrians' correction (as the tables fit it) on every disjoint window of
 SECONDS of each dataset, its fitted horizon's error over its sigma (``horizon_table``; each fit printed to stderr).
 --draws N: instead, the pedestrians' smoothed speeds' 1/2-sigma coverage pooled over the datasets (the split
@@ -92,6 +96,11 @@ from homocal.study.perturb import base_quad
 
 BANDS = ((5.0, 15.0), (15.0, 30.0), (30.0, 50.0), (5.0, 50.0))
 WALKING_MPS = 0.5
+STEADY_S = 1.0
+"""--steadiness: the span, s, over which a box's true velocity change is taken."""
+STEADINESS_BINS_MPS = (0.0, 0.1, 0.3, 1.0, np.inf)
+"""--steadiness: the bins of the true velocity change over STEADY_S, m/s (under 0.1: a steady walker or one
+standing)."""
 REFERENCE_RANGES_M = (10.0, 20.0, 35.0)
 
 
@@ -109,7 +118,9 @@ def recipe_speeds(positions: np.ndarray, frames: np.ndarray, ids: np.ndarray, fp
 
 
 def truth(ds, detector: str):
-    """Boxes of ``detector`` with an agent: frames (N,), xyxy (N, 4), true xy (N, 2), true speed (N,), range (N,)."""
+    """Boxes of ``detector`` with an agent: frames (N,), xyxy (N, 4), true xy (N, 2), true speed (N,), range (N,),
+    and the change (N,) m/s of the true velocity over STEADY_S about the box (the mean velocity of the STEADY_S / 2
+    after it less that of the STEADY_S / 2 before it; NaN within STEADY_S / 2 of the agent's ends)."""
     det = ds.table("detections.parquet").to_pandas()
     det = det[det.detector == detector].reset_index(drop=True)
     gt = ds.table("gt.parquet").to_pandas()[["agent_id", "step", "x", "y"]]
@@ -126,7 +137,10 @@ def truth(ds, detector: str):
         vel = (np.where(np.isnan(after), xy, after) - np.where(np.isnan(before), xy, before)) / span[:, None]
     vel[span == 0] = 0.0
     xyxy = det[["x1", "y1", "x2", "y2"]].to_numpy(float)
-    return det.frame.to_numpy(np.int64), xyxy, xy, np.linalg.norm(vel, axis=1), np.linalg.norm(xy - ds.camera_origin, axis=1)
+    half = int(round(STEADY_S / 2 / dt))
+    change = np.linalg.norm(at(half) - 2 * xy + at(-half), axis=1) / (half * dt)
+    return (det.frame.to_numpy(np.int64), xyxy, xy, np.linalg.norm(vel, axis=1),
+            np.linalg.norm(xy - ds.camera_origin, axis=1), change)
 
 
 def undistorted(ds, points: np.ndarray) -> np.ndarray:
@@ -214,7 +228,7 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
     for path in paths:
         ds = load_dataset(path)
         fps = float(ds.manifest["fps"])
-        frames, xyxy, true_xy, true_speed, rng = truth(ds, detector)
+        frames, xyxy, true_xy, true_speed, rng, change = truth(ds, detector)
         ids = link_tracks(frames, xyxy)
         feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
         foot = foot_status(xyxy, frames, ds.camera.image_size) if soles else None
@@ -253,6 +267,8 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
             p["rel"].append(np.where(walking, 100 * err[ok] / np.where(walking, true_speed[ok], 1.0), np.nan))
             p["range"].append(rng[ok])
             p["inner"].append(inner[ok])
+            p["change"].append(change[ok])
+            p["sigma"].append(sigma[ok] if sigma is not None else np.full(ok.sum(), np.nan))
             for k in (1, 2):
                 p[f"cover{k}"].append(err[ok] <= k * sigma[ok] if sigma is not None else np.full(ok.sum(), np.nan))
                 p[f"pos{k}"].append(pos_err[ok] <= k * pos_sigma[ok] if pos_err is not None else np.full(ok.sum(), np.nan))
@@ -312,6 +328,25 @@ def spread_table(per_dataset: list[dict], detector: str, shift: float) -> str:
     return "\n".join(lines)
 
 
+def steadiness_table(pooled: dict, detector: str) -> str:
+    """The smoothed speeds' 1/2-sigma coverage at 5-50 m by how steady the true velocity is (its change over
+    STEADY_S, STEADINESS_BINS_MPS): per bin its share of the boxes, the coverage, the median error and bar, m/s."""
+    lines = [f"{detector} boxes, 5-50 m, by the true velocity's change over {STEADY_S:g} s", "",
+             "| method | change, m/s | boxes | 1/2-sigma speeds | median error, m/s | median sigma, m/s |",
+             "|---|---|---:|---:|---:|---:|"]
+    for key, p in pooled.items():
+        if not key.endswith("smoother"):
+            continue
+        band = (p["range"] >= BANDS[-1][0]) & (p["range"] < BANDS[-1][1])
+        for lo, hi in zip(STEADINESS_BINS_MPS[:-1], STEADINESS_BINS_MPS[1:]):
+            sel = band & (p["change"] >= lo) & (p["change"] < hi)
+            if sel.any():
+                lines.append(f"| {key} | {lo:g}-{hi:g} | {100 * sel.sum() / band.sum():.1f} % | "
+                             f"{100 * p['cover1'][sel].mean():.1f} / {100 * p['cover2'][sel].mean():.1f} % | "
+                             f"{np.median(p['err'][sel]):.3f} | {np.median(p['sigma'][sel]):.3f} |")
+    return "\n".join(lines)
+
+
 def bar_parts(path: str, detector: str, shift: float, foot_noise: str, accel_psd: float | str, soles: bool) -> dict:
     """The pedestrians' correction's smoothed speeds at the 5-50 m boxes with a true speed, as the tables measure
     them with a split FOOT_NOISE model (box-height or correlated): err (M,) speed - true, m/s; S (M,) its
@@ -320,7 +355,7 @@ def bar_parts(path: str, detector: str, shift: float, foot_noise: str, accel_psd
     over its sigma (horizon_sigma_px_)."""
     ds = load_dataset(path)
     fps = float(ds.manifest["fps"])
-    frames, xyxy, _, true_speed, rng = truth(ds, detector)
+    frames, xyxy, _, true_speed, rng, _ = truth(ds, detector)
     ids = link_tracks(frames, xyxy)
     feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
     peds = pedestrians(ds, clicked_transformer(ds, shift), frames, xyxy, ids)
@@ -428,6 +463,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--spread", action="store_true", help="each dataset on its own: mean [min, max] over them")
     parser.add_argument("--exact", action="store_true",
                         help="the true mapping (the exact trapezoid) alone, bars of no mapping error (click sigma 0)")
+    parser.add_argument("--steadiness", action="store_true",
+                        help="the smoothed speeds' coverage by the true velocity's change over STEADY_S, pooled")
     parser.add_argument("--horizons", type=float, metavar="SECONDS",
                         help="the pedestrians' fitted horizon's error over its sigma on disjoint windows of SECONDS")
     parser.add_argument("--draws", type=int, metavar="N",
@@ -455,7 +492,10 @@ def main(argv: list[str] | None = None) -> int:
                          args.feet))
         return 0
     for detector in args.detectors.split(","):
-        if args.spread:
+        if args.steadiness:
+            print(steadiness_table(evaluate(args.datasets, detector, args.shift, args.split, args.box_sigma, args.correlated,
+                                            args.accel_psd, args.feet == "soles", args.exact), detector) + "\n")
+        elif args.spread:
             print(spread_table([evaluate([d], detector, args.shift, args.split, args.box_sigma, args.correlated,
                                          args.accel_psd, args.feet == "soles", args.exact) for d in args.datasets], detector, args.shift) + "\n")
         else:
