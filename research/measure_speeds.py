@@ -5,6 +5,7 @@ supervision's speed recipe (issue 34 item 4; docs/measure.md).
     python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma | --correlated] [--feet soles]
     python research/measure_speeds.py DATASET [DATASET ...] --exact --spread [--split | --box-sigma | --correlated] [--feet soles]
     python research/measure_speeds.py DATASET [DATASET ...] --steadiness [--exact] [--box-sigma | --correlated] [--feet soles] [--accel-psd fitted]
+    python research/measure_speeds.py DATASET [DATASET ...] --fit-imm
     python research/measure_speeds.py DATASET [DATASET ...] --horizons 10
     python research/measure_speeds.py DATASET [DATASET ...] --draws 2000 [--correlated] [--feet soles] [--accel-psd fitted]
     python research/measure_speeds.py DATASET --throughput 10 [--correlated]
@@ -57,6 +58,8 @@ every box.
 --steadiness: instead, the smoothed speeds' 1/2-sigma coverage at 5-50 m pooled over the datasets per bin of the
 true velocity's change over STEADY_S about the box (STEADINESS_BINS_MPS; ``steadiness_table``): a walker at a
 steady pace or standing against one who turns, starts or stops.
+--fit-imm: instead, the two-regime motion model's constants (homocal.measure.kalman.fit_imm: IMM_ACCEL_PSD,
+IMM_SWITCH_PER_S) by maximum likelihood over the datasets' and --detectors' tracks pooled (``imm_inputs``).
 --horizons SECONDS: instead, the pedestrians' correction (as the tables fit it) on every disjoint window of
 SECONDS of each dataset, its fitted horizon's error over its sigma (``horizon_table``; each fit printed to stderr).
 --draws N: instead, the pedestrians' smoothed speeds' 1/2-sigma coverage pooled over the datasets (the split
@@ -89,9 +92,9 @@ from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer, box_bottom_points
 from homocal.geometry.boxes import link_tracks
 from homocal.measure import ACCEL_PSD, measure_tracks
-from homocal.measure.kalman import speed_and_sigma
-from homocal.measure.tracks import (FEET, TrapezoidMapping, fit_tracks_accel_psd, foot_noise_options, foot_status,
-                                    mapping_velocity_covariance)
+from homocal.measure.kalman import fit_imm, speed_and_sigma
+from homocal.measure.tracks import (FEET, TrapezoidMapping, first_batch_inputs, fit_tracks_accel_psd, foot_noise_options,
+                                    foot_status, mapping_velocity_covariance)
 from homocal.study.perturb import base_quad
 
 BANDS = ((5.0, 15.0), (15.0, 30.0), (30.0, 50.0), (5.0, 50.0))
@@ -182,6 +185,17 @@ def pedestrians(ds, clicked: ViewTransformer, frames: np.ndarray, xyxy: np.ndarr
         clicked, xyxy, convention="homocal", frames=frames, track_ids=ids, K=ds.camera.K,
         camera_height_m=ds.camera.mount_height_m, image_size=ds.camera.image_size, camera_origin=ds.camera_origin,
         lens=None if ds.camera.lens.is_identity else ds.camera.lens)
+
+
+def imm_inputs(path: str, detector: str, shift: float) -> tuple:
+    """kalman_filter's (t, z, R, foot) of a dataset's tracks of ``detector`` boxes as the tables measure them with
+    the pedestrians' correction and the box-height foot noise, feet all (first_batch_inputs: BATCH_CELLS)."""
+    ds = load_dataset(path)
+    frames, xyxy = truth(ds, detector)[:2]
+    ids = link_tracks(frames, xyxy)
+    feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
+    peds = pedestrians(ds, clicked_transformer(ds, shift), frames, xyxy, ids)
+    return first_batch_inputs(peds, frames, feet, ids, float(ds.manifest["fps"]), **foot_noise_options("box-height", xyxy, 1.0))
 
 
 def horizon_errors(path: str, detector: str, shift: float, seconds: float) -> list[dict]:
@@ -465,6 +479,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="the true mapping (the exact trapezoid) alone, bars of no mapping error (click sigma 0)")
     parser.add_argument("--steadiness", action="store_true",
                         help="the smoothed speeds' coverage by the true velocity's change over STEADY_S, pooled")
+    parser.add_argument("--fit-imm", action="store_true",
+                        help="the IMM's two q and switching rates by maximum likelihood over the datasets' tracks")
     parser.add_argument("--horizons", type=float, metavar="SECONDS",
                         help="the pedestrians' fitted horizon's error over its sigma on disjoint windows of SECONDS")
     parser.add_argument("--draws", type=int, metavar="N",
@@ -478,6 +494,11 @@ def main(argv: list[str] | None = None) -> int:
                 share = np.median(p["a"] / p["S"])
                 print(f"{Path(d).name}, {detector}: horizon z {p['z']:+.2f}, mapping part a / S median {share:.2f}", file=sys.stderr)
             print(f"{detector} boxes, pedestrians, smoother, {len(parts)} datasets pooled\n\n" + pooled_coverage_table(parts, args.draws) + "\n")
+        return 0
+    if args.fit_imm:
+        qs, rates = fit_imm([imm_inputs(d, detector, args.shift) for d in args.datasets for detector in args.detectors.split(",")])
+        print(f"IMM fitted on {len(args.datasets)} datasets, {args.detectors} boxes: q {qs[0]:.3g}, {qs[1]:.3g} m^2/s^3; "
+              f"switching rates {rates[0]:.3g}, {rates[1]:.3g} per s")
         return 0
     if args.horizons:
         rows = [r for detector in args.detectors.split(",") for d in args.datasets

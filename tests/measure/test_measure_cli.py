@@ -127,9 +127,9 @@ BAD = [  # (writes the boxes, extra arguments, the error's words)
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--foot-noise", "bogus"], "argument --foot-noise: invalid choice"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--feet", "heels"], "argument --feet: invalid choice: 'heels'"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--accel-psd", "fast"],
-     "argument --accel-psd: fitted or a number: expected a number, got 'fast'"),
+     "argument --accel-psd: fitted, imm or a number: expected a number, got 'fast'"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--accel-psd", "0"],
-     "argument --accel-psd: fitted or a number: must be a finite number in (0, 1e+06], got 0"),
+     "argument --accel-psd: fitted, imm or a number: must be a finite number in (0, 1e+06], got 0"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--camera-json", "missing.json"], "--camera-json missing.json: no such file"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--camera-json", "trap.json"], "--camera-json trap.json: image_size: missing"),
 ]
