@@ -254,6 +254,15 @@ def imm_step(x: np.ndarray, P: np.ndarray, mu: np.ndarray, dt: np.ndarray, z: np
     return out
 
 
+def imm_start(n: int, M: int, rates: tuple[float, ...], R_b: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """n tracks' first states (n, M, d), covariances (n, M, d, d) in each of M models (``start_state``; R_b as
+    there) and model probabilities (n, M): the switching chain's stationary ones (r_10, r_01) / (r_01 + r_10)."""
+    x, P = start_state(n, R_b)
+    mu = np.array([rates[1], rates[0]]) / sum(rates) if M == 2 else np.ones(1)
+    return np.repeat(x[:, None], M, axis=1), np.repeat(P[:, None], M, axis=1), np.broadcast_to(mu, (n, M)).copy()
+
+
 def imm_filter(t: np.ndarray, z: np.ndarray, R: np.ndarray, qs: tuple[float, ...] = IMM_ACCEL_PSD,
                rates: tuple[float, ...] = IMM_SWITCH_PER_S, foot: tuple[np.ndarray, float] | None = None
                ) -> dict[str, np.ndarray]:
@@ -262,10 +271,7 @@ def imm_filter(t: np.ndarray, z: np.ndarray, R: np.ndarray, qs: tuple[float, ...
     (n, L, M, d), "P" (n, L, M, d, d), "mu", "c" (n, L, M), "F" (n, L, d, d), "Q" (n, L, M, d, d), "Pi"
     (n, L, M, M) per step, and "loglik", the tracks' summed log-likelihood (a float)."""
     n, L = t.shape
-    M = len(qs)
-    x, P = start_state(n, None if foot is None else foot[0][:, 0])
-    x, P = np.repeat(x[:, None], M, axis=1), np.repeat(P[:, None], M, axis=1)
-    mu = np.broadcast_to(np.array([rates[1], rates[0]]) / sum(rates) if M == 2 else np.ones(1), (n, M))
+    x, P, mu = imm_start(n, len(qs), rates, None if foot is None else foot[0][:, 0])
     out: dict = {}
     loglik = 0.0
     for k in range(L):
