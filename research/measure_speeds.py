@@ -44,9 +44,10 @@ speed's bar (homocal.measure.measure_tracks(split_mapping_error=True)).
 (homocal.measure.tracks.box_height_sigma_px; research/foot_noise.py) instead of 1 px.
 --correlated: --box-sigma with the foot point's error an AR(1) of correlation time FOOT_CORRELATION_S in the
 filter's state (measure_tracks(foot_correlation_s=...); homocal measure --foot-noise correlated).
---accel-psd Q|fitted: the filter's process noise (homocal measure --accel-psd; default homocal.measure.ACCEL_PSD);
+--accel-psd Q|fitted|imm: the filter's process noise (homocal measure --accel-psd; default homocal.measure.ACCEL_PSD);
 fitted: per dataset, detector and mapping by maximum likelihood of the filter's innovations on the boxes'
-tracks (homocal.measure.tracks.fit_tracks_accel_psd; no ground truth), printed to stderr.
+tracks (homocal.measure.tracks.fit_tracks_accel_psd; no ground truth), printed to stderr; imm: the two-regime
+model (homocal.measure.kalman.IMM), its IMM filter and smoother.
 --exact: the part of the error that is the track's own, apart from the mapping's: the dataset's true mapping
 (its exact trapezoid, the ground rectangle's projection, undistorted; ``exact_transformer``) alone, measured at
 click sigma 0, so the bars hold the foot point's noise (each --split/--box-sigma/--correlated model's) and the
@@ -92,7 +93,7 @@ from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer, box_bottom_points
 from homocal.geometry.boxes import link_tracks
 from homocal.measure import ACCEL_PSD, measure_tracks
-from homocal.measure.kalman import fit_imm, speed_and_sigma
+from homocal.measure.kalman import IMM, fit_imm, speed_and_sigma
 from homocal.measure.tracks import (FEET, TrapezoidMapping, first_batch_inputs, fit_tracks_accel_psd, foot_noise_options,
                                     foot_status, mapping_velocity_covariance)
 from homocal.study.perturb import base_quad
@@ -471,8 +472,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="the split with each foot point's sigma FOOT_SIGMA_PER_BOX_HEIGHT x its box's height")
     parser.add_argument("--correlated", action="store_true",
                         help="--box-sigma with the foot point's error an AR(1) of correlation time FOOT_CORRELATION_S")
-    parser.add_argument("--accel-psd", type=lambda s: s if s == "fitted" else float(s), default=ACCEL_PSD,
-                        help="the filter's process noise q, m^2/s^3, or fitted (per dataset, detector and mapping)")
+    parser.add_argument("--accel-psd", type=lambda s: s if s in ("fitted", IMM) else float(s), default=ACCEL_PSD,
+                        help="the filter's process noise q, m^2/s^3, fitted (per dataset, detector and mapping) or imm")
     parser.add_argument("--feet", choices=FEET, default=FEET[0], help="homocal measure --feet")
     parser.add_argument("--spread", action="store_true", help="each dataset on its own: mean [min, max] over them")
     parser.add_argument("--exact", action="store_true",

@@ -317,10 +317,10 @@ def imm_smoother(filtered: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarra
     return x, P, mu
 
 
-IMM_FIT_LOG_TOLERANCE = 0.02
-"""``fit_imm``'s tolerance on the logs of its four constants (2 %: far below their spread over datasets)."""
-IMM_FIT_LOGLIK_TOLERANCE = 0.1
-"""``fit_imm``'s tolerance on the log-likelihood (a tenth of what one more parameter must gain to be kept)."""
+IMM_FIT_LOG_TOLERANCE = 0.1
+"""``fit_imm``'s tolerance on the logs of its four constants (10 %: each likelihood is seconds of filtering)."""
+IMM_FIT_LOGLIK_TOLERANCE = 0.5
+"""``fit_imm``'s tolerance on the log-likelihood (half a unit: one standard error of one constant moves it so)."""
 
 
 def fit_imm(inputs: list[tuple]) -> tuple[tuple[float, float], tuple[float, float]]:
