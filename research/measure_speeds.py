@@ -58,7 +58,8 @@ homocal.measure.tracks.foot_status; their shares printed to stderr); the recipe 
 every box.
 --steadiness: instead, the smoothed speeds' 1/2-sigma coverage at 5-50 m pooled over the datasets per bin of the
 true velocity's change over STEADY_S about the box (STEADINESS_BINS_MPS; ``steadiness_table``): a walker at a
-steady pace or standing against one who turns, starts or stops.
+steady pace or standing against one who turns, starts or stops; and the positions' 1/2-sigma coverage within
+sigma_m and within the error ellipse.
 --fit-imm: instead, the two-regime motion model's constants (homocal.measure.kalman.fit_imm: IMM_ACCEL_PSD,
 IMM_SWITCH_PER_S) by maximum likelihood over the datasets' and --detectors' tracks pooled (``imm_inputs``).
 --horizons SECONDS: instead, the pedestrians' correction (as the tables fit it) on every disjoint window of
@@ -86,6 +87,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 from scipy.special import ndtr
+from scipy.stats import chi2
 
 from homocal.boxes import read_boxes
 from homocal.correctors import LeastChangeCorrector, PedestrianCorrector
@@ -94,7 +96,7 @@ from homocal.geometry import ViewTransformer, box_bottom_points
 from homocal.geometry.boxes import link_tracks
 from homocal.measure import ACCEL_PSD, measure_tracks
 from homocal.measure.kalman import IMM, fit_imm, speed_and_sigma
-from homocal.measure.tracks import (FEET, TrapezoidMapping, first_batch_inputs, fit_tracks_accel_psd, foot_noise_options,
+from homocal.measure.tracks import (FEET, TrapezoidMapping, as_mapping, map_points, first_batch_inputs, fit_tracks_accel_psd, foot_noise_options,
                                     foot_status, mapping_velocity_covariance)
 from homocal.study.perturb import base_quad
 
@@ -238,7 +240,9 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
              correlated: bool = False, accel_psd: float | str = ACCEL_PSD, soles: bool = False,
              exact: bool = False) -> dict:
     """{(mapping, estimator): dict of pooled arrays err (m/s), rel (%, NaN below WALKING_MPS), range, cover1/2
-    (speeds), pos1/2 (positions)} over the datasets; exact: the true mapping alone, bars of no mapping error."""
+    (speeds), pos1/2 (positions within k sigma_m), ellipse1/2 (positions within the k-sigma ellipse: the squared
+    Mahalanobis distance of the error under the mapped point's covariance within chi-square(2)'s quantile of the
+    1-D k sigma's share, 68.3 / 95.4 %)} over the datasets; exact: the true mapping alone, bars of no mapping error."""
     pooled: dict = collections.defaultdict(lambda: collections.defaultdict(list))
     for path in paths:
         ds = load_dataset(path)
@@ -256,7 +260,7 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
             maps, clicked = mappings(ds, shift, frames, xyxy, ids)
             H = cv2.getPerspectiveTransform(clicked.source.astype(np.float32), clicked.target.astype(np.float32))
             sv_xy = cv2.perspectiveTransform(feet.reshape(-1, 1, 2).astype(np.float32), H).reshape(-1, 2).astype(float)
-            rows = {"recipe": (recipe_speeds(sv_xy, frames, ids, fps), None, None, None)}
+            rows = {"recipe": (recipe_speeds(sv_xy, frames, ids, fps), None, None, None, None)}
         first, last = (np.array([f(frames[ids == k]) for k in range(ids.max() + 1)]) for f in (np.min, np.max))
         inner = (frames - first[ids] >= fps) & (last[ids] - frames >= fps)  # at least 1 s from its track's ends
         for name, mapping in maps.items():
@@ -268,12 +272,16 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
             if q == "fitted":
                 q = fit_tracks_accel_psd(mapping, frames, feet, ids, fps, **noise, foot=foot)
                 print(f"{Path(path).name}, {detector}, {name}: q fitted {q:.3g} m^2/s^3", file=sys.stderr)
+            click = noise.get("click_sigma_px", inspect.signature(measure_tracks).parameters["click_sigma_px"].default)
+            xy, cov = map_points(as_mapping(mapping), feet, click, noise["point_sigma_px"])
+            e = xy - true_xy
+            pos_d2 = np.einsum("ni,ni->n", e, np.linalg.solve(cov, e[..., None])[..., 0])  # squared Mahalanobis
             for estimator, smooth in (("filter", False), ("smoother", True)):
                 m = per_box(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise, foot=foot)
                 pos_err = np.hypot(m["x"] - true_xy[:, 0], m["y"] - true_xy[:, 1])
-                rows[f"{name}, {estimator}"] = (m["speed_mps"], m["speed_sigma_mps"], pos_err, m["sigma_m"])
-            rows[f"{name}, 1 s diff"] = (recipe_speeds(mapping.transform_points(feet), frames, ids, fps), None, None, None)
-        for key, (speed, sigma, pos_err, pos_sigma) in rows.items():
+                rows[f"{name}, {estimator}"] = (m["speed_mps"], m["speed_sigma_mps"], pos_err, m["sigma_m"], pos_d2)
+            rows[f"{name}, 1 s diff"] = (recipe_speeds(mapping.transform_points(feet), frames, ids, fps), None, None, None, None)
+        for key, (speed, sigma, pos_err, pos_sigma, pos_d2) in rows.items():
             ok = np.isfinite(true_speed) & np.isfinite(speed)
             err = np.abs(speed - true_speed)
             p = pooled[key]
@@ -287,6 +295,8 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
             for k in (1, 2):
                 p[f"cover{k}"].append(err[ok] <= k * sigma[ok] if sigma is not None else np.full(ok.sum(), np.nan))
                 p[f"pos{k}"].append(pos_err[ok] <= k * pos_sigma[ok] if pos_err is not None else np.full(ok.sum(), np.nan))
+                p[f"ellipse{k}"].append(pos_d2[ok] <= chi2.ppf(ndtr(k) - ndtr(-k), 2) if pos_d2 is not None
+                                        else np.full(ok.sum(), np.nan))
     return {key: {k: np.concatenate(v) for k, v in p.items()} for key, p in pooled.items()}
 
 
@@ -359,6 +369,13 @@ def steadiness_table(pooled: dict, detector: str) -> str:
                 lines.append(f"| {key} | {lo:g}-{hi:g} | {100 * sel.sum() / band.sum():.1f} % | "
                              f"{100 * p['cover1'][sel].mean():.1f} / {100 * p['cover2'][sel].mean():.1f} % | "
                              f"{np.median(p['err'][sel]):.3f} | {np.median(p['sigma'][sel]):.3f} |")
+    lines += ["", "Positions at 5-50 m: within k sigma_m (the semi-major axis) and within the k-sigma ellipse", "",
+              "| method | 1/2 sigma_m | 1/2-sigma ellipse |", "|---|---:|---:|"]
+    for key, p in pooled.items():
+        if key.endswith("smoother"):
+            band = (p["range"] >= BANDS[-1][0]) & (p["range"] < BANDS[-1][1])
+            lines.append(f"| {key} | " + " | ".join(f"{100 * p[f'{name}1'][band].mean():.1f} / {100 * p[f'{name}2'][band].mean():.1f} %"
+                                                    for name in ("pos", "ellipse")) + " |")
     return "\n".join(lines)
 
 

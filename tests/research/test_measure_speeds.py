@@ -123,4 +123,6 @@ def test_exact_path_measures_the_true_speeds_of_exact_foot_points(tmp_path):
     change = p["exact, smoother"]["change"]
     assert np.isfinite(change).any() and np.nanmax(change) < 1e-9
     rows = script.steadiness_table(p, "segmentation").splitlines()[4:]
-    assert len(rows) == 1 and rows[0].startswith("| exact, smoother | 0-0.1 |")
+    assert rows[0].startswith("| exact, smoother | 0-0.1 |") and rows[1] == ""
+    # exact foot points: every position inside its bars
+    assert rows[-1] == "| exact, smoother | 100.0 / 100.0 % | 100.0 / 100.0 % |"
