@@ -4,7 +4,7 @@ supervision's speed recipe (issue 34 item 4; docs/measure.md).
     python research/measure_speeds.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--shift 16]
     python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma | --correlated] [--feet soles]
     python research/measure_speeds.py DATASET [DATASET ...] --exact --spread [--split | --box-sigma | --correlated] [--feet soles]
-    python research/measure_speeds.py DATASET [DATASET ...] --steadiness [--exact] [--box-sigma | --correlated] [--feet soles] [--accel-psd fitted]
+    python research/measure_speeds.py DATASET [DATASET ...] --steadiness [--spread] [--mappings pedestrians] [--exact] [--box-sigma | --correlated] [--feet soles] [--accel-psd fitted|imm]
     python research/measure_speeds.py DATASET [DATASET ...] --fit-imm
     python research/measure_speeds.py DATASET [DATASET ...] --horizons 10
     python research/measure_speeds.py DATASET [DATASET ...] --draws 2000 [--correlated] [--feet soles] [--accel-psd fitted]
@@ -59,7 +59,8 @@ every box.
 --steadiness: instead, the smoothed speeds' 1/2-sigma coverage at 5-50 m pooled over the datasets per bin of the
 true velocity's change over STEADY_S about the box (STEADINESS_BINS_MPS; ``steadiness_table``): a walker at a
 steady pace or standing against one who turns, starts or stops; and the positions' 1/2-sigma coverage within
-sigma_m and within the error ellipse.
+sigma_m and within the error ellipse. With --spread both tables, from the same evaluations.
+--mappings NAMES: only these of MAPPINGS (comma-separated; the recipe is always measured).
 --fit-imm: instead, the two-regime motion model's constants (homocal.measure.kalman.fit_imm: IMM_ACCEL_PSD,
 IMM_SWITCH_PER_S) by maximum likelihood over the datasets' and --detectors' tracks pooled (``imm_inputs``).
 --horizons SECONDS: instead, the pedestrians' correction (as the tables fit it) on every disjoint window of
@@ -108,6 +109,8 @@ STEADINESS_BINS_MPS = (0.0, 0.1, 0.3, 1.0, np.inf)
 """--steadiness: the bins of the true velocity change over STEADY_S, m/s (under 0.1: a steady walker or one
 standing)."""
 REFERENCE_RANGES_M = (10.0, 20.0, 35.0)
+MAPPINGS = ("uncorrected", "least change", "pedestrians")
+"""The mappings measured (``mappings``; --mappings)."""
 
 
 def recipe_speeds(positions: np.ndarray, frames: np.ndarray, ids: np.ndarray, fps: float) -> np.ndarray:
@@ -176,7 +179,7 @@ def mappings(ds, shift: float, frames: np.ndarray, xyxy: np.ndarray, ids: np.nda
     ahead = np.abs(g[:, 0] - ds.camera_origin[0]) < 1.0
     pick = [np.flatnonzero(ahead)[np.argmin(np.abs(distance[ahead] - r))] for r in REFERENCE_RANGES_M]
     least = LeastChangeCorrector().fit(clicked, undistorted(ds, q[pick]), g[pick], ds.camera_origin)
-    return {"uncorrected": clicked, "least change": least, "pedestrians": pedestrians(ds, clicked, frames, xyxy, ids)}, clicked
+    return {MAPPINGS[0]: clicked, MAPPINGS[1]: least, MAPPINGS[2]: pedestrians(ds, clicked, frames, xyxy, ids)}, clicked
 
 
 def pedestrians(ds, clicked: ViewTransformer, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> PedestrianCorrector:
@@ -238,7 +241,7 @@ def per_box(mapping, frames: np.ndarray, feet: np.ndarray, ids: np.ndarray, fps:
 
 def evaluate(paths: list[str], detector: str, shift: float, split: bool = False, box_sigma: bool = False,
              correlated: bool = False, accel_psd: float | str = ACCEL_PSD, soles: bool = False,
-             exact: bool = False) -> dict:
+             exact: bool = False, only: tuple[str, ...] = MAPPINGS) -> dict:
     """{(mapping, estimator): dict of pooled arrays err (m/s), rel (%, NaN below WALKING_MPS), range, cover1/2
     (speeds), pos1/2 (positions within k sigma_m), ellipse1/2 (positions within the k-sigma ellipse: the squared
     Mahalanobis distance of the error under the mapped point's covariance within chi-square(2)'s quantile of the
@@ -258,6 +261,7 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
             maps, rows = {"exact": TrapezoidMapping(exact_transformer(ds), ds.camera.lens)}, {}
         else:
             maps, clicked = mappings(ds, shift, frames, xyxy, ids)
+            maps = {k: v for k, v in maps.items() if k in only}
             H = cv2.getPerspectiveTransform(clicked.source.astype(np.float32), clicked.target.astype(np.float32))
             sv_xy = cv2.perspectiveTransform(feet.reshape(-1, 1, 2).astype(np.float32), H).reshape(-1, 2).astype(float)
             rows = {"recipe": (recipe_speeds(sv_xy, frames, ids, fps), None, None, None, None)}
@@ -495,6 +499,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--spread", action="store_true", help="each dataset on its own: mean [min, max] over them")
     parser.add_argument("--exact", action="store_true",
                         help="the true mapping (the exact trapezoid) alone, bars of no mapping error (click sigma 0)")
+    parser.add_argument("--mappings", default=",".join(MAPPINGS), help="the mappings measured, of " + ", ".join(MAPPINGS))
     parser.add_argument("--steadiness", action="store_true",
                         help="the smoothed speeds' coverage by the true velocity's change over STEADY_S, pooled")
     parser.add_argument("--fit-imm", action="store_true",
@@ -530,16 +535,22 @@ def main(argv: list[str] | None = None) -> int:
         print(throughput(args.datasets[0], args.throughput, "correlated" if args.correlated else "fixed", args.accel_psd,
                          args.feet))
         return 0
+    only = tuple(args.mappings.split(","))
     for detector in args.detectors.split(","):
-        if args.steadiness:
-            print(steadiness_table(evaluate(args.datasets, detector, args.shift, args.split, args.box_sigma, args.correlated,
-                                            args.accel_psd, args.feet == "soles", args.exact), detector) + "\n")
-        elif args.spread:
-            print(spread_table([evaluate([d], detector, args.shift, args.split, args.box_sigma, args.correlated,
-                                         args.accel_psd, args.feet == "soles", args.exact) for d in args.datasets], detector, args.shift) + "\n")
+        def run(paths: list[str]) -> dict:
+            return evaluate(paths, detector, args.shift, args.split, args.box_sigma, args.correlated, args.accel_psd,
+                            args.feet == "soles", args.exact, only)
+
+        if args.spread:
+            each = [run([d]) for d in args.datasets]
+            print(spread_table(each, detector, args.shift) + "\n")
+            if args.steadiness:  # the same evaluations pooled
+                print(steadiness_table({key: {k: np.concatenate([e[key][k] for e in each]) for k in each[0][key]}
+                                        for key in each[0]}, detector) + "\n")
+        elif args.steadiness:
+            print(steadiness_table(run(args.datasets), detector) + "\n")
         else:
-            print(table(evaluate(args.datasets, detector, args.shift, args.split, args.box_sigma, args.correlated,
-                                 args.accel_psd, args.feet == "soles", args.exact), detector, args.shift) + "\n")
+            print(table(run(args.datasets), detector, args.shift) + "\n")
     return 0
 
 
