@@ -194,11 +194,16 @@ IMM = "imm"
 """``measure_tracks``' accel_psd (homocal measure --accel-psd) for the two-regime motion model: an interacting
 multiple model filter (``imm_filter``) of two constant-velocity models, IMM_ACCEL_PSD, switching at
 IMM_SWITCH_PER_S."""
-IMM_ACCEL_PSD = (0.02, 2.0)
-"""FITTED: the IMM's two q, m^2/s^3: a walker keeping a steady velocity, one who turns, starts or stops."""
-IMM_SWITCH_PER_S = (0.1, 1.0)
-"""FITTED: the IMM's switching rates, per second, steady to manoeuvre and back: over dt seconds a model is left
-with probability 1 - exp(-rate dt) (a Markov chain in continuous time, so any frame rate and gap)."""
+IMM_ACCEL_PSD = (4.4e-4, 10.0)
+"""FITTED: the IMM's two q, m^2/s^3: a walker keeping a steady velocity (2 cm/s of wander in one second), one
+who turns, starts or stops (at ACCEL_PSD_BOUNDS' top). ``fit_imm`` on simgen's scene1 and scene2, seed 0,
+segmentation and rgb boxes pooled, the pedestrians' correction, --foot-noise box-height, --feet all:
+``python research/measure_speeds.py DATA/scene1 DATA/scene2 --fit-imm`` (q 0.000442 and 10, rates 0.0239 and
+0.931 per s)."""
+IMM_SWITCH_PER_S = (0.024, 0.93)
+"""FITTED (with IMM_ACCEL_PSD): the IMM's switching rates, per second, steady to manoeuvre and back (a steady
+stretch of 42 s on average, a manoeuvre of 1.1 s): over dt seconds a model is left with probability
+1 - exp(-rate dt) (a Markov chain in continuous time, so any frame rate and gap)."""
 
 
 def switching(dt: np.ndarray, rates: tuple[float, ...]) -> np.ndarray:
@@ -323,17 +328,24 @@ IMM_FIT_LOGLIK_TOLERANCE = 0.5
 """``fit_imm``'s tolerance on the log-likelihood (half a unit: one standard error of one constant moves it so)."""
 
 
+IMM_SWITCH_BOUNDS_PER_S = (0.01, 10.0)
+"""The range of the switching rates ``fit_imm`` searches, per second: a regime that lasts 0.1 s to 100 s on
+average. Unbounded, on simgen's people the likelihood runs off to q 1e-19 and 1e6 m^2/s^3 (straight walks and
+velocity jumps, or the foot points' outliers), no walker's motion."""
+
+
 def fit_imm(inputs: list[tuple]) -> tuple[tuple[float, float], tuple[float, float]]:
     """The maximum-likelihood IMM constants (IMM_ACCEL_PSD's two q, m^2/s^3, and IMM_SWITCH_PER_S's two rates,
     1/s) of sets of tracks, inputs a list of ``kalman_filter``'s (t, z, R, foot): the maximum of the summed
-    ``imm_filter`` log-likelihood over their logs (Nelder-Mead from IMM_ACCEL_PSD, IMM_SWITCH_PER_S, to
-    IMM_FIT_LOG_TOLERANCE, IMM_FIT_LOGLIK_TOLERANCE), the q's ordered steady first."""
+    ``imm_filter`` log-likelihood over their logs within ACCEL_PSD_BOUNDS and IMM_SWITCH_BOUNDS_PER_S
+    (Nelder-Mead from IMM_ACCEL_PSD, IMM_SWITCH_PER_S, to IMM_FIT_LOG_TOLERANCE, IMM_FIT_LOGLIK_TOLERANCE), the
+    q's ordered steady first."""
     def cost(s: np.ndarray) -> float:
         e = np.exp(s)
         return -sum(imm_filter(t, z, R, (e[0], e[1]), (e[2], e[3]), foot)["loglik"] for t, z, R, foot in inputs)
 
     best = minimize(cost, np.log([*IMM_ACCEL_PSD, *IMM_SWITCH_PER_S]), method="Nelder-Mead",
-                    options={"xatol": IMM_FIT_LOG_TOLERANCE, "fatol": IMM_FIT_LOGLIK_TOLERANCE})
+                    bounds=np.log([ACCEL_PSD_BOUNDS] * 2 + [IMM_SWITCH_BOUNDS_PER_S] * 2), options={"xatol": IMM_FIT_LOG_TOLERANCE, "fatol": IMM_FIT_LOGLIK_TOLERANCE})
     q, r = np.exp(best.x[:2]), np.exp(best.x[2:])
     order = np.argsort(q)
     return tuple(float(v) for v in q[order]), tuple(float(v) for v in r[order])
