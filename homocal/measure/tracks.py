@@ -27,7 +27,9 @@ PAIR_COLUMNS = ("frame", "t", "track_a", "track_b", "distance_m", "distance_sigm
 BATCH_CELLS = 2**16
 """Cells (tracks x frames, padded) filtered at once, and boxes mapped at once for distances: about 85 floats a
 cell (the filter's states, predictions, covariances and transitions, the smoother's copies), some 45 MB; about
-twice that with the correlated foot error's six states, and with the IMM's two models."""
+twice that with the correlated foot error's six states; with the IMM's two models (``kalman.imm_filter``: each
+model's states, covariances and process noise, the smoother's copies) about 140 floats a cell (72 MB), 290 with
+six states (150 MB)."""
 MAX_TRACK_FRAMES = BATCH_CELLS
 """The longest track measured (a batch of its own; 36 minutes at 30 fps): homocal measure refuses longer ones."""
 MAX_PEOPLE_PER_FRAME = 500
