@@ -353,7 +353,9 @@ def fit_imm(inputs: list[tuple]) -> tuple[tuple[float, float], tuple[float, floa
 
 def motion_model(accel_psd: float | str) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """``imm_step``'s (qs, rates) of a process noise: a q alone (one model, no switching: the Kalman filter) or
-    IMM's fitted two models."""
+    IMM's fitted two models; ValueError for a word that is not IMM."""
+    if isinstance(accel_psd, str) and accel_psd != IMM:
+        raise ValueError(f"accel_psd: expected a number (m^2/s^3) or {IMM!r}, got {accel_psd!r}")
     return (IMM_ACCEL_PSD, IMM_SWITCH_PER_S) if accel_psd == IMM else ((float(accel_psd),), ())
 
 

@@ -70,7 +70,7 @@ class GroundTracker:
         self.mapping, self.fps, self.convention = as_mapping(mapping), float(fps), convention
         self.accel_psd, self.click_sigma_px, self.point_sigma_px = accel_psd, click_sigma_px, point_sigma_px
         self.foot_noise, self.feet, self.image_size = foot_noise, feet, _check_image_size(image_size)
-        self._motion = motion_model(accel_psd)  # ValueError for a word that is not IMM
+        self._motion = motion_model(accel_psd)
         self._tracks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, int, bool]] = {}  # id -> each model's state
         # (M, d), covariance (M, d, d), the models' probabilities (M,), frame, a foot point measured yet
         self._frame: int | None = None

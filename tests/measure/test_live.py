@@ -103,6 +103,8 @@ def test_two_regime_model_as_the_file_filter(foot_noise):
     check_against_the_file_filter(out, foot_noise, accel_psd=IMM)
     single = run(GroundTracker(mapping, FPS, foot_noise=foot_noise), lambda xyxy, ids: SimpleNamespace(xyxy=xyxy, tracker_id=ids))
     assert out[(19, 0)][3] != single[(19, 0)][3]
+    with pytest.raises(ValueError, match="accel_psd: expected a number"):
+        GroundTracker(mapping, FPS, accel_psd="fitted")
 
 
 def test_homocal_never_imports_supervision():
