@@ -231,7 +231,8 @@ def imm_step(x: np.ndarray, P: np.ndarray, mu: np.ndarray, dt: np.ndarray, z: np
     with M = len(qs) models: per-model states x (n, M, d), covariances P (n, M, d, d), model probabilities mu
     (n, M); dt (n,) s; z (n, 2), R (n, 2, 2) as ``update``'s (a NaN z: predict only); foot as ``transition``'s.
     Mixing: each model j starts from the mixture of the models' states with weights mu_i Pi_ij / c_j,
-    c_j = sum_i mu_i Pi_ij (``switching``); then ``predict`` with q_j and ``update``; mu_j ~ c_j N(nu_j; 0, S_j).
+    c_j = sum_i mu_i Pi_ij (``switching``); then a prediction by ``transition`` with q_j and ``update``; mu_j ~
+    c_j N(nu_j; 0, S_j).
 
     Returns "x", "P", "mu" (as given, one step on), "c" (n, M) the predicted model probabilities, "F" (n, d, d),
     "Q" (n, M, d, d) each model's process noise, "Pi" (n, M, M) and "loglik" (n,) ln sum_j c_j N(nu_j; 0, S_j)
