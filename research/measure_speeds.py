@@ -4,6 +4,8 @@ supervision's speed recipe (issue 34 item 4; docs/measure.md).
     python research/measure_speeds.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--shift 16]
     python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma | --correlated] [--feet soles]
     python research/measure_speeds.py DATASET [DATASET ...] --exact --spread [--split | --box-sigma | --correlated] [--feet soles]
+    python research/measure_speeds.py DATASET [DATASET ...] --steadiness [--spread] [--mappings pedestrians] [--exact] [--box-sigma | --correlated] [--feet soles] [--accel-psd fitted|imm]
+    python research/measure_speeds.py DATASET [DATASET ...] --fit-imm
     python research/measure_speeds.py DATASET [DATASET ...] --horizons 10
     python research/measure_speeds.py DATASET [DATASET ...] --draws 2000 [--correlated] [--feet soles] [--accel-psd fitted]
     python research/measure_speeds.py DATASET --throughput 10 [--correlated]
@@ -42,9 +44,10 @@ speed's bar (homocal.measure.measure_tracks(split_mapping_error=True)).
 (homocal.measure.tracks.box_height_sigma_px; research/foot_noise.py) instead of 1 px.
 --correlated: --box-sigma with the foot point's error an AR(1) of correlation time FOOT_CORRELATION_S in the
 filter's state (measure_tracks(foot_correlation_s=...); homocal measure --foot-noise correlated).
---accel-psd Q|fitted: the filter's process noise (homocal measure --accel-psd; default homocal.measure.ACCEL_PSD);
+--accel-psd Q|fitted|imm: the filter's process noise (homocal measure --accel-psd; default homocal.measure.ACCEL_PSD);
 fitted: per dataset, detector and mapping by maximum likelihood of the filter's innovations on the boxes'
-tracks (homocal.measure.tracks.fit_tracks_accel_psd; no ground truth), printed to stderr.
+tracks (homocal.measure.tracks.fit_tracks_accel_psd; no ground truth), printed to stderr; imm: the two-regime
+model (homocal.measure.kalman.IMM), its IMM filter and smoother.
 --exact: the part of the error that is the track's own, apart from the mapping's: the dataset's true mapping
 (its exact trapezoid, the ground rectangle's projection, undistorted; ``exact_transformer``) alone, measured at
 click sigma 0, so the bars hold the foot point's noise (each --split/--box-sigma/--correlated model's) and the
@@ -53,6 +56,13 @@ motion model's, no mapping error; no recipe row.
 --feet soles: not a box whose feet a nearer box may hide, nor one whose bottom or side the image border cuts,
 homocal.measure.tracks.foot_status; their shares printed to stderr); the recipe and the 1 s differences take
 every box.
+--steadiness: instead, the smoothed speeds' 1/2-sigma coverage at 5-50 m pooled over the datasets per bin of the
+true velocity's change over STEADY_S about the box (STEADINESS_BINS_MPS; ``steadiness_table``): a walker at a
+steady pace or standing against one who turns, starts or stops; and the positions' 1/2-sigma coverage within
+sigma_m and within the error ellipse. With --spread both tables, from the same evaluations.
+--mappings NAMES: only these of MAPPINGS (comma-separated; the recipe is always measured).
+--fit-imm: instead, the two-regime motion model's constants (homocal.measure.kalman.fit_imm: IMM_ACCEL_PSD,
+IMM_SWITCH_PER_S) by maximum likelihood over the datasets' and --detectors' tracks pooled (``imm_inputs``).
 --horizons SECONDS: instead, the pedestrians' correction (as the tables fit it) on every disjoint window of
 SECONDS of each dataset, its fitted horizon's error over its sigma (``horizon_table``; each fit printed to stderr).
 --draws N: instead, the pedestrians' smoothed speeds' 1/2-sigma coverage pooled over the datasets (the split
@@ -78,6 +88,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 from scipy.special import ndtr
+from scipy.stats import chi2
 
 from homocal.boxes import read_boxes
 from homocal.correctors import LeastChangeCorrector, PedestrianCorrector
@@ -85,14 +96,21 @@ from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer, box_bottom_points
 from homocal.geometry.boxes import link_tracks
 from homocal.measure import ACCEL_PSD, measure_tracks
-from homocal.measure.kalman import speed_and_sigma
-from homocal.measure.tracks import (FEET, TrapezoidMapping, fit_tracks_accel_psd, foot_noise_options, foot_status,
-                                    mapping_velocity_covariance)
+from homocal.measure.kalman import IMM, fit_imm, speed_and_sigma
+from homocal.measure.tracks import (FEET, TrapezoidMapping, as_mapping, map_points, first_batch_inputs, fit_tracks_accel_psd, foot_noise_options,
+                                    foot_status, mapping_velocity_covariance)
 from homocal.study.perturb import base_quad
 
 BANDS = ((5.0, 15.0), (15.0, 30.0), (30.0, 50.0), (5.0, 50.0))
 WALKING_MPS = 0.5
+STEADY_S = 1.0
+"""--steadiness: the span, s, over which a box's true velocity change is taken."""
+STEADINESS_BINS_MPS = (0.0, 0.1, 0.3, 1.0, np.inf)
+"""--steadiness: the bins of the true velocity change over STEADY_S, m/s (under 0.1: a steady walker or one
+standing)."""
 REFERENCE_RANGES_M = (10.0, 20.0, 35.0)
+MAPPINGS = ("uncorrected", "least change", "pedestrians")
+"""The mappings measured (``mappings``; --mappings)."""
 
 
 def recipe_speeds(positions: np.ndarray, frames: np.ndarray, ids: np.ndarray, fps: float) -> np.ndarray:
@@ -109,7 +127,9 @@ def recipe_speeds(positions: np.ndarray, frames: np.ndarray, ids: np.ndarray, fp
 
 
 def truth(ds, detector: str):
-    """Boxes of ``detector`` with an agent: frames (N,), xyxy (N, 4), true xy (N, 2), true speed (N,), range (N,)."""
+    """Boxes of ``detector`` with an agent: frames (N,), xyxy (N, 4), true xy (N, 2), true speed (N,), range (N,),
+    and the change (N,) m/s of the true velocity over STEADY_S about the box (the mean velocity of the STEADY_S / 2
+    after it less that of the STEADY_S / 2 before it; NaN within STEADY_S / 2 of the agent's ends)."""
     det = ds.table("detections.parquet").to_pandas()
     det = det[det.detector == detector].reset_index(drop=True)
     gt = ds.table("gt.parquet").to_pandas()[["agent_id", "step", "x", "y"]]
@@ -126,7 +146,10 @@ def truth(ds, detector: str):
         vel = (np.where(np.isnan(after), xy, after) - np.where(np.isnan(before), xy, before)) / span[:, None]
     vel[span == 0] = 0.0
     xyxy = det[["x1", "y1", "x2", "y2"]].to_numpy(float)
-    return det.frame.to_numpy(np.int64), xyxy, xy, np.linalg.norm(vel, axis=1), np.linalg.norm(xy - ds.camera_origin, axis=1)
+    half = int(round(STEADY_S / 2 / dt))
+    change = np.linalg.norm(at(half) - 2 * xy + at(-half), axis=1) / (half * dt)
+    return (det.frame.to_numpy(np.int64), xyxy, xy, np.linalg.norm(vel, axis=1),
+            np.linalg.norm(xy - ds.camera_origin, axis=1), change)
 
 
 def undistorted(ds, points: np.ndarray) -> np.ndarray:
@@ -156,7 +179,7 @@ def mappings(ds, shift: float, frames: np.ndarray, xyxy: np.ndarray, ids: np.nda
     ahead = np.abs(g[:, 0] - ds.camera_origin[0]) < 1.0
     pick = [np.flatnonzero(ahead)[np.argmin(np.abs(distance[ahead] - r))] for r in REFERENCE_RANGES_M]
     least = LeastChangeCorrector().fit(clicked, undistorted(ds, q[pick]), g[pick], ds.camera_origin)
-    return {"uncorrected": clicked, "least change": least, "pedestrians": pedestrians(ds, clicked, frames, xyxy, ids)}, clicked
+    return {MAPPINGS[0]: clicked, MAPPINGS[1]: least, MAPPINGS[2]: pedestrians(ds, clicked, frames, xyxy, ids)}, clicked
 
 
 def pedestrians(ds, clicked: ViewTransformer, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> PedestrianCorrector:
@@ -168,6 +191,17 @@ def pedestrians(ds, clicked: ViewTransformer, frames: np.ndarray, xyxy: np.ndarr
         clicked, xyxy, convention="homocal", frames=frames, track_ids=ids, K=ds.camera.K,
         camera_height_m=ds.camera.mount_height_m, image_size=ds.camera.image_size, camera_origin=ds.camera_origin,
         lens=None if ds.camera.lens.is_identity else ds.camera.lens)
+
+
+def imm_inputs(path: str, detector: str, shift: float) -> tuple:
+    """kalman_filter's (t, z, R, foot) of a dataset's tracks of ``detector`` boxes as the tables measure them with
+    the pedestrians' correction and the box-height foot noise, feet all (first_batch_inputs: BATCH_CELLS)."""
+    ds = load_dataset(path)
+    frames, xyxy = truth(ds, detector)[:2]
+    ids = link_tracks(frames, xyxy)
+    feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
+    peds = pedestrians(ds, clicked_transformer(ds, shift), frames, xyxy, ids)
+    return first_batch_inputs(peds, frames, feet, ids, float(ds.manifest["fps"]), **foot_noise_options("box-height", xyxy, 1.0))
 
 
 def horizon_errors(path: str, detector: str, shift: float, seconds: float) -> list[dict]:
@@ -207,14 +241,16 @@ def per_box(mapping, frames: np.ndarray, feet: np.ndarray, ids: np.ndarray, fps:
 
 def evaluate(paths: list[str], detector: str, shift: float, split: bool = False, box_sigma: bool = False,
              correlated: bool = False, accel_psd: float | str = ACCEL_PSD, soles: bool = False,
-             exact: bool = False) -> dict:
+             exact: bool = False, only: tuple[str, ...] = MAPPINGS) -> dict:
     """{(mapping, estimator): dict of pooled arrays err (m/s), rel (%, NaN below WALKING_MPS), range, cover1/2
-    (speeds), pos1/2 (positions)} over the datasets; exact: the true mapping alone, bars of no mapping error."""
+    (speeds), pos1/2 (positions within k sigma_m), ellipse1/2 (positions within the k-sigma ellipse: the squared
+    Mahalanobis distance of the error under the mapped point's covariance within chi-square(2)'s quantile of the
+    1-D k sigma's share, 68.3 / 95.4 %)} over the datasets; exact: the true mapping alone, bars of no mapping error."""
     pooled: dict = collections.defaultdict(lambda: collections.defaultdict(list))
     for path in paths:
         ds = load_dataset(path)
         fps = float(ds.manifest["fps"])
-        frames, xyxy, true_xy, true_speed, rng = truth(ds, detector)
+        frames, xyxy, true_xy, true_speed, rng, change = truth(ds, detector)
         ids = link_tracks(frames, xyxy)
         feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
         foot = foot_status(xyxy, frames, ds.camera.image_size) if soles else None
@@ -225,9 +261,10 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
             maps, rows = {"exact": TrapezoidMapping(exact_transformer(ds), ds.camera.lens)}, {}
         else:
             maps, clicked = mappings(ds, shift, frames, xyxy, ids)
+            maps = {k: v for k, v in maps.items() if k in only}
             H = cv2.getPerspectiveTransform(clicked.source.astype(np.float32), clicked.target.astype(np.float32))
             sv_xy = cv2.perspectiveTransform(feet.reshape(-1, 1, 2).astype(np.float32), H).reshape(-1, 2).astype(float)
-            rows = {"recipe": (recipe_speeds(sv_xy, frames, ids, fps), None, None, None)}
+            rows = {"recipe": (recipe_speeds(sv_xy, frames, ids, fps), None, None, None, None)}
         first, last = (np.array([f(frames[ids == k]) for k in range(ids.max() + 1)]) for f in (np.min, np.max))
         inner = (frames - first[ids] >= fps) & (last[ids] - frames >= fps)  # at least 1 s from its track's ends
         for name, mapping in maps.items():
@@ -239,12 +276,16 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
             if q == "fitted":
                 q = fit_tracks_accel_psd(mapping, frames, feet, ids, fps, **noise, foot=foot)
                 print(f"{Path(path).name}, {detector}, {name}: q fitted {q:.3g} m^2/s^3", file=sys.stderr)
+            click = noise.get("click_sigma_px", inspect.signature(measure_tracks).parameters["click_sigma_px"].default)
+            xy, cov = map_points(as_mapping(mapping), feet, click, noise["point_sigma_px"])
+            e = xy - true_xy
+            pos_d2 = np.einsum("ni,ni->n", e, np.linalg.solve(cov, e[..., None])[..., 0])  # squared Mahalanobis
             for estimator, smooth in (("filter", False), ("smoother", True)):
                 m = per_box(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise, foot=foot)
                 pos_err = np.hypot(m["x"] - true_xy[:, 0], m["y"] - true_xy[:, 1])
-                rows[f"{name}, {estimator}"] = (m["speed_mps"], m["speed_sigma_mps"], pos_err, m["sigma_m"])
-            rows[f"{name}, 1 s diff"] = (recipe_speeds(mapping.transform_points(feet), frames, ids, fps), None, None, None)
-        for key, (speed, sigma, pos_err, pos_sigma) in rows.items():
+                rows[f"{name}, {estimator}"] = (m["speed_mps"], m["speed_sigma_mps"], pos_err, m["sigma_m"], pos_d2)
+            rows[f"{name}, 1 s diff"] = (recipe_speeds(mapping.transform_points(feet), frames, ids, fps), None, None, None, None)
+        for key, (speed, sigma, pos_err, pos_sigma, pos_d2) in rows.items():
             ok = np.isfinite(true_speed) & np.isfinite(speed)
             err = np.abs(speed - true_speed)
             p = pooled[key]
@@ -253,9 +294,13 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
             p["rel"].append(np.where(walking, 100 * err[ok] / np.where(walking, true_speed[ok], 1.0), np.nan))
             p["range"].append(rng[ok])
             p["inner"].append(inner[ok])
+            p["change"].append(change[ok])
+            p["sigma"].append(sigma[ok] if sigma is not None else np.full(ok.sum(), np.nan))
             for k in (1, 2):
                 p[f"cover{k}"].append(err[ok] <= k * sigma[ok] if sigma is not None else np.full(ok.sum(), np.nan))
                 p[f"pos{k}"].append(pos_err[ok] <= k * pos_sigma[ok] if pos_err is not None else np.full(ok.sum(), np.nan))
+                p[f"ellipse{k}"].append(pos_d2[ok] <= chi2.ppf(ndtr(k) - ndtr(-k), 2) if pos_d2 is not None
+                                        else np.full(ok.sum(), np.nan))
     return {key: {k: np.concatenate(v) for k, v in p.items()} for key, p in pooled.items()}
 
 
@@ -312,6 +357,32 @@ def spread_table(per_dataset: list[dict], detector: str, shift: float) -> str:
     return "\n".join(lines)
 
 
+def steadiness_table(pooled: dict, detector: str) -> str:
+    """The smoothed speeds' 1/2-sigma coverage at 5-50 m by how steady the true velocity is (its change over
+    STEADY_S, STEADINESS_BINS_MPS): per bin its share of the boxes, the coverage, the median error and bar, m/s."""
+    lines = [f"{detector} boxes, 5-50 m, by the true velocity's change over {STEADY_S:g} s", "",
+             "| method | change, m/s | boxes | 1/2-sigma speeds | median error, m/s | median sigma, m/s |",
+             "|---|---|---:|---:|---:|---:|"]
+    for key, p in pooled.items():
+        if not key.endswith("smoother"):
+            continue
+        band = (p["range"] >= BANDS[-1][0]) & (p["range"] < BANDS[-1][1])
+        for lo, hi in zip(STEADINESS_BINS_MPS[:-1], STEADINESS_BINS_MPS[1:]):
+            sel = band & (p["change"] >= lo) & (p["change"] < hi)
+            if sel.any():
+                lines.append(f"| {key} | {lo:g}-{hi:g} | {100 * sel.sum() / band.sum():.1f} % | "
+                             f"{100 * p['cover1'][sel].mean():.1f} / {100 * p['cover2'][sel].mean():.1f} % | "
+                             f"{np.median(p['err'][sel]):.3f} | {np.median(p['sigma'][sel]):.3f} |")
+    lines += ["", "Positions at 5-50 m: within k sigma_m (the semi-major axis) and within the k-sigma ellipse", "",
+              "| method | 1/2 sigma_m | 1/2-sigma ellipse |", "|---|---:|---:|"]
+    for key, p in pooled.items():
+        if key.endswith("smoother"):
+            band = (p["range"] >= BANDS[-1][0]) & (p["range"] < BANDS[-1][1])
+            lines.append(f"| {key} | " + " | ".join(f"{100 * p[f'{name}1'][band].mean():.1f} / {100 * p[f'{name}2'][band].mean():.1f} %"
+                                                    for name in ("pos", "ellipse")) + " |")
+    return "\n".join(lines)
+
+
 def bar_parts(path: str, detector: str, shift: float, foot_noise: str, accel_psd: float | str, soles: bool) -> dict:
     """The pedestrians' correction's smoothed speeds at the 5-50 m boxes with a true speed, as the tables measure
     them with a split FOOT_NOISE model (box-height or correlated): err (M,) speed - true, m/s; S (M,) its
@@ -320,7 +391,7 @@ def bar_parts(path: str, detector: str, shift: float, foot_noise: str, accel_psd
     over its sigma (horizon_sigma_px_)."""
     ds = load_dataset(path)
     fps = float(ds.manifest["fps"])
-    frames, xyxy, _, true_speed, rng = truth(ds, detector)
+    frames, xyxy, _, true_speed, rng, _ = truth(ds, detector)
     ids = link_tracks(frames, xyxy)
     feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
     peds = pedestrians(ds, clicked_transformer(ds, shift), frames, xyxy, ids)
@@ -422,12 +493,17 @@ def main(argv: list[str] | None = None) -> int:
                         help="the split with each foot point's sigma FOOT_SIGMA_PER_BOX_HEIGHT x its box's height")
     parser.add_argument("--correlated", action="store_true",
                         help="--box-sigma with the foot point's error an AR(1) of correlation time FOOT_CORRELATION_S")
-    parser.add_argument("--accel-psd", type=lambda s: s if s == "fitted" else float(s), default=ACCEL_PSD,
-                        help="the filter's process noise q, m^2/s^3, or fitted (per dataset, detector and mapping)")
+    parser.add_argument("--accel-psd", type=lambda s: s if s in ("fitted", IMM) else float(s), default=ACCEL_PSD,
+                        help="the filter's process noise q, m^2/s^3, fitted (per dataset, detector and mapping) or imm")
     parser.add_argument("--feet", choices=FEET, default=FEET[0], help="homocal measure --feet")
     parser.add_argument("--spread", action="store_true", help="each dataset on its own: mean [min, max] over them")
     parser.add_argument("--exact", action="store_true",
                         help="the true mapping (the exact trapezoid) alone, bars of no mapping error (click sigma 0)")
+    parser.add_argument("--mappings", default=",".join(MAPPINGS), help="the mappings measured, of " + ", ".join(MAPPINGS))
+    parser.add_argument("--steadiness", action="store_true",
+                        help="the smoothed speeds' coverage by the true velocity's change over STEADY_S, pooled")
+    parser.add_argument("--fit-imm", action="store_true",
+                        help="the IMM's two q and switching rates by maximum likelihood over the datasets' tracks")
     parser.add_argument("--horizons", type=float, metavar="SECONDS",
                         help="the pedestrians' fitted horizon's error over its sigma on disjoint windows of SECONDS")
     parser.add_argument("--draws", type=int, metavar="N",
@@ -442,6 +518,11 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{Path(d).name}, {detector}: horizon z {p['z']:+.2f}, mapping part a / S median {share:.2f}", file=sys.stderr)
             print(f"{detector} boxes, pedestrians, smoother, {len(parts)} datasets pooled\n\n" + pooled_coverage_table(parts, args.draws) + "\n")
         return 0
+    if args.fit_imm:
+        qs, rates = fit_imm([imm_inputs(d, detector, args.shift) for d in args.datasets for detector in args.detectors.split(",")])
+        print(f"IMM fitted on {len(args.datasets)} datasets, {args.detectors} boxes: q {qs[0]:.3g}, {qs[1]:.3g} m^2/s^3; "
+              f"switching rates {rates[0]:.3g}, {rates[1]:.3g} per s")
+        return 0
     if args.horizons:
         rows = [r for detector in args.detectors.split(",") for d in args.datasets
                 for r in horizon_errors(d, detector, args.shift, args.horizons)]
@@ -454,13 +535,22 @@ def main(argv: list[str] | None = None) -> int:
         print(throughput(args.datasets[0], args.throughput, "correlated" if args.correlated else "fixed", args.accel_psd,
                          args.feet))
         return 0
+    only = tuple(args.mappings.split(","))
     for detector in args.detectors.split(","):
+        def run(paths: list[str]) -> dict:
+            return evaluate(paths, detector, args.shift, args.split, args.box_sigma, args.correlated, args.accel_psd,
+                            args.feet == "soles", args.exact, only)
+
         if args.spread:
-            print(spread_table([evaluate([d], detector, args.shift, args.split, args.box_sigma, args.correlated,
-                                         args.accel_psd, args.feet == "soles", args.exact) for d in args.datasets], detector, args.shift) + "\n")
+            each = [run([d]) for d in args.datasets]
+            print(spread_table(each, detector, args.shift) + "\n")
+            if args.steadiness:  # the same evaluations pooled
+                print(steadiness_table({key: {k: np.concatenate([e[key][k] for e in each]) for k in each[0][key]}
+                                        for key in each[0]}, detector) + "\n")
+        elif args.steadiness:
+            print(steadiness_table(run(args.datasets), detector) + "\n")
         else:
-            print(table(evaluate(args.datasets, detector, args.shift, args.split, args.box_sigma, args.correlated,
-                                 args.accel_psd, args.feet == "soles", args.exact), detector, args.shift) + "\n")
+            print(table(run(args.datasets), detector, args.shift) + "\n")
     return 0
 
 

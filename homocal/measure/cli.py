@@ -18,7 +18,7 @@ from homocal.correctors.serialization import FORMAT
 from homocal.files import check_output_file, json_format, write_atomic
 from homocal.geometry import read_trapezoid_file
 from homocal.geometry.boxes import box_bottom_points, link_tracks, undistort_boxes
-from homocal.measure.kalman import ACCEL_PSD, ACCEL_PSD_BOUNDS
+from homocal.measure.kalman import ACCEL_PSD, ACCEL_PSD_BOUNDS, IMM, IMM_ACCEL_PSD, IMM_SWITCH_PER_S
 from homocal.measure.tracks import (COLUMNS, FEET, FOOT, FOOT_CORRELATION_S, FOOT_NOISE, FOOT_SIGMA_PER_BOX_HEIGHT, foot_noise_options, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
                                     TrapezoidMapping, check_people_per_frame, check_tracks, fit_tracks_accel_psd, foot_status, measure_tracks, pair_distances,
                                     summarise)
@@ -66,10 +66,13 @@ def add_parser(subparsers) -> None:
     p.add_argument("-o", "--out", required=True, type=Path, metavar="TRACKS.parquet", help="the table to write")
     p.add_argument("--summary", type=Path, metavar="FILE.parquet", help="also write one row per track here")
     p.add_argument("--pairs", type=Path, metavar="FILE.parquet", help="also write the distances between people here")
-    p.add_argument("--accel-psd", type=accel_psd, default=ACCEL_PSD, metavar="fitted|Q",
+    p.add_argument("--accel-psd", type=accel_psd, default=ACCEL_PSD, metavar=f"{FITTED}|{IMM}|Q",
                    help=f"the filter's acceleration spectral density, m^2/s^3, or {FITTED}: fitted to the tracks by "
                         "maximum likelihood of the filter's innovations, in "
-                        f"[{ACCEL_PSD_BOUNDS[0]:g}, {ACCEL_PSD_BOUNDS[1]:g}] (default {ACCEL_PSD:g})")
+                        f"[{ACCEL_PSD_BOUNDS[0]:g}, {ACCEL_PSD_BOUNDS[1]:g}], or {IMM}: two models, a steady walker's "
+                        f"{IMM_ACCEL_PSD[0]:g} and a manoeuvre's {IMM_ACCEL_PSD[1]:g}, switching at "
+                        f"{IMM_SWITCH_PER_S[0]:g} and {IMM_SWITCH_PER_S[1]:g} per s (fitted; an interacting "
+                        f"multiple model filter and smoother) (default {ACCEL_PSD:g})")
     p.add_argument("--click-sigma-px", type=number(float, 0), default=1.5, metavar="PX",
                    help="clicking error of each trapezoid coordinate, pixels (default 1.5)")
     p.add_argument("--point-sigma-px", type=number(float, 0), default=1.0, metavar="PX",
@@ -93,13 +96,13 @@ FITTED = "fitted"
 
 
 def accel_psd(text: str) -> float | str:
-    """argparse type of --accel-psd: FITTED, or a number in (0, 1e6]."""
-    if text == FITTED:
-        return FITTED
+    """argparse type of --accel-psd: FITTED, IMM, or a number in (0, 1e6]."""
+    if text in (FITTED, IMM):
+        return text
     try:
         return number(float, 0, 1e6, low_open=True)(text)
     except argparse.ArgumentTypeError as e:
-        raise argparse.ArgumentTypeError(f"{FITTED} or a number: {e}") from None
+        raise argparse.ArgumentTypeError(f"{FITTED}, {IMM} or a number: {e}") from None
 
 
 def load_mapping(path: Path, camera_json_path: Path | None = None):

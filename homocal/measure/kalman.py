@@ -19,7 +19,7 @@ Section 4.5: state augmentation for coloured measurement noise).
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import minimize_scalar
+from scipy.optimize import minimize, minimize_scalar
 
 ACCEL_PSD = 0.5
 """q, m^2/s^3: a walker's velocity wanders by sqrt(q T) m/s in T seconds (0.7 m/s in one second, enough for a
@@ -188,3 +188,185 @@ def speed_and_sigma(v: np.ndarray, Pv: np.ndarray) -> tuple[np.ndarray, np.ndarr
         along = np.einsum("...i,...ij,...j->...", v, Pv, v) / speed**2
     largest = np.linalg.eigvalsh(np.nan_to_num(Pv))[..., -1]
     return speed, np.sqrt(np.where(speed > 0, along, np.where(np.isnan(speed), np.nan, largest)))
+
+
+IMM = "imm"
+"""``measure_tracks``' accel_psd (homocal measure --accel-psd) for the two-regime motion model: an interacting
+multiple model filter (``imm_filter``) of two constant-velocity models, IMM_ACCEL_PSD, switching at
+IMM_SWITCH_PER_S."""
+IMM_ACCEL_PSD = (4.4e-4, 10.0)
+"""FITTED: the IMM's two q, m^2/s^3: a walker keeping a steady velocity (2 cm/s of wander in one second), one
+who turns, starts or stops (at ACCEL_PSD_BOUNDS' top). ``fit_imm`` on simgen's scene1 and scene2, seed 0,
+segmentation and rgb boxes pooled, the pedestrians' correction, --foot-noise box-height, --feet all:
+``python research/measure_speeds.py DATA/scene1 DATA/scene2 --fit-imm`` (q 0.000442 and 10, rates 0.0239 and
+0.931 per s)."""
+IMM_SWITCH_PER_S = (0.024, 0.93)
+"""FITTED (with IMM_ACCEL_PSD): the IMM's switching rates, per second, steady to manoeuvre and back (a steady
+stretch of 42 s on average, a manoeuvre of 1.1 s): over dt seconds a model is left with probability
+1 - exp(-rate dt) (a Markov chain in continuous time, so any frame rate and gap)."""
+
+
+def switching(dt: np.ndarray, rates: tuple[float, ...]) -> np.ndarray:
+    """The two-regime Markov chain's transition matrices (n, 2, 2), Pi[i, j] = P(model j now | model i before),
+    over dt (n,) seconds at rates (r_01, r_10) per second (one model: the identity (n, 1, 1))."""
+    if len(rates) == 0:
+        return np.ones((len(dt), 1, 1))
+    leave = 1 - np.exp(-np.outer(dt, rates))  # (n, 2)
+    return np.stack([np.column_stack([1 - leave[:, 0], leave[:, 0]]),
+                     np.column_stack([leave[:, 1], 1 - leave[:, 1]])], axis=1)
+
+
+def mixture(w: np.ndarray, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The moment-matched Gaussian of a mixture: weights w (..., M) (summing to 1), means x (..., M, d),
+    covariances P (..., M, d, d): mean (..., d) and covariance (..., d, d), sum w (P + (x - mean)(x - mean)^T)."""
+    mean = np.einsum("...m,...md->...d", w, x)
+    e = x - mean[..., None, :]
+    return mean, np.einsum("...m,...mij->...ij", w, P + e[..., :, None] * e[..., None, :])
+
+
+def imm_step(x: np.ndarray, P: np.ndarray, mu: np.ndarray, dt: np.ndarray, z: np.ndarray, R: np.ndarray,
+             qs: tuple[float, ...], rates: tuple[float, ...], foot: tuple[np.ndarray, float] | None = None
+             ) -> dict[str, np.ndarray]:
+    """One IMM cycle (Blom and Bar-Shalom 1988; Bar-Shalom, Li and Kirubarajan 2001, Section 11.6.6) of n tracks
+    with M = len(qs) models: per-model states x (n, M, d), covariances P (n, M, d, d), model probabilities mu
+    (n, M); dt (n,) s; z (n, 2), R (n, 2, 2) as ``update``'s (a NaN z: predict only); foot as ``transition``'s.
+    Mixing: each model j starts from the mixture of the models' states with weights mu_i Pi_ij / c_j,
+    c_j = sum_i mu_i Pi_ij (``switching``); then a prediction by ``transition`` with q_j and ``update``; mu_j ~
+    c_j N(nu_j; 0, S_j).
+
+    Returns "x", "P", "mu" (as given, one step on), "c" (n, M) the predicted model probabilities, "F" (n, d, d),
+    "Q" (n, M, d, d) each model's process noise, "Pi" (n, M, M) and "loglik" (n,) ln sum_j c_j N(nu_j; 0, S_j)
+    (the constant 2 pi dropped as in ``innovation_log_likelihood``; 0 where z is NaN)."""
+    Pi = switching(dt, rates)
+    c = np.einsum("ni,nij->nj", mu, Pi)
+    w = mu[:, :, None] * Pi / np.maximum(c, np.finfo(float).tiny)[:, None, :]  # (n, i, j)
+    x0, P0 = mixture(w.transpose(0, 2, 1), x[:, None], P[:, None])  # (n, j, d): each model's start
+    out = {"x": np.empty_like(x0), "P": np.empty_like(P0), "Q": np.empty_like(P0), "c": c, "Pi": Pi}
+    log_like = np.zeros(c.shape)
+    ok = np.isfinite(z).all(axis=1) & np.isfinite(R).all(axis=(1, 2))
+    H = measurement_matrix(x.shape[-1])
+    for j, q in enumerate(qs):
+        F, Q = transition(dt, q, foot)
+        out["F"], out["Q"][:, j] = F, Q
+        xp, Pp = np.einsum("nij,nj->ni", F, x0[:, j]), F @ P0[:, j] @ F.transpose(0, 2, 1) + Q
+        out["x"][:, j], out["P"][:, j] = update(xp, Pp, z, R)
+        nu, S = z[ok] - xp[ok] @ H.T, H @ Pp[ok] @ H.T + R[ok]
+        log_like[ok, j] = -0.5 * (np.linalg.slogdet(S)[1] + np.einsum("ni,ni->n", nu, np.linalg.solve(S, nu[..., None])[..., 0]))
+    top = log_like.max(axis=1, keepdims=True)
+    weighted = c * np.exp(log_like - top)
+    out["mu"] = weighted / weighted.sum(axis=1, keepdims=True)
+    out["loglik"] = np.where(ok, np.log(weighted.sum(axis=1)) + top[:, 0], 0.0)
+    return out
+
+
+def imm_start(n: int, M: int, rates: tuple[float, ...], R_b: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """n tracks' first states (n, M, d), covariances (n, M, d, d) in each of M models (``start_state``; R_b as
+    there) and model probabilities (n, M): the switching chain's stationary ones (r_10, r_01) / (r_01 + r_10)."""
+    x, P = start_state(n, R_b)
+    mu = np.array([rates[1], rates[0]]) / sum(rates) if M == 2 else np.ones(1)
+    return np.repeat(x[:, None], M, axis=1), np.repeat(P[:, None], M, axis=1), np.broadcast_to(mu, (n, M)).copy()
+
+
+def imm_filter(t: np.ndarray, z: np.ndarray, R: np.ndarray, qs: tuple[float, ...] = IMM_ACCEL_PSD,
+               rates: tuple[float, ...] = IMM_SWITCH_PER_S, foot: tuple[np.ndarray, float] | None = None
+               ) -> dict[str, np.ndarray]:
+    """The IMM forward pass over tracks (arguments as ``kalman_filter``'s; qs, rates as ``imm_step``'s), starting
+    in every model from ``start_state`` with the chain's stationary probabilities. Returns ``imm_step``'s "x"
+    (n, L, M, d), "P" (n, L, M, d, d), "mu", "c" (n, L, M), "F" (n, L, d, d), "Q" (n, L, M, d, d), "Pi"
+    (n, L, M, M) per step, and "loglik", the tracks' summed log-likelihood (a float)."""
+    n, L = t.shape
+    x, P, mu = imm_start(n, len(qs), rates, None if foot is None else foot[0][:, 0])
+    out: dict = {}
+    loglik = 0.0
+    for k in range(L):
+        step = imm_step(x, P, mu, t[:, k] - t[:, k - 1] if k else np.zeros(n), z[:, k], R[:, k], qs, rates,
+                        None if foot is None else (foot[0][:, k], foot[1]))
+        x, P, mu = step["x"], step["P"], step["mu"]
+        loglik += float(step.pop("loglik").sum())
+        for key, value in step.items():
+            out.setdefault(key, np.empty((n, L) + value.shape[1:]))[:, k] = value
+    return out | {"loglik": loglik}
+
+
+def imm_smoother(filtered: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Kim's fixed-interval IMM smoother (Kim 1994, Section 2.2; Bar-Shalom, Li and Kirubarajan 2001, Section
+    11.6) over ``imm_filter``'s output: per-model smoothed states (n, L, M, d), covariances (n, L, M, d, d) and
+    model probabilities (n, L, M). Backward from the last step, with Pi, c of step k+1:
+        mu_s,k(i) = sum_j b_ij,  b_ij = mu_k(i) Pi_ij mu_s,k+1(j) / c_k+1(j);
+    model i's state under model j's step: ``rts_smoother``'s gain with model j's prediction of model i's filtered
+    state, C = P_k(i) F^T (F P_k(i) F^T + Q_j)^-1 (C = I on a step of dt = 0), and the smoothed state the
+    ``mixture`` over j with weights b_ij / mu_s,k(i). With one model (or equal q) it is ``rts_smoother``."""
+    x, P, mu = filtered["x"].copy(), filtered["P"].copy(), filtered["mu"].copy()
+    n, L, M, d = x.shape
+    tiny = np.finfo(float).tiny
+    for k in range(L - 2, -1, -1):
+        F, Q, Pi, c = filtered["F"][:, k + 1], filtered["Q"][:, k + 1], filtered["Pi"][:, k + 1], filtered["c"][:, k + 1]
+        b = filtered["mu"][:, k, :, None] * Pi * (mu[:, k + 1] / np.maximum(c, tiny))[:, None, :]  # (n, i, j)
+        mu_s = b.sum(axis=2)
+        moves = F[:, 0, 2] > 0
+        xs, Ps = np.empty((n, M, M, d)), np.empty((n, M, M, d, d))
+        for i in range(M):
+            xi, Pf = filtered["x"][:, k, i], filtered["P"][:, k, i]
+            for j in range(M):
+                x_pred = np.einsum("nij,nj->ni", F, xi)
+                P_pred = F @ Pf @ F.transpose(0, 2, 1) + Q[:, j]
+                C = np.broadcast_to(np.eye(d), (n, d, d)).copy()
+                if moves.any():
+                    C[moves] = np.linalg.solve(P_pred[moves], F[moves] @ Pf[moves]).transpose(0, 2, 1)
+                xs[:, i, j] = xi + np.einsum("nij,nj->ni", C, x[:, k + 1, j] - x_pred)
+                Ps[:, i, j] = Pf + C @ (P[:, k + 1, j] - P_pred) @ C.transpose(0, 2, 1)
+        weights = b / np.maximum(mu_s, tiny)[:, :, None]
+        x[:, k], P[:, k] = mixture(weights, xs, Ps)
+        mu[:, k] = mu_s
+    return x, P, mu
+
+
+IMM_FIT_LOG_TOLERANCE = 0.1
+"""``fit_imm``'s tolerance on the logs of its four constants (10 %: each likelihood is seconds of filtering)."""
+IMM_FIT_LOGLIK_TOLERANCE = 0.5
+"""``fit_imm``'s tolerance on the log-likelihood (half a unit: one standard error of one constant moves it so)."""
+
+
+IMM_SWITCH_BOUNDS_PER_S = (0.01, 10.0)
+"""The range of the switching rates ``fit_imm`` searches, per second: a regime that lasts 0.1 s to 100 s on
+average. Unbounded, on simgen's people the likelihood runs off to q 1e-19 and 1e6 m^2/s^3 (straight walks and
+velocity jumps, or the foot points' outliers), no walker's motion."""
+
+
+def fit_imm(inputs: list[tuple]) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The maximum-likelihood IMM constants (IMM_ACCEL_PSD's two q, m^2/s^3, and IMM_SWITCH_PER_S's two rates,
+    1/s) of sets of tracks, inputs a list of ``kalman_filter``'s (t, z, R, foot): the maximum of the summed
+    ``imm_filter`` log-likelihood over their logs within ACCEL_PSD_BOUNDS and IMM_SWITCH_BOUNDS_PER_S
+    (Nelder-Mead from IMM_ACCEL_PSD, IMM_SWITCH_PER_S, to IMM_FIT_LOG_TOLERANCE, IMM_FIT_LOGLIK_TOLERANCE), the
+    q's ordered steady first."""
+    def cost(s: np.ndarray) -> float:
+        e = np.exp(s)
+        return -sum(imm_filter(t, z, R, (e[0], e[1]), (e[2], e[3]), foot)["loglik"] for t, z, R, foot in inputs)
+
+    best = minimize(cost, np.log([*IMM_ACCEL_PSD, *IMM_SWITCH_PER_S]), method="Nelder-Mead",
+                    bounds=np.log([ACCEL_PSD_BOUNDS] * 2 + [IMM_SWITCH_BOUNDS_PER_S] * 2), options={"xatol": IMM_FIT_LOG_TOLERANCE, "fatol": IMM_FIT_LOGLIK_TOLERANCE})
+    q, r = np.exp(best.x[:2]), np.exp(best.x[2:])
+    order = np.argsort(q)
+    return tuple(float(v) for v in q[order]), tuple(float(v) for v in r[order])
+
+
+def motion_model(accel_psd: float | str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """``imm_step``'s (qs, rates) of a process noise: a q alone (one model, no switching: the Kalman filter) or
+    IMM's fitted two models; ValueError for a word that is not IMM."""
+    if isinstance(accel_psd, str) and accel_psd != IMM:
+        raise ValueError(f"accel_psd: expected a number (m^2/s^3) or {IMM!r}, got {accel_psd!r}")
+    return (IMM_ACCEL_PSD, IMM_SWITCH_PER_S) if accel_psd == IMM else ((float(accel_psd),), ())
+
+
+def track_states(t: np.ndarray, z: np.ndarray, R: np.ndarray, accel_psd: float | str, smooth: bool,
+                 foot: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """States (n, L, d) and covariances (n, L, d, d) of tracks (arguments as ``kalman_filter``'s) under a
+    process noise q (``kalman_filter``, with smooth ``rts_smoother``) or IMM (``imm_filter``, with smooth
+    ``imm_smoother``: the models' ``mixture``)."""
+    if accel_psd != IMM:
+        filtered = kalman_filter(t, z, R, accel_psd, foot)
+        return rts_smoother(filtered) if smooth else (filtered["x"], filtered["P"])
+    filtered = imm_filter(t, z, R, *motion_model(IMM), foot)
+    x, P, mu = imm_smoother(filtered) if smooth else (filtered["x"], filtered["P"], filtered["mu"])
+    return mixture(mu, x, P)

@@ -10,7 +10,7 @@ import numpy as np
 
 from homocal.correctors.pedestrians import _check_image_size
 from homocal.geometry.boxes import box_bottom_points, box_edges
-from homocal.measure.kalman import ACCEL_PSD, correlated_noise, predict, start_state, update
+from homocal.measure.kalman import ACCEL_PSD, correlated_noise, imm_start, imm_step, mixture, motion_model
 from homocal.measure.tracks import (FEET, FOOT, FOOT_NOISE, as_mapping, foot_noise_options, foot_status, map_points,
                                    point_noise, state_speed)
 from homocal.uncertainty import sigma_radius
@@ -42,14 +42,15 @@ class GroundState:
 
 class GroundTracker:
     """A causal constant-velocity Kalman filter per track on the ground (homocal measure's filter, forward pass
-    only: each answer uses the frames up to it).
+    only: each answer uses the frames up to it); with accel_psd IMM (homocal.measure.kalman) the two-regime
+    model's IMM filter, its models' mixture (no smoother: a manoeuvre's bar widens only once its frames show it).
 
     Args:
         mapping: a fitted Corrector (homocal.load_corrector) or a ViewTransformer.
         fps: frames per second of the video (> 0): t = frame / fps.
         convention: the boxes' pixel convention (homocal.box_bottom_points): "corners" for supervision's
             Detections of YOLO-like models, "indices" for its mask_to_xyxy boxes, "homocal" for simgen's.
-        accel_psd, click_sigma_px, point_sigma_px: as homocal.measure.measure_tracks.
+        accel_psd, click_sigma_px, point_sigma_px: as homocal.measure.measure_tracks (accel_psd a q or IMM).
         foot_noise: the foot point's noise model, one of homocal.measure.tracks.FOOT_NOISE (homocal measure
             --foot-noise): "fixed" (point_sigma_px), "box-height" or "correlated".
         feet: the foot points measured, one of homocal.measure.tracks.FEET (homocal measure --feet): "all", or
@@ -58,7 +59,7 @@ class GroundTracker:
         image_size: (width, height) px of the frames the boxes are in (the camera's pixels), or None.
     """
 
-    def __init__(self, mapping, fps: float, *, convention: str = "corners", accel_psd: float = ACCEL_PSD,
+    def __init__(self, mapping, fps: float, *, convention: str = "corners", accel_psd: float | str = ACCEL_PSD,
                  click_sigma_px: float = 1.5, point_sigma_px: float = 1.0, foot_noise: str = FOOT_NOISE[0],
                  feet: str = FEET[0], image_size: tuple[int, int] | None = None) -> None:
         if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
@@ -69,8 +70,9 @@ class GroundTracker:
         self.mapping, self.fps, self.convention = as_mapping(mapping), float(fps), convention
         self.accel_psd, self.click_sigma_px, self.point_sigma_px = accel_psd, click_sigma_px, point_sigma_px
         self.foot_noise, self.feet, self.image_size = foot_noise, feet, _check_image_size(image_size)
-        self._tracks: dict[int, tuple[np.ndarray, np.ndarray, int, bool]] = {}  # id -> state (d,), covariance (d, d),
-        # frame, a foot point measured yet
+        self._motion = motion_model(accel_psd)
+        self._tracks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, int, bool]] = {}  # id -> each model's state
+        # (M, d), covariance (M, d, d), the models' probabilities (M,), frame, a foot point measured yet
         self._frame: int | None = None
 
     def update(self, detections, frame: int) -> GroundState:
@@ -88,7 +90,7 @@ class GroundTracker:
         if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)) or (self._frame is not None and frame <= self._frame):
             raise ValueError(f"frame: expected an integer larger than the last one ({self._frame}), got {frame!r}")
         self._frame = int(frame)
-        self._tracks = {k: s for k, s in self._tracks.items() if (frame - s[2]) / self.fps <= MAX_AGE_S}
+        self._tracks = {k: s for k, s in self._tracks.items() if (frame - s[3]) / self.fps <= MAX_AGE_S}
         edges = box_edges(np.asarray(xyxy), convention=self.convention)
         feet = box_bottom_points(edges, convention="homocal")
         foot = (foot_status(edges, np.zeros(len(ids), np.int64), self.image_size) if self.feet == "soles"
@@ -98,16 +100,17 @@ class GroundTracker:
         xy, cov = map_points(self.mapping, feet, self.click_sigma_px, noise["point_sigma_px"])
         R, correlated = correlated_noise(point_noise(self.mapping, feet, noise["point_sigma_px"])
                                          if noise["split_mapping_error"] else cov, noise["foot_correlation_s"])
-        x, P = start_state(len(ids), None if correlated is None else correlated[0])
+        x, P, mu = imm_start(len(ids), len(self._motion[0]), self._motion[1],
+                             None if correlated is None else correlated[0])
         dt, known = np.zeros(len(ids)), used.copy()
         for i, k in enumerate(ids.tolist()):
             if k in self._tracks:
-                x[i], P[i], last, measured = self._tracks[k]
+                x[i], P[i], mu[i], last, measured = self._tracks[k]
                 dt[i], known[i] = (frame - last) / self.fps, used[i] or measured
-        x, P, _ = predict(x, P, dt, self.accel_psd, correlated)
-        x, P = update(x, P, np.where(used[:, None], xy, np.nan), R)
+        step = imm_step(x, P, mu, dt, np.where(used[:, None], xy, np.nan), R, *self._motion, correlated)
         for i, k in enumerate(ids.tolist()):
-            self._tracks[k] = (x[i], P[i], int(frame), bool(known[i]))
+            self._tracks[k] = (step["x"][i], step["P"][i], step["mu"][i], int(frame), bool(known[i]))
+        x, P = mixture(step["mu"], step["x"], step["P"])
         x = np.where(known[:, None], x, np.nan)  # no foot point of the track measured yet: nothing known
         speed, speed_sigma = state_speed(self.mapping, feet, x, P,
                                          self.click_sigma_px if noise["split_mapping_error"] else None)

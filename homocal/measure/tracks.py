@@ -15,8 +15,7 @@ import numpy as np
 
 from homocal.geometry import Lens, ViewTransformer
 from homocal.geometry.boxes import cut_edges, hidden_feet
-from homocal.measure.kalman import (ACCEL_PSD, correlated_noise, fit_accel_psd, kalman_filter, rts_smoother,
-                                   speed_and_sigma)
+from homocal.measure.kalman import ACCEL_PSD, correlated_noise, fit_accel_psd, speed_and_sigma, track_states
 from homocal.uncertainty import STEP, click_jacobian, ground_uncertainty, sigma_radius
 
 COLUMNS = ("frame", "t", "track_id", "u", "v", "x", "y", "sigma_m", "x_smooth", "y_smooth", "vx", "vy", "speed_mps",
@@ -28,7 +27,9 @@ PAIR_COLUMNS = ("frame", "t", "track_a", "track_b", "distance_m", "distance_sigm
 BATCH_CELLS = 2**16
 """Cells (tracks x frames, padded) filtered at once, and boxes mapped at once for distances: about 85 floats a
 cell (the filter's states, predictions, covariances and transitions, the smoother's copies), some 45 MB; about
-twice that with the correlated foot error's six states."""
+twice that with the correlated foot error's six states; with the IMM's two models (``kalman.imm_filter``: each
+model's states, covariances and process noise, the smoother's copies) about 140 floats a cell (72 MB), 290 with
+six states (150 MB)."""
 MAX_TRACK_FRAMES = BATCH_CELLS
 """The longest track measured (a batch of its own; 36 minutes at 30 fps): homocal measure refuses longer ones."""
 MAX_PEOPLE_PER_FRAME = 500
@@ -257,17 +258,27 @@ def fit_tracks_accel_psd(mapping, frames: np.ndarray, feet: np.ndarray, track_id
     (``kalman.fit_accel_psd``; arguments as ``measure_tracks``'): no ground truth, the people's own motion
     under the measurement noise model. Its cost is bounded: the tracks of ``track_batches``' first batch
     (tracks in increasing id, at most BATCH_CELLS cells), each likelihood one forward filter over them."""
+    return fit_accel_psd(*first_batch_inputs(mapping, frames, feet, track_ids, fps, click_sigma_px=click_sigma_px,
+                                             point_sigma_px=point_sigma_px, split_mapping_error=split_mapping_error,
+                                             foot_correlation_s=foot_correlation_s, foot=foot))
+
+
+def first_batch_inputs(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
+                       click_sigma_px: float = 1.5, point_sigma_px: float | np.ndarray = 1.0,
+                       split_mapping_error: bool = False, foot_correlation_s: float | None = None,
+                       foot: np.ndarray | None = None) -> tuple:
+    """kalman_filter's (t, z, R, foot) of ``track_batches``' first batch of the tracks (arguments as
+    ``measure_tracks``'): what the process noise is fitted on."""
     mapping = as_mapping(mapping)
     frames, track_ids = np.asarray(frames, dtype=np.int64), np.asarray(track_ids, dtype=np.int64)
     point_sigma_px = point_sigma_px if np.ndim(point_sigma_px) == 0 else np.asarray(point_sigma_px, dtype=np.float64)
     batch = next(track_batches(track_ids, frames))
-    _, _, inputs = filter_inputs(mapping, frames, np.asarray(feet, dtype=np.float64), fps, batch, click_sigma_px,
-                                 point_sigma_px, split_mapping_error, foot_correlation_s, foot)
-    return fit_accel_psd(*inputs)
+    return filter_inputs(mapping, frames, np.asarray(feet, dtype=np.float64), fps, batch, click_sigma_px,
+                         point_sigma_px, split_mapping_error, foot_correlation_s, foot)[2]
 
 
 def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
-                   accel_psd: float = ACCEL_PSD, smooth: bool = True, click_sigma_px: float = 1.5,
+                   accel_psd: float | str = ACCEL_PSD, smooth: bool = True, click_sigma_px: float = 1.5,
                    point_sigma_px: float | np.ndarray = 1.0, split_mapping_error: bool = False,
                    foot_correlation_s: float | None = None, foot: np.ndarray | None = None
                    ) -> Iterator[dict[str, np.ndarray]]:
@@ -279,8 +290,9 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
         frames: (N,) int video frames (t = frame / fps seconds); track_ids (N,) int, one box per track and
             frame (``check_tracks``); feet (N, 2) foot points, px; point_sigma_px a number or one a foot point
             (N,) (``box_height_sigma_px``).
-        accel_psd: the filter's process noise q, m^2/s^3 (homocal.measure.kalman).
-        smooth: True: the RTS smoother's states (each conditioned on the whole track); False: the forward
+        accel_psd: the filter's process noise q, m^2/s^3, or kalman.IMM: two constant-velocity models, a steady
+            walker's and a manoeuvre's, switching (homocal.measure.kalman).
+        smooth: True: the RTS (or IMM) smoother's states (each conditioned on the whole track); False: the forward
             filter's (each on the frames up to it: what a live system has).
         split_mapping_error: the filter's measurement noise the foot point's own (``point_noise``) and the shared
             mapping error in the speed's sigma (``mapping_velocity_covariance``); False: the whole covariance.
@@ -306,8 +318,7 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
         rows = np.concatenate(batch)
         xy, cov, (t, z, R, correlated) = filter_inputs(mapping, frames, feet, fps, batch, click_sigma_px,
                                                        point_sigma_px, split_mapping_error, foot_correlation_s, foot)
-        filtered = kalman_filter(t, z, R, accel_psd, correlated)
-        x, P = rts_smoother(filtered) if smooth else (filtered["x"], filtered["P"])
+        x, P = track_states(t, z, R, accel_psd, smooth, correlated)
         seen = np.isfinite(z).all(axis=2)  # (n, L): the steps measured
         x[np.broadcast_to(~seen.any(axis=1, keepdims=True) if smooth else np.cumsum(seen, axis=1) == 0, seen.shape)] = np.nan
         L = t.shape[1]

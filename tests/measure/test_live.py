@@ -10,6 +10,7 @@ import pytest
 
 from homocal.geometry import PinholeCamera, ViewTransformer
 from homocal.measure import GroundTracker, measure_tracks
+from homocal.measure.kalman import ACCEL_PSD, IMM
 from homocal.measure.tracks import FOOT_NOISE, foot_noise_options
 
 CAMERA = PinholeCamera()
@@ -42,11 +43,11 @@ def run(tracker, make):
     return out
 
 
-def check_against_the_file_filter(out, foot_noise="fixed", foot=None):
+def check_against_the_file_filter(out, foot_noise="fixed", foot=None, accel_psd=ACCEL_PSD):
     frames, ids, boxes = walkers()
     feet = np.column_stack([(boxes[:, 0] + boxes[:, 2]) / 2 - 0.5, boxes[:, 3] - 0.5])  # corners -> homocal
     mapping = ViewTransformer(CAMERA.project_ground(GROUND), GROUND)
-    for batch in measure_tracks(mapping, frames, feet, ids, FPS, smooth=False, foot=foot,
+    for batch in measure_tracks(mapping, frames, feet, ids, FPS, smooth=False, foot=foot, accel_psd=accel_psd,
                                 **foot_noise_options(foot_noise, boxes, 1.0)):
         for j, (f, k) in enumerate(zip(batch["frame"], batch["track_id"])):
             xy, v, speed, sigma = out[(int(f), int(k))]
@@ -90,6 +91,20 @@ def test_foot_noise_models_as_the_file_filter(foot_noise):
     assert out[(19, 0)][3] != fixed[(19, 0)][3]  # another model: another bar
     with pytest.raises(ValueError, match="foot_noise: expected one of fixed, box-height, correlated"):
         GroundTracker(mapping, FPS, foot_noise="white")
+
+
+@pytest.mark.parametrize("foot_noise", FOOT_NOISE[::2])
+def test_two_regime_model_as_the_file_filter(foot_noise):
+    """GroundTracker(accel_psd=IMM) frame by frame: homocal measure --accel-psd imm's forward IMM filter on the
+    file (white and correlated foot error); its bars are not the single q's."""
+    mapping = ViewTransformer(CAMERA.project_ground(GROUND), GROUND)
+    out = run(GroundTracker(mapping, FPS, accel_psd=IMM, foot_noise=foot_noise),
+              lambda xyxy, ids: SimpleNamespace(xyxy=xyxy, tracker_id=ids))
+    check_against_the_file_filter(out, foot_noise, accel_psd=IMM)
+    single = run(GroundTracker(mapping, FPS, foot_noise=foot_noise), lambda xyxy, ids: SimpleNamespace(xyxy=xyxy, tracker_id=ids))
+    assert out[(19, 0)][3] != single[(19, 0)][3]
+    with pytest.raises(ValueError, match="accel_psd: expected a number"):
+        GroundTracker(mapping, FPS, accel_psd="fitted")
 
 
 def test_homocal_never_imports_supervision():

@@ -9,7 +9,7 @@ import pytest
 from cli_run import homocal_main
 from homocal.geometry import PinholeCamera
 from homocal.measure import COLUMNS
-from homocal.measure.kalman import ACCEL_PSD_BOUNDS
+from homocal.measure.kalman import ACCEL_PSD, ACCEL_PSD_BOUNDS
 
 CAMERA = PinholeCamera()  # 1280x720, 4 m high, 15 degrees down
 FPS = 10.0
@@ -127,9 +127,9 @@ BAD = [  # (writes the boxes, extra arguments, the error's words)
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--foot-noise", "bogus"], "argument --foot-noise: invalid choice"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--feet", "heels"], "argument --feet: invalid choice: 'heels'"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--accel-psd", "fast"],
-     "argument --accel-psd: fitted or a number: expected a number, got 'fast'"),
+     "argument --accel-psd: fitted, imm or a number: expected a number, got 'fast'"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--accel-psd", "0"],
-     "argument --accel-psd: fitted or a number: must be a finite number in (0, 1e+06], got 0"),
+     "argument --accel-psd: fitted, imm or a number: must be a finite number in (0, 1e+06], got 0"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--camera-json", "missing.json"], "--camera-json missing.json: no such file"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--camera-json", "trap.json"], "--camera-json trap.json: image_size: missing"),
 ]
@@ -259,6 +259,20 @@ def test_accel_psd_fitted(scene, capsys, monkeypatch):
     assert ACCEL_PSD_BOUNDS[0] <= q < 1.1 * ACCEL_PSD_BOUNDS[0]
     for k, track in pq.read_table(scene / "fitted.parquet").to_pandas().groupby("track_id"):
         np.testing.assert_allclose(track.speed_mps, np.hypot(*WALKERS[k][2:]), atol=0.02)
+
+
+def test_accel_psd_imm(scene, capsys, monkeypatch):
+    """--accel-psd imm on walkers at constant velocity: the speeds stay, and their bars are narrower than the
+    default q's (the steady model's q is smaller; the walkers never manoeuvre, so it takes them)."""
+    out = {}
+    for q in ("imm", str(ACCEL_PSD)):
+        r = homocal_main("measure", "trap.json", "--boxes", "boxes.csv", "--fps", "10", "--out", f"{q}.parquet",
+                         "--accel-psd", q, cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
+        assert r.returncode == 0, r.stderr
+        out[q] = pq.read_table(scene / f"{q}.parquet").to_pandas()
+    for k, track in out["imm"].groupby("track_id"):
+        np.testing.assert_allclose(track.speed_mps, np.hypot(*WALKERS[k][2:]), atol=0.02)
+    assert out["imm"].speed_sigma_mps.median() < out[str(ACCEL_PSD)].speed_sigma_mps.median()
 
 
 def test_exact_foot_points_on_a_shorter_track(scene, capsys, monkeypatch):

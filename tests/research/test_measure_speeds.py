@@ -119,3 +119,10 @@ def test_exact_path_measures_the_true_speeds_of_exact_foot_points(tmp_path):
         assert np.nanpercentile(p["exact, smoother"]["rel"], 90) < 1.0
         # the recipe's n - 1 steps over n / fps s, once its deque holds fps positions: 1 / fps short, 5 %
         np.testing.assert_allclose(np.nanmedian(p["exact, 1 s diff"]["rel"]), 100 / 20, rtol=1e-6)
+    # straight walks at constant velocity: no true velocity change, so every box is in --steadiness' first bin
+    change = p["exact, smoother"]["change"]
+    assert np.isfinite(change).any() and np.nanmax(change) < 1e-9
+    rows = script.steadiness_table(p, "segmentation").splitlines()[4:]
+    assert rows[0].startswith("| exact, smoother | 0-0.1 |") and rows[1] == ""
+    # exact foot points: every position inside its bars
+    assert rows[-1] == "| exact, smoother | 100.0 / 100.0 % | 100.0 / 100.0 % |"
