@@ -4,18 +4,21 @@
 The people are simgen's walkers (simgen.agents.Crowd: the same routes, speeds, waits, heights and poses as a
 rendered dataset of the same scene and seed). Each frame, every body's geoms (capsules and the head's sphere:
 segment ends and radii, ``bodies``) are seen by the scene's camera, posed at each instant as in a rendered dataset
-(``Scene.camera_at``: its ``[[camera.moves]]`` and ``[camera.sway]``). Each geom's outline is the convex hull of
-its end spheres' silhouettes (``simgen.truth.silhouette_outlines``, as gt.parquet's visible fraction); ``boxes_of``
-fills the geoms far to near (by the depth of each geom's centre) into a label image, so that a nearer person hides
-a farther one as in the segmentation render, and a person's box is the box of the pixels left with their label
-(edges at half-integers, as a segmentation mask's box), within the box of their whole outline; a person wholly
-hidden or outside the image gives no box. ``occlusion=False`` gives each person's whole box (the box of the pixel
-centres their outline covers, clipped to the image), as if nobody stood in front. Not modelled: occlusion by props
-(cars, poles, the scene's static objects), the renderer's anti-aliased rim and sub-pixel limbs, and the
-detectors' noise and misses: a best case of the segmentation detector.
+(``Scene.camera_at``: its ``[[camera.moves]]`` and ``[camera.sway]``). Each geom's outline is the convex hull of its
+end spheres' silhouettes (``simgen.truth.silhouette_outlines``, as gt.parquet's visible fraction), and it covers the
+pixels whose centres lie inside it (``spans``: the rasteriser's rule). People hide people (``boxes_of``): where the
+outlines of people whose boxes overlap cover the same pixel, the pixel is the nearest geom's (by the depth of each
+geom's centre along the optical axis), as in the segmentation render. A person's box is the box of their pixels
+(edges at half-integers, as a segmentation mask's box), within the image; a person wholly hidden or outside the
+image gives no box. ``occlusion=False`` gives every person's box as if nobody stood in front.
+
+What the renders have and these boxes do not: the scene's props (its houses, cars, poles) hiding people,
+MuJoCo's faceted capsules (sub-pixel), and the detectors' noise and misses (the rgb detector's above all): a best
+case of the segmentation detector. Against a render of the same scene and seed, tests/simgen/test_boxstream.py.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 
 import cv2
@@ -25,8 +28,6 @@ from homocal.geometry import PinholeCamera
 from simgen.agents import Crowd
 from simgen.scene import Scene
 from simgen.truth import silhouette_outlines
-
-SHIFT = 4  # cv2 fixed-point bits: outlines are filled at 1/16 px
 
 
 def bodies(scene: Scene, seed: int, seconds: float, fps: float) -> Iterator[tuple[int, np.ndarray, np.ndarray, np.ndarray]]:
@@ -38,39 +39,71 @@ def bodies(scene: Scene, seed: int, seconds: float, fps: float) -> Iterator[tupl
         yield frame, state.segments, state.radii, state.agent_id.astype(np.int64)
 
 
+def spans(outlines: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The pixels whose centres (integer px) lie in each convex hull of outlines (N, P, 2) px, within the image
+    (size: width, height): the rasteriser's rule, as the segmentation render's (OpenCV's fill takes every pixel a
+    polygon touches). Returns (S,) int arrays: the hull's index, the row, the first and last column of each span."""
+    w, h = size
+    orders = [cv2.convexHull(points, returnPoints=False)[:, 0] for points in outlines.astype(np.float32)]
+    index = np.zeros((len(outlines), max(map(len, orders), default=1)), int)
+    for k, order in enumerate(orders):
+        index[k, :len(order)], index[k, len(order):] = order, order[0]  # padded with its first vertex: empty edges
+    hulls = np.take_along_axis(outlines, index[:, :, None], axis=1)
+    lo, hi = np.ceil(hulls[:, :, 1].min(axis=1)), np.floor(hulls[:, :, 1].max(axis=1))
+    r0, r1 = np.maximum(lo, 0).astype(int), np.minimum(hi, h - 1).astype(int)
+    count = np.maximum(r1 - r0 + 1, 0)
+    which = np.repeat(np.arange(len(hulls)), count)
+    row = r0[which] + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    p = hulls[which]  # (S, P, 2): each span's hull; edges p -> q
+    q = np.roll(p, -1, axis=1)
+    y = row[:, None].astype(np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (y - p[:, :, 1]) / (q[:, :, 1] - p[:, :, 1])  # where each edge crosses the row
+        x = np.where((s >= 0) & (s <= 1), p[:, :, 0] + s * (q[:, :, 0] - p[:, :, 0]), np.nan)
+        first = np.maximum(np.ceil(np.fmin.reduce(x, axis=1)), 0)
+        last = np.minimum(np.floor(np.fmax.reduce(x, axis=1)), w - 1)
+        keep = first <= last  # NaN (a row only touched at a vertex) or no centre between: no pixel
+    return which[keep], row[keep], first[keep].astype(int), last[keep].astype(int)
+
+
 def boxes_of(camera: PinholeCamera, segments: np.ndarray, radii: np.ndarray, occlusion: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """(xyxy (M, 4) homocal pixel edges, seen (A,) bool) of the people's geoms (segments (A, G, 2, 3) m, radii (A, G)
-    m) seen by the camera: the boxes of those with a pixel in view (module docstring). Cost per frame: one fill per
-    geom and a scan of each person's box."""
-    w, h = camera.width, camera.height
-    outlines = silhouette_outlines(camera, segments, radii)  # (A, G, 48, 2), NaN: not in front of the camera
-    flat = outlines.reshape(len(outlines), -1, 2)
-    with np.errstate(invalid="ignore"):  # all-NaN: wholly behind the camera
-        lo, hi = np.fmin.reduce(flat, axis=1), np.fmax.reduce(flat, axis=1)
-    whole = np.clip(np.column_stack([np.ceil(lo) - 0.5, np.floor(hi) + 0.5]), -0.5, [w - 0.5, h - 0.5, w - 0.5, h - 0.5])
+    m) seen by the camera: the boxes of those with a pixel in view (module docstring; a geom partly behind the
+    camera is left out). Cost per frame: the pixel spans of every geom, and a depth sort of the pixels of the people
+    whose boxes touch another's."""
+    a_n, g_n = radii.shape
+    outlines = silhouette_outlines(camera, segments, radii)  # (A, G, P, 2), NaN: not in front of the camera
+    outlines = outlines.reshape(-1, *outlines.shape[2:])
+    front = np.flatnonzero(np.isfinite(outlines).all(axis=(1, 2)))
+    geom, row, first, last = spans(outlines[front], (camera.width, camera.height))
+    person = front[geom] // g_n
+    box = span_boxes(a_n, person, row, first, last)
+    x1, y1, x2, y2 = box.T[:, :, None]  # each (A, 1)
     with np.errstate(invalid="ignore"):
-        seen = (whole[:, 2] > whole[:, 0]) & (whole[:, 3] > whole[:, 1])
-    x1, y1, x2, y2 = whole.T[:, :, None]  # each (A, 1)
-    with np.errstate(invalid="ignore"):
-        overlap = (np.minimum(x2, x2.T) > np.maximum(x1, x1.T)) & (np.minimum(y2, y2.T) > np.maximum(y1, y1.T))
-    crowded = seen & (overlap.sum(axis=1) > 1)  # another person's box overlaps theirs: they may hide each other
-    if not occlusion or not crowded.any():
-        return whole[seen], seen
-    labels = np.zeros((h, w), np.int32)  # 0: nobody; person a: a + 1
-    depth = (segments.mean(axis=2) @ camera.R.T + camera.t)[:, :, 2]  # (A, G) m along the optical axis
-    for a, g in zip(*np.unravel_index(np.argsort(-depth, axis=None, kind="stable"), depth.shape)):
-        if crowded[a] and np.isfinite(outlines[a, g]).all():
-            hull = cv2.convexHull(np.round(outlines[a, g] * (1 << SHIFT)).astype(np.int32))
-            cv2.fillConvexPoly(labels, hull, int(a) + 1, lineType=cv2.LINE_8, shift=SHIFT)
-    for a in np.flatnonzero(crowded):
-        c1, r1, c2, r2 = (whole[a] + 0.5).astype(int)  # the whole box's pixels: columns c1 .. c2 - 1
-        mine = labels[r1:r2, c1:c2] == a + 1
-        rows, cols = np.flatnonzero(mine.any(axis=1)), np.flatnonzero(mine.any(axis=0))
-        if rows.size:
-            whole[a] = (c1 + cols[0] - 0.5, r1 + rows[0] - 0.5, c1 + cols[-1] + 0.5, r1 + rows[-1] + 0.5)
-        else:
-            seen[a] = False
-    return whole[seen], seen
+        touch = (np.minimum(x2, x2.T) >= np.maximum(x1, x1.T)) & (np.minimum(y2, y2.T) >= np.maximum(y1, y1.T))
+    crowded = touch.sum(axis=1) > 1  # (A,): may hide another or be hidden
+    if occlusion and crowded.any():  # their pixels, each the nearest geom's person's
+        pick = crowded[person]
+        n = last[pick] - first[pick] + 1
+        pixel = np.repeat(row[pick] * camera.width + first[pick] - np.cumsum(n) + n, n) + np.arange(n.sum())
+        depth = (segments.mean(axis=2) @ camera.R.T + camera.t)[:, :, 2].ravel()[front[geom][pick]]  # m, optical axis
+        order = np.lexsort((np.repeat(depth, n), pixel))
+        pixel = pixel[order]
+        top = np.r_[True, pixel[1:] != pixel[:-1]]
+        r, c = np.divmod(pixel[top], camera.width)
+        box[crowded] = span_boxes(a_n, np.repeat(person[pick], n)[order][top], r, c, c)[crowded]
+    seen = np.isfinite(box[:, 0])
+    return box[seen] + [-0.5, -0.5, 0.5, 0.5], seen
+
+
+def span_boxes(count: int, person: np.ndarray, row: np.ndarray, first: np.ndarray, last: np.ndarray) -> np.ndarray:
+    """(count, 4) float: each person's pixel box (first column, first row, last column, last row; inf where none)
+    of the spans (S,) ints: person, row, first and last column."""
+    box = np.full((count, 4), np.inf)
+    box[:, 2:] = -np.inf
+    for col, values, reduce in ((0, first, np.minimum), (1, row, np.minimum), (2, last, np.maximum), (3, row, np.maximum)):
+        reduce.at(box[:, col], person, values)
+    return box
 
 
 def box_stream(scene: Scene, seed: int, seconds: float, fps: float, occlusion: bool = True) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
