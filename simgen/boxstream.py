@@ -18,7 +18,6 @@ case of the segmentation detector. Against a render of the same scene and seed, 
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Iterator
 
 import cv2
