@@ -14,7 +14,8 @@ image gives no box. ``occlusion=False`` gives every person's box as if nobody st
 
 What the renders have and these boxes do not: the scene's props (its houses, cars, poles) hiding people,
 MuJoCo's faceted capsules (sub-pixel), and the detectors' noise and misses (the rgb detector's above all): a best
-case of the segmentation detector. Against a render of the same scene and seed, tests/simgen/test_boxstream.py.
+case of the segmentation detector. Against a render of the same scene and seed (tests/simgen/test_boxstream.py,
+research/boxstream_check.py): 93-94 % of scene1's boxes identical to the pixel, 99.8 % within 2 px.
 """
 from __future__ import annotations
 
@@ -68,8 +69,8 @@ def spans(outlines: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.n
 def boxes_of(camera: PinholeCamera, segments: np.ndarray, radii: np.ndarray, occlusion: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """(xyxy (M, 4) homocal pixel edges, seen (A,) bool) of the people's geoms (segments (A, G, 2, 3) m, radii (A, G)
     m) seen by the camera: the boxes of those with a pixel in view (module docstring; a geom partly behind the
-    camera is left out). Cost per frame: the pixel spans of every geom, and a depth sort of the pixels of the people
-    whose boxes touch another's."""
+    camera is left out). Cost per frame: the pixel spans of every geom (at most the image's rows each), and a depth
+    sort of the pixels of the people whose boxes overlap another's."""
     a_n, g_n = radii.shape
     outlines = silhouette_outlines(camera, segments, radii)  # (A, G, P, 2), NaN: not in front of the camera
     outlines = outlines.reshape(-1, *outlines.shape[2:])
@@ -80,7 +81,7 @@ def boxes_of(camera: PinholeCamera, segments: np.ndarray, radii: np.ndarray, occ
     x1, y1, x2, y2 = box.T[:, :, None]  # each (A, 1)
     with np.errstate(invalid="ignore"):
         touch = (np.minimum(x2, x2.T) >= np.maximum(x1, x1.T)) & (np.minimum(y2, y2.T) >= np.maximum(y1, y1.T))
-    crowded = touch.sum(axis=1) > 1  # (A,): may hide another or be hidden
+    crowded = touch.sum(axis=1) > 1  # (A,): their boxes share a pixel with another's: may hide or be hidden
     if occlusion and crowded.any():  # their pixels, each the nearest geom's person's
         pick = crowded[person]
         n = last[pick] - first[pick] + 1
