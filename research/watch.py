@@ -1,10 +1,9 @@
 """How well homocal.watch.OnlineCalibrator notices a camera that moves, on render-free streams of a scene
-(simgen.boxstream: the scene's walkers, boxes from their bodies' geometry, no occlusion or detector noise).
+(simgen.boxstream: the scene's walkers, the boxes of their bodies' visible pixels, people hiding people, no props
+or detector noise).
 
-Per seed, --minutes of the scene's walkers at --fps are posed once (``body_points``, kept as each person's
-at most 8 points extreme in the image of the static camera: 2 per side; the boxes they give under a camera
-tilted up to 2 degrees are checked against all points' on the first seed and the mismatches printed), then
-seen by the camera moving as each case says, the move at --at seconds:
+Per seed, --minutes of the scene's walkers at --fps are posed once (``simgen.boxstream.bodies``) and seen by the
+static camera and by the camera moving as each case says (``seen_boxes``), the move at --at seconds:
 
 - static: no move (false alarms per simulated hour, at --arl0 values: the trade-off curve);
 - step 0.5, 1, 2 degrees (further down); ramp: 2 degrees over 60 s; sway: 0.3 degrees, period 60 s.
@@ -60,7 +59,7 @@ from homocal.geometry import PinholeCamera, ViewTransformer, read_trapezoid_file
 from homocal.geometry.boxes import hidden_feet  # noqa: E402
 from homocal.watch import OnlineCalibrator  # noqa: E402
 from homocal.watch.calibrator import DEFAULT_ARL0_PEOPLE, stretch_correction  # noqa: E402
-from simgen.boxstream import body_points, boxes_of  # noqa: E402
+from simgen.boxstream import bodies, boxes_of  # noqa: E402
 from simgen.scene import CameraMove, Sway, load_scene  # noqa: E402
 
 HEIGHT = (1.71, 0.09)  # the datasets' own people (data_schema.md), as docs/pedestrians.md's measurements
@@ -73,13 +72,20 @@ CASES = {  # the camera's moves and sway (scene.toml's [[camera.moves]], [camera
 }
 
 
-def reduced(points: np.ndarray, camera) -> np.ndarray:
-    """Each person's at most 8 points (A, 8, 3) extreme in the camera's image: 2 per side."""
-    uv = camera.project(points.reshape(-1, 3)).reshape(len(points), -1, 2)
-    uv = np.where(np.isnan(uv), 0.0, uv)
-    keys = [uv[:, :, 0], -uv[:, :, 0], uv[:, :, 1], -uv[:, :, 1]]
-    idx = np.concatenate([np.argsort(k, axis=1)[:, :2] for k in keys], axis=1)
-    return np.take_along_axis(points, idx[:, :, None], axis=1)
+def seen_boxes(scenes: dict, seed: int, seconds: float, fps: float) -> dict[str, list]:
+    """Per scene of ``scenes`` (the same walkers, each its camera's moves): the frames' (frame, xyxy (N, 4), ids (N,))
+    of the seed's walkers, posed once (simgen.boxstream: ``bodies``, ``boxes_of``); a camera posed at a frame as
+    another scene's reuses its boxes."""
+    out: dict[str, list] = {name: [] for name in scenes}
+    for frame, segments, radii, ids in bodies(next(iter(scenes.values())), seed, seconds, fps):
+        done = {}
+        for name, scene in scenes.items():
+            cam = scene.camera_at(frame / fps)
+            if cam not in done:
+                xyxy, seen = boxes_of(cam, segments, radii)
+                done[cam] = (frame, xyxy, ids[seen])
+            out[name].append(done[cam])
+    return out
 
 
 def ground_grid() -> np.ndarray:
@@ -96,16 +102,15 @@ def range_error(transformer: ViewTransformer, camera, ground: np.ndarray) -> flo
 
 
 def run(scene, frames, fps, arl0):
-    """The calibrator over the cached frames seen by the scene's camera as it moves (``Scene.camera_at``): moves,
-    (t, estimate, true row) per person and the estimate at every frame (row)."""
+    """The calibrator over the frames' boxes (``seen_boxes``) of the scene's camera as it moves (``Scene.camera_at``):
+    moves, (t, estimate, true row) per person and the estimate at every frame (row)."""
     cam0 = scene.camera
     cal = OnlineCalibrator(cam0.K, cam0.mount_height_m, fps, (cam0.width, cam0.height), *HEIGHT, arl0_people=arl0)
     moves, track, rows = [], [], np.full(len(frames), np.nan)
-    for frame, points, ids in frames:
+    for frame, xyxy, ids in frames:
         t = frame / fps
         cam = scene.camera_at(t)
-        xyxy, seen = boxes_of(cam, points)
-        s = cal.update(frame, xyxy, ids[seen])
+        s = cal.update(frame, xyxy, ids)
         if s.move:
             moves.append(s.move)
         if s.person_rows:
@@ -303,34 +308,27 @@ def main() -> None:
     clicked = ViewTransformer(cam0.project_ground(scene.trapezoid_ground), scene.trapezoid_ground)
     ground = ground_grid()
     t0 = time.time()
-    cached = []
-    for seed in range(args.seeds):
-        frames = []
-        for frame, points, ids in body_points(scene, seed, seconds, args.fps):
-            small = reduced(points, cam0) if len(points) else points
-            if seed == 0 and frame % 50 == 0 and len(points):
-                moved = dataclasses.replace(cam0, tilt_deg=cam0.tilt_deg + 2.0)
-                assert np.array_equal(boxes_of(moved, points)[0], boxes_of(moved, small)[0]), frame
-            frames.append((frame, small, ids))
-        cached.append(frames)
+    moving = {name: dataclasses.replace(scene, moves=case(args.at)[0], sway=case(args.at)[1]) for name, case in CASES.items()}
+    scenes = {"static": scene, **({} if args.static_only else moving)}
+    cached = [seen_boxes(scenes, seed, seconds, args.fps) for seed in range(args.seeds)]
     hours = args.seeds * seconds / 3600
-    print(f"{args.scene}: {args.seeds} seeds x {args.minutes:g} min at {args.fps:g} fps posed in {time.time() - t0:.0f} s "
-          f"(boxes from the 8 extreme points equal all points' under a 2 degree tilt on seed 0, every 50th frame)")
+    people = sum(len(np.unique(np.concatenate([ids for _, _, ids in c["static"]]))) for c in cached)
+    print(f"{args.scene}: {args.seeds} seeds x {args.minutes:g} min at {args.fps:g} fps, {people:,} people in view "
+          f"(static camera), posed and seen in {time.time() - t0:.0f} s")
 
     print("\nstatic: false alarms per simulated hour by ARL0 (people)")
     for arl0 in [float(a) for a in args.arl0.split(",")]:
-        alarms = sum(len(run(scene, f, args.fps, arl0)[0]) for f in cached)
+        alarms = sum(len(run(scene, c["static"], args.fps, arl0)[0]) for c in cached)
         print(f"  ARL0 {arl0:>9,.0f}: {alarms} alarms in {hours:.2f} h = {alarms / hours:.2f} per hour")
     if args.static_only:
         return
 
     print(f"\nmoves at {args.at:g} s (ARL0 {args.case_arl0:,.0f}): delay median / 90th pct (s), missed, "
           "false alarms per hour, tracking RMS (px), range error 5-50 m static -> watched (%) at -10 s, and 0, 30, 60 s after detection")
-    for name, motion in CASES.items():
-        moving = dataclasses.replace(scene, moves=motion(args.at)[0], sway=motion(args.at)[1])
+    for name in CASES:
         delays, false, rms, errors = [], 0, [], []
-        for frames in cached:
-            moves, track, rows = run(moving, frames, args.fps, args.case_arl0)
+        for c in cached:
+            moves, track, rows = run(moving[name], c[name], args.fps, args.case_arl0)
             sway = name.startswith("sway")
             false += len(moves) if sway else sum(m.detected_s < args.at for m in moves)
             after = [m.detected_s for m in moves if m.detected_s >= args.at]
@@ -342,7 +340,7 @@ def main() -> None:
             row_errors = []
             for when in (args.at - 10, after[0], after[0] + 30, after[0] + 60):
                 frame = min(int(when * args.fps), len(rows) - 1)
-                cam = moving.camera_at(frame / args.fps)
+                cam = moving[name].camera_at(frame / args.fps)
                 watched = PedestrianCorrector(*HEIGHT).from_horizon(clicked, rows[frame], 0.0, cam0.K,
                                                                      cam0.mount_height_m, 3).transformer_
                 row_errors.append((range_error(clicked, cam, ground), range_error(watched, cam, ground)))
@@ -359,11 +357,9 @@ def main() -> None:
 
     print("\nthroughput and memory (all seeds' static streams back to back)")
     stream = []
-    for k, frames in enumerate(cached):
+    for k, c in enumerate(cached):
         offset = int(k * seconds * args.fps)
-        for frame, points, ids in frames:
-            xyxy, seen = boxes_of(cam0, points)
-            stream.append((frame + offset, xyxy, ids[seen] + 10**6 * k))
+        stream += [(frame + offset, xyxy, ids + 10**6 * k) for frame, xyxy, ids in c["static"]]
     def feed(watch_memory: bool) -> tuple[float, int, list, int]:
         cal = OnlineCalibrator(cam0.K, cam0.mount_height_m, args.fps, (cam0.width, cam0.height), *HEIGHT)
         start, boxes, peaks, hidden = time.perf_counter(), 0, [], 0

@@ -12,7 +12,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from homocal.dataset import load_dataset
-from simgen.boxstream import body_points, box_stream, boxes_of
+from simgen.boxstream import bodies, box_stream, boxes_of
 from simgen.cli import main
 from simgen.scene import CameraMove, Sway, camera_offsets, load_scene
 from simgen.stage import Stage
@@ -196,13 +196,13 @@ def test_rendered_people_and_calibration_follow_the_pose(moving):
     pose = pq.read_table(out / "camera_pose.parquet").to_pandas().set_index("step")
     first = dataclasses.replace(scene.camera, tilt_deg=16.0)  # the pose before the move at 0.5 s
     diffs = {"pose": [], "before the move": [], "detector": []}
-    for frame, points, ids in body_points(scene, 1, 1.0, 20):
+    for frame, segments, radii, ids in bodies(scene, 1, 1.0, 20):
         p = pose.loc[frame]
         cam = dataclasses.replace(scene.camera, tilt_deg=p.tilt_deg, roll_deg=p.roll_deg, yaw_deg=p.yaw_deg)
         rendered = gt[(gt.step == frame) & gt.x1.notna()].set_index("agent_id")[["x1", "y1", "x2", "y2"]]
         found = det[det.frame == frame].set_index("agent_id")[["x1", "y1", "x2", "y2"]]
         for key, camera in (("pose", cam), ("before the move", first)):
-            xyxy, seen = boxes_of(camera, points)
+            xyxy, seen = boxes_of(camera, segments, radii)
             for box, agent in zip(xyxy, ids[seen]):
                 if agent in rendered.index and (key == "pose" or frame >= 10):
                     diffs[key].append(np.abs(box - rendered.loc[agent].to_numpy()))

@@ -18,7 +18,7 @@ from test_browser import browser, click, idle, js, ui_server, wait_for  # noqa: 
 from homocal.geometry import SiteMap
 from homocal.ui import api
 from homocal.ui.session import from_files
-from simgen.boxstream import body_points, boxes_of
+from simgen.boxstream import bodies, boxes_of
 from simgen.scene import load_scene
 
 slow = pytest.mark.slow  # the stream (files): ~3 s of simgen's walkers
@@ -38,9 +38,9 @@ def files(tmp_path_factory) -> dict:
     folder = tmp_path_factory.mktemp("watch_ui")
     moved = dataclasses.replace(CAM, tilt_deg=CAM.tilt_deg + STEP_DEG)
     lines = {"moved": ["frame,x1,y1,x2,y2,track_id"], "static": ["frame,x1,y1,x2,y2,track_id"]}
-    for frame, points, ids in body_points(SCENE, 0, SECONDS, FPS):
+    for frame, segments, radii, ids in bodies(SCENE, 0, SECONDS, FPS):
         for name, cam in (("static", CAM), ("moved", moved if frame / FPS >= AT_S else CAM)):
-            xyxy, seen = boxes_of(cam, points)
+            xyxy, seen = boxes_of(cam, segments, radii)
             lines[name] += [f"{frame},{','.join(repr(float(x) + 0.5) for x in b)},{i}" for b, i in zip(xyxy, ids[seen])]
     out = {name: folder / f"{name}.csv" for name in lines}
     for name, path in out.items():
