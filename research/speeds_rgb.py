@@ -89,7 +89,7 @@ def report(path: str, grid: bool) -> None:
                                 ds.site_map.to_metres(np.asarray(exact["map"], float)))
     print(f"{ds.name} (seed {ds.manifest['seed']}): true horizon row {ds.camera.horizon_row:.1f} px")
     for detector in ("segmentation", "rgb"):
-        frames, xyxy, _, true_speed, rng = truth(ds, detector)
+        frames, xyxy, _, true_speed, rng, _ = truth(ds, detector)
         det = det_all[det_all.detector == detector].reset_index(drop=True)
         agents = det.agent_id.to_numpy()
         step = np.round(det.frame.to_numpy() / fps / dt).astype(np.int64)
