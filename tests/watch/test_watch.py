@@ -467,6 +467,7 @@ def test_apply_at_needs_a_watch_folder(tmp_path, capsys, monkeypatch):
     (["--height-mean", "9"], "argument --height-mean: expected a number in [0.5, 2.5] (m), got '9'"),
     (["--height-sd", "0.6"], "argument --height-sd: expected at most height_mean_m / 4 = 0.425 m, got 0.6"),
     (["--camera-height", "1e-9"], "argument --camera-height: expected a number in"),
+    (["--estimate-roll", "maybe"], "argument --estimate-roll: expected yes or no, got 'maybe'"),
     (["--out", "full"], "full: exists and is not empty (use another output folder)"),
 ])
 def test_watch_refuses_its_settings_as_fit_does(tmp_path, capsys, monkeypatch, extra, message):
