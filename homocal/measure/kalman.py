@@ -308,9 +308,9 @@ def imm_smoother(filtered: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarra
         xs, Ps = np.empty((n, M, M, d)), np.empty((n, M, M, d, d))
         for i in range(M):
             xi, Pf = filtered["x"][:, k, i], filtered["P"][:, k, i]
+            x_pred, FPF = np.einsum("nij,nj->ni", F, xi), F @ Pf @ F.transpose(0, 2, 1)  # the same under every model j
             for j in range(M):
-                x_pred = np.einsum("nij,nj->ni", F, xi)
-                P_pred = F @ Pf @ F.transpose(0, 2, 1) + Q[:, j]
+                P_pred = FPF + Q[:, j]
                 C = np.broadcast_to(np.eye(d), (n, d, d)).copy()
                 if moves.any():
                     C[moves] = np.linalg.solve(P_pred[moves], F[moves] @ Pf[moves]).transpose(0, 2, 1)
