@@ -301,9 +301,10 @@ def _read_csv_boxes(path: Path) -> PersonBoxes:
 
 def file_fps(path: Path) -> float | None:
     """The frame rate the boxes' file's folder says: a dataset's manifest.json "fps", a MOT sequence's
-    seqinfo.ini frameRate; None when neither is there."""
+    seqinfo.ini frameRate; None when neither is there; ValueError when it says a rate outside (0, MAX_FPS]."""
+    said = None
     if path.suffix.lower() == ".parquet" and (path.parent / "manifest.json").is_file():
-        return read_json(path.parent / "manifest.json").get("fps")
+        said = read_json(path.parent / "manifest.json").get("fps")
     seqinfo = path.parent.parent / "seqinfo.ini"
     if path.suffix.lower() == ".txt" and seqinfo.is_file():
         parser = configparser.ConfigParser()
@@ -311,5 +312,22 @@ def file_fps(path: Path) -> float | None:
             parser.read(seqinfo, encoding="utf-8")
         except (configparser.Error, UnicodeDecodeError) as e:
             raise ValueError(f"{seqinfo}: not a MOTChallenge seqinfo.ini ({e})") from None
-        return parser.get("Sequence", "frameRate", fallback=None)
-    return None
+        said = parser.get("Sequence", "frameRate", fallback=None)
+    if said is None:
+        return None
+    try:
+        fps = float(said)
+    except (TypeError, ValueError):
+        fps = math.nan
+    if not 0 < fps <= MAX_FPS:
+        raise ValueError(f"{path}: its folder's frame rate {said!r} is not in (0, {MAX_FPS:g}]: give --fps")
+    return fps
+
+
+def boxes_fps(path: Path, fps: float | None) -> float:
+    """Frames per second of the boxes' video: fps (--fps) when given, else ``file_fps``'s; ValueError naming
+    --fps when the file's folder does not say it (or says a rate outside (0, MAX_FPS])."""
+    said = fps if fps is not None else file_fps(path)
+    if said is None:
+        raise ValueError(f"--fps: required ({path} does not say its frame rate)")
+    return said

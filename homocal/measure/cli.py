@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +10,7 @@ import pyarrow.parquet as pq
 from tqdm import tqdm
 
 from homocal.arguments import CAMERA_JSON_HELP, camera_json, number
-from homocal.boxes import DEFAULT_DETECTOR, MAX_FPS, file_fps, read_boxes
+from homocal.boxes import DEFAULT_DETECTOR, MAX_FPS, boxes_fps, read_boxes
 from homocal.correctors.base import load_corrector
 from homocal.correctors.catalogue import label
 from homocal.correctors.serialization import FORMAT
@@ -119,21 +118,6 @@ def load_mapping(path: Path, camera_json_path: Path | None = None):
     return TrapezoidMapping(read_trapezoid_file(path, lens)[0], lens), "the trapezoid (uncorrected)"
 
 
-def check_fps(args: argparse.Namespace) -> float:
-    if args.fps is not None:
-        return args.fps
-    fps = file_fps(args.boxes)
-    if fps is None:
-        raise ValueError(f"--fps: required ({args.boxes} does not say its frame rate)")
-    try:
-        fps = float(fps)
-    except (TypeError, ValueError):
-        fps = math.nan
-    if not 0 < fps <= MAX_FPS:
-        raise ValueError(f"{args.boxes}: its folder's frame rate {fps!r} is not in (0, {MAX_FPS:g}]: give --fps")
-    return fps
-
-
 def check_image_size(mapping, size: tuple[int, int] | None, args: argparse.Namespace) -> None:
     """ValueError when the boxes' image size is known and the correction's clicked corners (or the pedestrian
     fit's principal point) lie outside that image by more than a pixel: a correction of another camera."""
@@ -179,7 +163,7 @@ def handle_measure(args: argparse.Namespace) -> int:
     for flag, (path, columns) in outputs.items():
         if path is not None:
             check_output_file(path, lambda p, c=columns: parquet_columns(p) == list(c), f"table of homocal measure {flag}")
-    fps = check_fps(args)
+    fps = boxes_fps(args.boxes, args.fps)
     mapping, what = load_mapping(args.correction, args.camera_json)
     lens = getattr(mapping, "lens_", None)
     boxes = read_boxes(args.boxes, args.detector, lens, undistort=False)  # the camera's pixels: the border is there

@@ -19,7 +19,7 @@ from homocal.geometry.lens import undistort_input
 from homocal.geometry import Lens, SiteMap
 from homocal.lens.lines import DEFAULT_HFOV_DEG, DEFAULT_TERMS
 from homocal.lens.lines import TERMS as LENS_TERMS
-from homocal.boxes import MAX_FPS, file_fps
+from homocal.boxes import file_fps
 
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm")
 
@@ -109,10 +109,9 @@ def from_files(frame: Path, site_map_image: Path, site_map: SiteMap, camera_orig
 def _folder_fps(boxes: Path) -> float | None:
     """The frame rate the boxes file's folder says (file_fps), None if it says none or one out of (0, MAX_FPS]."""
     try:
-        fps = float(file_fps(boxes))
-    except (TypeError, ValueError):
+        return file_fps(boxes)
+    except ValueError:
         return None
-    return fps if 0 < fps <= MAX_FPS else None
 
 
 def _boxes_file(path: Path) -> tuple[Path, tuple[str, ...]]:

@@ -22,7 +22,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from homocal.arguments import camera_json, number, xy_pair
-from homocal.boxes import CSV_COLUMNS, CSV_CONVENTION, MAX_FPS, MAX_LINE_CHARS, read_boxes
+from homocal.boxes import CSV_COLUMNS, CSV_CONVENTION, MAX_FPS, MAX_LINE_CHARS, boxes_fps, read_boxes
 from homocal.correctors.cli import add_pedestrian_flags, pedestrian_flag_error
 from homocal.files import create_temporary, output_folder, write_json_atomic
 from homocal.geometry import ViewTransformer, read_trapezoid_file
@@ -60,7 +60,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    f".csv of {','.join(CSV_COLUMNS)}[,track_id] (corner pixels), or - for such CSV lines on standard "
                    "input, as a running detector writes them; frames in time order")
     p.add_argument("--detector", metavar="NAME", help="a detections.parquet's detector (default segmentation)")
-    p.add_argument("--fps", required=True, type=number(float, 0, MAX_FPS, low_open=True), help="frames per second of the boxes' video")
+    p.add_argument("--fps", type=number(float, 0, MAX_FPS, low_open=True), metavar="F",
+                   help="frames per second of the boxes' video (default: the boxes' file's, when it says it; "
+                        "needed for standard input)")
     p.add_argument("--camera-json", type=Path, metavar="CAMERA.json", help="the image size and intrinsics K (default: "
                    "those beside the boxes file); needed for a CSV or standard input")
     add_pedestrian_flags(p, WATCH_SETTINGS)
@@ -79,6 +81,9 @@ def handle_watch(args: argparse.Namespace) -> int:
     transformer = read_trapezoid_file(args.trapezoid, lens)[0]
     if args.detector is not None and not str(args.boxes).endswith(".parquet"):
         raise ValueError("--detector: for a detections.parquet")
+    if args.boxes == "-" and args.fps is None:
+        raise ValueError("--fps: required with --boxes - (standard input does not say its frame rate)")
+    fps = boxes_fps(Path(args.boxes), args.fps)
     stream, size, K = _open_boxes(args, lens)
     if camera is not None:
         size, K = camera.image_size, camera.K
@@ -87,10 +92,10 @@ def handle_watch(args: argparse.Namespace) -> int:
     K, height = camera_of(transformer, size, K, args.camera_height_m)
     prior = {name: getattr(args, name) for name in PRIOR if getattr(args, name) is not None}
     try:
-        calibrator = OnlineCalibrator(K, height, args.fps, size, **prior, arl0_people=args.arl0_people, lens=lens)
+        calibrator = OnlineCalibrator(K, height, fps, size, **prior, arl0_people=args.arl0_people, lens=lens)
     except OptionError as e:
         raise pedestrian_flag_error(e) from None
-    settings = {"format": TOOL, "boxes": str(args.boxes), "detector": args.detector, "fps": args.fps,
+    settings = {"format": TOOL, "boxes": str(args.boxes), "detector": args.detector, "fps": fps,
                 "camera_height_m": height, "K": K.tolist(), "image_size": None if size is None else list(size),
                 "height_mean_m": calibrator.height_mean_m, "height_sd_m": calibrator.height_sd_m,
                 "estimate_roll": calibrator.estimate_roll, "arl0_people": args.arl0_people, "threshold": calibrator.threshold}

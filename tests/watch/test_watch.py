@@ -454,6 +454,52 @@ def test_watch_refuses_a_file_out_of_time_order_before_writing(tmp_path, capsys,
     assert not (tmp_path / "out").exists()
 
 
+def without_fps(flags):
+    i = flags.index("--fps")
+    return flags[:i] + flags[i + 2:]
+
+
+def test_watch_takes_the_frame_rate_a_mot_sequence_says(tmp_path, capsys, monkeypatch):
+    """A MOT .txt beside its seqinfo.ini needs no --fps: its frameRate is the boxes' (as homocal measure's); the
+    same boxes at --fps give the same horizon table."""
+    frames = list(stream(60, seed=3))
+    flags = without_fps(write_inputs(tmp_path, frames))
+    (tmp_path / "SEQ" / "det").mkdir(parents=True)
+    (tmp_path / "SEQ" / "seqinfo.ini").write_text(f"[Sequence]\nname=x\nframeRate={FPS}\nseqLength=400\n"
+                                                  f"imWidth={CAM.width}\nimHeight={CAM.height}\n")
+    (tmp_path / "SEQ" / "det" / "det.txt").write_text("".join(  # MOT: frames 1-based, boxes 1-based pixels
+        f"{f + 1},{i},{float(b[0]) + 1.5!r},{float(b[1]) + 1.5!r},{float(b[2] - b[0])!r},{float(b[3] - b[1])!r},1,-1,-1,-1\n"
+        for f, boxes, ids in frames for b, i in zip(boxes, ids)))
+    r = homocal_main("watch", *flags, "--boxes", "SEQ/det/det.txt", "--out", "mot", cwd=tmp_path, capsys=capsys,
+                     monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    assert json.loads((tmp_path / "mot/watch.json").read_text())["fps"] == FPS
+    r = homocal_main("watch", *flags, "--boxes", "SEQ/det/det.txt", "--fps", str(FPS), "--out", "given", cwd=tmp_path,
+                     capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    mot, given = (pq.read_table(tmp_path / d / "horizon.parquet").to_pandas() for d in ("mot", "given"))
+    assert len(mot) > 10
+    assert mot.equals(given)
+
+
+@pytest.mark.parametrize("boxes, rate, message", [
+    ("boxes.csv", None, "--fps: required (boxes.csv does not say its frame rate)"),
+    ("-", None, "--fps: required with --boxes - (standard input does not say its frame rate)"),
+    ("SEQ/det/det.txt", "0", "its folder's frame rate '0' is not in (0, 1000]: give --fps"),
+    ("SEQ/det/det.txt", "fast", "its folder's frame rate 'fast' is not in (0, 1000]: give --fps"),
+])
+def test_watch_without_a_frame_rate_is_refused_before_writing(tmp_path, capsys, monkeypatch, boxes, rate, message):
+    flags = without_fps(write_inputs(tmp_path, stream(5, seed=8)))
+    (tmp_path / "SEQ" / "det").mkdir(parents=True)
+    (tmp_path / "SEQ" / "seqinfo.ini").write_text(f"[Sequence]\nname=x\nframeRate={rate}\n")
+    (tmp_path / "SEQ" / "det" / "det.txt").write_text("1,1,100,100,20,80,1,-1,-1,-1\n")
+    monkeypatch.setattr("sys.stdin", io.StringIO("frame,x1,y1,x2,y2\n"))
+    r = homocal_main("watch", *flags, "--boxes", boxes, "--out", "out", cwd=tmp_path, capsys=capsys,
+                     monkeypatch=monkeypatch)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and message in r.stderr, r.stderr
+    assert not (tmp_path / "out").exists()
+
+
 def test_apply_at_needs_a_watch_folder(tmp_path, capsys, monkeypatch):
     write_inputs(tmp_path, [])
     (tmp_path / "feet.csv").write_text("u,v\n600,400\n")
