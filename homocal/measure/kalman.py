@@ -203,7 +203,8 @@ def mixture_half_width(centre: np.ndarray, w: np.ndarray, means: np.ndarray, sig
     k = 1, 95.45 % at k = 2): the root of sum_m w_m [Phi((c + h - m_m) / s_m) - Phi((c - h - m_m) / s_m)] =
     Phi(k) - Phi(-k), which grows with h, by a vectorised bisection between k min_m s_m (no component holds
     more than that share within it) and max_m (|c - m_m| + k s_m) (each holds at least that share), to
-    HALF_WIDTH_TOLERANCE x h. One component centred on c: k s exactly. NaN where a sigma is NaN."""
+    HALF_WIDTH_TOLERANCE x h. One component centred on c: k s exactly; a component of sigma 0 is a point mass at
+    its mean. NaN where a sigma is NaN."""
     share = ndtr(k) - ndtr(-k)
     c = centre[..., None]
     lo, hi = k * sigmas.min(axis=-1), (np.abs(c - means) + k * sigmas).max(axis=-1)
@@ -213,7 +214,9 @@ def mixture_half_width(centre: np.ndarray, w: np.ndarray, means: np.ndarray, sig
     while open_.size:
         mid = (lo[open_] + hi[open_]) / 2
         h, m, s = mid[:, None], means[open_], sigmas[open_]
-        held = np.sum(w[open_] * (ndtr((c[open_] + h - m) / s) - ndtr((c[open_] - h - m) / s)), axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            below = [np.where(s > 0, ndtr(a / s), a >= 0) for a in (c[open_] + h - m, c[open_] - h - m)]
+        held = np.sum(w[open_] * (below[0] - below[1]), axis=1)
         lo[open_], hi[open_] = np.where(held < share, mid, lo[open_]), np.where(held < share, hi[open_], mid)
         open_ = open_[hi[open_] - lo[open_] > HALF_WIDTH_TOLERANCE * hi[open_]]
     return ((lo + hi) / 2).reshape(np.shape(centre))

@@ -133,6 +133,10 @@ def test_mixture_half_width_is_the_quantile_of_draws_from_the_mixture():
                           / (sigmas[i, m] * np.sqrt(2 * np.pi)) for m in range(2) for side in (1, -1))
             se = np.sqrt(share * (1 - share) / n) / density
             assert abs(h[i] - quantile) < 4 * se + HALF_WIDTH_TOLERANCE * quantile, (k, i, h[i], quantile, se)
+    # point masses (sigma 0: exact states): 90 % at the centre holds 68 %; 95.45 % needs the 10 % 0.2 away
+    exact = [mixture_half_width(np.array([1.0]), np.array([[0.9, 0.1]]), np.array([[1.0, 1.2]]), np.zeros((1, 2)), k)[0]
+             for k in (1.0, 2.0)]
+    assert exact[0] < 1e-12 and abs(exact[1] - 0.2) <= HALF_WIDTH_TOLERANCE * 0.2, exact
     # the narrow core's bar is far under the moment-matched sigma, which the tail's variance dominates
     assert mixture_half_width(centre, w, means, sigmas)[0] < 0.5 * np.sqrt(np.sum(w[0] * (sigmas[0]**2 + (means[0] - w[0] @ means[0])**2)))
 
