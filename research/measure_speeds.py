@@ -58,8 +58,9 @@ homocal.measure.tracks.foot_status; their shares printed to stderr); the recipe 
 every box.
 --steadiness: instead, the smoothed speeds' 1/2-sigma coverage at 5-50 m pooled over the datasets per bin of the
 true velocity's change over STEADY_S about the box (STEADINESS_BINS_MPS; ``steadiness_table``): a walker at a
-steady pace or standing against one who turns, starts or stops; and the positions' 1/2-sigma coverage within
-sigma_m and within the error ellipse. With --spread both tables, from the same evaluations.
+steady pace or standing against one who turns, starts or stops; per range band the coverage and the quantiles
+of |error| / sigma at 68.27 and 95.45 %; and the positions' 1/2-sigma coverage within sigma_m and within the
+error ellipse. With --spread both tables, from the same evaluations.
 --mappings NAMES: only these of MAPPINGS (comma-separated; the recipe is always measured).
 --fit-imm: instead, the two-regime motion model's constants (homocal.measure.kalman.fit_imm: IMM_ACCEL_PSD,
 IMM_SWITCH_PER_S) by maximum likelihood over the datasets' and --detectors' tracks pooled (``imm_inputs``).
@@ -359,7 +360,9 @@ def spread_table(per_dataset: list[dict], detector: str, shift: float) -> str:
 
 def steadiness_table(pooled: dict, detector: str) -> str:
     """The smoothed speeds' 1/2-sigma coverage at 5-50 m by how steady the true velocity is (its change over
-    STEADY_S, STEADINESS_BINS_MPS): per bin its share of the boxes, the coverage, the median error and bar, m/s."""
+    STEADY_S, STEADINESS_BINS_MPS): per bin its share of the boxes, the coverage, the median error and bar, m/s;
+    per range band (BANDS) the coverage and the quantiles of |error| / sigma at a normal's 1 and 2 sigma shares
+    (the bar's scale that would cover what it says); the positions' coverage."""
     lines = [f"{detector} boxes, 5-50 m, by the true velocity's change over {STEADY_S:g} s", "",
              "| method | change, m/s | boxes | 1/2-sigma speeds | median error, m/s | median sigma, m/s |",
              "|---|---|---:|---:|---:|---:|"]
@@ -373,6 +376,20 @@ def steadiness_table(pooled: dict, detector: str) -> str:
                 lines.append(f"| {key} | {lo:g}-{hi:g} | {100 * sel.sum() / band.sum():.1f} % | "
                              f"{100 * p['cover1'][sel].mean():.1f} / {100 * p['cover2'][sel].mean():.1f} % | "
                              f"{np.median(p['err'][sel]):.3f} | {np.median(p['sigma'][sel]):.3f} |")
+    shares = [ndtr(k) - ndtr(-k) for k in (1, 2)]
+    lines += ["", "Speeds by range: the 1/2-sigma coverage and the share 68.27 / 95.45 % of the boxes' |error| / sigma "
+              "reaches (honest normal bars: 1 / 2)", "", "| method | range, m | 1/2-sigma speeds | |error| / sigma |",
+              "|---|---|---:|---:|"]
+    for key, p in pooled.items():
+        if key.endswith("smoother"):
+            for lo, hi in BANDS:
+                b = (p["range"] >= lo) & (p["range"] < hi)
+                if not b.any():
+                    continue
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    q = np.nanquantile(p["err"][b] / p["sigma"][b], shares)
+                lines.append(f"| {key} | {lo:g}-{hi:g} | {100 * p['cover1'][b].mean():.1f} / {100 * p['cover2'][b].mean():.1f} % "
+                             f"| {q[0]:.2f} / {q[1]:.2f} |")
     lines += ["", "Positions at 5-50 m: within k sigma_m (the semi-major axis) and within the k-sigma ellipse", "",
               "| method | 1/2 sigma_m | 1/2-sigma ellipse |", "|---|---:|---:|"]
     for key, p in pooled.items():

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
+from scipy.special import ndtr
 
 ACCEL_PSD = 0.5
 """q, m^2/s^3: a walker's velocity wanders by sqrt(q T) m/s in T seconds (0.7 m/s in one second, enough for a
@@ -188,6 +189,47 @@ def speed_and_sigma(v: np.ndarray, Pv: np.ndarray) -> tuple[np.ndarray, np.ndarr
         along = np.einsum("...i,...ij,...j->...", v, Pv, v) / speed**2
     largest = np.linalg.eigvalsh(np.nan_to_num(Pv))[..., -1]
     return speed, np.sqrt(np.where(speed > 0, along, np.where(np.isnan(speed), np.nan, largest)))
+
+
+HALF_WIDTH_TOLERANCE = 1e-3
+"""``mixture_half_width``'s bisection stops once its bracket is narrower than this share of the half-width (a
+thousandth of the bar, far below the bar's own uncertainty)."""
+
+
+def mixture_half_width(centre: np.ndarray, w: np.ndarray, means: np.ndarray, sigmas: np.ndarray, k: float = 1.0
+                       ) -> np.ndarray:
+    """The half-width h (...,) of the interval centre (...,) +- h that holds as much of a mixture of normals,
+    weights w (..., M) summing to 1, means and sigmas (..., M), as +- k sigma holds of one normal (68.27 % at
+    k = 1, 95.45 % at k = 2): the root of sum_m w_m [Phi((c + h - m_m) / s_m) - Phi((c - h - m_m) / s_m)] =
+    Phi(k) - Phi(-k), which grows with h, by a vectorised bisection between k min_m s_m (no component holds
+    more than that share within it) and max_m (|c - m_m| + k s_m) (each holds at least that share), to
+    HALF_WIDTH_TOLERANCE x h. One component centred on c: k s exactly; a component of sigma 0 is a point mass at
+    its mean. NaN where a sigma is NaN."""
+    share = ndtr(k) - ndtr(-k)
+    c = centre[..., None]
+    lo, hi = k * sigmas.min(axis=-1), (np.abs(c - means) + k * sigmas).max(axis=-1)
+    lo, hi = np.array(lo, dtype=np.float64, ndmin=1), np.array(hi, dtype=np.float64, ndmin=1)
+    c, w, means, sigmas = (np.reshape(a, (len(lo), -1)) for a in np.broadcast_arrays(c, w, means, sigmas))
+    open_ = np.flatnonzero(hi - lo > HALF_WIDTH_TOLERANCE * hi)
+    while open_.size:
+        mid = (lo[open_] + hi[open_]) / 2
+        h, m, s = mid[:, None], means[open_], sigmas[open_]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            below = [np.where(s > 0, ndtr(a / s), a >= 0) for a in (c[open_] + h - m, c[open_] - h - m)]
+        held = np.sum(w[open_] * (below[0] - below[1]), axis=1)
+        lo[open_], hi[open_] = np.where(held < share, mid, lo[open_]), np.where(held < share, hi[open_], mid)
+        open_ = open_[hi[open_] - lo[open_] > HALF_WIDTH_TOLERANCE * hi[open_]]
+    return ((lo + hi) / 2).reshape(np.shape(centre))
+
+
+def mixture_speed(w: np.ndarray, v: np.ndarray, Pv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Speed (...,) m/s of a mixture of velocities, weights w (..., M), means v (..., M, 2), covariances Pv
+    (..., M, 2, 2): |sum_m w_m v_m|; and its equivalent 1-sigma (...,) m/s: the ``mixture_half_width`` about it
+    holding 68.27 % of the mixture of the models' speed distributions, each normal by ``speed_and_sigma``.
+    With one model it is ``speed_and_sigma``'s sigma, exactly."""
+    speed = np.linalg.norm(np.einsum("...m,...md->...d", w, v), axis=-1)
+    means, sigmas = speed_and_sigma(v, Pv)
+    return speed, mixture_half_width(speed, w, means, sigmas)
 
 
 IMM = "imm"
@@ -360,13 +402,15 @@ def motion_model(accel_psd: float | str) -> tuple[tuple[float, ...], tuple[float
 
 
 def track_states(t: np.ndarray, z: np.ndarray, R: np.ndarray, accel_psd: float | str, smooth: bool,
-                 foot: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """States (n, L, d) and covariances (n, L, d, d) of tracks (arguments as ``kalman_filter``'s) under a
-    process noise q (``kalman_filter``, with smooth ``rts_smoother``) or IMM (``imm_filter``, with smooth
-    ``imm_smoother``: the models' ``mixture``)."""
+                 foot: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The models' probabilities (n, L, M), states (n, L, M, d) and covariances (n, L, M, d, d) of tracks
+    (arguments as ``kalman_filter``'s) under a process noise q (one model: ``kalman_filter``, with smooth
+    ``rts_smoother``) or IMM (two: ``imm_filter``, with smooth ``imm_smoother``); ``mixture`` gives their
+    moment-matched state, ``mixture_speed`` the speed and its bars."""
     if accel_psd != IMM:
         filtered = kalman_filter(t, z, R, accel_psd, foot)
-        return rts_smoother(filtered) if smooth else (filtered["x"], filtered["P"])
+        x, P = rts_smoother(filtered) if smooth else (filtered["x"], filtered["P"])
+        return np.ones(t.shape + (1,)), x[:, :, None], P[:, :, None]
     filtered = imm_filter(t, z, R, *motion_model(IMM), foot)
     x, P, mu = imm_smoother(filtered) if smooth else (filtered["x"], filtered["P"], filtered["mu"])
-    return mixture(mu, x, P)
+    return mu, x, P

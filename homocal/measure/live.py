@@ -10,7 +10,7 @@ import numpy as np
 
 from homocal.correctors.pedestrians import _check_image_size
 from homocal.geometry.boxes import box_bottom_points, box_edges
-from homocal.measure.kalman import ACCEL_PSD, correlated_noise, imm_start, imm_step, mixture, motion_model
+from homocal.measure.kalman import ACCEL_PSD, correlated_noise, imm_start, imm_step, motion_model
 from homocal.measure.tracks import (FEET, FOOT, FOOT_NOISE, as_mapping, foot_noise_options, foot_status, map_points,
                                    point_noise, state_speed)
 from homocal.uncertainty import sigma_radius
@@ -26,7 +26,8 @@ class GroundState:
 
     Attributes: tracker_id (N,) int64; xy (N, 2) mapped foot points, metres; sigma_m (N,) their 1-sigma
     radius; xy_filtered (N, 2) and velocity (N, 2) m/s, the forward Kalman filter's state; speed_mps (N,)
-    and speed_sigma_mps (N,) its speed and delta-method 1-sigma (homocal.measure.kalman), NaN for a track not
+    and speed_sigma_mps (N,) its speed and 1-sigma (homocal measure's: the delta method, with IMM the half-width
+    holding 68.27 % of the models' mixture; homocal.measure.kalman.mixture_speed), NaN for a track not
     measured yet; foot (N,) str, one of homocal.measure.tracks.FOOT: the foot point measured ("used") or, with
     feet="soles", predicted through ("hidden", "border")."""
 
@@ -110,8 +111,7 @@ class GroundTracker:
         step = imm_step(x, P, mu, dt, np.where(used[:, None], xy, np.nan), R, *self._motion, correlated)
         for i, k in enumerate(ids.tolist()):
             self._tracks[k] = (step["x"][i], step["P"][i], step["mu"][i], int(frame), bool(known[i]))
-        x, P = mixture(step["mu"], step["x"], step["P"])
-        x = np.where(known[:, None], x, np.nan)  # no foot point of the track measured yet: nothing known
-        speed, speed_sigma = state_speed(self.mapping, feet, x, P,
-                                         self.click_sigma_px if noise["split_mapping_error"] else None)
+        x = np.where(known[:, None, None], step["x"], np.nan)  # no foot point of the track measured yet: nothing known
+        x, speed, speed_sigma = state_speed(self.mapping, feet, step["mu"], x, step["P"],
+                                            self.click_sigma_px if noise["split_mapping_error"] else None)
         return GroundState(ids.astype(np.int64), xy, sigma_radius(cov), x[:, :2], x[:, 2:4], speed, speed_sigma, foot)

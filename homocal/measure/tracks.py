@@ -15,7 +15,8 @@ import numpy as np
 
 from homocal.geometry import Lens, ViewTransformer
 from homocal.geometry.boxes import cut_edges, hidden_feet
-from homocal.measure.kalman import ACCEL_PSD, correlated_noise, fit_accel_psd, speed_and_sigma, track_states
+from homocal.measure.kalman import (ACCEL_PSD, correlated_noise, fit_accel_psd, mixture, mixture_speed,
+                                   track_states)
 from homocal.uncertainty import STEP, click_jacobian, ground_uncertainty, sigma_radius
 
 COLUMNS = ("frame", "t", "track_id", "u", "v", "x", "y", "sigma_m", "x_smooth", "y_smooth", "vx", "vy", "speed_mps",
@@ -184,15 +185,19 @@ def mapping_velocity_covariance(mapping: Mapping, feet: np.ndarray, v: np.ndarra
     return D @ C @ D.transpose(0, 2, 1)
 
 
-def state_speed(mapping: Mapping, feet: np.ndarray, x: np.ndarray, P: np.ndarray, click_sigma_px: float | None
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """Speed (N,) m/s and its 1-sigma of the filter's states x (N, d) and covariances P (N, d, d) at foot points
-    (N, 2) px (kalman.speed_and_sigma of the velocity's block), plus the shared mapping error's share
-    (``mapping_velocity_covariance`` at click_sigma_px) unless click_sigma_px is None."""
-    Pv = P[:, 2:4, 2:4]
+def state_speed(mapping: Mapping, feet: np.ndarray, mu: np.ndarray, x: np.ndarray, P: np.ndarray,
+                click_sigma_px: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The moment-matched state (N, d) of the filter's models (probabilities mu (N, M), states x (N, M, d),
+    covariances P (N, M, d, d); ``kalman.mixture``), its speed (N,) m/s and the speed's 1-sigma (N,) m/s
+    (``kalman.mixture_speed`` of the models' velocity blocks: with one model the delta-method sigma, with more
+    the half-width that holds 68.27 % of their mixture), at foot points (N, 2) px; unless click_sigma_px is None
+    each model's velocity covariance takes the shared mapping error's share (``mapping_velocity_covariance`` at
+    the mixture's velocity, click_sigma_px)."""
+    mean = mixture(mu, x, P)[0]
+    Pv = P[..., 2:4, 2:4]
     if click_sigma_px is not None:
-        Pv = Pv + mapping_velocity_covariance(mapping, feet, x[:, 2:4], click_sigma_px)
-    return speed_and_sigma(x[:, 2:4], Pv)
+        Pv = Pv + mapping_velocity_covariance(mapping, feet, mean[:, 2:4], click_sigma_px)[:, None]
+    return (mean,) + mixture_speed(mu, x[..., 2:4], Pv)
 
 
 def check_tracks(frames: np.ndarray, track_ids: np.ndarray) -> None:
@@ -304,8 +309,10 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
             measured yet (filter) or in the whole track (smoother).
     x, y are the mapped foot points, sigma_m their 1-sigma radius (homocal.sigma_radius of the mapping's
     ground_uncertainty at click_sigma_px, point_sigma_px: the filter's measurement noise); x_smooth, y_smooth,
-    vx, vy the filter's state; speed_mps = |(vx, vy)| and speed_sigma_mps its delta-method 1-sigma from the
-    state's velocity covariance (kalman.speed_and_sigma).
+    vx, vy the filter's state (with IMM its models' moment-matched mixture); speed_mps = |(vx, vy)| and
+    speed_sigma_mps its 1-sigma (``state_speed``): the delta method on the state's velocity covariance
+    (kalman.speed_and_sigma), with IMM the half-width about speed_mps holding 68.27 % of the models' mixture of
+    speeds (kalman.mixture_speed).
     """
     if foot_correlation_s is not None and not (split_mapping_error and foot_correlation_s > 0):
         raise ValueError(f"foot_correlation_s: expected > 0 with split_mapping_error=True, got {foot_correlation_s!r}")
@@ -318,14 +325,14 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
         rows = np.concatenate(batch)
         xy, cov, (t, z, R, correlated) = filter_inputs(mapping, frames, feet, fps, batch, click_sigma_px,
                                                        point_sigma_px, split_mapping_error, foot_correlation_s, foot)
-        x, P = track_states(t, z, R, accel_psd, smooth, correlated)
+        mu, x, P = track_states(t, z, R, accel_psd, smooth, correlated)
         seen = np.isfinite(z).all(axis=2)  # (n, L): the steps measured
         x[np.broadcast_to(~seen.any(axis=1, keepdims=True) if smooth else np.cumsum(seen, axis=1) == 0, seen.shape)] = np.nan
         L = t.shape[1]
         used = np.concatenate([np.arange(len(r)) + i * L for i, r in enumerate(batch)])
-        d = x.shape[-1]
-        x, P = x.reshape(-1, d)[used], P.reshape(-1, d, d)[used]
-        speed, speed_sigma = state_speed(mapping, feet[rows], x, P, click_sigma_px if split_mapping_error else None)
+        M, d = x.shape[-2:]
+        x, speed, speed_sigma = state_speed(mapping, feet[rows], mu.reshape(-1, M)[used], x.reshape(-1, M, d)[used],
+                                            P.reshape(-1, M, d, d)[used], click_sigma_px if split_mapping_error else None)
         yield {"frame": frames[rows], "t": frames[rows] / fps, "track_id": track_ids[rows], "u": feet[rows, 0],
                "v": feet[rows, 1], "x": xy[:, 0], "y": xy[:, 1], "sigma_m": sigma_radius(cov), "x_smooth": x[:, 0],
                "y_smooth": x[:, 1], "vx": x[:, 2], "vy": x[:, 3], "speed_mps": speed, "speed_sigma_mps": speed_sigma,

@@ -3,6 +3,7 @@ import importlib.util
 from pathlib import Path
 
 import numpy as np
+from scipy.special import ndtr, ndtri
 
 SCRIPT = Path(__file__).resolve().parents[2] / "research" / "measure_speeds.py"
 spec = importlib.util.spec_from_file_location("measure_speeds", SCRIPT)
@@ -126,3 +127,25 @@ def test_exact_path_measures_the_true_speeds_of_exact_foot_points(tmp_path):
     assert rows[0].startswith("| exact, smoother | 0-0.1 |") and rows[1] == ""
     # exact foot points: every position inside its bars
     assert rows[-1] == "| exact, smoother | 100.0 / 100.0 % | 100.0 / 100.0 % |"
+
+
+def test_steadiness_table_gives_the_bar_scale_that_would_cover():
+    """Per range band, the quantiles of |error| / sigma at a normal's 1 and 2 sigma shares: errors that are |N(0, 1)|
+    (its evenly spaced quantiles) with sigma 1 give 1 and 2 and cover 68.3 / 95.4 %; the same errors with a bar
+    twice as wide give 0.5 and 1, and 95.4 / 100 % covered."""
+    n = 20_000
+    err = np.abs(ndtri((np.arange(n) + 0.5) / n))  # |N(0, 1)|'s quantiles
+    rng = np.where(np.arange(n) % 2, 10.0, 40.0)  # every other one at 5-15 m, the others at 30-50 m
+    share = 100 * np.array([ndtr(1) - ndtr(-1), ndtr(2) - ndtr(-2)])
+    for scale, covered, reach in ((1.0, share, [1.0, 2.0]), (2.0, [share[1], 100.0], [0.5, 1.0])):
+        sigma = np.full(n, scale)
+        p = {"k, smoother": {"err": err, "sigma": sigma, "range": rng, "change": np.zeros(n),
+                             "cover1": err <= sigma, "cover2": err <= 2 * sigma, "pos1": np.ones(n), "pos2": np.ones(n),
+                             "ellipse1": np.ones(n), "ellipse2": np.ones(n)}}
+        for band in ("5-15", "30-50", "5-50"):
+            row = [r for r in script.steadiness_table(p, "rgb").splitlines() if r.startswith(f"| k, smoother | {band} |")]
+            cells = [[float(v) for v in c.strip(" %").split(" / ")] for c in row[0].strip("|").split("|")[2:]]
+            # the table's rounding (0.05 % and 0.005) and a band's quantile step (2 / n; in |error| / sigma at most
+            # 2 / n over |N(0, 1)|'s density at 2, 0.108)
+            np.testing.assert_allclose(cells[0], covered, atol=0.05 + 100 * 2 / n)
+            np.testing.assert_allclose(cells[1], reach, atol=0.005 + 2 / n / 0.108)
