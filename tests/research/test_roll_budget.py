@@ -5,6 +5,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from homocal.correctors.pedestrians import fit_tilt, fit_tilt_roll
 from homocal.geometry import PinholeCamera
@@ -69,3 +70,17 @@ def test_linearised_error_with_walks_is_the_fits():
     assert abs(walks["share"].sum(0)[1] - actual[1]) < walks["roll_sigma"] / 4
     assert abs(walks["heights"][1]) < abs(alone["heights"][1]) / 2
     np.testing.assert_allclose(walks["roll_sigma"], math.degrees(math.sqrt(fit["cov"][1, 1])), rtol=0.1)
+
+
+@pytest.mark.parametrize("share", [0.5, 0.75])
+def test_middle_share_is_where_the_box_was_centred(share):
+    """Boxes 10 px wide centred ``share`` of the way from a person's foot's column to the head's (both by
+    PinholeCamera.project of the ground point and of the point the person's height above it, CAM rolled 1 degree):
+    middle_share gives ``share`` to rounding, over the boxes whose axis leans over LEAN_PX."""
+    rng = np.random.default_rng(2)
+    ground, height = np.column_stack([rng.uniform(-12, 12, 200), rng.uniform(6, 30, 200)]), rng.uniform(1.5, 1.9, 200)
+    sole, crown = CAM.project(np.column_stack([ground, np.zeros(200)])), CAM.project(np.column_stack([ground, height]))
+    middle = sole[:, 0] + share * (crown[:, 0] - sole[:, 0])
+    boxes = np.column_stack([middle - 5, crown[:, 1], middle + 5, sole[:, 1]])
+    got, n = script.middle_share(boxes, ground, height, CAM)
+    assert got == pytest.approx(share, abs=1e-9) and n == (np.abs(crown[:, 0] - sole[:, 0]) > script.LEAN_PX).sum() > 50
