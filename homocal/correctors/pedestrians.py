@@ -356,7 +356,8 @@ def upright_columns(middle: np.ndarray, foot_rows: np.ndarray, head_rows: np.nda
     m, yf, yt = middle - cx, foot_rows - cy, head_rows - cy
     total = yf + yt
     with np.errstate(divide="ignore", invalid="ignore"):
-        base, slope = focal_px * (s * total - 2 * c * m) / (total * t - 2 * focal_px * c), 2 * (m * t - focal_px * s) / (total * t - 2 * focal_px * c)
+        scale = 1.0 / (total * t - 2 * focal_px * c)
+    base, slope = focal_px * (s * total - 2 * c * m) * scale, 2 * (m * t - focal_px * s) * scale
     return cx + base + slope * yf, cx + base + slope * yt
 
 
