@@ -6,8 +6,8 @@ Run: python research/box_heights.py DATASET [DATASET ...] [--detectors segmentat
 Per dataset and detector, every box of detections.parquet clear of the frame's border (on_border, as the fit
 leaves them out) is undistorted with camera.json's lens (homocal.geometry.undistort_boxes, as homocal fit
 --camera-json does; --lens ignore: read as a pinhole's, as homocal study --lens ignore does) and its implied height computed at camera.json's tilt_deg and roll_deg and mount_height_m
-(homocal.correctors.pedestrians.implied_heights of the derolled foot and head rows: the fit's own model at the
-true pose). The people's true heights are simgen's: the person drawn for each agent (simgen.agents.Crowd of the
+(homocal.correctors.pedestrians.upright_heights: the derolled rows of the foot and the head on the vertical through
+the box, the fit's own model at the true pose). The people's true heights are simgen's: the person drawn for each agent (simgen.agents.Crowd of the
 shipped scene the manifest names, its seed and seconds). Prints per detector: the boxes, the median implied
 height and the share beyond 3 sd (OUTLIER_SIGMAS x 0.09 m) of 1.71 m (simgen's people); of the boxes associated
 with an agent (agent_id >= 0), the median of implied / true height and the median true height of the agents
@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
-from homocal.correctors.pedestrians import OUTLIER_SIGMAS, derolled_rows, implied_heights
+from homocal.correctors.pedestrians import OUTLIER_SIGMAS, upright_heights
 from homocal.dataset import load_dataset
 from homocal.files import read_json
 from homocal.geometry.boxes import on_border, undistort_boxes
@@ -37,12 +37,10 @@ HEIGHT_M = (1.71, 0.09)  # simgen's people: mean and sd, metres (simgen.humanoid
 
 def box_heights(edges: np.ndarray, K: np.ndarray, tilt_deg: float, roll_deg: float, camera_height_m: float) -> np.ndarray:
     """Implied heights (N,) m of undistorted boxes (N, 4) homocal px of a camera with intrinsics K (3, 3), tilted
-    tilt_deg below the horizontal, rolled roll_deg (camera.json's sign), camera_height_m over the ground: the
-    foot (bottom edge's centre) and head (top edge's centre) rows derolled, then implied_heights."""
-    principal = (float(K[0, 2]), float(K[1, 2]))
-    middle = (edges[:, 0] + edges[:, 2]) / 2
-    foot, head = (derolled_rows(np.column_stack([middle, edges[:, k]]), math.radians(roll_deg), principal) for k in (3, 1))
-    return implied_heights(foot, head, math.radians(tilt_deg), float(K[1, 1]), principal[1], camera_height_m)
+    tilt_deg below the horizontal, rolled roll_deg (camera.json's sign), camera_height_m over the ground: the fit's
+    own model (homocal.correctors.pedestrians.upright_heights)."""
+    return upright_heights(edges, math.radians(tilt_deg), math.radians(roll_deg), float(K[1, 1]),
+                           (float(K[0, 2]), float(K[1, 2])), camera_height_m)
 
 
 def true_heights(manifest: dict) -> dict[int, float]:

@@ -14,8 +14,9 @@ differences), split into the part of the people's own heights (psi of (true heig
 by) and the part of the boxes (the people's psi of (implied - true height) / sigma, and the walks': how the
 boxes measure them), the prior simgen's people's (box_heights.HEIGHT_M). --walks no: the people's heights alone
 (each person one box's height: the fit before the walks). Prints the three errors, the sandwich sigma of the roll
-over the people, the walks' weight and the people who carry the most of it (their share, boxes, median foot
-column from the principal point and foot row, true and implied height).
+over the people, the walks' weight, where the boxes' middle column lies along their person's axis (middle_share:
+the fit takes it halfway between the foot's column and the head's) and the people who carry the most of the roll
+(their share, boxes, median foot column from the principal point and foot row, true and implied height).
 """
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ import argparse
 import math
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pyarrow.parquet as pq
 
@@ -34,6 +36,7 @@ from homocal.geometry.boxes import hidden_feet, undistort_boxes
 from research.box_heights import HEIGHT_M, box_heights, true_heights
 
 STEP_DEG = 1e-4  # central-difference step of the people's heights, degrees
+LEAN_PX = 4.0  # middle_share uses the boxes whose person's axis leans more than this many px
 
 
 def people_heights(edges: np.ndarray, labels: np.ndarray, K: np.ndarray, tilt_deg: float, roll_deg: float,
@@ -89,21 +92,36 @@ def at_pose(fn, edges: np.ndarray, labels: np.ndarray, K: np.ndarray, pose: np.n
     return fn(edges, labels, K, *pose, camera_height_m), J
 
 
+def middle_share(edges: np.ndarray, ground: np.ndarray, heights: np.ndarray, camera) -> tuple[float, int]:
+    """Where undistorted boxes' (N, 4) px middle column lies along their people's axis, and over how many boxes:
+    the median of (m - x_f) / (x_t - x_f) over the boxes whose axis leans more than LEAN_PX, m the box's middle
+    column, x_f and x_t the columns of the person's ground point ground (N, 2) m and of the point heights (N,) m
+    above it, by cv2.projectPoints through camera's K, R, t (the undistorted image). upright_columns takes 1/2 (a
+    box bounding an outline of even width about the axis)."""
+    rvec = cv2.Rodrigues(np.asarray(camera.R, dtype=np.float64))[0]
+    foot, head = (cv2.projectPoints(np.column_stack([ground, z]), rvec, np.asarray(camera.t, dtype=np.float64), camera.K,
+                                    None)[0][:, 0, 0] for z in (np.zeros(len(ground)), heights))
+    lean = np.abs(head - foot) > LEAN_PX
+    return float(np.median(((edges[:, 0] + edges[:, 2]) / 2 - foot)[lean] / (head - foot)[lean])), int(lean.sum())
+
+
 def budget(path: Path, detector: str, drop_hidden: bool, walks: bool = True) -> dict:
     """The module docstring's figures of one dataset and detector."""
     ds, raw = load_dataset(path), read_json(path / "camera.json")
-    t = pq.read_table(path / "detections.parquet", columns=["detector", "frame", "agent_id", "x1", "y1", "x2", "y2"]).to_pandas()
+    t = pq.read_table(path / "detections.parquet", columns=["detector", "frame", "agent_id", "x1", "y1", "x2", "y2", "gt_x",
+                                                            "gt_y"]).to_pandas()
     t = t[t["detector"] == detector]
     edges, agents = t[["x1", "y1", "x2", "y2"]].to_numpy(np.float64), t["agent_id"].to_numpy()
     keep = ~on_border(edges, ds.camera.image_size) & (agents >= 0)
     if drop_hidden:
         keep &= ~hidden_feet(edges, t["frame"].to_numpy())
-    edges, agents = undistort_boxes(edges[keep], ds.camera.lens), agents[keep]
+    edges, agents, ground = undistort_boxes(edges[keep], ds.camera.lens), agents[keep], t[["gt_x", "gt_y"]].to_numpy()[keep]
     ids, labels = np.unique(agents, return_inverse=True)
     K, h_c = ds.camera.K, ds.camera.mount_height_m
     pose = np.array([raw["tilt_deg"], raw.get("roll_deg", 0.0)])
     H, J = at_pose(people_heights, edges, labels, K, pose, h_c)  # (P,) m, (P, 2) m per radian
     truth = np.array([true_heights(ds.manifest)[a] for a in ids])
+    middle, leaning = middle_share(edges, ground, truth[labels], ds.camera)
     inlier = np.abs(box_heights(edges, K, *pose, h_c) - HEIGHT_M[0]) <= OUTLIER_SIGMAS * HEIGHT_M[1]
     parts = linearised(J, H, truth, *HEIGHT_M,
                        (*at_pose(walk_residuals, edges[inlier], labels[inlier], K, pose, h_c), labels[inlier]) if walks else None)
@@ -111,7 +129,7 @@ def budget(path: Path, detector: str, drop_hidden: bool, walks: bool = True) -> 
     cols = np.array([np.median((edges[labels == k, 0] + edges[labels == k, 2]) / 2) for k in range(len(ids))]) - K[0, 2]
     rows = np.array([np.median(edges[labels == k, 3]) for k in range(len(ids))])
     return {"people": len(ids), "total": share.sum(0), "heights": parts["heights"], "boxes": parts["boxes"],
-            "roll_sigma": parts["roll_sigma"], "walk_weight": parts["walk_weight"],
+            "roll_sigma": parts["roll_sigma"], "walk_weight": parts["walk_weight"], "middle_share": middle, "leaning": leaning,
             "table": sorted(zip(share[:, 1], np.bincount(labels), cols, rows, truth, H), key=lambda x: -abs(x[0]))}
 
 
@@ -129,6 +147,8 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{args.dataset} {args.detector}, hidden feet dropped: {args.drop_hidden_feet}, walks: {args.walks} (weight "
           f"{b['walk_weight']:.3f}); {b['people']} people; at the true pose the equations' root is off by roll {tr:+.2f} deg, tilt {tt:+.3f} deg (the people's heights: roll {hr:+.2f}, "
           f"tilt {ht:+.3f}; the boxes: roll {br:+.2f}, tilt {bt:+.3f}); roll sigma {b['roll_sigma']:.2f} deg")
+    print(f"the boxes' middle column lies {b['middle_share']:.3f} of the way from the foot's column to the head's (median "
+          f"of {b['leaning']} boxes leaning over {LEAN_PX:g} px; the fit takes 0.5)")
     print("roll share (deg), boxes, foot column - cx (px), foot row (px), true height (m), implied height (m)")
     for row in b["table"][:args.people]:
         print("%+.3f  %4d  %+5.0f  %4.0f  %.3f  %.3f" % row)

@@ -2,7 +2,7 @@
 (docs/real-camera.md, "The people on scene3").
 
 Run: python research/scene3_pedestrians.py DATASET [--detectors segmentation,rgb] [--height-mean M] [--height-sd M]
-         [--estimate-roll yes|no] [--drop-hidden-feet yes|no] [--horizon-shift PX] [--lens known|ignore]
+         [--estimate-roll yes|no] [--drop-hidden-feet yes|no] [--horizon-shift PX] [--lens known|ignore] [--seconds S]
 
 Per detector, as a user runs it: `homocal fit --method pedestrians --trapezoid DATASET/trapezoids.json --boxes
 DATASET/detections.parquet --detector D --camera-json DATASET/camera.json --camera-height H --estimate-roll yes
@@ -20,6 +20,7 @@ correction:
     point (gt.parquet's u, v: the camera's pixels, undistorted with the correction's lens, as they are without one,
     then mapped):
     ``median_range_error``.
+--seconds S: the recording's first S seconds only (the boxes and the ground truth whose time t is below S).
 Prints one line per detector (a fit homocal fit refuses: its message, and the detector's line says so).
 """
 from __future__ import annotations
@@ -33,6 +34,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from homocal.cli import main as homocal_main
@@ -66,10 +68,16 @@ def median_range_error(corrector, pixels: np.ndarray, ground: np.ndarray, origin
 
 
 def run(path: Path, detector: str, prior: list[str], estimate_roll: str, shift_px: float | None, folder: Path,
-        lens_mode: str = "known") -> dict:
+        lens_mode: str = "known", seconds: float | None = None) -> dict:
     """Fit with homocal fit (the module docstring; prior: its --height-mean, --height-sd and --drop-hidden-feet flags; lens_mode: known
-    or ignore) into folder; the figures of the saved correction ("refused": True if homocal fit refused the boxes)."""
+    or ignore; seconds: the recording's first seconds only, None: all of it) into folder; the figures of the saved
+    correction ("refused": True if homocal fit refused the boxes)."""
     ds = load_dataset(path)
+    boxes = path / "detections.parquet"
+    if seconds is not None:
+        boxes = folder / "detections.parquet"
+        table = pq.read_table(path / "detections.parquet")
+        pq.write_table(table.filter(pc.less(table["t"], seconds)), boxes)
     camera_json = path / "camera.json"
     if lens_mode == "ignore":
         camera_json = folder / "pinhole.json"
@@ -84,15 +92,15 @@ def run(path: Path, detector: str, prior: list[str], estimate_roll: str, shift_p
         trapezoid.write_text(json.dumps({"image": moved.tolist(), "map": ds.site_map.to_metres(ds.trapezoid_map).tolist(),
                                          "image_size": list(camera.image_size)}))
     out = folder / f"{detector}.json"
-    args = ["fit", "--method", "pedestrians", "--trapezoid", str(trapezoid), "--boxes", str(path / "detections.parquet"),
+    args = ["fit", "--method", "pedestrians", "--trapezoid", str(trapezoid), "--boxes", str(boxes),
             "--detector", detector, "--camera-json", str(camera_json), "--estimate-roll", estimate_roll,
             "--camera-height", str(ds.camera.mount_height_m), "--out", str(out), *prior]
     with redirect_stdout(None):
         if homocal_main(args) != 0:
             return {"detector": detector, "refused": True}
     c = load_corrector(out)
-    gt = pq.read_table(path / "gt.parquet", columns=["u", "v", "x", "y", "in_frame"]).to_pandas()
-    gt = gt[gt["in_frame"]]
+    gt = pq.read_table(path / "gt.parquet", columns=["t", "u", "v", "x", "y", "in_frame"]).to_pandas()
+    gt = gt[gt["in_frame"] & (gt["t"] < (math.inf if seconds is None else seconds))]
     ground = gt[["x", "y"]].to_numpy()
     r = np.hypot(*(ground - ds.camera_origin).T)
     near = (r >= RANGE_M[0]) & (r <= RANGE_M[1])
@@ -117,12 +125,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--horizon-shift", type=float, metavar="PX")
     ap.add_argument("--lens", choices=LENS_MODES, default="known",
                     help="ignore: camera.json's K with no distortion (the camera's pixels read as a pinhole's)")
+    ap.add_argument("--seconds", type=float, metavar="S", help="the recording's first S seconds only")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         for detector in args.detectors.split(","):
             prior = [x for flag, value in (("--height-mean", args.height_mean), ("--height-sd", args.height_sd))
                      if value is not None for x in (flag, value)] + ["--drop-hidden-feet", args.drop_hidden_feet]
-            e = run(args.dataset, detector, prior, args.estimate_roll, args.horizon_shift, Path(tmp), args.lens)
+            e = run(args.dataset, detector, prior, args.estimate_roll, args.horizon_shift, Path(tmp), args.lens, args.seconds)
             if e["refused"]:
                 print(f"{args.dataset} {detector}, lens {args.lens}: homocal fit refused the boxes (its message above)")
                 continue

@@ -87,6 +87,7 @@ from homocal.correctors.pedestrians import (
     camera_height_from_homography,
     implied_horizon_rows,
     intrinsics,
+    upright_columns,
 )
 from homocal.boxes import MAX_FPS
 from homocal.geometry import ViewTransformer
@@ -209,11 +210,9 @@ def implied_line_terms(boxes: np.ndarray, K: np.ndarray, camera_height_m: float,
         return rows, slope, np.full(len(rows), math.nan), columns
     partial = [implied_horizon_rows(boxes[:, 3] + df, boxes[:, 1] + dt, f, cy, camera_height_m, height_m)[0]
                for df, dt in ((0.5, 0), (-0.5, 0), (0, 0.5), (0, -0.5))]  # the row's change per px of each edge
-    with np.errstate(divide="ignore", invalid="ignore"):
-        nadir = cy + f * f / (cy - rows)  # the verticals' vanishing row
-        ratio = (nadir - boxes[:, 1]) / (nadir - boxes[:, 3])  # the head's column over the foot's, from the principal one
-    foot = 2 * columns / (1 + ratio)
-    return rows, slope, (partial[0] - partial[1]) * foot + (partial[2] - partial[3]) * ratio * foot, columns
+    foot, head = (x - K[0, 2] for x in upright_columns((boxes[:, 0] + boxes[:, 2]) / 2, boxes[:, 3], boxes[:, 1],
+                                                         np.arctan((cy - rows) / f), 0.0, f, (K[0, 2], cy)))
+    return rows, slope, (partial[0] - partial[1]) * foot + (partial[2] - partial[3]) * head, columns
 
 
 @dataclass(frozen=True)

@@ -5,6 +5,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from homocal.correctors.pedestrians import fit_tilt, fit_tilt_roll
 from homocal.geometry import PinholeCamera
@@ -20,19 +21,17 @@ POSE = np.array([15.0, 1.0])
 def fit_error(boxes: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, dict]:
     """fit_tilt_roll on the boxes (n, 4) of CAM, people labels (n,), the prior 1.71 m, 0.09 m: its (tilt, roll) error
     (2,) degrees and its result."""
-    mid = (boxes[:, 0] + boxes[:, 2]) / 2
-    foot, head = np.column_stack([mid, boxes[:, 3]]), np.column_stack([mid, boxes[:, 1]])
     pp = tuple(CAM.K[:2, 2])
-    start = fit_tilt(foot[:, 1], head[:, 1], labels, CAM.focal_px, pp[1], 4.0, 1.71, 0.09)
-    fit = fit_tilt_roll(foot, head, labels, CAM.focal_px, pp, 4.0, 1.71, 0.09, start)
+    start = fit_tilt(boxes[:, 3], boxes[:, 1], labels, CAM.focal_px, pp[1], 4.0, 1.71, 0.09)
+    fit = fit_tilt_roll(boxes, labels, CAM.focal_px, pp, 4.0, 1.71, 0.09, start)
     return np.degrees([fit["tilt"], fit["roll"]]) - POSE, fit
 
 
 def test_linearised_error_is_the_fits():
     """People whose heights scatter about the prior mean (their boxes exact): the roll and tilt errors the budget
-    predicts at the true pose are the fit's own, to second order (a tenth of them, or 0.01 degrees: 0.52 and 0.53
-    degrees of roll here); the boxes' part is small (the box's centre column stands for the sole's and the
-    crown's) and the heights' carries it; the roll's sigma is the fit's."""
+    predicts at the true pose are the fit's own, to second order (a tenth of them, or 0.01 degrees: 0.45 and 0.41
+    degrees of roll here); the boxes' part is nil, to rounding (each box's middle column is the sole's and the
+    crown's mean, as the fit takes it: upright_columns) and the heights' carries it; the roll's sigma is the fit's."""
     rng = np.random.default_rng(4)
     xy = np.column_stack([rng.uniform(-8, 8, 120), rng.uniform(8, 40, 120)])
     height = rng.normal(1.71, 0.09, 120)
@@ -45,7 +44,7 @@ def test_linearised_error_is_the_fits():
     actual, fit = fit_error(boxes, labels)
     assert abs(actual[1]) > 0.05  # an error worth predicting
     np.testing.assert_allclose(predicted, actual, rtol=0.1, atol=0.01)
-    assert abs(parts["boxes"][1]) < 0.1 < abs(parts["heights"][1])  # the boxes': 0.05 degrees here
+    assert abs(parts["boxes"][1]) < 1e-9 and abs(parts["heights"][1]) > 0.1  # the boxes': 5e-15 degrees, rounding
     np.testing.assert_allclose(parts["roll_sigma"], math.degrees(math.sqrt(fit["cov"][1, 1])), rtol=0.1)
 
 
@@ -71,3 +70,17 @@ def test_linearised_error_with_walks_is_the_fits():
     assert abs(walks["share"].sum(0)[1] - actual[1]) < walks["roll_sigma"] / 4
     assert abs(walks["heights"][1]) < abs(alone["heights"][1]) / 2
     np.testing.assert_allclose(walks["roll_sigma"], math.degrees(math.sqrt(fit["cov"][1, 1])), rtol=0.1)
+
+
+@pytest.mark.parametrize("share", [0.5, 0.75])
+def test_middle_share_is_where_the_box_was_centred(share):
+    """Boxes 10 px wide centred ``share`` of the way from a person's foot's column to the head's (both by
+    PinholeCamera.project of the ground point and of the point the person's height above it, CAM rolled 1 degree):
+    middle_share gives ``share`` to rounding, over the boxes whose axis leans over LEAN_PX."""
+    rng = np.random.default_rng(2)
+    ground, height = np.column_stack([rng.uniform(-12, 12, 200), rng.uniform(6, 30, 200)]), rng.uniform(1.5, 1.9, 200)
+    sole, crown = CAM.project(np.column_stack([ground, np.zeros(200)])), CAM.project(np.column_stack([ground, height]))
+    middle = sole[:, 0] + share * (crown[:, 0] - sole[:, 0])
+    boxes = np.column_stack([middle - 5, crown[:, 1], middle + 5, sole[:, 1]])
+    got, n = script.middle_share(boxes, ground, height, CAM)
+    assert got == pytest.approx(share, abs=1e-9) and n == (np.abs(crown[:, 0] - sole[:, 0]) > script.LEAN_PX).sum() > 50

@@ -6,6 +6,7 @@ pinhole's."""
 import importlib.util
 import json
 import math
+import shutil
 from pathlib import Path
 
 import cv2
@@ -61,7 +62,7 @@ def test_median_range_error_against_opencv():
 
 def write_people(path: Path, cam: PinholeCamera, height_m: float = 1.71) -> Path:
     """A synthetic dataset of cam (write_dataset) whose detections.parquet holds exact "segmentation" boxes of 12
-    people height_m tall walking 10 frames each across the view (5-22 m ahead, -9..8 m aside): the box spans the
+    people height_m tall walking 10 frames each (20 per second) across the view (5-22 m ahead, -9..8 m aside): the box spans the
     head's and the foot's projections (rows exactly; columns 5 px wider)."""
     write_dataset(path, n_test=200, camera=cam)
     starts = [(x, y) for y in (6.0, 11.0, 16.0, 21.0) for x in (-9.0, -1.0, 7.0)]
@@ -72,7 +73,7 @@ def write_people(path: Path, cam: PinholeCamera, height_m: float = 1.71) -> Path
             foot, head = cam.project([[x, y, 0.0], [x, y, height_m]])
             rows.append((frame, person, min(foot[0], head[0]) - 5, head[1], max(foot[0], head[0]) + 5, foot[1], x, y))
     frame, agent, x1, y1, x2, y2, gx, gy = map(np.array, zip(*rows))
-    pq.write_table(pa.table({"detector": ["segmentation"] * len(rows), "frame": frame.astype(np.int32),
+    pq.write_table(pa.table({"detector": ["segmentation"] * len(rows), "frame": frame.astype(np.int32), "t": frame * 0.05,
                              "agent_id": agent.astype(np.int32), "x1": x1, "y1": y1, "x2": x2, "y2": y2,
                              "u": (x1 + x2) / 2, "v": y2, "gt_x": gx, "gt_y": gy}), path / "detections.parquet")
     return path
@@ -99,3 +100,21 @@ def test_lens_known_and_ignored(tmp_path):
     expected = script.horizon_rms(pinhole.horizon_row_, pinhole.roll_deg_, tuple(CAM.K[:2, 2]), CAM.horizon, CAM.width)
     assert ignored["horizon_rms_px"] == pytest.approx(expected, abs=1e-9) and expected > 2.0
     assert ignored["median_range_error_pct"] > known["median_range_error_pct"]
+
+
+def test_seconds_cuts_the_recording(tmp_path):
+    """--seconds S: the figures of a copy of the dataset whose detections.parquet and gt.parquet keep only the rows
+    whose time is below S (cut here with pandas): the boxes of the first 6 frames of 10, the ground truth's first
+    6 of 200 points."""
+    path = write_people(tmp_path / "d", CAM)
+    cut = Path(shutil.copytree(path, tmp_path / "cut"))
+    for name in ("detections.parquet", "gt.parquet"):
+        table = pq.read_table(path / name).to_pandas()
+        pq.write_table(pa.Table.from_pandas(table[table["t"] < 0.275], preserve_index=False), cut / name)
+    prior = ["--height-mean", "1.71", "--height-sd", "0.09"]
+    folders = [tmp_path / name for name in ("a", "b")]
+    for folder in folders:
+        folder.mkdir()
+    got = script.run(path, "segmentation", prior, "yes", None, folders[0], "known", seconds=0.275)
+    expected = script.run(cut, "segmentation", prior, "yes", None, folders[1], "known")
+    assert got == expected and got["boxes"] == 12 * 6
