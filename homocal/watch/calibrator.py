@@ -174,7 +174,9 @@ class State:
     many of the boxes measured at this update (of tracks yet to give their person) may have hidden feet (not
     used). roll_deg, roll_sigma_deg: the estimate's roll (degrees, camera.json's sign: the horizon's slope in the
     image is -tan(roll)) and its 1-sigma (0 and NaN where not fitted); cusum_roll_up, cusum_roll_down,
-    roll_threshold: the roll test's statistics and threshold (NaN as the row's, and while the roll is not fitted)."""
+    roll_threshold: the roll test's statistics and threshold (NaN as the row's, and while the roll is not fitted).
+    person_z: each person's standardised residual z against the estimate before it (module docstring, Change
+    tests; NaN while the stretch has fewer than MIN_PEOPLE)."""
 
     t_s: float
     stretch_start_s: float
@@ -194,6 +196,7 @@ class State:
     cusum_roll_up: float = math.nan
     cusum_roll_down: float = math.nan
     roll_threshold: float = math.nan
+    person_z: tuple = ()
 
 
 def implied_line_terms(boxes: np.ndarray, K: np.ndarray, camera_height_m: float, height_m: float, roll: bool = True):
@@ -354,10 +357,11 @@ class OnlineCalibrator:
             del self._tracks[key]
         if len(self._tracks) > MAX_TRACKS:
             raise ValueError(f"frame {frame}: more than {MAX_TRACKS} people (tracks) at once")
-        move, observed = None, []
+        move, observed, zs = None, [], []
         for person in people:
             observed.append(person)
-            move = self._observe(person)
+            move, z = self._observe(person)
+            zs.append(z)
             if move:  # the tracks are re-armed: this frame's other people give new observations later
                 break
         line = self.estimate
@@ -368,19 +372,21 @@ class OnlineCalibrator:
         return State(t, self.stretch_start_s, line.row, line.sigma, self.n_people, *stats[:2],
                      self.threshold if armed else math.nan, move, tuple(p[1] for p in observed),
                      tuple(p[2] for p in observed), int(hidden.sum()), tuple(cx + p[4] for p in observed),
-                     line.roll_deg, line.roll_sigma_deg, *roll)
+                     line.roll_deg, line.roll_sigma_deg, *roll, tuple(zs))
 
     # ---- people -> estimate and test ------------------------------------------------------------
-    def _observe(self, person: tuple) -> Move | None:
-        """Test the person against the stretch's estimate, then add it (module docstring)."""
+    def _observe(self, person: tuple) -> tuple[Move | None, float]:
+        """Test the person against the stretch's estimate, then add it (module docstring); the move, if any, and
+        the person's standardised residual z (NaN while unarmed)."""
         people = self._people
-        armed = len(people) >= MIN_PEOPLE
+        armed, z = len(people) >= MIN_PEOPLE, math.nan
         thresholds = (self.threshold,) * 2 + (self.roll_threshold,) * 2
         if armed:
             line = self.estimate
             row, var = line.predicted(person[3])
             spread = math.sqrt((line.scale * person[2]) ** 2 + var)
-            u = max(-CLIP, min(CLIP, (person[1] - row) / spread)) / SD_CLIPPED
+            z = (person[1] - row) / spread
+            u = max(-CLIP, min(CLIP, z)) / SD_CLIPPED
             roll = person[3] / spread / line.roll_rms  # NaN while the roll is not fitted: its test rests
             k = (CUSUM_K,) * 2 + (0.5 * math.tan(math.radians(ROLL_REF_DEG)) * line.roll_rms,) * 2
             for i, step in enumerate((u, -u, roll * u, -roll * u)):  # row S+, S-; roll S+, S-
@@ -390,14 +396,14 @@ class OnlineCalibrator:
         people.append(person)
         over = [i for i in range(len(thresholds)) if self._cusum[i] > thresholds[i]]
         if armed and over:
-            return self._move(max(over, key=lambda i: self._cusum[i] / thresholds[i]), person[0], thresholds)
+            return self._move(max(over, key=lambda i: self._cusum[i] / thresholds[i]), person[0], thresholds), z
         self.estimate, self.n_people = robust_line(people, self._roll_width), len(people)
         rms = self.estimate.roll_rms
         self.roll_threshold = cusum_threshold(self._tests * self.arl0_people, 0.5 * math.tan(math.radians(ROLL_REF_DEG))
                                               * rms) if math.isfinite(rms) and rms > 0 else math.nan
         if not math.isfinite(self.roll_threshold):
             self._cusum[2:], self._since_zero[2:] = [0.0, 0.0], [0, 0]
-        return None
+        return None, z
 
     def _move(self, i: int, now: float, thresholds: tuple) -> Move:
         """Split the stretch at the alarming statistic's (i) last 0, whose people give the new stretch's first
