@@ -33,8 +33,14 @@ the image width (PedestrianCorrector's rule), else v_0 alone with phi = 0.
 
 Change tests: two two-sided CUSUMs (Page 1954) on each new person's standardised residual against the estimate
 at the person's column, z = (v - v_0 + tan(phi) w) / sqrt(s^2 sigma^2 + var), var the estimate's variance there,
-clipped at +-CLIP (the estimate's own psi) and scaled to unit variance under the normal (u = psi(z) /
-SD_CLIPPED). The row test: S+ = max(0, S+ + u - k), S- = max(0, S- - u - k), k = CUSUM_K (the optimal
+clipped at +-CLIP (the estimate's own psi) and scaled to unit variance: u = psi(z) / max(SD_CLIPPED, q), q
+the root mean square of psi over the estimate's people (``Line.score_rms``: the variance of the score the test
+sums, measured on the stream itself; SD_CLIPPED is its value for normal residuals, and the floor keeps the
+model's, as the scale s keeps 1). The scale s, from the median absolute residual, does not see a heavy tail:
+residuals of Student's t with 3 degrees of freedom (the rgb detector's boxes have such a tail: research/
+watch_residuals.py) have psi's root mean square 1.3 where s says 1.1, and increments divided by SD_CLIPPED make
+the CUSUM's run length 5 to 8 times shorter than Siegmund's figure (below); divided by q, within a few % of it
+(tests/watch/test_watch.py simulates both). The row test: S+ = max(0, S+ + u - k), S- = max(0, S- - u - k), k = CUSUM_K (the optimal
 reference for a shift of 2k = 1 sd per person). The roll test: the same on u g / g_rms, g = w / sqrt(s^2
 sigma^2 + var) the person's standardised roll regressor and g_rms its root mean square over the estimate's
 people (so the increments have unit variance on a steady camera, and a roll change moves them in proportion to
@@ -225,13 +231,15 @@ class Line:
     slope in the image is -tan_roll: tan of the roll, camera.json's sign), their covariance cov (2, 2) (px^2, px, 1; only
     cov[0, 0] where the roll is not fitted: tan_roll 0, the rest NaN), scale the robust scale s, roll_rms the
     root mean square of the people's standardised roll regressors w_i / (s sigma_i) (NaN where the roll is not
-    fitted: the roll test then rests)."""
+    fitted: the roll test then rests), score_rms the root mean square of psi(r_i) over the people (NaN before
+    MIN_PEOPLE: the change tests' increments are scaled by it, module docstring)."""
 
     row: float
     tan_roll: float
     cov: np.ndarray
     scale: float
     roll_rms: float = math.nan
+    score_rms: float = math.nan
 
     @property
     def sigma(self) -> float:
@@ -386,7 +394,7 @@ class OnlineCalibrator:
             row, var = line.predicted(person[3])
             spread = math.sqrt((line.scale * person[2]) ** 2 + var)
             z = (person[1] - row) / spread
-            u = max(-CLIP, min(CLIP, z)) / SD_CLIPPED
+            u = max(-CLIP, min(CLIP, z)) / max(SD_CLIPPED, line.score_rms)
             roll = person[3] / spread / line.roll_rms  # NaN while the roll is not fitted: its test rests
             k = (CUSUM_K,) * 2 + (0.5 * math.tan(math.radians(ROLL_REF_DEG)) * line.roll_rms,) * 2
             for i, step in enumerate((u, -u, roll * u, -roll * u)):  # row S+, S-; roll S+, S-
@@ -485,7 +493,8 @@ def robust_line(people, roll_width: float | None = None) -> Line:
     else:
         cov[0, 0] = math.inf
     return Line(float(beta[0]), float(beta[1]) if roll else 0.0, cov, scale,
-                float(np.sqrt(np.mean((w / (scale * s)) ** 2))) if roll else math.nan)
+                float(np.sqrt(np.mean((w / (scale * s)) ** 2))) if roll else math.nan,
+                float(np.sqrt(np.mean(psi * psi))) if robust else math.nan)
 
 
 def camera_of(transformer: ViewTransformer, image_size: tuple[int, int] | None, K=None,

@@ -9,6 +9,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 from cli_run import homocal_main
+from scipy import integrate, stats
 
 from homocal.correctors.base import load_corrector
 from homocal.correctors.pedestrians import implied_heights, implied_horizon_rows
@@ -26,6 +27,7 @@ from homocal.watch.calibrator import (
     cusum_arl0,
     cusum_threshold,
     implied_line_terms,
+    robust_line,
 )
 
 CAM = PinholeCamera()  # 1280x720, 95 degrees, 4 m high, tilted 15 degrees down
@@ -33,16 +35,17 @@ FPS = 5
 GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])
 
 
-def stream(seconds, tilt=lambda t: 0.0, rate=1.5, seed=0, noise_px=0.3, roll=lambda t: 0.0, side=6.0):
-    """Frames (frame, xyxy (N, 4) homocal edges, track ids) of people 1.70 +- 0.07 m tall standing 1 s each at
-    random places 8-45 m ahead and up to ``side`` m to either side, arriving at ``rate`` a second, seen by CAM
-    tilted tilt(t) degrees further down and rolled by roll(t) degrees; their foot and head points projected
-    exactly, the box spanning both columns, each box edge plus normal noise of noise_px."""
+def stream(seconds, tilt=lambda t: 0.0, rate=1.5, seed=0, noise_px=0.3, roll=lambda t: 0.0, side=6.0, dof=None):
+    """Frames (frame, xyxy (N, 4) homocal edges, track ids) of people 1.70 +- 0.07 m tall (normal; with dof, 1.70
+    m plus 0.07 m times Student's t of dof degrees of freedom) standing 1 s each at random places 8-45 m ahead and
+    up to ``side`` m to either side, arriving at ``rate`` a second, seen by CAM tilted tilt(t) degrees further down
+    and rolled by roll(t) degrees; their foot and head points projected exactly, the box spanning both columns,
+    each box edge plus normal noise of noise_px."""
     rng = np.random.default_rng(seed)
     n = int(seconds * rate)
     start = np.sort(rng.uniform(0, seconds - 1, n))
     xy = np.column_stack([rng.uniform(-side, side, n), rng.uniform(8, 45, n)])
-    height = rng.normal(1.70, 0.07, n)
+    height = 1.70 + 0.07 * (rng.standard_normal(n) if dof is None else rng.standard_t(dof, n))
     for frame in range(int(seconds * FPS)):
         t = frame / FPS
         cam = dataclasses.replace(CAM, tilt_deg=CAM.tilt_deg + tilt(t), roll_deg=roll(t))
@@ -132,20 +135,81 @@ def test_cusum_threshold_inverts_siegmund(arl0):
     assert math.isclose(cusum_arl0(cusum_threshold(arl0)), arl0, rel_tol=1e-9)
 
 
-def test_siegmund_arl_against_simulation():
-    """The two-sided CUSUM on N(0, 1) increments runs cusum_arl0(h) steps on average (Monte Carlo, 4000 runs:
-    the mean's standard error is about 1.6 %; Siegmund's approximation is within a few % at these h)."""
-    h, runs = cusum_threshold(200), 4000
-    rng = np.random.default_rng(3)
+def clipped_t_rms(dof: float) -> float:
+    """The root mean square of Student's t with dof degrees of freedom clipped at +-CLIP (quadrature of its density,
+    scipy.stats.t, independent of the code under test)."""
+    inside = integrate.quad(lambda x: x * x * stats.t.pdf(x, dof), -CLIP, CLIP)[0]
+    return math.sqrt(inside + 2 * CLIP ** 2 * stats.t.sf(CLIP, dof))
+
+
+def cusum_run_lengths(draw, h, runs=4000, seed=3):
+    """The run lengths of the two-sided CUSUM (reference CUSUM_K, threshold h) on increments draw(rng, runs)."""
+    rng = np.random.default_rng(seed)
     up, down, alive, length = np.zeros(runs), np.zeros(runs), np.ones(runs, bool), np.zeros(runs)
-    for step in range(1, 20_000):
-        z = rng.standard_normal(runs)
-        up, down = np.maximum(0, up + z - CUSUM_K), np.maximum(0, down - z - CUSUM_K)
+    for step in range(1, 100_000):
+        u = draw(rng, runs)
+        up, down = np.maximum(0, up + u - CUSUM_K), np.maximum(0, down - u - CUSUM_K)
         fired = alive & ((up > h) | (down > h))
         length[fired], alive = step, alive & ~fired
         if not alive.any():
-            break
+            return length
+    raise AssertionError("runs did not end")
+
+
+def test_siegmund_arl_against_simulation():
+    """The two-sided CUSUM on N(0, 1) increments runs cusum_arl0(h) steps on average (Monte Carlo, 4000 runs:
+    the mean's standard error is about 1.6 %; Siegmund's approximation is within a few % at these h)."""
+    length = cusum_run_lengths(lambda rng, n: rng.standard_normal(n), cusum_threshold(200))
     assert abs(length.mean() / 200 - 1) < 0.1
+
+
+@pytest.mark.parametrize("dof", [3, 5])
+def test_heavy_tailed_residuals_scaled_by_their_clipped_rms_keep_siegmunds_run_length(dof):
+    """Residuals with Student's t tails (3 degrees of freedom: the rgb boxes' share over 2, 3 and 4 sd,
+    research/watch_residuals.py), clipped at CLIP and divided by their root mean square (OnlineCalibrator's
+    Line.score_rms measures it on the stream), run the two-sided CUSUM cusum_arl0(h) steps on average: 4000 runs at
+    ARL0 200 (the mean's standard error about 1.6 %; Siegmund's approximation, for normal increments, within a few
+    % here). Divided by SD_CLIPPED (the normal's) instead, the run is at most half as long."""
+    h, rms = cusum_threshold(200), clipped_t_rms(dof)
+    assert rms > SD_CLIPPED
+    scaled = cusum_run_lengths(lambda rng, n: np.clip(rng.standard_t(dof, n), -CLIP, CLIP) / rms, h)
+    assert abs(scaled.mean() / 200 - 1) < 0.1, scaled.mean()
+    normal_scale = cusum_run_lengths(lambda rng, n: np.clip(rng.standard_t(dof, n), -CLIP, CLIP) / SD_CLIPPED, h, 1000)
+    assert normal_scale.mean() < 100, normal_scale.mean()
+
+
+def test_score_rms_is_the_clipped_residuals_rms():
+    """robust_line's score_rms on people whose residuals are normal or Student's t (3 degrees of freedom), 4000 of
+    them (sigma 1-4 px): the root mean square of the residuals over the scale s, clipped at CLIP, as the quadrature
+    gives it (s the median absolute residual / 0.6745: 1 for the normal, 0.7649 / 0.6745 for t with 3; the
+    sample's standard error about 2 %, s's about 1 %)."""
+    rng = np.random.default_rng(7)
+    sigma = rng.uniform(1, 4, 4000)
+    for z, s, rms in ((rng.standard_normal(4000), 1.0, SD_CLIPPED),
+                      (rng.standard_t(3, 4000), stats.t.ppf(0.75, 3) / 0.6745, None)):
+        if rms is None:
+            inside = integrate.quad(lambda x: x * x * stats.t.pdf(x, 3), -CLIP * s, CLIP * s)[0]
+            rms = math.sqrt(inside / s ** 2 + 2 * CLIP ** 2 * stats.t.sf(CLIP * s, 3))
+        line = robust_line([(0.0, 200 + e * si, si, math.nan, 0.0) for e, si in zip(z, sigma)])
+        assert abs(line.score_rms / rms - 1) < 0.06, (line.score_rms, rms)
+
+
+def test_the_tests_increments_are_scaled_by_the_estimates_score_rms():
+    """Each person's CUSUM increment is their clipped standardised residual over max(SD_CLIPPED, score_rms) of the
+    estimate before them: on a steady camera whose people's heights have Student's t tails (score_rms over
+    SD_CLIPPED by 5 % or more for 20 of the people checked at least), S+ after a frame with one person is max(0,
+    S+ before + u - CUSUM_K)."""
+    cal = OnlineCalibrator(CAM.K, 4.0, FPS, (CAM.width, CAM.height), 1.70, 0.07)
+    scaled, previous = 0, None
+    for frame, boxes, ids in stream(120, rate=4.0, seed=6, dof=3):
+        line = cal.estimate
+        state = cal.update(frame, boxes, ids)
+        if len(state.person_z) == 1 and np.isfinite(state.person_z[0]) and previous is not None and not state.move:
+            u = np.clip(state.person_z[0], -CLIP, CLIP) / max(SD_CLIPPED, line.score_rms)
+            assert math.isclose(state.cusum_up, max(0.0, previous.cusum_up + u - CUSUM_K), abs_tol=1e-9)
+            scaled += line.score_rms > 1.05 * SD_CLIPPED
+        previous = state
+    assert scaled > 20
 
 
 def test_the_row_and_roll_tests_together_alarm_at_the_stated_rate():
