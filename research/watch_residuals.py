@@ -10,6 +10,9 @@ background model restarts every chunk). Printed per detector, pooled over the re
 
 - the tails: the share of |z| over 2, 3 and 4 against the normal's, and the scale the CUSUM's increments
   u = clip(z, +-CLIP) / SD_CLIPPED really have (their RMS; 1 when z is standard normal);
+- each side's tilt (``homocal.watch.calibrator.tilt``: 2 k = 1 for normal increments, smaller for a heavier tail)
+  and root mean square of the increments u, and the mean run (people) Siegmund's approximation gives at --arl0's
+  threshold for normal increments (the threshold before the tilts were measured) on increments of these tilts;
 - the dependence: the lag-1 autocorrelation of u over consecutive people of a recording, and the variance of
   sums of 10 consecutive u over 10 times their variance (1 for independent increments);
 - the mean and RMS of z by box height (far people: small boxes), by time into the chunk, for unmatched and split
@@ -34,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from homocal.boxes import read_boxes  # noqa: E402
 from homocal.dataset import load_dataset  # noqa: E402
 from homocal.watch import OnlineCalibrator  # noqa: E402
-from homocal.watch.calibrator import CLIP, DEFAULT_ARL0_PEOPLE, SD_CLIPPED, by_frame  # noqa: E402
+from homocal.watch.calibrator import CLIP, CUSUM_K, DEFAULT_ARL0_PEOPLE, SD_CLIPPED, by_frame, cusum_arl0, cusum_threshold, tilt  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from watch import HEIGHT, motion  # noqa: E402  (research/watch.py)
 
@@ -111,6 +114,11 @@ def main() -> None:
                                                   for c, p in normal.items()))
         print(f"  z mean {z.mean():+.3f}, median {np.median(z):+.3f}, MAD/0.6745 {np.median(np.abs(z - np.median(z))) / 0.6745:.2f}; "
               f"increments u: mean {tested.u.mean():+.3f}, RMS {np.sqrt(np.mean(tested.u ** 2)):.3f} (1 if z is standard normal)")
+        u, h = tested.u.to_numpy(), cusum_threshold(args.arl0)
+        sd, theta = float(np.sqrt(np.mean(u ** 2))), (tilt(u, CUSUM_K), tilt(-u, CUSUM_K))
+        run = 1 / sum(1 / (2 * cusum_arl0(h, CUSUM_K, t, sd)) for t in theta)  # one side's is twice the two-sided figure
+        print(f"  tilts of the increments u, S+ {theta[0]:.3f} and S- {theta[1]:.3f} (normal: {2 * CUSUM_K:g}), RMS {sd:.3f}: "
+              f"Siegmund's mean run at the normal's threshold {h:.2f} is {run:,.0f} people (normal increments: {args.arl0:,.0f})")
         rho, ratio = dependence(people)
         print(f"  lag-1 autocorrelation of u {rho:+.3f} (independent: 0 +- {1 / math.sqrt(len(tested)):.3f}); "
               f"variance of sums of {BLOCK} over {BLOCK} x variance {ratio:.2f} (independent: 1)")

@@ -33,14 +33,8 @@ the image width (PedestrianCorrector's rule), else v_0 alone with phi = 0.
 
 Change tests: two two-sided CUSUMs (Page 1954) on each new person's standardised residual against the estimate
 at the person's column, z = (v - v_0 + tan(phi) w) / sqrt(s^2 sigma^2 + var), var the estimate's variance there,
-clipped at +-CLIP (the estimate's own psi) and scaled to unit variance: u = psi(z) / max(SD_CLIPPED, q), q
-the root mean square of psi over the estimate's people (``Line.score_rms``: the variance of the score the test
-sums, measured on the stream itself; SD_CLIPPED is its value for normal residuals, and the floor keeps the
-model's, as the scale s keeps 1). The scale s, from the median absolute residual, does not see a heavy tail:
-residuals of Student's t with 3 degrees of freedom (the rgb detector's boxes have such a tail: research/
-watch_residuals.py) have psi's root mean square 1.3 where s says 1.1, and increments divided by SD_CLIPPED make
-the CUSUM's run length 5 to 8 times shorter than Siegmund's figure (below); divided by q, within a few % of it
-(tests/watch/test_watch.py simulates both). The row test: S+ = max(0, S+ + u - k), S- = max(0, S- - u - k), k = CUSUM_K (the optimal
+clipped at +-CLIP (the estimate's own psi) and scaled to unit variance under the normal (u = psi(z) /
+SD_CLIPPED). The row test: S+ = max(0, S+ + u - k), S- = max(0, S- - u - k), k = CUSUM_K (the optimal
 reference for a shift of 2k = 1 sd per person). The roll test: the same on u g / g_rms, g = w / sqrt(s^2
 sigma^2 + var) the person's standardised roll regressor and g_rms its root mean square over the estimate's
 people (so the increments have unit variance on a steady camera, and a roll change moves them in proportion to
@@ -50,9 +44,20 @@ the roll is not fitted. The row
 test sees a change of v_0 (a tilt); the roll test a turn of the horizon about the principal column, which moves
 the people on either side oppositely and leaves the row test's mean unchanged. A move is declared when a
 statistic exceeds its test's h, where h gives a mean of 2 ``arl0_people`` people (with estimate_roll; else
-``arl0_people``, the row test alone) between false alarms of the test on a steady camera, by Siegmund's approximation of a one-sided CUSUM's run length (normal
-increments; Siegmund 1985, "Sequential analysis"; two sides: half of it): ARL0 = (exp(2 k b) - 2 k b - 1) /
-(2 k^2) / 2, b = h + 1.166 (``cusum_threshold``); the two tests together then alarm every ``arl0_people``
+``arl0_people``, the row test alone) between false alarms of the test on a steady camera, by Siegmund's approximation of a one-sided CUSUM's run length
+(Siegmund 1985, "Sequential analysis"; two sides: half of it): ARL0 = (exp(theta b) - theta b - 1) / (theta k) /
+2, b = h + 1.166 sd (``cusum_threshold``), theta the increments' tilt, the root of E exp(theta (u - k)) = 1, and
+sd their root mean square: for normal increments of unit variance theta = 2 k, sd = 1 and ARL0 = (exp(2 k b) - 2 k
+b - 1) / (2 k^2) / 2 (Siegmund's own case; the 1.166 is its overshoot, sd-fold for increments sd times as wide).
+Each side's tilt and sd are measured on the estimate's own people (``Line.increments``: each person's u, or u g /
+g_rms for the roll, the sample mean for the expectation: ``tilt``), those before the side's statistic was last 0
+(the people since are the change point estimate's: a move's first people would widen the tail they measure; at
+least MIN_PEOPLE), and the test's h is the largest of its sides' and the normal increments' (the floor keeps the
+model's, as the scale s keeps 1). A heavy tail has a smaller tilt: the scale s, from the median absolute
+residual, does not see it, and the normal's h would give a false alarm every fifth (at 200 people) or eighth (at
+1,000) of ``arl0_people`` people on residuals of Student's t with 3 degrees of freedom (tests/watch/test_watch.py), as the rgb detector's
+boxes have (research/watch_residuals.py), and sooner on a heavier side (theirs: the horizon above the estimate).
+The two tests together then alarm every ``arl0_people``
 people (1 / ARL0 adds up over independent tests; the two share each person's |z|, which lengthens their
 joint run a little: tests/watch/test_watch.py simulates it). Each person is tested against the estimate of
 the people before it, then joins it (a self-starting CUSUM, as Hawkins 1987). A person tells of a roll by
@@ -76,6 +81,7 @@ is a gap, the estimate and the test go on; a move during a gap is found from the
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import deque
 from dataclasses import dataclass
@@ -121,22 +127,40 @@ def _clipped_sd(c: float) -> float:
 SD_CLIPPED = _clipped_sd(CLIP)
 
 
-def cusum_arl0(h: float, k: float = CUSUM_K) -> float:
+def cusum_arl0(h: float, k: float = CUSUM_K, theta: float | None = None, sd: float = 1.0) -> float:
     """Siegmund's approximation of a two-sided CUSUM's mean run length (people) on a steady camera at
-    threshold h and reference k (module docstring)."""
-    b = 2 * k * (h + 1.166)
-    return (math.exp(b) - b - 1) / (2 * k * k) / 2
+    threshold h and reference k, each side's increments (mean 0) of tilt theta (``tilt``; None: 2 k, normal
+    increments of unit variance) and root mean square sd (module docstring)."""
+    theta = 2 * k if theta is None else theta
+    b = theta * (h + 1.166 * sd)
+    return (math.exp(b) - b - 1) / (theta * k) / 2 if b < 700 else math.inf  # exp(700): past any arl0_people
 
 
-def cusum_threshold(arl0_people: float, k: float = CUSUM_K) -> float:
-    """The threshold h at which cusum_arl0(h, k) = arl0_people (bisection on [0, hi], hi doubled from 100 until it
-    is above it), k > 0."""
+def cusum_threshold(arl0_people: float, k: float = CUSUM_K, theta: float | None = None, sd: float = 1.0) -> float:
+    """The threshold h at which cusum_arl0(h, k, theta, sd) = arl0_people (bisection on [0, hi], hi doubled from
+    100 until it is above it), k > 0."""
     lo, hi = 0.0, 100.0
-    while cusum_arl0(hi, k) < arl0_people:
+    while cusum_arl0(hi, k, theta, sd) < arl0_people:
         hi *= 2
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if cusum_arl0(mid, k) < arl0_people else (lo, mid)
+        lo, hi = (mid, hi) if cusum_arl0(mid, k, theta, sd) < arl0_people else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def tilt(x: np.ndarray, k: float) -> float:
+    """The tilt of a one-sided CUSUM's increments x (n,) at reference k: the root theta > 0 of mean exp(theta (x - k))
+    = 1 (by bisection; 2 k for N(0, 1) increments, 2 k / var for N(0, var)); NaN when there is none (mean x >= k or
+    every x <= k)."""
+    d = np.asarray(x, dtype=np.float64) - k
+    if not d.mean() < 0 < d.max():
+        return math.nan
+    lo, hi = 0.0, 1.0
+    while np.mean(np.exp(hi * d)) < 1:
+        lo, hi = hi, 2 * hi
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if np.mean(np.exp(mid * d)) < 1 else (lo, mid)
     return 0.5 * (lo + hi)
 
 
@@ -231,15 +255,21 @@ class Line:
     slope in the image is -tan_roll: tan of the roll, camera.json's sign), their covariance cov (2, 2) (px^2, px, 1; only
     cov[0, 0] where the roll is not fitted: tan_roll 0, the rest NaN), scale the robust scale s, roll_rms the
     root mean square of the people's standardised roll regressors w_i / (s sigma_i) (NaN where the roll is not
-    fitted: the roll test then rests), score_rms the root mean square of psi(r_i) over the people (NaN before
-    MIN_PEOPLE: the change tests' increments are scaled by it, module docstring)."""
+    fitted: the roll test then rests), increments the change tests' increments on the people (n, 2): the row
+    test's u_i = psi(r_i) / SD_CLIPPED and the roll test's u_i g_i / g_rms (NaN where the roll is not fitted;
+    None before MIN_PEOPLE; module docstring)."""
 
     row: float
     tan_roll: float
     cov: np.ndarray
     scale: float
     roll_rms: float = math.nan
-    score_rms: float = math.nan
+    increments: np.ndarray | None = None
+
+    @property
+    def roll_k(self) -> float:
+        """The roll test's reference value: optimal for a roll change of ROLL_REF_DEG (module docstring)."""
+        return 0.5 * math.tan(math.radians(ROLL_REF_DEG)) * self.roll_rms
 
     @property
     def sigma(self) -> float:
@@ -311,7 +341,8 @@ class OnlineCalibrator:
         self._cusum = [0.0] * 2 * len(TESTS)  # row S+, S-, roll S+, S-
         self.stretch_start_s = 0.0
         self.estimate = NO_LINE
-        self.roll_threshold = math.nan  # the roll test's threshold, from the estimate's roll_rms
+        self.row_threshold = self.threshold  # the row test's threshold, from the estimate's tilts (at least threshold)
+        self.roll_threshold = math.nan  # the roll test's threshold, from the estimate's roll_rms and tilts
         self.n_people = 0  # the people behind the estimate
 
     # ---- boxes -> people ------------------------------------------------------------------------
@@ -378,7 +409,7 @@ class OnlineCalibrator:
         roll = stats[2:] + [self.roll_threshold] if armed and math.isfinite(self.roll_threshold) else [math.nan] * 3
         cx = float(self.K[0, 2])
         return State(t, self.stretch_start_s, line.row, line.sigma, self.n_people, *stats[:2],
-                     self.threshold if armed else math.nan, move, tuple(p[1] for p in observed),
+                     self.row_threshold if armed else math.nan, move, tuple(p[1] for p in observed),
                      tuple(p[2] for p in observed), int(hidden.sum()), tuple(cx + p[4] for p in observed),
                      line.roll_deg, line.roll_sigma_deg, *roll, tuple(zs))
 
@@ -388,15 +419,15 @@ class OnlineCalibrator:
         the person's standardised residual z (NaN while unarmed)."""
         people = self._people
         armed, z = len(people) >= MIN_PEOPLE, math.nan
-        thresholds = (self.threshold,) * 2 + (self.roll_threshold,) * 2
+        thresholds = (self.row_threshold,) * 2 + (self.roll_threshold,) * 2
         if armed:
             line = self.estimate
             row, var = line.predicted(person[3])
             spread = math.sqrt((line.scale * person[2]) ** 2 + var)
             z = (person[1] - row) / spread
-            u = max(-CLIP, min(CLIP, z)) / max(SD_CLIPPED, line.score_rms)
+            u = max(-CLIP, min(CLIP, z)) / SD_CLIPPED
             roll = person[3] / spread / line.roll_rms  # NaN while the roll is not fitted: its test rests
-            k = (CUSUM_K,) * 2 + (0.5 * math.tan(math.radians(ROLL_REF_DEG)) * line.roll_rms,) * 2
+            k = (CUSUM_K,) * 2 + (line.roll_k,) * 2
             for i, step in enumerate((u, -u, roll * u, -roll * u)):  # row S+, S-; roll S+, S-
                 if math.isfinite(step):
                     self._cusum[i] = max(0.0, self._cusum[i] + step - k[i])
@@ -405,13 +436,28 @@ class OnlineCalibrator:
         over = [i for i in range(len(thresholds)) if self._cusum[i] > thresholds[i]]
         if armed and over:
             return self._move(max(over, key=lambda i: self._cusum[i] / thresholds[i]), person[0], thresholds), z
-        self.estimate, self.n_people = robust_line(people, self._roll_width), len(people)
-        rms = self.estimate.roll_rms
-        self.roll_threshold = cusum_threshold(self._tests * self.arl0_people, 0.5 * math.tan(math.radians(ROLL_REF_DEG))
-                                              * rms) if math.isfinite(rms) and rms > 0 else math.nan
+        line = self.estimate = robust_line(people, self._roll_width)
+        self.n_people = len(people)
+        self.row_threshold, rms = self._threshold(0, CUSUM_K), line.roll_rms
+        self.roll_threshold = self._threshold(1, line.roll_k) if math.isfinite(rms) and rms > 0 else math.nan
         if not math.isfinite(self.roll_threshold):
             self._cusum[2:], self._since_zero[2:] = [0.0, 0.0], [0, 0]
         return None, z
+
+    def _threshold(self, test: int, k: float) -> float:
+        """Test ``test``'s h (0 row, 1 roll) at reference k: Siegmund's for len(tests) x arl0_people, the largest of
+        the normal increments' and each side's whose tilt is smaller than theirs, at the tilt and root mean square of
+        its increments on the estimate's people before the side's statistic was last 0 (at least MIN_PEOPLE of
+        them; module docstring)."""
+        arl0, x = self._tests * self.arl0_people, self.estimate.increments
+        h = [cusum_threshold(arl0, k)]
+        for side, sign in enumerate((1, -1)):
+            if x is not None:
+                steady = sign * x[:max(MIN_PEOPLE, len(x) - self._since_zero[2 * test + side]), test]
+                theta = tilt(steady, k)
+                if theta < 2 * k:  # a lighter tail than the normal's (or NaN) leaves the normal's h the larger
+                    h.append(cusum_threshold(arl0, k, theta, float(np.sqrt(np.mean(steady ** 2)))))
+        return max(h)
 
     def _move(self, i: int, now: float, thresholds: tuple) -> Move:
         """Split the stretch at the alarming statistic's (i) last 0, whose people give the new stretch's first
@@ -427,7 +473,7 @@ class OnlineCalibrator:
             track[1:] = [[] for _ in range(4)]
         self._since_zero, self._cusum = [0] * len(self._cusum), [0.0] * len(self._cusum)
         self.stretch_start_s, self.estimate, self.n_people = people[start][0], after, len(people) - start
-        self.roll_threshold = math.nan  # the test re-arms at MIN_PEOPLE people (its threshold with the estimate then)
+        self.row_threshold, self.roll_threshold = self.threshold, math.nan  # re-armed at MIN_PEOPLE people (thresholds then)
         return move
 
     # ---- corrections ---------------------------------------------------------------------------
@@ -492,9 +538,12 @@ def robust_line(people, roll_width: float | None = None) -> Line:
         cov[:len(bread), :len(bread)] = scale ** 2 * inv @ meat @ inv
     else:
         cov[0, 0] = math.inf
-    return Line(float(beta[0]), float(beta[1]) if roll else 0.0, cov, scale,
-                float(np.sqrt(np.mean((w / (scale * s)) ** 2))) if roll else math.nan,
-                float(np.sqrt(np.mean(psi * psi))) if robust else math.nan)
+    g = w / (scale * s)  # the standardised roll regressors
+    line = Line(float(beta[0]), float(beta[1]) if roll else 0.0, cov, scale, float(np.sqrt(np.mean(g ** 2))) if roll else math.nan)
+    if not robust:
+        return line
+    u = psi / SD_CLIPPED  # the change tests' increments on these people (OnlineCalibrator._observe)
+    return dataclasses.replace(line, increments=np.column_stack([u, u * g / line.roll_rms if roll else np.full(n, math.nan)]))
 
 
 def camera_of(transformer: ViewTransformer, image_size: tuple[int, int] | None, K=None,

@@ -9,7 +9,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 from cli_run import homocal_main
-from scipy import integrate, stats
+from scipy import integrate, optimize, stats
 
 from homocal.correctors.base import load_corrector
 from homocal.correctors.pedestrians import implied_heights, implied_horizon_rows
@@ -28,6 +28,7 @@ from homocal.watch.calibrator import (
     cusum_threshold,
     implied_line_terms,
     robust_line,
+    tilt,
 )
 
 CAM = PinholeCamera()  # 1280x720, 95 degrees, 4 m high, tilted 15 degrees down
@@ -135,11 +136,35 @@ def test_cusum_threshold_inverts_siegmund(arl0):
     assert math.isclose(cusum_arl0(cusum_threshold(arl0)), arl0, rel_tol=1e-9)
 
 
-def clipped_t_rms(dof: float) -> float:
-    """The root mean square of Student's t with dof degrees of freedom clipped at +-CLIP (quadrature of its density,
-    scipy.stats.t, independent of the code under test)."""
-    inside = integrate.quad(lambda x: x * x * stats.t.pdf(x, dof), -CLIP, CLIP)[0]
-    return math.sqrt(inside + 2 * CLIP ** 2 * stats.t.sf(CLIP, dof))
+def clipped_tilt(pdf, cdf, k: float = CUSUM_K, scale: float = 1.0) -> float:
+    """The tilt of increments u = clip(z / scale, +-CLIP) / SD_CLIPPED, z of density pdf and distribution function cdf:
+    the root theta > 0 of E exp(theta (u - k)) = 1, by quadrature (scipy) and brentq, independent of the code under
+    test."""
+    c = CLIP * scale
+
+    def mgf(theta):
+        g = lambda x: math.exp(theta * (min(max(x / scale, -CLIP), CLIP) / SD_CLIPPED - k))  # noqa: E731
+        inside = integrate.quad(lambda x: g(x) * pdf(x), -c, c, limit=200)[0]
+        return inside + g(c) * (1 - cdf(c)) + g(-c) * cdf(-c) - 1
+
+    hi = 0.5
+    while mgf(hi) < 0:
+        hi *= 2
+    return optimize.brentq(mgf, 1e-6, hi, xtol=1e-10)
+
+
+def skewed_pdf(x):
+    """A mixture with a heavy left tail (mean 0): N(0.2, 1) with weight 0.9, N(-1.8, 3^2) with weight 0.1."""
+    return 0.9 * stats.norm.pdf(x, 0.2, 1) + 0.1 * stats.norm.pdf(x, -1.8, 3)
+
+
+def skewed_cdf(x):
+    return 0.9 * stats.norm.cdf(x, 0.2, 1) + 0.1 * stats.norm.cdf(x, -1.8, 3)
+
+
+def skewed_draw(rng, n):
+    heavy = rng.random(n) < 0.1
+    return np.where(heavy, rng.normal(-1.8, 3, n), rng.normal(0.2, 1, n))
 
 
 def cusum_run_lengths(draw, h, runs=4000, seed=3):
@@ -163,53 +188,78 @@ def test_siegmund_arl_against_simulation():
     assert abs(length.mean() / 200 - 1) < 0.1
 
 
-@pytest.mark.parametrize("dof", [3, 5])
-def test_heavy_tailed_residuals_scaled_by_their_clipped_rms_keep_siegmunds_run_length(dof):
+def test_tilt_of_normal_increments():
+    """tilt on 200,000 N(0, sd^2) increments: 2 k / sd^2 (E exp(theta (x - k)) = exp(theta^2 sd^2 / 2 - theta k)),
+    within 4 of its standard errors (about 0.5 % here); no root (NaN) when the mean is at least k."""
+    rng = np.random.default_rng(2)
+    for sd in (1.0, 1.4):
+        assert abs(tilt(rng.normal(0, sd, 200_000), CUSUM_K) / (2 * CUSUM_K / sd ** 2) - 1) < 0.02
+    assert math.isnan(tilt(rng.normal(0.6, 1, 1000), CUSUM_K))
+
+
+@pytest.mark.parametrize("name, draw, pdf, cdf", [
+    ("t3", lambda rng, n: rng.standard_t(3, n), lambda x: stats.t.pdf(x, 3), lambda x: stats.t.cdf(x, 3)),
+    ("skewed", skewed_draw, skewed_pdf, skewed_cdf),
+])  # fmt: skip
+def test_siegmunds_run_length_with_the_increments_tilt(name, draw, pdf, cdf):
     """Residuals with Student's t tails (3 degrees of freedom: the rgb boxes' share over 2, 3 and 4 sd,
-    research/watch_residuals.py), clipped at CLIP and divided by their root mean square (OnlineCalibrator's
-    Line.score_rms measures it on the stream), run the two-sided CUSUM cusum_arl0(h) steps on average: 4000 runs at
-    ARL0 200 (the mean's standard error about 1.6 %; Siegmund's approximation, for normal increments, within a few
-    % here). Divided by SD_CLIPPED (the normal's) instead, the run is at most half as long."""
-    h, rms = cusum_threshold(200), clipped_t_rms(dof)
-    assert rms > SD_CLIPPED
-    scaled = cusum_run_lengths(lambda rng, n: np.clip(rng.standard_t(dof, n), -CLIP, CLIP) / rms, h)
-    assert abs(scaled.mean() / 200 - 1) < 0.1, scaled.mean()
-    normal_scale = cusum_run_lengths(lambda rng, n: np.clip(rng.standard_t(dof, n), -CLIP, CLIP) / SD_CLIPPED, h, 1000)
-    assert normal_scale.mean() < 100, normal_scale.mean()
+    research/watch_residuals.py) or a heavy left tail (skewed_pdf), clipped at CLIP and divided by SD_CLIPPED (the
+    calibrator's increments): with each side's threshold from cusum_threshold at that side's tilt (by quadrature:
+    clipped_tilt) and the increments' root mean square, the two-sided CUSUM runs ARL0 = 200 steps on average (4000
+    runs: the mean's standard error about 1.6 %; Siegmund's approximation within a few % here: 0.99 and 1.00 of
+    it); with both at the larger of the two (as OnlineCalibrator does), at least that (0.99, 1.13); with the normal's
+    threshold, at most half of it (0.20, 0.28)."""
+    theta = [clipped_tilt(pdf, cdf), clipped_tilt(lambda x: pdf(-x), lambda x: 1 - cdf(-x))]  # S+ on u, S- on -u
+    assert max(theta) < 2 * CUSUM_K  # heavier than the normal's on both sides
+    rng = np.random.default_rng(4)
+    sd = float(np.sqrt(np.mean((np.clip(draw(rng, 1_000_000), -CLIP, CLIP) / SD_CLIPPED) ** 2)))
+    up, down = (cusum_threshold(200, CUSUM_K, t, sd) for t in theta)
+
+    def increments(rng, n):
+        return np.clip(draw(rng, n), -CLIP, CLIP) / SD_CLIPPED
+
+    def mean_run(h_up, h_down, runs=4000):
+        rng = np.random.default_rng(3)
+        s_up, s_down, alive, length = np.zeros(runs), np.zeros(runs), np.ones(runs, bool), np.zeros(runs)
+        for step in range(1, 100_000):
+            u = increments(rng, runs)
+            s_up, s_down = np.maximum(0, s_up + u - CUSUM_K), np.maximum(0, s_down - u - CUSUM_K)
+            fired = alive & ((s_up > h_up) | (s_down > h_down))
+            length[fired], alive = step, alive & ~fired
+            if not alive.any():
+                return length.mean()
+        raise AssertionError("runs did not end")
+
+    assert abs(mean_run(up, down) / 200 - 1) < 0.1
+    assert mean_run(max(up, down), max(up, down)) / 200 > 0.95
+    assert mean_run(cusum_threshold(200), cusum_threshold(200), 1000) / 200 < 0.5
 
 
-def test_score_rms_is_the_clipped_residuals_rms():
-    """robust_line's score_rms on people whose residuals are normal or Student's t (3 degrees of freedom), 4000 of
-    them (sigma 1-4 px): the root mean square of the residuals over the scale s, clipped at CLIP, as the quadrature
-    gives it (s the median absolute residual / 0.6745: 1 for the normal, 0.7649 / 0.6745 for t with 3; the
-    sample's standard error about 2 %, s's about 1 %)."""
+def test_robust_line_gives_its_peoples_increments():
+    """robust_line's row increments on 4000 people whose residuals are Student's t with 3 degrees of freedom (sigma
+    1-4 px) have the tilt of clip(z / s, +-CLIP) / SD_CLIPPED by quadrature (s the median absolute residual /
+    0.6745: 0.7649 / 0.6745 for t with 3; the sample's tilt within a few % of it) on either side; no roll: the roll
+    test's increments NaN."""
     rng = np.random.default_rng(7)
-    sigma = rng.uniform(1, 4, 4000)
-    for z, s, rms in ((rng.standard_normal(4000), 1.0, SD_CLIPPED),
-                      (rng.standard_t(3, 4000), stats.t.ppf(0.75, 3) / 0.6745, None)):
-        if rms is None:
-            inside = integrate.quad(lambda x: x * x * stats.t.pdf(x, 3), -CLIP * s, CLIP * s)[0]
-            rms = math.sqrt(inside / s ** 2 + 2 * CLIP ** 2 * stats.t.sf(CLIP * s, 3))
-        line = robust_line([(0.0, 200 + e * si, si, math.nan, 0.0) for e, si in zip(z, sigma)])
-        assert abs(line.score_rms / rms - 1) < 0.06, (line.score_rms, rms)
+    sigma, z = rng.uniform(1, 4, 4000), rng.standard_t(3, 4000)
+    x = robust_line([(0.0, 200 + e * si, si, math.nan, 0.0) for e, si in zip(z, sigma)]).increments
+    expected = clipped_tilt(lambda v: stats.t.pdf(v, 3), lambda v: stats.t.cdf(v, 3), scale=stats.t.ppf(0.75, 3) / 0.6745)
+    assert x.shape == (4000, 2) and np.isnan(x[:, 1]).all()
+    for side in (x[:, 0], -x[:, 0]):
+        assert abs(tilt(side, CUSUM_K) / expected - 1) < 0.06
 
 
-def test_the_tests_increments_are_scaled_by_the_estimates_score_rms():
-    """Each person's CUSUM increment is their clipped standardised residual over max(SD_CLIPPED, score_rms) of the
-    estimate before them: on a steady camera whose people's heights have Student's t tails (score_rms over
-    SD_CLIPPED by 5 % or more for 20 of the people checked at least), S+ after a frame with one person is max(0,
-    S+ before + u - CUSUM_K)."""
-    cal = OnlineCalibrator(CAM.K, 4.0, FPS, (CAM.width, CAM.height), 1.70, 0.07)
-    scaled, previous = 0, None
-    for frame, boxes, ids in stream(120, rate=4.0, seed=6, dof=3):
-        line = cal.estimate
-        state = cal.update(frame, boxes, ids)
-        if len(state.person_z) == 1 and np.isfinite(state.person_z[0]) and previous is not None and not state.move:
-            u = np.clip(state.person_z[0], -CLIP, CLIP) / max(SD_CLIPPED, line.score_rms)
-            assert math.isclose(state.cusum_up, max(0.0, previous.cusum_up + u - CUSUM_K), abs_tol=1e-9)
-            scaled += line.score_rms > 1.05 * SD_CLIPPED
-        previous = state
-    assert scaled > 20
+def test_heavy_tailed_people_raise_the_row_tests_threshold():
+    """A steady camera whose people's heights have Student's t tails (3 degrees of freedom; the prior says normal):
+    once armed, the row test's threshold is mostly above the normal increments' (cusum_threshold(arl0_people)), its
+    estimate's increments' tilt below theirs (2 k); with normal heights it stays the normal's once the window is
+    full (earlier a side's tilt on a few people may be below 2 k: a higher threshold)."""
+    cal, states = run(stream(120, rate=4.0, seed=6, dof=3))
+    armed = [s.threshold for s in states if np.isfinite(s.threshold)]
+    assert tilt(-cal.estimate.increments[:, 0], CUSUM_K) < 2 * CUSUM_K
+    assert len(armed) > 100 and np.mean(np.array(armed) > cal.threshold + 1) > 0.5
+    cal, states = run(stream(120, rate=4.0, seed=6))
+    assert {s.threshold for s in states if s.n_people == WINDOW_PEOPLE} == {cal.threshold}
 
 
 def test_the_row_and_roll_tests_together_alarm_at_the_stated_rate():
