@@ -167,14 +167,16 @@ def skewed_draw(rng, n):
     return np.where(heavy, rng.normal(-1.8, 3, n), rng.normal(0.2, 1, n))
 
 
-def cusum_run_lengths(draw, h, runs=4000, seed=3):
-    """The run lengths of the two-sided CUSUM (reference CUSUM_K, threshold h) on increments draw(rng, runs)."""
+def cusum_run_lengths(draw, h, h_down=None, runs=4000, seed=3):
+    """The run lengths of the two-sided CUSUM (reference CUSUM_K, thresholds h for S+ and h_down for S-, None: h)
+    on increments draw(rng, runs)."""
+    h_down = h if h_down is None else h_down
     rng = np.random.default_rng(seed)
     up, down, alive, length = np.zeros(runs), np.zeros(runs), np.ones(runs, bool), np.zeros(runs)
     for step in range(1, 100_000):
         u = draw(rng, runs)
         up, down = np.maximum(0, up + u - CUSUM_K), np.maximum(0, down - u - CUSUM_K)
-        fired = alive & ((up > h) | (down > h))
+        fired = alive & ((up > h) | (down > h_down))
         length[fired], alive = step, alive & ~fired
         if not alive.any():
             return length
@@ -218,21 +220,9 @@ def test_siegmunds_run_length_with_the_increments_tilt(name, draw, pdf, cdf):
     def increments(rng, n):
         return np.clip(draw(rng, n), -CLIP, CLIP) / SD_CLIPPED
 
-    def mean_run(h_up, h_down, runs=4000):
-        rng = np.random.default_rng(3)
-        s_up, s_down, alive, length = np.zeros(runs), np.zeros(runs), np.ones(runs, bool), np.zeros(runs)
-        for step in range(1, 100_000):
-            u = increments(rng, runs)
-            s_up, s_down = np.maximum(0, s_up + u - CUSUM_K), np.maximum(0, s_down - u - CUSUM_K)
-            fired = alive & ((s_up > h_up) | (s_down > h_down))
-            length[fired], alive = step, alive & ~fired
-            if not alive.any():
-                return length.mean()
-        raise AssertionError("runs did not end")
-
-    assert abs(mean_run(up, down) / 200 - 1) < 0.1
-    assert mean_run(max(up, down), max(up, down)) / 200 > 0.95
-    assert mean_run(cusum_threshold(200), cusum_threshold(200), 1000) / 200 < 0.5
+    assert abs(cusum_run_lengths(increments, up, down).mean() / 200 - 1) < 0.1
+    assert cusum_run_lengths(increments, max(up, down)).mean() / 200 > 0.95
+    assert cusum_run_lengths(increments, cusum_threshold(200), runs=1000).mean() / 200 < 0.5
 
 
 def test_robust_line_gives_its_peoples_increments():
