@@ -52,7 +52,8 @@ b - 1) / (2 k^2) / 2 (Siegmund's own case; the 1.166 is its overshoot, sd-fold f
 Each side's tilt and sd are measured on the estimate's own people (``Line.increments``: each person's u, or u g /
 g_rms for the roll, the sample mean for the expectation: ``tilt``), those before the side's statistic was last 0
 (the people since are the change point estimate's: a move's first people would widen the tail they measure; at
-least MIN_PEOPLE), and the test's h is the largest of its sides' and the normal increments' (the floor keeps the
+least MIN_PEOPLE), about their mean (Siegmund's increments have mean 0; a move's first people pull the estimate
+from the people before them), and the test's h is the largest of its sides' and the normal increments' (the floor keeps the
 model's, as the scale s keeps 1). A heavy tail has a smaller tilt: the scale s, from the median absolute
 residual, does not see it, and the normal's h would give a false alarm every fifth (at 200 people) or eighth (at
 1,000) of ``arl0_people`` people on residuals of Student's t with 3 degrees of freedom (tests/watch/test_watch.py), as the rgb detector's
@@ -341,8 +342,7 @@ class OnlineCalibrator:
         self._cusum = [0.0] * 2 * len(TESTS)  # row S+, S-, roll S+, S-
         self.stretch_start_s = 0.0
         self.estimate = NO_LINE
-        self.row_threshold = self.threshold  # the row test's threshold, from the estimate's tilts (at least threshold)
-        self.roll_threshold = math.nan  # the roll test's threshold, from the estimate's roll_rms and tilts
+        self._h = [self.threshold] * 2 + [math.nan] * 2  # each one-sided statistic's threshold (_threshold)
         self.n_people = 0  # the people behind the estimate
 
     # ---- boxes -> people ------------------------------------------------------------------------
@@ -406,10 +406,11 @@ class OnlineCalibrator:
         line = self.estimate
         armed = len(self._people) >= MIN_PEOPLE
         stats = self._cusum if armed else [math.nan] * len(self._cusum)
-        roll = stats[2:] + [self.roll_threshold] if armed and math.isfinite(self.roll_threshold) else [math.nan] * 3
+        h = [max(self._h[:2]), max(self._h[2:])]  # each test's: the larger of its sides'
+        roll = stats[2:] + [h[1]] if armed and math.isfinite(h[1]) else [math.nan] * 3
         cx = float(self.K[0, 2])
         return State(t, self.stretch_start_s, line.row, line.sigma, self.n_people, *stats[:2],
-                     self.row_threshold if armed else math.nan, move, tuple(p[1] for p in observed),
+                     h[0] if armed else math.nan, move, tuple(p[1] for p in observed),
                      tuple(p[2] for p in observed), int(hidden.sum()), tuple(cx + p[4] for p in observed),
                      line.roll_deg, line.roll_sigma_deg, *roll, tuple(zs))
 
@@ -419,7 +420,7 @@ class OnlineCalibrator:
         the person's standardised residual z (NaN while unarmed)."""
         people = self._people
         armed, z = len(people) >= MIN_PEOPLE, math.nan
-        thresholds = (self.row_threshold,) * 2 + (self.roll_threshold,) * 2
+        thresholds = tuple(self._h)
         if armed:
             line = self.estimate
             row, var = line.predicted(person[3])
@@ -438,26 +439,28 @@ class OnlineCalibrator:
             return self._move(max(over, key=lambda i: self._cusum[i] / thresholds[i]), person[0], thresholds), z
         line = self.estimate = robust_line(people, self._roll_width)
         self.n_people = len(people)
-        self.row_threshold, rms = self._threshold(0, CUSUM_K), line.roll_rms
-        self.roll_threshold = self._threshold(1, line.roll_k) if math.isfinite(rms) and rms > 0 else math.nan
-        if not math.isfinite(self.roll_threshold):
+        if not (math.isfinite(line.roll_rms) and line.roll_rms > 0):  # the roll not fitted: its test rests
             self._cusum[2:], self._since_zero[2:] = [0.0, 0.0], [0, 0]
+        for i in range(len(self._h)):
+            if self._cusum[i] == 0.0:  # held while the statistic climbs
+                self._h[i] = self._threshold(i)
         return None, z
 
-    def _threshold(self, test: int, k: float) -> float:
-        """Test ``test``'s h (0 row, 1 roll) at reference k: Siegmund's for len(tests) x arl0_people, the largest of
-        the normal increments' and each side's whose tilt is smaller than theirs, at the tilt and root mean square of
-        its increments on the estimate's people before the side's statistic was last 0 (at least MIN_PEOPLE of
-        them; module docstring)."""
-        arl0, x = self._tests * self.arl0_people, self.estimate.increments
-        h = [cusum_threshold(arl0, k)]
-        for side, sign in enumerate((1, -1)):
-            if x is not None:
-                steady = sign * x[:max(MIN_PEOPLE, len(x) - self._since_zero[2 * test + side]), test]
-                theta = tilt(steady, k)
-                if theta < 2 * k:  # a lighter tail than the normal's (or NaN) leaves the normal's h the larger
-                    h.append(cusum_threshold(arl0, k, theta, float(np.sqrt(np.mean(steady ** 2)))))
-        return max(h)
+    def _threshold(self, i: int) -> float:
+        """One-sided statistic i's h (row S+, S-, roll S+, S-; NaN for the roll's while it is not fitted): Siegmund's
+        for len(tests) x arl0_people at its test's reference, the larger of the normal increments' and that at the
+        tilt and root mean square of its increments on the estimate's people, about their mean (module docstring)."""
+        line, test, sign = self.estimate, i // 2, 1 - 2 * (i % 2)
+        k = CUSUM_K if test == 0 else line.roll_k
+        if not math.isfinite(k):
+            return math.nan
+        h = cusum_threshold(self._tests * self.arl0_people, k)
+        if line.increments is not None:
+            x = sign * (line.increments[:, test] - line.increments[:, test].mean())
+            theta = tilt(x, k)
+            if theta < 2 * k:  # a tail heavier than the normal's (a lighter one, or NaN, leaves the normal's h the larger)
+                h = max(h, cusum_threshold(self._tests * self.arl0_people, k, theta, float(np.sqrt(np.mean(x * x)))))
+        return h
 
     def _move(self, i: int, now: float, thresholds: tuple) -> Move:
         """Split the stretch at the alarming statistic's (i) last 0, whose people give the new stretch's first
@@ -473,7 +476,7 @@ class OnlineCalibrator:
             track[1:] = [[] for _ in range(4)]
         self._since_zero, self._cusum = [0] * len(self._cusum), [0.0] * len(self._cusum)
         self.stretch_start_s, self.estimate, self.n_people = people[start][0], after, len(people) - start
-        self.row_threshold, self.roll_threshold = self.threshold, math.nan  # re-armed at MIN_PEOPLE people (thresholds then)
+        self._h = [self.threshold] * 2 + [math.nan] * 2  # re-armed at MIN_PEOPLE people (thresholds then)
         return move
 
     # ---- corrections ---------------------------------------------------------------------------
