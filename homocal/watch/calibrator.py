@@ -43,22 +43,22 @@ reference for a roll change of ROLL_REF_DEG; it runs with estimate_roll and rest
 the roll is not fitted. The row
 test sees a change of v_0 (a tilt); the roll test a turn of the horizon about the principal column, which moves
 the people on either side oppositely and leaves the row test's mean unchanged. A move is declared when a
-statistic exceeds its test's h, where h gives a mean of 2 ``arl0_people`` people (with estimate_roll; else
-``arl0_people``, the row test alone) between false alarms of the test on a steady camera, by Siegmund's approximation of a one-sided CUSUM's run length
-(Siegmund 1985, "Sequential analysis"; two sides: half of it): ARL0 = (exp(theta b) - theta b - 1) / (theta k) /
-2, b = h + 1.166 sd (``cusum_threshold``), theta the increments' tilt, the root of E exp(theta (u - k)) = 1, and
-sd their root mean square: for normal increments of unit variance theta = 2 k, sd = 1 and ARL0 = (exp(2 k b) - 2 k
-b - 1) / (2 k^2) / 2 (Siegmund's own case; the 1.166 is its overshoot, sd-fold for increments sd times as wide).
-Each side's tilt and sd are measured on the estimate's own people (``Line.increments``: each person's u, or u g /
-g_rms for the roll, the sample mean for the expectation: ``tilt``), those before the side's statistic was last 0
-(the people since are the change point estimate's: a move's first people would widen the tail they measure; at
-least MIN_PEOPLE), about their mean (Siegmund's increments have mean 0; a move's first people pull the estimate
-from the people before them), and the test's h is the largest of its sides' and the normal increments' (the floor keeps the
-model's, as the scale s keeps 1). A heavy tail has a smaller tilt: the scale s, from the median absolute
-residual, does not see it, and the normal's h would give a false alarm every fifth (at 200 people) or eighth (at
-1,000) of ``arl0_people`` people on residuals of Student's t with 3 degrees of freedom (tests/watch/test_watch.py), as the rgb detector's
-boxes have (research/watch_residuals.py), and sooner on a heavier side (theirs: the horizon above the estimate).
-The two tests together then alarm every ``arl0_people``
+one-sided statistic exceeds its h, where h gives a mean of 2 ``arl0_people`` people (with estimate_roll; else
+``arl0_people``, the row test alone) between false alarms of the test on a steady camera, by Siegmund's
+approximation of a one-sided CUSUM's run length (Siegmund 1985, "Sequential analysis"; two sides: half of it):
+ARL0 = (exp(theta b) - theta b - 1) / (theta k) / 2, b = h + 1.166 sd (``cusum_threshold``), theta the
+increments' tilt, the root of E exp(theta (u - k)) = 1, and sd their root mean square: for normal increments of
+unit variance theta = 2 k, sd = 1 and ARL0 = (exp(2 k b) - 2 k b - 1) / (2 k^2) / 2 (Siegmund's own case; the
+1.166 is its overshoot, sd-fold for increments sd times as wide). Each side's tilt and sd are those of its
+increments on the estimate's own people, about their mean (``Line.increments``: each person's u, or u g / g_rms
+for the roll; the sample mean for the expectation: ``tilt``), and its h the larger of theirs and the normal
+increments' (the floor keeps the model's, as the scale s keeps 1); h is set so while the statistic is at 0 and
+held while it climbs (a move's first people, and the estimate they pull, would widen the tail it measures). A
+heavy tail has a smaller tilt: the scale s, from the median absolute residual, does not see it, and the normal's
+h would give a false alarm every fifth (at 200 people) or eighth (at 1,000) of ``arl0_people`` people on
+residuals of Student's t with 3 degrees of freedom (tests/watch/test_watch.py simulates it), as the rgb detector's
+boxes have (research/watch_residuals.py), and sooner on a heavier side (theirs: the horizon above the estimate,
+tilt 0.49 against 0.89 below). The two tests together then alarm every ``arl0_people``
 people (1 / ARL0 adds up over independent tests; the two share each person's |z|, which lengthens their
 joint run a little: tests/watch/test_watch.py simulates it). Each person is tested against the estimate of
 the people before it, then joins it (a self-starting CUSUM, as Hawkins 1987). A person tells of a roll by
@@ -199,13 +199,14 @@ class Move:
 class State:
     """The calibrator after an update: t_s (the frame's time), the current stretch's start, the horizon row
     at the principal column and its 1-sigma (px; NaN before any person), the people in its estimate, the row
-    test's CUSUM statistics S+ and S- and threshold (NaN while the stretch has fewer than MIN_PEOPLE), and the
-    move detected at this update, if any. person_rows / person_sigmas / person_columns: the people observed at
+    test's CUSUM statistics S+ and S- and threshold (the larger of its sides'; NaN while the stretch has fewer than
+    MIN_PEOPLE), and the move detected at this update, if any. person_rows / person_sigmas / person_columns: the people observed at
     this update (their implied horizon rows, px, and the column of their box's middle, px). hidden_boxes: how
     many of the boxes measured at this update (of tracks yet to give their person) may have hidden feet (not
     used). roll_deg, roll_sigma_deg: the estimate's roll (degrees, camera.json's sign: the horizon's slope in the
     image is -tan(roll)) and its 1-sigma (0 and NaN where not fitted); cusum_roll_up, cusum_roll_down,
-    roll_threshold: the roll test's statistics and threshold (NaN as the row's, and while the roll is not fitted).
+    roll_threshold: the roll test's statistics and threshold (the larger of its sides'; NaN as the row's, and
+    while the roll is not fitted).
     person_z: each person's standardised residual z against the estimate before it (module docstring, Change
     tests; NaN while the stretch has fewer than MIN_PEOPLE)."""
 
