@@ -58,7 +58,7 @@ heavy tail has a smaller tilt: the scale s, from the median absolute residual, d
 h would give a false alarm every fifth (at 200 people) or eighth (at 1,000) of ``arl0_people`` people on
 residuals of Student's t with 3 degrees of freedom (tests/watch/test_watch.py simulates it), as the rgb detector's
 boxes have (research/watch_residuals.py), and sooner on a heavier side (theirs: the horizon above the estimate,
-tilt 0.49 against 0.89 below). The two tests together then alarm every ``arl0_people``
+tilt 0.50 against 0.89 below). The two tests together then alarm every ``arl0_people``
 people (1 / ARL0 adds up over independent tests; the two share each person's |z|, which lengthens their
 joint run a little: tests/watch/test_watch.py simulates it). Each person is tested against the estimate of
 the people before it, then joins it (a self-starting CUSUM, as Hawkins 1987). A person tells of a roll by
