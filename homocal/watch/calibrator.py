@@ -156,12 +156,12 @@ def tilt(x: np.ndarray, k: float) -> float:
     d = np.asarray(x, dtype=np.float64) - k
     if not d.mean() < 0 < d.max():
         return math.nan
-    lo, hi = 0.0, 1.0
-    while np.mean(np.exp(hi * d)) < 1:
+    lo, hi, n = 0.0, 1.0, len(d)
+    while np.exp(hi * d).sum() < n:
         lo, hi = hi, 2 * hi
-    for _ in range(40):
+    for _ in range(30):  # to 2^-30 of the bracket
         mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if np.mean(np.exp(mid * d)) < 1 else (lo, mid)
+        lo, hi = (mid, hi) if np.exp(mid * d).sum() < n else (lo, mid)
     return 0.5 * (lo + hi)
 
 
@@ -455,7 +455,7 @@ class OnlineCalibrator:
         k = CUSUM_K if test == 0 else line.roll_k
         if not math.isfinite(k):
             return math.nan
-        h = cusum_threshold(self._tests * self.arl0_people, k)
+        h = self.threshold if test == 0 else cusum_threshold(self._tests * self.arl0_people, k)
         if line.increments is not None:
             x = sign * (line.increments[:, test] - line.increments[:, test].mean())
             theta = tilt(x, k)
