@@ -43,10 +43,22 @@ reference for a roll change of ROLL_REF_DEG; it runs with estimate_roll and rest
 the roll is not fitted. The row
 test sees a change of v_0 (a tilt); the roll test a turn of the horizon about the principal column, which moves
 the people on either side oppositely and leaves the row test's mean unchanged. A move is declared when a
-statistic exceeds its test's h, where h gives a mean of 2 ``arl0_people`` people (with estimate_roll; else
-``arl0_people``, the row test alone) between false alarms of the test on a steady camera, by Siegmund's approximation of a one-sided CUSUM's run length (normal
-increments; Siegmund 1985, "Sequential analysis"; two sides: half of it): ARL0 = (exp(2 k b) - 2 k b - 1) /
-(2 k^2) / 2, b = h + 1.166 (``cusum_threshold``); the two tests together then alarm every ``arl0_people``
+one-sided statistic exceeds its h, where h gives a mean of 2 ``arl0_people`` people (with estimate_roll; else
+``arl0_people``, the row test alone) between false alarms of the test on a steady camera, by Siegmund's
+approximation of a one-sided CUSUM's run length (Siegmund 1985, "Sequential analysis"; two sides: half of it):
+ARL0 = (exp(theta b) - theta b - 1) / (theta k) / 2, b = h + 1.166 sd (``cusum_threshold``), theta the
+increments' tilt, the root of E exp(theta (u - k)) = 1, and sd their root mean square: for normal increments of
+unit variance theta = 2 k, sd = 1 and ARL0 = (exp(2 k b) - 2 k b - 1) / (2 k^2) / 2 (Siegmund's own case; the
+1.166 is its overshoot, sd-fold for increments sd times as wide). Each side's tilt and sd are those of its
+increments on the estimate's own people, about their mean (``Line.increments``: each person's u, or u g / g_rms
+for the roll; the sample mean for the expectation: ``tilt``), and its h the larger of theirs and the normal
+increments' (the floor keeps the model's, as the scale s keeps 1); h is set so while the statistic is at 0 and
+held while it climbs (a move's first people, and the estimate they pull, would widen the tail it measures). A
+heavy tail has a smaller tilt: the scale s, from the median absolute residual, does not see it, and the normal's
+h would give a false alarm every fifth (at 200 people) or eighth (at 1,000) of ``arl0_people`` people on
+residuals of Student's t with 3 degrees of freedom (tests/watch/test_watch.py simulates it), as the rgb detector's
+boxes have (research/watch_residuals.py), and sooner on a heavier side (theirs: the horizon above the estimate,
+tilt 0.50 against 0.89 below). The two tests together then alarm every ``arl0_people``
 people (1 / ARL0 adds up over independent tests; the two share each person's |z|, which lengthens their
 joint run a little: tests/watch/test_watch.py simulates it). Each person is tested against the estimate of
 the people before it, then joins it (a self-starting CUSUM, as Hawkins 1987). A person tells of a roll by
@@ -70,6 +82,7 @@ is a gap, the estimate and the test go on; a move during a gap is found from the
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import deque
 from dataclasses import dataclass
@@ -116,22 +129,40 @@ def _clipped_sd(c: float) -> float:
 SD_CLIPPED = _clipped_sd(CLIP)
 
 
-def cusum_arl0(h: float, k: float = CUSUM_K) -> float:
+def cusum_arl0(h: float, k: float = CUSUM_K, theta: float | None = None, sd: float = 1.0) -> float:
     """Siegmund's approximation of a two-sided CUSUM's mean run length (people) on a steady camera at
-    threshold h and reference k (module docstring)."""
-    b = 2 * k * (h + 1.166)
-    return (math.exp(b) - b - 1) / (2 * k * k) / 2
+    threshold h and reference k, each side's increments (mean 0) of tilt theta (``tilt``; None: 2 k, normal
+    increments of unit variance) and root mean square sd (module docstring)."""
+    theta = 2 * k if theta is None else theta
+    b = theta * (h + 1.166 * sd)
+    return (math.exp(b) - b - 1) / (theta * k) / 2 if b < 700 else math.inf  # exp(700): past any arl0_people
 
 
-def cusum_threshold(arl0_people: float, k: float = CUSUM_K) -> float:
-    """The threshold h at which cusum_arl0(h, k) = arl0_people (bisection on [0, hi], hi doubled from 100 until it
-    is above it), k > 0."""
+def cusum_threshold(arl0_people: float, k: float = CUSUM_K, theta: float | None = None, sd: float = 1.0) -> float:
+    """The threshold h at which cusum_arl0(h, k, theta, sd) = arl0_people (bisection on [0, hi], hi doubled from
+    100 until it is above it), k > 0."""
     lo, hi = 0.0, 100.0
-    while cusum_arl0(hi, k) < arl0_people:
+    while cusum_arl0(hi, k, theta, sd) < arl0_people:
         hi *= 2
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if cusum_arl0(mid, k) < arl0_people else (lo, mid)
+        lo, hi = (mid, hi) if cusum_arl0(mid, k, theta, sd) < arl0_people else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def tilt(x: np.ndarray, k: float) -> float:
+    """The tilt of a one-sided CUSUM's increments x (n,) at reference k: the root theta > 0 of mean exp(theta (x - k))
+    = 1 (by bisection; 2 k for N(0, 1) increments, 2 k / var for N(0, var)); NaN when there is none (mean x >= k or
+    every x <= k)."""
+    d = np.asarray(x, dtype=np.float64) - k
+    if not d.mean() < 0 < d.max():
+        return math.nan
+    lo, hi, n = 0.0, 1.0, len(d)
+    while np.exp(hi * d).sum() < n:
+        lo, hi = hi, 2 * hi
+    for _ in range(30):  # to 2^-30 of the bracket
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if np.exp(mid * d).sum() < n else (lo, mid)
     return 0.5 * (lo + hi)
 
 
@@ -169,13 +200,16 @@ class Move:
 class State:
     """The calibrator after an update: t_s (the frame's time), the current stretch's start, the horizon row
     at the principal column and its 1-sigma (px; NaN before any person), the people in its estimate, the row
-    test's CUSUM statistics S+ and S- and threshold (NaN while the stretch has fewer than MIN_PEOPLE), and the
-    move detected at this update, if any. person_rows / person_sigmas / person_columns: the people observed at
+    test's CUSUM statistics S+ and S- and threshold (the larger of its sides'; NaN while the stretch has fewer than
+    MIN_PEOPLE), and the move detected at this update, if any. person_rows / person_sigmas / person_columns: the people observed at
     this update (their implied horizon rows, px, and the column of their box's middle, px). hidden_boxes: how
     many of the boxes measured at this update (of tracks yet to give their person) may have hidden feet (not
     used). roll_deg, roll_sigma_deg: the estimate's roll (degrees, camera.json's sign: the horizon's slope in the
     image is -tan(roll)) and its 1-sigma (0 and NaN where not fitted); cusum_roll_up, cusum_roll_down,
-    roll_threshold: the roll test's statistics and threshold (NaN as the row's, and while the roll is not fitted)."""
+    roll_threshold: the roll test's statistics and threshold (the larger of its sides'; NaN as the row's, and
+    while the roll is not fitted).
+    person_z: each person's standardised residual z against the estimate before it (module docstring, Change
+    tests; NaN while the stretch has fewer than MIN_PEOPLE)."""
 
     t_s: float
     stretch_start_s: float
@@ -195,6 +229,7 @@ class State:
     cusum_roll_up: float = math.nan
     cusum_roll_down: float = math.nan
     roll_threshold: float = math.nan
+    person_z: tuple = ()
 
 
 def implied_line_terms(boxes: np.ndarray, K: np.ndarray, camera_height_m: float, height_m: float, roll: bool = True):
@@ -221,13 +256,21 @@ class Line:
     slope in the image is -tan_roll: tan of the roll, camera.json's sign), their covariance cov (2, 2) (px^2, px, 1; only
     cov[0, 0] where the roll is not fitted: tan_roll 0, the rest NaN), scale the robust scale s, roll_rms the
     root mean square of the people's standardised roll regressors w_i / (s sigma_i) (NaN where the roll is not
-    fitted: the roll test then rests)."""
+    fitted: the roll test then rests), increments the change tests' increments on the people (n, 2): the row
+    test's u_i = psi(r_i) / SD_CLIPPED and the roll test's u_i g_i / g_rms (NaN where the roll is not fitted;
+    None before MIN_PEOPLE; module docstring)."""
 
     row: float
     tan_roll: float
     cov: np.ndarray
     scale: float
     roll_rms: float = math.nan
+    increments: np.ndarray | None = None
+
+    @property
+    def roll_k(self) -> float:
+        """The roll test's reference value: optimal for a roll change of ROLL_REF_DEG (module docstring)."""
+        return 0.5 * math.tan(math.radians(ROLL_REF_DEG)) * self.roll_rms
 
     @property
     def sigma(self) -> float:
@@ -299,7 +342,7 @@ class OnlineCalibrator:
         self._cusum = [0.0] * 2 * len(TESTS)  # row S+, S-, roll S+, S-
         self.stretch_start_s = 0.0
         self.estimate = NO_LINE
-        self.roll_threshold = math.nan  # the roll test's threshold, from the estimate's roll_rms
+        self._h = [self.threshold] * 2 + [math.nan] * 2  # each one-sided statistic's threshold (_threshold)
         self.n_people = 0  # the people behind the estimate
 
     # ---- boxes -> people ------------------------------------------------------------------------
@@ -353,35 +396,39 @@ class OnlineCalibrator:
             del self._tracks[key]
         if len(self._tracks) > MAX_TRACKS:
             raise ValueError(f"frame {frame}: more than {MAX_TRACKS} people (tracks) at once")
-        move, observed = None, []
+        move, observed, zs = None, [], []
         for person in people:
             observed.append(person)
-            move = self._observe(person)
+            move, z = self._observe(person)
+            zs.append(z)
             if move:  # the tracks are re-armed: this frame's other people give new observations later
                 break
         line = self.estimate
         armed = len(self._people) >= MIN_PEOPLE
         stats = self._cusum if armed else [math.nan] * len(self._cusum)
-        roll = stats[2:] + [self.roll_threshold] if armed and math.isfinite(self.roll_threshold) else [math.nan] * 3
+        h = [max(self._h[:2]), max(self._h[2:])]  # each test's: the larger of its sides'
+        roll = stats[2:] + [h[1]] if armed and math.isfinite(h[1]) else [math.nan] * 3
         cx = float(self.K[0, 2])
         return State(t, self.stretch_start_s, line.row, line.sigma, self.n_people, *stats[:2],
-                     self.threshold if armed else math.nan, move, tuple(p[1] for p in observed),
+                     h[0] if armed else math.nan, move, tuple(p[1] for p in observed),
                      tuple(p[2] for p in observed), int(hidden.sum()), tuple(cx + p[4] for p in observed),
-                     line.roll_deg, line.roll_sigma_deg, *roll)
+                     line.roll_deg, line.roll_sigma_deg, *roll, tuple(zs))
 
     # ---- people -> estimate and test ------------------------------------------------------------
-    def _observe(self, person: tuple) -> Move | None:
-        """Test the person against the stretch's estimate, then add it (module docstring)."""
+    def _observe(self, person: tuple) -> tuple[Move | None, float]:
+        """Test the person against the stretch's estimate, then add it (module docstring); the move, if any, and
+        the person's standardised residual z (NaN while unarmed)."""
         people = self._people
-        armed = len(people) >= MIN_PEOPLE
-        thresholds = (self.threshold,) * 2 + (self.roll_threshold,) * 2
+        armed, z = len(people) >= MIN_PEOPLE, math.nan
+        thresholds = tuple(self._h)
         if armed:
             line = self.estimate
             row, var = line.predicted(person[3])
             spread = math.sqrt((line.scale * person[2]) ** 2 + var)
-            u = max(-CLIP, min(CLIP, (person[1] - row) / spread)) / SD_CLIPPED
+            z = (person[1] - row) / spread
+            u = max(-CLIP, min(CLIP, z)) / SD_CLIPPED
             roll = person[3] / spread / line.roll_rms  # NaN while the roll is not fitted: its test rests
-            k = (CUSUM_K,) * 2 + (0.5 * math.tan(math.radians(ROLL_REF_DEG)) * line.roll_rms,) * 2
+            k = (CUSUM_K,) * 2 + (line.roll_k,) * 2
             for i, step in enumerate((u, -u, roll * u, -roll * u)):  # row S+, S-; roll S+, S-
                 if math.isfinite(step):
                     self._cusum[i] = max(0.0, self._cusum[i] + step - k[i])
@@ -389,14 +436,31 @@ class OnlineCalibrator:
         people.append(person)
         over = [i for i in range(len(thresholds)) if self._cusum[i] > thresholds[i]]
         if armed and over:
-            return self._move(max(over, key=lambda i: self._cusum[i] / thresholds[i]), person[0], thresholds)
-        self.estimate, self.n_people = robust_line(people, self._roll_width), len(people)
-        rms = self.estimate.roll_rms
-        self.roll_threshold = cusum_threshold(self._tests * self.arl0_people, 0.5 * math.tan(math.radians(ROLL_REF_DEG))
-                                              * rms) if math.isfinite(rms) and rms > 0 else math.nan
-        if not math.isfinite(self.roll_threshold):
+            return self._move(max(over, key=lambda i: self._cusum[i] / thresholds[i]), person[0], thresholds), z
+        line = self.estimate = robust_line(people, self._roll_width)
+        self.n_people = len(people)
+        if not (math.isfinite(line.roll_rms) and line.roll_rms > 0):  # the roll not fitted: its test rests
             self._cusum[2:], self._since_zero[2:] = [0.0, 0.0], [0, 0]
-        return None
+        for i in range(len(self._h)):
+            if self._cusum[i] == 0.0:  # held while the statistic climbs
+                self._h[i] = self._threshold(i)
+        return None, z
+
+    def _threshold(self, i: int) -> float:
+        """One-sided statistic i's h (row S+, S-, roll S+, S-; NaN for the roll's while it is not fitted): Siegmund's
+        for len(tests) x arl0_people at its test's reference, the larger of the normal increments' and that at the
+        tilt and root mean square of its increments on the estimate's people, about their mean (module docstring)."""
+        line, test, sign = self.estimate, i // 2, 1 - 2 * (i % 2)
+        k = CUSUM_K if test == 0 else line.roll_k
+        if not math.isfinite(k):
+            return math.nan
+        h = self.threshold if test == 0 else cusum_threshold(self._tests * self.arl0_people, k)
+        if line.increments is not None:
+            x = sign * (line.increments[:, test] - line.increments[:, test].mean())
+            theta = tilt(x, k)
+            if theta < 2 * k:  # a tail heavier than the normal's (a lighter one, or NaN, leaves the normal's h the larger)
+                h = max(h, cusum_threshold(self._tests * self.arl0_people, k, theta, float(np.sqrt(np.mean(x * x)))))
+        return h
 
     def _move(self, i: int, now: float, thresholds: tuple) -> Move:
         """Split the stretch at the alarming statistic's (i) last 0, whose people give the new stretch's first
@@ -412,7 +476,7 @@ class OnlineCalibrator:
             track[1:] = [[] for _ in range(4)]
         self._since_zero, self._cusum = [0] * len(self._cusum), [0.0] * len(self._cusum)
         self.stretch_start_s, self.estimate, self.n_people = people[start][0], after, len(people) - start
-        self.roll_threshold = math.nan  # the test re-arms at MIN_PEOPLE people (its threshold with the estimate then)
+        self._h = [self.threshold] * 2 + [math.nan] * 2  # re-armed at MIN_PEOPLE people (thresholds then)
         return move
 
     # ---- corrections ---------------------------------------------------------------------------
@@ -477,8 +541,12 @@ def robust_line(people, roll_width: float | None = None) -> Line:
         cov[:len(bread), :len(bread)] = scale ** 2 * inv @ meat @ inv
     else:
         cov[0, 0] = math.inf
-    return Line(float(beta[0]), float(beta[1]) if roll else 0.0, cov, scale,
-                float(np.sqrt(np.mean((w / (scale * s)) ** 2))) if roll else math.nan)
+    g = w / (scale * s)  # the standardised roll regressors
+    line = Line(float(beta[0]), float(beta[1]) if roll else 0.0, cov, scale, float(np.sqrt(np.mean(g ** 2))) if roll else math.nan)
+    if not robust:
+        return line
+    u = psi / SD_CLIPPED  # the change tests' increments on these people (OnlineCalibrator._observe)
+    return dataclasses.replace(line, increments=np.column_stack([u, u * g / line.roll_rms if roll else np.full(n, math.nan)]))
 
 
 def camera_of(transformer: ViewTransformer, image_size: tuple[int, int] | None, K=None,

@@ -9,6 +9,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 from cli_run import homocal_main
+from scipy import integrate, optimize, stats
 
 from homocal.correctors.base import load_corrector
 from homocal.correctors.pedestrians import implied_heights, implied_horizon_rows
@@ -26,6 +27,8 @@ from homocal.watch.calibrator import (
     cusum_arl0,
     cusum_threshold,
     implied_line_terms,
+    robust_line,
+    tilt,
 )
 
 CAM = PinholeCamera()  # 1280x720, 95 degrees, 4 m high, tilted 15 degrees down
@@ -33,16 +36,17 @@ FPS = 5
 GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])
 
 
-def stream(seconds, tilt=lambda t: 0.0, rate=1.5, seed=0, noise_px=0.3, roll=lambda t: 0.0, side=6.0):
-    """Frames (frame, xyxy (N, 4) homocal edges, track ids) of people 1.70 +- 0.07 m tall standing 1 s each at
-    random places 8-45 m ahead and up to ``side`` m to either side, arriving at ``rate`` a second, seen by CAM
-    tilted tilt(t) degrees further down and rolled by roll(t) degrees; their foot and head points projected
-    exactly, the box spanning both columns, each box edge plus normal noise of noise_px."""
+def stream(seconds, tilt=lambda t: 0.0, rate=1.5, seed=0, noise_px=0.3, roll=lambda t: 0.0, side=6.0, dof=None):
+    """Frames (frame, xyxy (N, 4) homocal edges, track ids) of people 1.70 +- 0.07 m tall (normal; with dof, 1.70
+    m plus 0.07 m times Student's t of dof degrees of freedom) standing 1 s each at random places 8-45 m ahead and
+    up to ``side`` m to either side, arriving at ``rate`` a second, seen by CAM tilted tilt(t) degrees further down
+    and rolled by roll(t) degrees; their foot and head points projected exactly, the box spanning both columns,
+    each box edge plus normal noise of noise_px."""
     rng = np.random.default_rng(seed)
     n = int(seconds * rate)
     start = np.sort(rng.uniform(0, seconds - 1, n))
     xy = np.column_stack([rng.uniform(-side, side, n), rng.uniform(8, 45, n)])
-    height = rng.normal(1.70, 0.07, n)
+    height = 1.70 + 0.07 * (rng.standard_normal(n) if dof is None else rng.standard_t(dof, n))
     for frame in range(int(seconds * FPS)):
         t = frame / FPS
         cam = dataclasses.replace(CAM, tilt_deg=CAM.tilt_deg + tilt(t), roll_deg=roll(t))
@@ -132,20 +136,120 @@ def test_cusum_threshold_inverts_siegmund(arl0):
     assert math.isclose(cusum_arl0(cusum_threshold(arl0)), arl0, rel_tol=1e-9)
 
 
+def clipped_tilt(pdf, cdf, k: float = CUSUM_K, scale: float = 1.0) -> float:
+    """The tilt of increments u = clip(z / scale, +-CLIP) / SD_CLIPPED, z of density pdf and distribution function cdf:
+    the root theta > 0 of E exp(theta (u - k)) = 1, by quadrature (scipy) and brentq, independent of the code under
+    test."""
+    c = CLIP * scale
+
+    def mgf(theta):
+        g = lambda x: math.exp(theta * (min(max(x / scale, -CLIP), CLIP) / SD_CLIPPED - k))  # noqa: E731
+        inside = integrate.quad(lambda x: g(x) * pdf(x), -c, c, limit=200)[0]
+        return inside + g(c) * (1 - cdf(c)) + g(-c) * cdf(-c) - 1
+
+    hi = 0.5
+    while mgf(hi) < 0:
+        hi *= 2
+    return optimize.brentq(mgf, 1e-6, hi, xtol=1e-10)
+
+
+def skewed_pdf(x):
+    """A mixture with a heavy left tail (mean 0): N(0.2, 1) with weight 0.9, N(-1.8, 3^2) with weight 0.1."""
+    return 0.9 * stats.norm.pdf(x, 0.2, 1) + 0.1 * stats.norm.pdf(x, -1.8, 3)
+
+
+def skewed_cdf(x):
+    return 0.9 * stats.norm.cdf(x, 0.2, 1) + 0.1 * stats.norm.cdf(x, -1.8, 3)
+
+
+def skewed_draw(rng, n):
+    heavy = rng.random(n) < 0.1
+    return np.where(heavy, rng.normal(-1.8, 3, n), rng.normal(0.2, 1, n))
+
+
+def cusum_run_lengths(draw, h, h_down=None, runs=4000, seed=3):
+    """The run lengths of the two-sided CUSUM (reference CUSUM_K, thresholds h for S+ and h_down for S-, None: h)
+    on increments draw(rng, runs)."""
+    h_down = h if h_down is None else h_down
+    rng = np.random.default_rng(seed)
+    up, down, alive, length = np.zeros(runs), np.zeros(runs), np.ones(runs, bool), np.zeros(runs)
+    for step in range(1, 100_000):
+        u = draw(rng, runs)
+        up, down = np.maximum(0, up + u - CUSUM_K), np.maximum(0, down - u - CUSUM_K)
+        fired = alive & ((up > h) | (down > h_down))
+        length[fired], alive = step, alive & ~fired
+        if not alive.any():
+            return length
+    raise AssertionError("runs did not end")
+
+
 def test_siegmund_arl_against_simulation():
     """The two-sided CUSUM on N(0, 1) increments runs cusum_arl0(h) steps on average (Monte Carlo, 4000 runs:
     the mean's standard error is about 1.6 %; Siegmund's approximation is within a few % at these h)."""
-    h, runs = cusum_threshold(200), 4000
-    rng = np.random.default_rng(3)
-    up, down, alive, length = np.zeros(runs), np.zeros(runs), np.ones(runs, bool), np.zeros(runs)
-    for step in range(1, 20_000):
-        z = rng.standard_normal(runs)
-        up, down = np.maximum(0, up + z - CUSUM_K), np.maximum(0, down - z - CUSUM_K)
-        fired = alive & ((up > h) | (down > h))
-        length[fired], alive = step, alive & ~fired
-        if not alive.any():
-            break
+    length = cusum_run_lengths(lambda rng, n: rng.standard_normal(n), cusum_threshold(200))
     assert abs(length.mean() / 200 - 1) < 0.1
+
+
+def test_tilt_of_normal_increments():
+    """tilt on 200,000 N(0, sd^2) increments: 2 k / sd^2 (E exp(theta (x - k)) = exp(theta^2 sd^2 / 2 - theta k)),
+    within 4 of its standard errors (about 0.5 % here); no root (NaN) when the mean is at least k."""
+    rng = np.random.default_rng(2)
+    for sd in (1.0, 1.4):
+        assert abs(tilt(rng.normal(0, sd, 200_000), CUSUM_K) / (2 * CUSUM_K / sd ** 2) - 1) < 0.02
+    assert math.isnan(tilt(rng.normal(0.6, 1, 1000), CUSUM_K))
+
+
+@pytest.mark.parametrize("name, draw, pdf, cdf", [
+    ("t3", lambda rng, n: rng.standard_t(3, n), lambda x: stats.t.pdf(x, 3), lambda x: stats.t.cdf(x, 3)),
+    ("skewed", skewed_draw, skewed_pdf, skewed_cdf),
+])  # fmt: skip
+def test_siegmunds_run_length_with_the_increments_tilt(name, draw, pdf, cdf):
+    """Residuals with Student's t tails (3 degrees of freedom: the rgb boxes' share over 2, 3 and 4 sd,
+    research/watch_residuals.py) or a heavy left tail (skewed_pdf), clipped at CLIP and divided by SD_CLIPPED (the
+    calibrator's increments): with each side's threshold from cusum_threshold at that side's tilt (by quadrature:
+    clipped_tilt) and the increments' root mean square, the two-sided CUSUM runs ARL0 = 200 steps on average (4000
+    runs: the mean's standard error about 1.6 %; Siegmund's approximation within a few % here: 0.99 and 1.00 of
+    it); with both at the larger of the two (as OnlineCalibrator does), at least that (0.99, 1.13); with the normal's
+    threshold, at most half of it (0.20, 0.28)."""
+    theta = [clipped_tilt(pdf, cdf), clipped_tilt(lambda x: pdf(-x), lambda x: 1 - cdf(-x))]  # S+ on u, S- on -u
+    assert max(theta) < 2 * CUSUM_K  # heavier than the normal's on both sides
+    rng = np.random.default_rng(4)
+    sd = float(np.sqrt(np.mean((np.clip(draw(rng, 1_000_000), -CLIP, CLIP) / SD_CLIPPED) ** 2)))
+    up, down = (cusum_threshold(200, CUSUM_K, t, sd) for t in theta)
+
+    def increments(rng, n):
+        return np.clip(draw(rng, n), -CLIP, CLIP) / SD_CLIPPED
+
+    assert abs(cusum_run_lengths(increments, up, down).mean() / 200 - 1) < 0.1
+    assert cusum_run_lengths(increments, max(up, down)).mean() / 200 > 0.95
+    assert cusum_run_lengths(increments, cusum_threshold(200), runs=1000).mean() / 200 < 0.5
+
+
+def test_robust_line_gives_its_peoples_increments():
+    """robust_line's row increments on 4000 people whose residuals are Student's t with 3 degrees of freedom (sigma
+    1-4 px) have the tilt of clip(z / s, +-CLIP) / SD_CLIPPED by quadrature (s the median absolute residual /
+    0.6745: 0.7649 / 0.6745 for t with 3; the sample's tilt within a few % of it) on either side; no roll: the roll
+    test's increments NaN."""
+    rng = np.random.default_rng(7)
+    sigma, z = rng.uniform(1, 4, 4000), rng.standard_t(3, 4000)
+    x = robust_line([(0.0, 200 + e * si, si, math.nan, 0.0) for e, si in zip(z, sigma)]).increments
+    expected = clipped_tilt(lambda v: stats.t.pdf(v, 3), lambda v: stats.t.cdf(v, 3), scale=stats.t.ppf(0.75, 3) / 0.6745)
+    assert x.shape == (4000, 2) and np.isnan(x[:, 1]).all()
+    for side in (x[:, 0], -x[:, 0]):
+        assert abs(tilt(side, CUSUM_K) / expected - 1) < 0.06
+
+
+def test_heavy_tailed_people_raise_the_row_tests_threshold():
+    """A steady camera whose people's heights have Student's t tails (3 degrees of freedom; the prior says normal):
+    once armed, the row test's threshold is mostly above the normal increments' (cusum_threshold(arl0_people)), its
+    estimate's increments' tilt below theirs (2 k); with normal heights it stays the normal's once the window is
+    full (earlier a side's tilt on a few people may be below 2 k: a higher threshold)."""
+    cal, states = run(stream(120, rate=4.0, seed=6, dof=3))
+    armed = [s.threshold for s in states if np.isfinite(s.threshold)]
+    assert tilt(-cal.estimate.increments[:, 0], CUSUM_K) < 2 * CUSUM_K
+    assert len(armed) > 100 and np.mean(np.array(armed) > cal.threshold + 1) > 0.5
+    cal, states = run(stream(120, rate=4.0, seed=6))
+    assert {s.threshold for s in states if s.n_people == WINDOW_PEOPLE} == {cal.threshold}
 
 
 def test_the_row_and_roll_tests_together_alarm_at_the_stated_rate():
