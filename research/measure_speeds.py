@@ -69,8 +69,8 @@ IMM_SWITCH_PER_S) by maximum likelihood over the datasets' and --detectors' trac
 --fit-foot-scale: instead, the scale c of the filter's measurement noise R (R -> c^2 R) that makes the tracks most
 likely under the IMM (homocal.measure.kalman.fit_noise_scale at IMM_ACCEL_PSD, IMM_SWITCH_PER_S), per detector and
 the detectors pooled, with the foot noise model of --box-sigma / --correlated (default fixed) and --feet.
---foot-scale C: the filter's measurement noise R times C^2: the foot point's sigma times C, and with the fixed
-model (whose R holds the clicks' error too) the click sigma times C; the positions' sigma_m follow.
+--foot-scale C: the filter's measurement noise R times C^2 (measure_tracks(noise_scale=C)); the positions' sigma_m
+stay the mapping's.
 --horizons SECONDS: instead, the pedestrians' correction (as the tables fit it) on every disjoint window of
 SECONDS of each dataset, its fitted horizon's error over its sigma (``horizon_table``; each fit printed to stderr).
 --draws N: instead, the pedestrians' smoothed speeds' 1/2-sigma coverage pooled over the datasets (the split
@@ -281,18 +281,19 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
         for name, mapping in maps.items():
             noise = foot_noise_options("correlated" if correlated else "box-height" if box_sigma else "fixed", xyxy, 1.0)
             noise["split_mapping_error"] |= split
-            click = 0.0 if exact else inspect.signature(measure_tracks).parameters["click_sigma_px"].default
-            noise["point_sigma_px"] = foot_scale * noise["point_sigma_px"]
-            noise["click_sigma_px"] = click = click if noise["split_mapping_error"] else foot_scale * click  # unsplit: in R
+            if exact:
+                noise["click_sigma_px"] = 0.0
             q = accel_psd
             if q == "fitted":
                 q = fit_tracks_accel_psd(mapping, frames, feet, ids, fps, **noise, foot=foot)
                 print(f"{Path(path).name}, {detector}, {name}: q fitted {q:.3g} m^2/s^3", file=sys.stderr)
+            click = noise.get("click_sigma_px", inspect.signature(measure_tracks).parameters["click_sigma_px"].default)
             xy, cov = map_points(as_mapping(mapping), feet, click, noise["point_sigma_px"])
             e = xy - true_xy
             pos_d2 = np.einsum("ni,ni->n", e, np.linalg.solve(cov, e[..., None])[..., 0])  # squared Mahalanobis
             for estimator, smooth in (("filter", False), ("smoother", True)):
-                m = per_box(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise, foot=foot)
+                m = per_box(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise, foot=foot,
+                            noise_scale=foot_scale)
                 pos_err = np.hypot(m["x"] - true_xy[:, 0], m["y"] - true_xy[:, 1])
                 rows[f"{name}, {estimator}"] = (m["speed_mps"], m["speed_sigma_mps"], pos_err, m["sigma_m"], pos_d2)
             rows[f"{name}, 1 s diff"] = (recipe_speeds(mapping.transform_points(feet), frames, ids, fps), None, None, None, None)
@@ -534,7 +535,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--fit-foot-scale", action="store_true",
                         help="the scale of the filter's measurement noise by maximum likelihood under the IMM")
     parser.add_argument("--foot-scale", type=float, default=1.0, metavar="C",
-                        help="the filter's measurement noise times C^2 (the foot sigma, with fixed the clicks' too, times C)")
+                        help="the filter's measurement noise times C^2")
     parser.add_argument("--horizons", type=float, metavar="SECONDS",
                         help="the pedestrians' fitted horizon's error over its sigma on disjoint windows of SECONDS")
     parser.add_argument("--draws", type=int, metavar="N",
