@@ -68,7 +68,8 @@ error ellipse. With --spread both tables, from the same evaluations.
 IMM_SWITCH_PER_S) by maximum likelihood over the datasets' and --detectors' tracks pooled (``imm_inputs``).
 --fit-foot-scale: instead, the scale c of the filter's measurement noise R (R -> c^2 R) that makes the tracks most
 likely under the IMM (homocal.measure.kalman.fit_noise_scale at IMM_ACCEL_PSD, IMM_SWITCH_PER_S), per detector and
-the detectors pooled, with the foot noise model of --box-sigma / --correlated (default fixed) and --feet.
+(of more than one) the detectors pooled, with the foot noise model of --box-sigma / --correlated (default fixed)
+and --feet.
 --foot-scale C: the filter's measurement noise R times C^2 (measure_tracks(noise_scale=C)); the positions' sigma_m
 stay the mapping's.
 --horizons SECONDS: instead, the pedestrians' correction (as the tables fit it) on every disjoint window of
@@ -559,7 +560,8 @@ def main(argv: list[str] | None = None) -> int:
         noise = "correlated" if args.correlated else "box-height" if args.box_sigma else "fixed"
         inputs = {detector: [imm_inputs(d, detector, args.shift, noise, args.feet == "soles") for d in args.datasets]
                   for detector in args.detectors.split(",")}
-        for name, group in list(inputs.items()) + [(args.detectors, [x for v in inputs.values() for x in v])]:
+        pooled = [(args.detectors, [x for v in inputs.values() for x in v])] if len(inputs) > 1 else []
+        for name, group in list(inputs.items()) + pooled:
             print(f"{name} boxes, {noise}, feet {args.feet}, IMM: foot noise scale c {fit_noise_scale(group):.3f}")
         return 0
     if args.horizons:
