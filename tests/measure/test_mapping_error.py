@@ -154,3 +154,10 @@ def test_foot_correlation_needs_the_split_and_a_positive_time(tau, split):
     with pytest.raises(ValueError, match="foot_correlation_s: expected > 0 with split_mapping_error=True"):
         next(measure_tracks(MAPPING, np.arange(2), feet, np.zeros(2, int), 10.0, split_mapping_error=split,
                             foot_correlation_s=tau))
+
+
+@pytest.mark.parametrize("scale", [0.0, -1.0, float("nan")])
+def test_noise_scale_must_be_positive(scale):
+    feet = TRANSFORMER.inverse_transform_points(np.array([[0.0, 10.0], [0.1, 10.1]]))
+    with pytest.raises(ValueError, match="noise_scale: expected a finite number > 0"):
+        next(measure_tracks(MAPPING, np.arange(2), feet, np.zeros(2, int), 10.0, noise_scale=scale))
