@@ -6,6 +6,8 @@ supervision's speed recipe (issue 34 item 4; docs/measure.md).
     python research/measure_speeds.py DATASET [DATASET ...] --exact --spread [--split | --box-sigma | --correlated] [--feet soles]
     python research/measure_speeds.py DATASET [DATASET ...] --steadiness [--spread] [--mappings pedestrians] [--exact] [--box-sigma | --correlated] [--feet soles] [--accel-psd fitted|imm]
     python research/measure_speeds.py DATASET [DATASET ...] --fit-imm
+    python research/measure_speeds.py DATASET [DATASET ...] --fit-foot-scale [--box-sigma | --correlated] [--feet soles]
+    python research/measure_speeds.py DATASET [DATASET ...] --spread --steadiness --accel-psd imm --foot-scale C
     python research/measure_speeds.py DATASET [DATASET ...] --horizons 10
     python research/measure_speeds.py DATASET [DATASET ...] --draws 2000 [--correlated] [--feet soles] [--accel-psd fitted]
     python research/measure_speeds.py DATASET --throughput 10 [--correlated]
@@ -64,6 +66,12 @@ error ellipse. With --spread both tables, from the same evaluations.
 --mappings NAMES: only these of MAPPINGS (comma-separated; the recipe is always measured).
 --fit-imm: instead, the two-regime motion model's constants (homocal.measure.kalman.fit_imm: IMM_ACCEL_PSD,
 IMM_SWITCH_PER_S) by maximum likelihood over the datasets' and --detectors' tracks pooled (``imm_inputs``).
+--fit-foot-scale: instead, the scale c of the filter's measurement noise R (R -> c^2 R) that makes the tracks most
+likely under the IMM (homocal.measure.kalman.fit_noise_scale at IMM_ACCEL_PSD, IMM_SWITCH_PER_S), per detector and
+(of more than one) the detectors pooled, with the foot noise model of --box-sigma / --correlated (default fixed)
+and --feet.
+--foot-scale C: the filter's measurement noise R times C^2 (measure_tracks(noise_scale=C)); the positions' sigma_m
+stay the mapping's.
 --horizons SECONDS: instead, the pedestrians' correction (as the tables fit it) on every disjoint window of
 SECONDS of each dataset, its fitted horizon's error over its sigma (``horizon_table``; each fit printed to stderr).
 --draws N: instead, the pedestrians' smoothed speeds' 1/2-sigma coverage pooled over the datasets (the split
@@ -97,7 +105,7 @@ from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer, box_bottom_points
 from homocal.geometry.boxes import link_tracks
 from homocal.measure import ACCEL_PSD, measure_tracks
-from homocal.measure.kalman import IMM, fit_imm, speed_and_sigma
+from homocal.measure.kalman import IMM, fit_imm, fit_noise_scale, speed_and_sigma
 from homocal.measure.tracks import (FEET, TrapezoidMapping, as_mapping, map_points, first_batch_inputs, fit_tracks_accel_psd, foot_noise_options,
                                     foot_status, mapping_velocity_covariance)
 from homocal.study.perturb import base_quad
@@ -194,15 +202,17 @@ def pedestrians(ds, clicked: ViewTransformer, frames: np.ndarray, xyxy: np.ndarr
         lens=None if ds.camera.lens.is_identity else ds.camera.lens)
 
 
-def imm_inputs(path: str, detector: str, shift: float) -> tuple:
+def imm_inputs(path: str, detector: str, shift: float, foot_noise: str = "box-height", soles: bool = False) -> tuple:
     """kalman_filter's (t, z, R, foot) of a dataset's tracks of ``detector`` boxes as the tables measure them with
-    the pedestrians' correction and the box-height foot noise, feet all (first_batch_inputs: BATCH_CELLS)."""
+    the pedestrians' correction and a FOOT_NOISE model, feet all or the soles (first_batch_inputs: BATCH_CELLS)."""
     ds = load_dataset(path)
     frames, xyxy = truth(ds, detector)[:2]
     ids = link_tracks(frames, xyxy)
     feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
     peds = pedestrians(ds, clicked_transformer(ds, shift), frames, xyxy, ids)
-    return first_batch_inputs(peds, frames, feet, ids, float(ds.manifest["fps"]), **foot_noise_options("box-height", xyxy, 1.0))
+    foot = foot_status(xyxy, frames, ds.camera.image_size) if soles else None
+    return first_batch_inputs(peds, frames, feet, ids, float(ds.manifest["fps"]),
+                              **foot_noise_options(foot_noise, xyxy, 1.0), foot=foot)
 
 
 def horizon_errors(path: str, detector: str, shift: float, seconds: float) -> list[dict]:
@@ -242,11 +252,12 @@ def per_box(mapping, frames: np.ndarray, feet: np.ndarray, ids: np.ndarray, fps:
 
 def evaluate(paths: list[str], detector: str, shift: float, split: bool = False, box_sigma: bool = False,
              correlated: bool = False, accel_psd: float | str = ACCEL_PSD, soles: bool = False,
-             exact: bool = False, only: tuple[str, ...] = MAPPINGS) -> dict:
+             exact: bool = False, only: tuple[str, ...] = MAPPINGS, foot_scale: float = 1.0) -> dict:
     """{(mapping, estimator): dict of pooled arrays err (m/s), rel (%, NaN below WALKING_MPS), range, cover1/2
     (speeds), pos1/2 (positions within k sigma_m), ellipse1/2 (positions within the k-sigma ellipse: the squared
     Mahalanobis distance of the error under the mapped point's covariance within chi-square(2)'s quantile of the
-    1-D k sigma's share, 68.3 / 95.4 %)} over the datasets; exact: the true mapping alone, bars of no mapping error."""
+    1-D k sigma's share, 68.3 / 95.4 %)} over the datasets; exact: the true mapping alone, bars of no mapping error;
+    foot_scale: the filter's measurement noise times its square (--foot-scale)."""
     pooled: dict = collections.defaultdict(lambda: collections.defaultdict(list))
     for path in paths:
         ds = load_dataset(path)
@@ -282,7 +293,8 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
             e = xy - true_xy
             pos_d2 = np.einsum("ni,ni->n", e, np.linalg.solve(cov, e[..., None])[..., 0])  # squared Mahalanobis
             for estimator, smooth in (("filter", False), ("smoother", True)):
-                m = per_box(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise, foot=foot)
+                m = per_box(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise, foot=foot,
+                            noise_scale=foot_scale)
                 pos_err = np.hypot(m["x"] - true_xy[:, 0], m["y"] - true_xy[:, 1])
                 rows[f"{name}, {estimator}"] = (m["speed_mps"], m["speed_sigma_mps"], pos_err, m["sigma_m"], pos_d2)
             rows[f"{name}, 1 s diff"] = (recipe_speeds(mapping.transform_points(feet), frames, ids, fps), None, None, None, None)
@@ -521,6 +533,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="the smoothed speeds' coverage by the true velocity's change over STEADY_S, pooled")
     parser.add_argument("--fit-imm", action="store_true",
                         help="the IMM's two q and switching rates by maximum likelihood over the datasets' tracks")
+    parser.add_argument("--fit-foot-scale", action="store_true",
+                        help="the scale of the filter's measurement noise by maximum likelihood under the IMM")
+    parser.add_argument("--foot-scale", type=float, default=1.0, metavar="C",
+                        help="the filter's measurement noise times C^2")
     parser.add_argument("--horizons", type=float, metavar="SECONDS",
                         help="the pedestrians' fitted horizon's error over its sigma on disjoint windows of SECONDS")
     parser.add_argument("--draws", type=int, metavar="N",
@@ -540,6 +556,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"IMM fitted on {len(args.datasets)} datasets, {args.detectors} boxes: q {qs[0]:.3g}, {qs[1]:.3g} m^2/s^3; "
               f"switching rates {rates[0]:.3g}, {rates[1]:.3g} per s")
         return 0
+    if args.fit_foot_scale:
+        noise = "correlated" if args.correlated else "box-height" if args.box_sigma else "fixed"
+        inputs = {detector: [imm_inputs(d, detector, args.shift, noise, args.feet == "soles") for d in args.datasets]
+                  for detector in args.detectors.split(",")}
+        pooled = [(args.detectors, [x for v in inputs.values() for x in v])] if len(inputs) > 1 else []
+        for name, group in list(inputs.items()) + pooled:
+            print(f"{name} boxes, {noise}, feet {args.feet}, IMM: foot noise scale c {fit_noise_scale(group):.3f}")
+        return 0
     if args.horizons:
         rows = [r for detector in args.detectors.split(",") for d in args.datasets
                 for r in horizon_errors(d, detector, args.shift, args.horizons)]
@@ -556,7 +580,7 @@ def main(argv: list[str] | None = None) -> int:
     for detector in args.detectors.split(","):
         def run(paths: list[str]) -> dict:
             return evaluate(paths, detector, args.shift, args.split, args.box_sigma, args.correlated, args.accel_psd,
-                            args.feet == "soles", args.exact, only)
+                            args.feet == "soles", args.exact, only, args.foot_scale)
 
         if args.spread:
             each = [run([d]) for d in args.datasets]

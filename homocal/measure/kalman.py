@@ -393,6 +393,30 @@ def fit_imm(inputs: list[tuple]) -> tuple[tuple[float, float], tuple[float, floa
     return tuple(float(v) for v in q[order]), tuple(float(v) for v in r[order])
 
 
+NOISE_SCALE_BOUNDS = (0.05, 5.0)
+"""The range of the measurement noise's scale c (R -> c^2 R) ``fit_noise_scale`` searches: a twentieth to five
+times the foot noise the model states."""
+NOISE_SCALE_LOG_TOLERANCE = 0.01
+"""``fit_noise_scale``'s tolerance on ln c (1 %, far below the scale's spread between detectors and box sizes)."""
+
+
+def fit_noise_scale(inputs: list[tuple], qs: tuple[float, ...] = IMM_ACCEL_PSD,
+                    rates: tuple[float, ...] = IMM_SWITCH_PER_S) -> float:
+    """The maximum-likelihood scale c of the measurement noise (R -> c^2 R, and the correlated part's R_b
+    alike) of sets of tracks, inputs a list of ``kalman_filter``'s (t, z, R, foot), under the motion model
+    (qs, rates) as ``imm_filter``'s (one q and no rates: the Kalman filter): the maximum of the summed
+    ``imm_filter`` log-likelihood over ln c within NOISE_SCALE_BOUNDS (Brent's bounded search, to
+    NOISE_SCALE_LOG_TOLERANCE)."""
+    def cost(s: float) -> float:
+        c2 = np.exp(2 * s)
+        return -sum(imm_filter(t, z, c2 * R, qs, rates, None if foot is None else (c2 * foot[0], foot[1]))["loglik"]
+                    for t, z, R, foot in inputs)
+
+    best = minimize_scalar(cost, bounds=np.log(NOISE_SCALE_BOUNDS), method="bounded",
+                           options={"xatol": NOISE_SCALE_LOG_TOLERANCE})
+    return float(np.exp(best.x))
+
+
 def motion_model(accel_psd: float | str) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """``imm_step``'s (qs, rates) of a process noise: a q alone (one model, no switching: the Kalman filter) or
     IMM's fitted two models; ValueError for a word that is not IMM."""

@@ -233,12 +233,13 @@ def track_batches(track_ids: np.ndarray, frames: np.ndarray) -> Iterator[list[np
 
 def filter_inputs(mapping: Mapping, frames: np.ndarray, feet: np.ndarray, fps: float, batch: list[np.ndarray],
                   click_sigma_px: float, point_sigma_px: float | np.ndarray, split_mapping_error: bool,
-                  foot_correlation_s: float | None, foot: np.ndarray | None = None
+                  foot_correlation_s: float | None, foot: np.ndarray | None = None, noise_scale: float = 1.0
                   ) -> tuple[np.ndarray, np.ndarray, tuple]:
     """A batch of tracks (``track_batches``' row indices) as the filter takes it: the mapped points xy (N, 2) m
     and their covariances (N, 2, 2) m^2 (rows in the batch's order), and kalman_filter's (t, z, R, foot), padded
     to the longest track (arguments as ``measure_tracks``'; frames (N,), feet (N, 2) px of all rows); z is NaN
-    (no measurement, R kept for the correlated error's process) where foot is not "used"."""
+    (no measurement, R kept for the correlated error's process) where foot is not "used"; R is the measurement
+    noise times noise_scale^2."""
     rows = np.concatenate(batch)
     sigma = point_sigma_px if np.ndim(point_sigma_px) == 0 else point_sigma_px[rows]
     xy, cov = map_points(mapping, feet[rows], click_sigma_px, sigma)
@@ -252,7 +253,7 @@ def filter_inputs(mapping: Mapping, frames: np.ndarray, feet: np.ndarray, fps: f
         z[i, :m], R[i, :m] = xy[at[i]:at[i + 1]], noise[at[i]:at[i + 1]]
         if foot is not None:
             z[i, :m][foot[r] != FOOT[0]] = np.nan
-    return xy, cov, (t, z, *correlated_noise(R, foot_correlation_s))
+    return xy, cov, (t, z, *correlated_noise(noise_scale**2 * R, foot_correlation_s))
 
 
 def fit_tracks_accel_psd(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
@@ -285,7 +286,7 @@ def first_batch_inputs(mapping, frames: np.ndarray, feet: np.ndarray, track_ids:
 def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
                    accel_psd: float | str = ACCEL_PSD, smooth: bool = True, click_sigma_px: float = 1.5,
                    point_sigma_px: float | np.ndarray = 1.0, split_mapping_error: bool = False,
-                   foot_correlation_s: float | None = None, foot: np.ndarray | None = None
+                   foot_correlation_s: float | None = None, foot: np.ndarray | None = None, noise_scale: float = 1.0
                    ) -> Iterator[dict[str, np.ndarray]]:
     """homocal measure's table in batches of whole tracks (dicts of COLUMNS, each (rows,)), tracks in
     increasing id, each in frame order.
@@ -307,6 +308,8 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
         foot: (N,) FOOT values (``foot_status``), None: all "used": a foot point not "used" is no measurement
             (the filter predicts through its frame); the states and speeds are NaN where no foot point is
             measured yet (filter) or in the whole track (smoother).
+        noise_scale: the filter's measurement noise (white and correlated) times its square
+            (kalman.fit_noise_scale); the points' sigma_m stay the mapping's.
     x, y are the mapped foot points, sigma_m their 1-sigma radius (homocal.sigma_radius of the mapping's
     ground_uncertainty at click_sigma_px, point_sigma_px: the filter's measurement noise); x_smooth, y_smooth,
     vx, vy the filter's state (with IMM its models' moment-matched mixture); speed_mps = |(vx, vy)| and
@@ -316,6 +319,8 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
     """
     if foot_correlation_s is not None and not (split_mapping_error and foot_correlation_s > 0):
         raise ValueError(f"foot_correlation_s: expected > 0 with split_mapping_error=True, got {foot_correlation_s!r}")
+    if not (np.isfinite(noise_scale) and noise_scale > 0):
+        raise ValueError(f"noise_scale: expected a finite number > 0, got {noise_scale!r}")
     mapping = as_mapping(mapping)
     frames, track_ids = np.asarray(frames, dtype=np.int64), np.asarray(track_ids, dtype=np.int64)
     feet = np.asarray(feet, dtype=np.float64)
@@ -324,7 +329,8 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
     for batch in track_batches(track_ids, frames):
         rows = np.concatenate(batch)
         xy, cov, (t, z, R, correlated) = filter_inputs(mapping, frames, feet, fps, batch, click_sigma_px,
-                                                       point_sigma_px, split_mapping_error, foot_correlation_s, foot)
+                                                       point_sigma_px, split_mapping_error, foot_correlation_s, foot,
+                                                       noise_scale)
         mu, x, P = track_states(t, z, R, accel_psd, smooth, correlated)
         seen = np.isfinite(z).all(axis=2)  # (n, L): the steps measured
         x[np.broadcast_to(~seen.any(axis=1, keepdims=True) if smooth else np.cumsum(seen, axis=1) == 0, seen.shape)] = np.nan

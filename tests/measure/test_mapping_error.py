@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from homocal.geometry import apply_homography, homography_from_quads, read_trapezoid_file
+from homocal.measure.kalman import HALF_WIDTH_TOLERANCE
 from homocal.measure.tracks import (TrapezoidMapping, mapping_modes, mapping_velocity_covariance, measure_tracks,
                                     point_noise)
 from homocal.uncertainty import ground_uncertainty
@@ -125,9 +126,38 @@ def test_per_box_sigma_of_one_value_is_the_scalar_and_the_bar_grows_with_it():
     assert wide["speed_sigma_mps"][-1] > scalar["speed_sigma_mps"][-1]
 
 
+@pytest.mark.parametrize("accel_psd", [0.5, "imm"])
+def test_noise_scale_is_the_foot_points_sigma_times_it_in_the_filter(accel_psd):
+    """With the split the filter's R is the foot point's own noise, point_noise, quadratic in its sigma: the filter
+    with R x c^2 (noise_scale c) is the filter at the foot sigma c times as large, whose points' sigma_m alone
+    differ (the same products in another order, 1e-16 apart, through the filter's conditioning: 1e-9; the IMM's
+    sigma a bisection's, to HALF_WIDTH_TOLERANCE); noise_scale 1 is the filter as it is, to the bit."""
+    fps, v = 10.0, np.array([0.8, 1.1])
+    t = np.arange(30) / fps
+    feet = TRANSFORMER.inverse_transform_points(np.array([-2.0, 15.0]) + t[:, None] * v)
+    feet = feet + np.random.default_rng(4).normal(0, 1.0, feet.shape)
+    frames, ids = np.arange(30), np.zeros(30, int)
+    run = lambda s, c=1.0, **kw: next(measure_tracks(MAPPING, frames, feet, ids, fps, accel_psd=accel_psd, point_sigma_px=s,  # noqa: E731
+                                                     split_mapping_error=True, noise_scale=c, **kw))
+    scaled, wide = run(2.0, 0.4), run(0.8)
+    for c in ("x_smooth", "y_smooth", "vx", "vy", "speed_mps", "speed_sigma_mps"):
+        np.testing.assert_allclose(scaled[c], wide[c], rtol=HALF_WIDTH_TOLERANCE if c == "speed_sigma_mps" else 1e-9)
+    same = run(2.0)
+    for c in same:
+        np.testing.assert_array_equal(same[c], next(measure_tracks(MAPPING, frames, feet, ids, fps, accel_psd=accel_psd,
+                                                                   point_sigma_px=2.0, split_mapping_error=True))[c])
+
+
 @pytest.mark.parametrize("tau, split", [(0.5, False), (0.0, True), (-1.0, True)])
 def test_foot_correlation_needs_the_split_and_a_positive_time(tau, split):
     feet = TRANSFORMER.inverse_transform_points(np.array([[0.0, 10.0], [0.1, 10.1]]))
     with pytest.raises(ValueError, match="foot_correlation_s: expected > 0 with split_mapping_error=True"):
         next(measure_tracks(MAPPING, np.arange(2), feet, np.zeros(2, int), 10.0, split_mapping_error=split,
                             foot_correlation_s=tau))
+
+
+@pytest.mark.parametrize("scale", [0.0, -1.0, float("nan")])
+def test_noise_scale_must_be_positive(scale):
+    feet = TRANSFORMER.inverse_transform_points(np.array([[0.0, 10.0], [0.1, 10.1]]))
+    with pytest.raises(ValueError, match="noise_scale: expected a finite number > 0"):
+        next(measure_tracks(MAPPING, np.arange(2), feet, np.zeros(2, int), 10.0, noise_scale=scale))

@@ -149,3 +149,15 @@ def test_steadiness_table_gives_the_bar_scale_that_would_cover():
             # 2 / n over |N(0, 1)|'s density at 2, 0.108)
             np.testing.assert_allclose(cells[0], covered, atol=0.05 + 100 * 2 / n)
             np.testing.assert_allclose(cells[1], reach, atol=0.005 + 2 / n / 0.108)
+
+
+def test_foot_scale_scales_the_filters_measurement_noise(tmp_path):
+    """--foot-scale C multiplies the filter's R by C^2 (the fixed model, the true mapping, --exact: R is the foot
+    point's noise alone): at a process noise of nearly zero (1e-12 m^2/s^3) the smoothed velocity is a least-squares
+    line through the points, its variance R's scale, so C = 2 doubles every speed's sigma, but for the parts that do
+    not scale (q and the start's priors, 100 m and 10 m/s: under 1e-4 of the sigma here); a C 5 % off would miss
+    by 5 %: 1e-3."""
+    path = str(walkers(tmp_path))
+    sigma = [script.evaluate([path], "segmentation", 16, accel_psd=1e-12, exact=True, foot_scale=c)["exact, smoother"]["sigma"]
+             for c in (1.0, 2.0)]
+    np.testing.assert_allclose(sigma[1], 2 * sigma[0], rtol=1e-3)
