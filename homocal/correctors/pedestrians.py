@@ -639,10 +639,13 @@ class PedestrianCorrector(Corrector):
                     "people (tracks)": (self.n_people_ - self.n_people_used_, self.n_people_)}
         for what, (out, of) in rejected.items():
             if out > max_outlier_share * of:
+                hide = ("; leave out the boxes whose feet a nearer person may hide (drop_hidden_feet, "
+                        "--drop-hidden-feet yes)" if frames is not None and not self.drop_hidden_feet else "")
                 raise ValueError(f"xyxy: {out} of the {of} {what} are outliers (implied height beyond "
                                  f"{OUTLIER_SIGMAS:g} sd of {self.height_mean_m:g} m at the fitted tilt): more than "
                                  f"{max_outlier_share:.0%}, where the robust fit can follow the outliers; use boxes "
-                                 "that reach from the top of the head to the lowest sole, or check the camera height")
+                                 f"that reach from the top of the head to the lowest sole{hide}, or check the camera "
+                                 "height")
         self._set_transformer()
         self._check_points(image_points, ground_points)
         return self

@@ -177,8 +177,9 @@ class TestOutlierShare:
     def test_refused_by_default_kept_at_one(self):
         boxes, tracks = self.cut_boxes()
         kw = dict(convention="homocal", track_ids=tracks, K=CAM.K, camera_height_m=4.0, image_size=(1280, 720))
-        with pytest.raises(ValueError, match=f"are outliers .* more than {MAX_OUTLIER_SHARE:.0%}"):
+        with pytest.raises(ValueError, match=f"are outliers .* more than {MAX_OUTLIER_SHARE:.0%}") as refused:
             PedestrianCorrector(1.7, 0.07).fit(clicked_mapping(), boxes, **kw)
+        assert "drop_hidden_feet" not in str(refused.value)  # no frames: hidden feet cannot be found
         kept = PedestrianCorrector(1.7, 0.07).fit(clicked_mapping(), boxes, max_outlier_share=1.0, **kw)
         alone = fit_tilt(boxes[:, 3], boxes[:, 1], tracks, CAM.focal_px, CAM.K[1, 2], 4.0, 1.7, 0.07)
         assert kept.horizon_row_ == pytest.approx(horizon_row(alone["tilt"], CAM.focal_px, CAM.K[1, 2]), abs=1e-9)

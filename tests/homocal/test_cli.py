@@ -483,6 +483,7 @@ def test_pedestrians_refuse_a_majority_of_outliers(work, capsys, monkeypatch):
                           monkeypatch=monkeypatch)
     assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
     assert "are outliers" in result.stderr and f"more than {MAX_OUTLIER_SHARE:.0%}" in result.stderr
+    assert "(drop_hidden_feet, --drop-hidden-feet yes)" in result.stderr  # the boxes have frames: a way out named
     assert not (work / "c.json").exists()
 
 
