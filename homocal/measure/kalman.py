@@ -376,6 +376,15 @@ average. Unbounded, on simgen's people the likelihood runs off to q 1e-19 and 1e
 velocity jumps, or the foot points' outliers), no walker's motion."""
 
 
+def summed_log_likelihood(inputs: list[tuple], qs: tuple[float, ...], rates: tuple[float, ...],
+                          noise_scale2: float = 1.0) -> float:
+    """The summed ``imm_filter`` log-likelihood of sets of tracks, inputs a list of ``kalman_filter``'s (t, z, R,
+    foot), under the motion model (qs, rates), with the measurement noise (R and the correlated part's R_b) times
+    noise_scale2 (the scale's square)."""
+    return sum(imm_filter(t, z, noise_scale2 * R, qs, rates, None if foot is None else (noise_scale2 * foot[0], foot[1]))
+               ["loglik"] for t, z, R, foot in inputs)
+
+
 def fit_imm(inputs: list[tuple]) -> tuple[tuple[float, float], tuple[float, float]]:
     """The maximum-likelihood IMM constants (IMM_ACCEL_PSD's two q, m^2/s^3, and IMM_SWITCH_PER_S's two rates,
     1/s) of sets of tracks, inputs a list of ``kalman_filter``'s (t, z, R, foot): the maximum of the summed
@@ -384,7 +393,7 @@ def fit_imm(inputs: list[tuple]) -> tuple[tuple[float, float], tuple[float, floa
     q's ordered steady first."""
     def cost(s: np.ndarray) -> float:
         e = np.exp(s)
-        return -sum(imm_filter(t, z, R, (e[0], e[1]), (e[2], e[3]), foot)["loglik"] for t, z, R, foot in inputs)
+        return -summed_log_likelihood(inputs, (e[0], e[1]), (e[2], e[3]))
 
     best = minimize(cost, np.log([*IMM_ACCEL_PSD, *IMM_SWITCH_PER_S]), method="Nelder-Mead",
                     bounds=np.log([ACCEL_PSD_BOUNDS] * 2 + [IMM_SWITCH_BOUNDS_PER_S] * 2), options={"xatol": IMM_FIT_LOG_TOLERANCE, "fatol": IMM_FIT_LOGLIK_TOLERANCE})
@@ -407,12 +416,8 @@ def fit_noise_scale(inputs: list[tuple], qs: tuple[float, ...] = IMM_ACCEL_PSD,
     (qs, rates) as ``imm_filter``'s (one q and no rates: the Kalman filter): the maximum of the summed
     ``imm_filter`` log-likelihood over ln c within NOISE_SCALE_BOUNDS (Brent's bounded search, to
     NOISE_SCALE_LOG_TOLERANCE)."""
-    def cost(s: float) -> float:
-        c2 = np.exp(2 * s)
-        return -sum(imm_filter(t, z, c2 * R, qs, rates, None if foot is None else (c2 * foot[0], foot[1]))["loglik"]
-                    for t, z, R, foot in inputs)
-
-    best = minimize_scalar(cost, bounds=np.log(NOISE_SCALE_BOUNDS), method="bounded",
+    best = minimize_scalar(lambda s: -summed_log_likelihood(inputs, qs, rates, float(np.exp(2 * s))),
+                           bounds=np.log(NOISE_SCALE_BOUNDS), method="bounded",
                            options={"xatol": NOISE_SCALE_LOG_TOLERANCE})
     return float(np.exp(best.x))
 
