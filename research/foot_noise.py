@@ -1,4 +1,4 @@
-"""The foot point's noise against the truth, as a function of the box's height (issue 34; docs/measure.md).
+"""The foot point's noise against the truth, as a function of the box's height (issue 34; docs/measure-accuracy.md).
 
     python research/foot_noise.py DATASET [DATASET ...] [--feet soles] [--max-lag FRAMES]
 

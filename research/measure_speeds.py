@@ -1,5 +1,5 @@
 """Speeds and positions of people measured with homocal measure's filter against simgen's ground truth, beside
-supervision's speed recipe (issue 34 item 4; docs/measure.md).
+supervision's speed recipe (issue 34 item 4; docs/measure-accuracy.md).
 
     python research/measure_speeds.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--shift 16]
     python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma | --correlated] [--feet soles]

@@ -1,4 +1,4 @@
-"""Why the rgb detector's speeds are worse than the segmentation detector's (issue 34; docs/measure.md).
+"""Why the rgb detector's speeds are worse than the segmentation detector's (issue 34; docs/measure-accuracy.md).
 
     python research/speeds_rgb.py DATASET [DATASET ...] [--grid]
 
