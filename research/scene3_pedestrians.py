@@ -5,10 +5,10 @@ Run: python research/scene3_pedestrians.py DATASET [--detectors segmentation,rgb
          [--estimate-roll yes|no] [--drop-hidden-feet yes|no|auto] [--horizon-shift PX] [--lens known|ignore] [--seconds S]
 
 Per detector, as a user runs it: `homocal fit --method pedestrians --trapezoid DATASET/trapezoids.json --boxes
-DATASET/detections.parquet --detector D --camera-json DATASET/camera.json --camera-height H --estimate-roll yes
---drop-hidden-feet no` (the camera's K, lens and height given, as a user who knows them; H camera.json's mount_height_m; --lens ignore:
-camera.json's K with no distortion, so the boxes and the trapezoid are the camera's pixels read as a pinhole's, as
-homocal study --lens ignore reads them), the clicked
+DATASET/detections.parquet --detector D --camera-json DATASET/camera.json --camera-height H --estimate-roll yes`
+(--drop-hidden-feet when given, else fit's default; the camera's K, lens and height given, as a user who knows
+them; H camera.json's mount_height_m; --lens ignore: camera.json's K with no distortion, so the boxes and the
+trapezoid are the camera's pixels read as a pinhole's, as homocal study --lens ignore reads them), the clicked
 trapezoid the dataset's hand-placed one (--horizon-shift PX: moved as a tilt error moves it so that its horizon
 lies PX above the true one at the principal column, homocal.study.perturb.tilt_shift); then, from the saved
 correction:
@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--height-mean", help="the people's mean height, m (default: homocal fit's)")
     ap.add_argument("--height-sd", help="their standard deviation, m (default: homocal fit's)")
     ap.add_argument("--estimate-roll", choices=("yes", "no"), default="yes")
-    ap.add_argument("--drop-hidden-feet", choices=("yes", "no", "auto"), default="no")
+    ap.add_argument("--drop-hidden-feet", choices=("yes", "no", "auto"), help="default: homocal fit's")
     ap.add_argument("--horizon-shift", type=float, metavar="PX")
     ap.add_argument("--lens", choices=LENS_MODES, default="known",
                     help="ignore: camera.json's K with no distortion (the camera's pixels read as a pinhole's)")
@@ -130,8 +130,9 @@ def main(argv: list[str] | None = None) -> None:
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         for detector in args.detectors.split(","):
-            prior = [x for flag, value in (("--height-mean", args.height_mean), ("--height-sd", args.height_sd))
-                     if value is not None for x in (flag, value)] + ["--drop-hidden-feet", args.drop_hidden_feet]
+            prior = [x for flag, value in (("--height-mean", args.height_mean), ("--height-sd", args.height_sd),
+                                           ("--drop-hidden-feet", args.drop_hidden_feet))
+                     if value is not None for x in (flag, value)]
             e = run(args.dataset, detector, prior, args.estimate_roll, args.horizon_shift, Path(tmp), args.lens, args.seconds)
             if e["refused"]:
                 print(f"{args.dataset} {detector}, lens {args.lens}: homocal fit refused the boxes (its message above)")

@@ -488,8 +488,9 @@ class PedestrianCorrector(Corrector):
             frames). "auto": fit with every box; if and only if that fit is refused for its outliers
             (max_outlier_share) and the boxes have frames, fit again with those boxes left out and keep that fit
             if it passes the same check (else refuse, naming both); without frames as False (hidden_feet_ says
-            "no frames"). False: every box. Default False, the fit every figure of docs/pedestrians.md was
-            measured with; the option's effect on each dataset is measured there.
+            "no frames"). False: every box. Default "auto": it gives every bit of False's fit wherever that fit
+            is not refused, and where it was refused on the recordings measured (docs/real-camera.md, "Seeds
+            the fit was not tuned on"; docs/pedestrians.md, "Hidden feet") a fit within the target instead.
         model: the corrected mapping (``transformer_``: the image trapezoid that maps with it onto the clicked
             map trapezoid, whose site-map frame is kept):
             "camera" (the default): the camera's own ground mapping (K, the camera height, the fitted tilt,
@@ -526,7 +527,7 @@ class PedestrianCorrector(Corrector):
 
     def __init__(self, height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
                  model: str = "camera", height_mean_sigma_m: float = DEFAULT_HEIGHT_MEAN_SIGMA_M,
-                 estimate_roll: bool = False, drop_hidden_feet: bool = False) -> None:
+                 estimate_roll: bool = False, drop_hidden_feet: bool | str = "auto") -> None:
         if model not in MODELS:
             raise ValueError(f"model {model!r}: expected one of {', '.join(MODELS)}")
         self.model, self.estimate_roll, self.drop_hidden_feet = model, *(
@@ -624,15 +625,15 @@ class PedestrianCorrector(Corrector):
                 fit, used, refusal = self._attempt(edges, tracks, border | hidden, size, focal, principal, max_outlier_share)
             except ValueError as e:
                 raise ValueError(f"xyxy: {first} with every box; without the {int(hidden.sum())} boxes whose feet a "
-                                 f"nearer person may hide (drop_hidden_feet auto): {e}") from None
+                                 f"nearer person may hide (--drop-hidden-feet auto): {e}") from None
             refusal = None if refusal is None else f"{first} with every box, {refusal} without the {int(hidden.sum())} " \
-                                                   "boxes whose feet a nearer person may hide (drop_hidden_feet auto)"
+                                                   "boxes whose feet a nearer person may hide (--drop-hidden-feet auto)"
             drop, self.first_refusal_ = hidden, first
         if refusal is not None:
             hide = ("; leave out the boxes whose feet a nearer person may hide (drop_hidden_feet, --drop-hidden-feet "
                     "yes)" if frames is not None and self.drop_hidden_feet is False else
-                    " (drop_hidden_feet auto: the boxes have no frames, no hidden feet looked for)"
-                    if self.hidden_feet_ == "no frames" else " (drop_hidden_feet auto: no box's feet a nearer person "
+                    " (--drop-hidden-feet auto: the boxes have no frames, no hidden feet looked for)"
+                    if self.hidden_feet_ == "no frames" else " (--drop-hidden-feet auto: no box's feet a nearer person "
                     "may hide)" if self.drop_hidden_feet == "auto" and not hidden.any() else "")
             raise ValueError(f"xyxy: {refusal} (implied height beyond {OUTLIER_SIGMAS:g} sd of {self.height_mean_m:g} m "
                              f"at the fitted tilt): more than {max_outlier_share:.0%}, where the robust fit can follow "
@@ -861,7 +862,10 @@ class PedestrianCorrector(Corrector):
 
     @classmethod
     def _from_fields(cls, data: dict) -> PedestrianCorrector:
-        """Corrector._from_fields, with error_before and error_after both null (no check points) or both numbers."""
+        """Corrector._from_fields, with error_before and error_after both null (no check points) or both numbers,
+        and drop_hidden_feet False where params has none (a file written before the option was fitted without it)."""
+        if isinstance(data.get("params"), dict):
+            data = {**data, "params": {"drop_hidden_feet": False, **data["params"]}}
         missing = [data.get(k) is None for k in ("error_before", "error_after")]
         if any(missing) and not all(missing):
             raise ValueError("fields error_before and error_after: both numbers (check points) or both null")

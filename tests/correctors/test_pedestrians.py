@@ -181,7 +181,7 @@ class TestOutlierShare:
         boxes, tracks = self.cut_boxes()
         kw = dict(convention="homocal", track_ids=tracks, K=CAM.K, camera_height_m=4.0, image_size=(1280, 720))
         with pytest.raises(ValueError, match=f"are outliers .* more than {MAX_OUTLIER_SHARE:.0%}") as refused:
-            PedestrianCorrector(1.7, 0.07).fit(clicked_mapping(), boxes, **kw)
+            PedestrianCorrector(1.7, 0.07, drop_hidden_feet=False).fit(clicked_mapping(), boxes, **kw)
         assert "drop_hidden_feet" not in str(refused.value)  # no frames: hidden feet cannot be found
         kept = PedestrianCorrector(1.7, 0.07).fit(clicked_mapping(), boxes, max_outlier_share=1.0, **kw)
         alone = fit_tilt(boxes[:, 3], boxes[:, 1], tracks, CAM.focal_px, CAM.K[1, 2], 4.0, 1.7, 0.07)
@@ -415,16 +415,18 @@ class TestDropHiddenFeet:
         assert saved["params"]["drop_hidden_feet"] is True and saved["fitted"]["n_hidden"] == c.n_hidden_
         back = load_corrector(tmp_path / "c.json")
         assert back.drop_hidden_feet and back.n_hidden_ == c.n_hidden_ and np.array_equal(back.m, c.m)
-        del saved["fitted"]["n_hidden"], saved["params"]["drop_hidden_feet"]  # a file written before the option
+        for key in ("n_hidden", "hidden_feet", "first_refusal"):  # a file written before the option
+            del saved["fitted"][key]
+        del saved["params"]["drop_hidden_feet"]
         (tmp_path / "old.json").write_text(json.dumps(saved))
         old = load_corrector(tmp_path / "old.json")
-        assert not old.drop_hidden_feet and old.n_hidden_ == 0
+        assert old.drop_hidden_feet is False and old.n_hidden_ == 0 and old.hidden_feet_ == "kept"
 
-    def test_off_by_default_and_needs_frames(self):
+    def test_auto_by_default_and_yes_needs_frames(self):
         boxes, frames = self.boxes()
         args = dict(convention="homocal", track_ids=np.arange(200), K=CAM.K, camera_height_m=4.0, image_size=SIZE)
         c = PedestrianCorrector().fit(clicked_mapping(), boxes, frames=frames, **args)
-        assert not c.drop_hidden_feet and c.n_hidden_ == 0 and "hidden" not in c.box_status_
+        assert c.drop_hidden_feet == "auto" and c.n_hidden_ == 0 and "hidden" not in c.box_status_
         with pytest.raises(ValueError, match="^frames: needed with drop_hidden_feet"):
             PedestrianCorrector(drop_hidden_feet=True).fit(clicked_mapping(), boxes, **args)
         with pytest.raises(ValueError, match="drop_hidden_feet"):
@@ -467,8 +469,8 @@ class TestDropHiddenFeetAuto:
         args = dict(self.ARGS, frames=frames, track_ids=np.arange(len(boxes)))
         assert np.array_equal(hidden_feet(boxes, frames), cut)  # the construction is what hidden_feet looks for
         with pytest.raises(ValueError, match=r"are outliers .*\(drop_hidden_feet, --drop-hidden-feet yes\)$") as no:
-            PedestrianCorrector(1.7, 0.07).fit(clicked_mapping(), boxes, **args)
-        auto = PedestrianCorrector(1.7, 0.07, drop_hidden_feet="auto").fit(clicked_mapping(), boxes, **args)
+            PedestrianCorrector(1.7, 0.07, drop_hidden_feet=False).fit(clicked_mapping(), boxes, **args)
+        auto = PedestrianCorrector(1.7, 0.07).fit(clicked_mapping(), boxes, **args)  # the default
         yes = PedestrianCorrector(1.7, 0.07, drop_hidden_feet=True).fit(clicked_mapping(), boxes, **args)
         assert auto.hidden_feet_ == "dropped" and auto.n_hidden_ == cut.sum() and yes.first_refusal_ is None
         assert re.fullmatch(r"\d+ of the 120 boxes are outliers", auto.first_refusal_)
@@ -494,7 +496,7 @@ class TestDropHiddenFeetAuto:
         args = dict(self.ARGS, frames=frames, track_ids=np.arange(len(boxes)))
         with pytest.raises(ValueError, match=r"^xyxy: \d+ of the 120 boxes are outliers with every box, \d+ of the 40 "
                            r"boxes are outliers without the 80 boxes whose feet a nearer person may hide "
-                           r"\(drop_hidden_feet auto\) \(implied height") as refused:
+                           r"\(--drop-hidden-feet auto\) \(implied height") as refused:
             PedestrianCorrector(1.7, 0.04, drop_hidden_feet="auto").fit(clicked_mapping(), boxes, **args)
         assert "\n" not in str(refused.value)
 
@@ -516,8 +518,8 @@ class TestDropHiddenFeetAuto:
         boxes, _, _ = self.crowd()
         args = dict(self.ARGS, track_ids=np.arange(len(boxes)))
         with pytest.raises(ValueError, match="are outliers") as no:
-            PedestrianCorrector(1.7, 0.07).fit(clicked_mapping(), boxes, **args)
-        with pytest.raises(ValueError, match=r"\(drop_hidden_feet auto: the boxes have no frames, no hidden feet looked "
+            PedestrianCorrector(1.7, 0.07, drop_hidden_feet=False).fit(clicked_mapping(), boxes, **args)
+        with pytest.raises(ValueError, match=r"\(--drop-hidden-feet auto: the boxes have no frames, no hidden feet looked "
                            r"for\)$") as auto:
             PedestrianCorrector(1.7, 0.07, drop_hidden_feet="auto").fit(clicked_mapping(), boxes, **args)
         assert str(auto.value).startswith(str(no.value))

@@ -480,13 +480,14 @@ def test_pedestrians_refuse_a_majority_of_outliers(work, capsys, monkeypatch):
     write_csv(work / "b.csv", ["frame", "x1", "y1", "x2", "y2"],
               [(i * 20, u - 5, t, u + 5, v) for i, ((u, v), t) in enumerate(zip(foot, top))])
     (work / "cam.json").write_text(_CAMERA_JSON)
-    result = homocal_main("fit", "--trapezoid", "trap.json", "-o", "c.json", "--method", "pedestrians", "--boxes",
-                          "b.csv", "--camera-json", "cam.json", "--camera-height", "4", cwd=work, capsys=capsys,
-                          monkeypatch=monkeypatch)
-    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
-    assert "are outliers" in result.stderr and f"more than {MAX_OUTLIER_SHARE:.0%}" in result.stderr
-    assert "(drop_hidden_feet, --drop-hidden-feet yes)" in result.stderr  # the boxes have frames: a way out named
-    assert not (work / "c.json").exists()
+    for drop, way_out in (("no", "(drop_hidden_feet, --drop-hidden-feet yes)"),  # the boxes have frames: a way out named
+                          ("auto", "(--drop-hidden-feet auto: no box's feet a nearer person may hide)")):  # the default
+        result = homocal_main("fit", "--trapezoid", "trap.json", "-o", "c.json", "--method", "pedestrians", "--boxes",
+                              "b.csv", "--camera-json", "cam.json", "--camera-height", "4", "--drop-hidden-feet", drop,
+                              cwd=work, capsys=capsys, monkeypatch=monkeypatch)
+        assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+        assert "are outliers" in result.stderr and f"more than {MAX_OUTLIER_SHARE:.0%}" in result.stderr
+        assert result.stderr.endswith(way_out + "\n") and not (work / "c.json").exists()
 
 
 def test_pedestrians_drop_hidden_feet(work, capsys, monkeypatch):
