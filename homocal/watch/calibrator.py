@@ -493,11 +493,11 @@ class OnlineCalibrator:
 def stretch_correction(transformer: ViewTransformer, calibrator: OnlineCalibrator, row: float, sigma: float,
                        roll_deg: float, roll_sigma_deg: float, n_people: int, camera_origin=(0.0, 0.0)) -> PedestrianCorrector:
     """A stretch's correction of a clicked mapping: a PedestrianCorrector (model "camera", the calibrator's prior,
-    K and camera height; drop_hidden_feet False: the calibrator leaves no box out for hidden feet) whose horizon is the row (px at the principal column, 1-sigma sigma; NaN: 0) and,
+    K and camera height) whose horizon is the row (px at the principal column, 1-sigma sigma; NaN: 0) and,
     where fitted (roll_sigma_deg finite), the roll (degrees) of the stretch's estimate
     (``PedestrianCorrector.from_horizon``)."""
     fitted = math.isfinite(roll_sigma_deg)
-    return PedestrianCorrector(calibrator.height_mean_m, calibrator.height_sd_m, drop_hidden_feet=False).from_horizon(
+    return PedestrianCorrector(calibrator.height_mean_m, calibrator.height_sd_m).from_horizon(
         transformer, row, sigma if math.isfinite(sigma) else 0.0, calibrator.K, calibrator.camera_height_m,
         n_people, camera_origin, roll_deg if fitted else None, roll_sigma_deg if fitted else 0.0)
 

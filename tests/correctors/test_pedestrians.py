@@ -422,11 +422,11 @@ class TestDropHiddenFeet:
         old = load_corrector(tmp_path / "old.json")
         assert old.drop_hidden_feet is False and old.n_hidden_ == 0 and old.hidden_feet_ == "kept"
 
-    def test_auto_by_default_and_yes_needs_frames(self):
+    def test_off_by_default_and_needs_frames(self):
         boxes, frames = self.boxes()
         args = dict(convention="homocal", track_ids=np.arange(200), K=CAM.K, camera_height_m=4.0, image_size=SIZE)
         c = PedestrianCorrector().fit(clicked_mapping(), boxes, frames=frames, **args)
-        assert c.drop_hidden_feet == "auto" and c.n_hidden_ == 0 and "hidden" not in c.box_status_
+        assert c.drop_hidden_feet is False and c.n_hidden_ == 0 and "hidden" not in c.box_status_
         with pytest.raises(ValueError, match="^frames: needed with drop_hidden_feet"):
             PedestrianCorrector(drop_hidden_feet=True).fit(clicked_mapping(), boxes, **args)
         with pytest.raises(ValueError, match="drop_hidden_feet"):
@@ -470,7 +470,7 @@ class TestDropHiddenFeetAuto:
         assert np.array_equal(hidden_feet(boxes, frames), cut)  # the construction is what hidden_feet looks for
         with pytest.raises(ValueError, match=r"are outliers .*\(drop_hidden_feet, --drop-hidden-feet yes\)$") as no:
             PedestrianCorrector(1.7, 0.07, drop_hidden_feet=False).fit(clicked_mapping(), boxes, **args)
-        auto = PedestrianCorrector(1.7, 0.07).fit(clicked_mapping(), boxes, **args)  # the default
+        auto = PedestrianCorrector(1.7, 0.07, drop_hidden_feet="auto").fit(clicked_mapping(), boxes, **args)
         yes = PedestrianCorrector(1.7, 0.07, drop_hidden_feet=True).fit(clicked_mapping(), boxes, **args)
         assert auto.hidden_feet_ == "dropped" and auto.n_hidden_ == cut.sum() and yes.first_refusal_ is None
         assert re.fullmatch(r"\d+ of the 120 boxes are outliers", auto.first_refusal_)

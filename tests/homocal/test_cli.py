@@ -481,7 +481,7 @@ def test_pedestrians_refuse_a_majority_of_outliers(work, capsys, monkeypatch):
               [(i * 20, u - 5, t, u + 5, v) for i, ((u, v), t) in enumerate(zip(foot, top))])
     (work / "cam.json").write_text(_CAMERA_JSON)
     for drop, way_out in (("no", "(drop_hidden_feet, --drop-hidden-feet yes)"),  # the boxes have frames: a way out named
-                          ("auto", "(--drop-hidden-feet auto: no box's feet a nearer person may hide)")):  # the default
+                          ("auto", "(--drop-hidden-feet auto: no box's feet a nearer person may hide)")):
         result = homocal_main("fit", "--trapezoid", "trap.json", "-o", "c.json", "--method", "pedestrians", "--boxes",
                               "b.csv", "--camera-json", "cam.json", "--camera-height", "4", "--drop-hidden-feet", drop,
                               cwd=work, capsys=capsys, monkeypatch=monkeypatch)
