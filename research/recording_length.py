@@ -15,7 +15,7 @@ one (research/scene3_pedestrians.py's fit of a rendered recording). Its figures:
 camera's (scene3_pedestrians.horizon_rms) and the median relative range error at 5-50 m
 (scene3_pedestrians.median_range_error) of the walkers' foot points in frame, once a second. The target: both
 within TARGET. Prints a line per seed and length, then per length: on how many seeds the target holds, the
-horizon (px) and range error (%) mean and range, the fits refused.
+horizon (px), range error (%) and roll (degrees) mean and range, the fits refused.
 """
 from __future__ import annotations
 
@@ -104,10 +104,12 @@ def main(argv: list[str] | None = None) -> None:
           f"{HEIGHT[1]:g} m, --drop-hidden-feet {SETTINGS['drop_hidden_feet'].to_text(args.drop_hidden_feet)}; target: horizon <= {TARGET[0]:g} px and range <= {TARGET[1]:g} %")
     for s, es in results.items():
         fitted = [e for e in es if "refused" not in e]
-        h, r = (np.array([e[k] for e in fitted]) for k in ("horizon_px", "range_pct"))
+        h, r, roll = (np.array([e[k] for e in fitted]) for k in ("horizon_px", "range_pct", "roll_deg"))
         held = int(np.sum((h <= TARGET[0]) & (r <= TARGET[1])))
         spread = "" if not fitted else (f"; horizon {h.mean():.2f} px [{h.min():.2f}, {h.max():.2f}], range "
-                                        f"{r.mean():.2f} % [{r.min():.2f}, {r.max():.2f}]")
+                                        f"{r.mean():.2f} % [{r.min():.2f}, {r.max():.2f}], roll {roll.mean():.2f} "
+                                        f"degrees [{roll.min():.2f}, {roll.max():.2f}] (the camera's "
+                                        f"{scene.camera.roll_deg:g})")
         dropped = sum(e.get("hidden_feet") == "dropped" for e in fitted)
         print(f"{s:g} s: target held on {held} of {len(es)}{spread}; refused {len(es) - len(fitted)}; hidden feet "
               f"left out in {dropped}")
