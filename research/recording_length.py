@@ -88,8 +88,11 @@ def main(argv: list[str] | None = None) -> None:
                     help=drop.help)
     args = ap.parse_args(argv)
     lengths = sorted(float(s) for s in args.seconds.split(","))
-    if not (1 <= args.seeds <= 1000 and 0 < lengths[0] and lengths[-1] <= MAX_SECONDS and 0 < args.fps <= 60):
-        ap.error(f"--seeds 1-1000, --seconds in (0, {MAX_SECONDS:g}], --fps in (0, 60]")
+    for flag, ok, bound in (("--seeds", 1 <= args.seeds <= 1000, "1-1000"),
+                            ("--seconds", 0 < lengths[0] and lengths[-1] <= MAX_SECONDS, f"in (0, {MAX_SECONDS:g}]"),
+                            ("--fps", 0 < args.fps <= 60, "in (0, 60]")):
+        if not ok:
+            ap.error(f"argument {flag}: expected {bound}")
     scene = load_scene(Path(__file__).resolve().parents[1] / "simgen" / "scenes" / args.scene)
     results = {s: [] for s in lengths}
     for seed in range(args.seeds):
