@@ -608,7 +608,9 @@ class PedestrianCorrector(Corrector):
             raise ValueError(f"xyxy: all {n} boxes touch the {size[0]}x{size[1]} image's border (cut by it)")
         if self.drop_hidden_feet is True and frames is None:
             raise ValueError("frames: needed with drop_hidden_feet (a nearer person hides feet in the same frame)")
-        hidden = np.zeros(n, bool) if frames is None or self.drop_hidden_feet is False else hidden_feet(edges, frames) & ~border
+        auto = self.drop_hidden_feet == "auto"
+        looked = frames is not None and self.drop_hidden_feet is not False
+        hidden = hidden_feet(edges, frames) & ~border if looked else np.zeros(n, bool)
         if self.drop_hidden_feet is True and (border | hidden).all():
             raise ValueError(f"xyxy: all {n} boxes touch the image's border or may have their feet hidden by a nearer "
                              "person's")
@@ -616,25 +618,27 @@ class PedestrianCorrector(Corrector):
             tracks = np.arange(n) if frames is None else link_tracks(frames, edges, max_gap=LINK_GAP)
         if lens is not None:  # the camera's pixels to the undistorted image, as homocal.boxes.read_boxes does
             edges = undistort_boxes(edges, lens)
-        self.hidden_feet_, self.first_refusal_ = "kept" if frames is not None or self.drop_hidden_feet is False else "no frames", None
+        self.hidden_feet_, self.first_refusal_ = "no frames" if auto and frames is None else "kept", None
         drop = hidden if self.drop_hidden_feet is True else np.zeros(n, bool)
         fit, used, refusal = self._attempt(edges, tracks, border | drop, size, focal, principal, max_outlier_share)
-        if refusal is not None and self.drop_hidden_feet == "auto" and hidden.any() and not (border | hidden).all():
+        if refusal is not None and auto and hidden.any() and not (border | hidden).all():
             first = refusal
             try:
                 fit, used, refusal = self._attempt(edges, tracks, border | hidden, size, focal, principal, max_outlier_share)
             except ValueError as e:
                 raise ValueError(f"xyxy: {first} with every box; without the {int(hidden.sum())} boxes whose feet a "
                                  f"nearer person may hide (--drop-hidden-feet auto): {e}") from None
-            refusal = None if refusal is None else f"{first} with every box, {refusal} without the {int(hidden.sum())} " \
-                                                   "boxes whose feet a nearer person may hide (--drop-hidden-feet auto)"
+            if refusal is not None:
+                refusal = (f"{first} with every box, {refusal} without the {int(hidden.sum())} boxes whose feet a nearer "
+                           "person may hide (--drop-hidden-feet auto)")
             drop, self.first_refusal_ = hidden, first
         if refusal is not None:
-            hide = ("; leave out the boxes whose feet a nearer person may hide (drop_hidden_feet, --drop-hidden-feet "
-                    "yes)" if frames is not None and self.drop_hidden_feet is False else
-                    " (--drop-hidden-feet auto: the boxes have no frames, no hidden feet looked for)"
-                    if self.hidden_feet_ == "no frames" else " (--drop-hidden-feet auto: no box's feet a nearer person "
-                    "may hide)" if self.drop_hidden_feet == "auto" and not hidden.any() else "")
+            hide = ""
+            if frames is not None and self.drop_hidden_feet is False:
+                hide = "; leave out the boxes whose feet a nearer person may hide (drop_hidden_feet, --drop-hidden-feet yes)"
+            elif auto and not hidden.any():
+                hide = " (--drop-hidden-feet auto: " + ("the boxes have no frames, no hidden feet looked for)" if frames is None
+                                                        else "no box's feet a nearer person may hide)")
             raise ValueError(f"xyxy: {refusal} (implied height beyond {OUTLIER_SIGMAS:g} sd of {self.height_mean_m:g} m "
                              f"at the fitted tilt): more than {max_outlier_share:.0%}, where the robust fit can follow "
                              "the outliers; use boxes that reach from the top of the head to the lowest sole, or check "
