@@ -2,13 +2,13 @@
 (docs/real-camera.md, "The people on scene3").
 
 Run: python research/scene3_pedestrians.py DATASET [--detectors segmentation,rgb] [--height-mean M] [--height-sd M]
-         [--estimate-roll yes|no] [--drop-hidden-feet yes|no] [--horizon-shift PX] [--lens known|ignore] [--seconds S]
+         [--estimate-roll yes|no] [--drop-hidden-feet yes|no|auto] [--horizon-shift PX] [--lens known|ignore] [--seconds S]
 
 Per detector, as a user runs it: `homocal fit --method pedestrians --trapezoid DATASET/trapezoids.json --boxes
-DATASET/detections.parquet --detector D --camera-json DATASET/camera.json --camera-height H --estimate-roll yes
---drop-hidden-feet no` (the camera's K, lens and height given, as a user who knows them; H camera.json's mount_height_m; --lens ignore:
-camera.json's K with no distortion, so the boxes and the trapezoid are the camera's pixels read as a pinhole's, as
-homocal study --lens ignore reads them), the clicked
+DATASET/detections.parquet --detector D --camera-json DATASET/camera.json --camera-height H --estimate-roll yes`
+(--drop-hidden-feet when given, else fit's default; the camera's K, lens and height given, as a user who knows
+them; H camera.json's mount_height_m; --lens ignore: camera.json's K with no distortion, so the boxes and the
+trapezoid are the camera's pixels read as a pinhole's, as homocal study --lens ignore reads them), the clicked
 trapezoid the dataset's hand-placed one (--horizon-shift PX: moved as a tilt error moves it so that its horizon
 lies PX above the true one at the principal column, homocal.study.perturb.tilt_shift); then, from the saved
 correction:
@@ -105,6 +105,7 @@ def run(path: Path, detector: str, prior: list[str], estimate_roll: str, shift_p
     r = np.hypot(*(ground - ds.camera_origin).T)
     near = (r >= RANGE_M[0]) & (r <= RANGE_M[1])
     return {"detector": detector, "refused": False, "people": c.n_people_used_, "boxes": c.n_boxes_, "roll_deg": c.roll_deg_,
+            "hidden_feet": c.hidden_feet_,
             "roll_sigma_deg": c.roll_sigma_deg_,
             "roll_per_cm_deg": math.degrees(c.tilt_roll_sensitivity_[1]) / 100 if c.roll_estimated_ else math.nan,
             "true_roll_deg": json.loads((path / "camera.json").read_text()).get("roll_deg", 0.0),
@@ -121,7 +122,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--height-mean", help="the people's mean height, m (default: homocal fit's)")
     ap.add_argument("--height-sd", help="their standard deviation, m (default: homocal fit's)")
     ap.add_argument("--estimate-roll", choices=("yes", "no"), default="yes")
-    ap.add_argument("--drop-hidden-feet", choices=("yes", "no"), default="no")
+    ap.add_argument("--drop-hidden-feet", choices=("yes", "no", "auto"), help="default: homocal fit's")
     ap.add_argument("--horizon-shift", type=float, metavar="PX")
     ap.add_argument("--lens", choices=LENS_MODES, default="known",
                     help="ignore: camera.json's K with no distortion (the camera's pixels read as a pinhole's)")
@@ -129,13 +130,15 @@ def main(argv: list[str] | None = None) -> None:
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         for detector in args.detectors.split(","):
-            prior = [x for flag, value in (("--height-mean", args.height_mean), ("--height-sd", args.height_sd))
-                     if value is not None for x in (flag, value)] + ["--drop-hidden-feet", args.drop_hidden_feet]
+            prior = [x for flag, value in (("--height-mean", args.height_mean), ("--height-sd", args.height_sd),
+                                           ("--drop-hidden-feet", args.drop_hidden_feet))
+                     if value is not None for x in (flag, value)]
             e = run(args.dataset, detector, prior, args.estimate_roll, args.horizon_shift, Path(tmp), args.lens, args.seconds)
             if e["refused"]:
                 print(f"{args.dataset} {detector}, lens {args.lens}: homocal fit refused the boxes (its message above)")
                 continue
-            print(f"{args.dataset} {detector}, lens {args.lens}: {e['people']} people of {e['boxes']} boxes; roll {e['roll_deg']:.2f} "
+            print(f"{args.dataset} {detector}, lens {args.lens}: {e['people']} people of {e['boxes']} boxes (hidden feet "
+                  f"{e['hidden_feet']}); roll {e['roll_deg']:.2f} "
                   f"+- {e['roll_sigma_deg']:.2f} deg (camera.json {e['true_roll_deg']:g}; {e['roll_per_cm_deg']:+.3f} deg per cm of "
                   f"the prior mean); horizon line RMS "
                   f"{e['horizon_rms_px']:.2f} px (sigma {e['horizon_sigma_px']:.2f}); median relative range error "

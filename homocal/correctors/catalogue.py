@@ -60,7 +60,12 @@ def _hybrid_note(c: HybridCorrector) -> str:
 
 
 def _pedestrians_note(c: PedestrianCorrector) -> str:
-    hidden = f", {c.n_hidden_} with feet a nearer person may hide" if c.drop_hidden_feet else ""
+    hidden = {"dropped": f", {c.n_hidden_} with feet a nearer person may hide" + (
+                  f" (left out: with them {c.first_refusal_})" if c.first_refusal_ else ""),
+              "no frames": ", none looked at for hidden feet (--drop-hidden-feet auto: no frames)",
+              "kept": ", none left out for hidden feet (--drop-hidden-feet auto: the fit with every box passed the "
+                      "outlier check)"
+              if c.drop_hidden_feet == "auto" else ""}[c.hidden_feet_]
     return (f" Boxes: {c.n_boxes_} read, {c.n_border_} cut by the image border{hidden}, {c.n_outliers_} outliers; people "
             f"(tracks): {c.n_people_used_} of {c.n_people_} used. Horizon row {c.horizon_row_:.2f} +- "
             f"{c.horizon_sigma_px_:.2f} px (1 sigma: the people's {c.horizon_sigma_people_px_:.2f} px and "

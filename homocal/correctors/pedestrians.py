@@ -104,6 +104,8 @@ MAX_OUTLIER_SHARE = 0.5  # more outlier boxes, or people, than this share of tho
 LINK_GAP = 5  # frames: boxes this many frames apart at most are linked into one track
 MIN_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M = 0.5, 100.0  # below half a metre no box of a standing person fits
 BOX_STATUS = ("used", "outlier", "border", "hidden")  # a box's part in a fit (box_status_), the page draws each kind
+HIDDEN_FEET = ("kept", "dropped", "no frames")  # a fit's hidden_feet_: boxes whose feet may be hidden used, left out,
+# or not looked for (drop_hidden_feet "auto" on boxes without frames)
 MODELS = ("camera", "rotation")  # PedestrianCorrector's corrected mappings (its docstring); the first is the default
 GRID = 128  # tilt grid of the median start over its 90 degree range (then bisection)
 BOX_HEIGHT_SD = 0.02  # a box's implied height about its person's, relative 1-sigma: Huber's scale of a walk's boxes
@@ -125,9 +127,10 @@ SETTINGS = {
     "estimate_roll": Option("--estimate-roll", YesNo(), "fit the camera's "
                             "roll with its tilt (the horizon as a line) when the people spread across the image",
                             metavar="{yes,no}"),
-    "drop_hidden_feet": Option("--drop-hidden-feet", YesNo(), "leave out the boxes whose feet a nearer person's box "
-                               "may hide (homocal.geometry.hidden_feet, in each video frame; needs the boxes' frames)",
-                               metavar="{yes,no}"),
+    "drop_hidden_feet": Option("--drop-hidden-feet", YesNo(auto=True), "leave out the boxes whose feet a nearer "
+                               "person's box may hide (homocal.geometry.hidden_feet, in each video frame; needs the "
+                               "boxes' frames); auto: only if the fit with them is refused for its outliers and the "
+                               "fit without them is not", metavar="{yes,no,auto}"),
     "camera_height_m": Option("--camera-height", Number(MIN_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M), "the camera's "
                               "height over the ground", metavar="M", unit="m", none="from the clicked trapezoid with K"),
 }
@@ -480,10 +483,14 @@ class PedestrianCorrector(Corrector):
             horizon_sigma_px_ and of ground_uncertainty. Bounds: SETTINGS.
         estimate_roll: fit the camera's roll with its tilt (fit_tilt_roll) when the people's foot columns spread
             over ROLL_SPREAD of the image width (image_size given); otherwise, and by default, roll 0.
-        drop_hidden_feet: leave out the boxes whose feet a nearer person's box of the same frame may hide
+        drop_hidden_feet: True: leave out the boxes whose feet a nearer person's box of the same frame may hide
             (homocal.geometry.hidden_feet on the camera's pixels, after the track linking of all boxes; fit needs
-            frames). Default False, the fit every figure of docs/pedestrians.md was measured with; the option's
-            effect on each dataset is measured there.
+            frames). "auto": fit with every box; if and only if that fit is refused for its outliers
+            (max_outlier_share) and the boxes have frames, fit again with those boxes left out and keep that fit
+            if it passes the same check (else refuse, naming both); without frames as False (hidden_feet_ says
+            "no frames"). False: every box. Default False: "auto" gives every bit of its fit where that fit is
+            not refused, but of the ten refused fits it fitted (docs/pedestrians.md, "Hidden feet") one is 24 px
+            off with a sigma of 4 px, the confident far-off answer the refusal is for.
         model: the corrected mapping (``transformer_``: the image trapezoid that maps with it onto the clicked
             map trapezoid, whose site-map frame is kept):
             "camera" (the default): the camera's own ground mapping (K, the camera height, the fitted tilt,
@@ -505,7 +512,8 @@ class PedestrianCorrector(Corrector):
     reduced by more people), tilt_deg_, rotation_deg_ (delta), focal_px_, principal_point_ (cx, cy), camera_height_m_,
     yaw_deg_ (model "camera"; NaN for "rotation"), focal_source_ and camera_height_source_ ("given" or
     "clicked mapping"), n_boxes_, n_border_ (cut by the image border, not used), n_hidden_ (their feet may be
-    hidden, not used: drop_hidden_feet; 0 otherwise), n_outliers_ (beyond
+    hidden, not used: drop_hidden_feet; 0 otherwise), hidden_feet_ (one of HIDDEN_FEET: whether the fit left them out),
+    first_refusal_ (drop_hidden_feet "auto" that left them out: why the fit with every box was refused; else None), n_outliers_ (beyond
     OUTLIER_SIGMAS), n_people_ (tracks), n_people_used_, roll_estimated_, roll_deg_ (0 unless estimated; camera.json's
     roll_deg: > 0 lowers the camera's right side, the horizon's slope in the image is -tan(roll_deg_)), roll_sigma_deg_
     (NaN unless estimated), tilt_roll_cov_ and tilt_roll_sensitivity_ (the people's 2x2 covariance of (tilt,
@@ -519,7 +527,7 @@ class PedestrianCorrector(Corrector):
 
     def __init__(self, height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
                  model: str = "camera", height_mean_sigma_m: float = DEFAULT_HEIGHT_MEAN_SIGMA_M,
-                 estimate_roll: bool = False, drop_hidden_feet: bool = False) -> None:
+                 estimate_roll: bool = False, drop_hidden_feet: bool | str = False) -> None:
         if model not in MODELS:
             raise ValueError(f"model {model!r}: expected one of {', '.join(MODELS)}")
         self.model, self.estimate_roll, self.drop_hidden_feet = model, *(
@@ -598,30 +606,49 @@ class PedestrianCorrector(Corrector):
         border = np.zeros(n, bool) if size is None else on_border(edges, size)
         if border.all():
             raise ValueError(f"xyxy: all {n} boxes touch the {size[0]}x{size[1]} image's border (cut by it)")
-        if self.drop_hidden_feet and frames is None:
+        if self.drop_hidden_feet is True and frames is None:
             raise ValueError("frames: needed with drop_hidden_feet (a nearer person hides feet in the same frame)")
-        hidden = hidden_feet(edges, frames) & ~border if self.drop_hidden_feet else np.zeros(n, bool)
-        if (border | hidden).all():
+        auto = self.drop_hidden_feet == "auto"
+        looked = frames is not None and self.drop_hidden_feet is not False
+        hidden = hidden_feet(edges, frames) & ~border if looked else np.zeros(n, bool)
+        if self.drop_hidden_feet is True and (border | hidden).all():
             raise ValueError(f"xyxy: all {n} boxes touch the image's border or may have their feet hidden by a nearer "
                              "person's")
         if tracks is None:
             tracks = np.arange(n) if frames is None else link_tracks(frames, edges, max_gap=LINK_GAP)
         if lens is not None:  # the camera's pixels to the undistorted image, as homocal.boxes.read_boxes does
             edges = undistort_boxes(edges, lens)
-        middle = (edges[:, 0] + edges[:, 2]) / 2
-        foot, head = np.column_stack([middle, edges[:, 3]]), np.column_stack([middle, edges[:, 1]])
-        used = ~border & ~hidden & np.isfinite(foot).all(axis=1) & np.isfinite(head).all(axis=1)
-        fit = fit_tilt(foot[used, 1], head[used, 1], tracks[used], focal, principal[1], self.camera_height_m_,
-                       self.height_mean_m, self.height_sd_m)
-        spread = np.subtract(*np.percentile(foot[used, 0], [75, 25])) if used.any() else 0.0
-        self.roll_estimated_ = bool(self.estimate_roll and size is not None and spread >= ROLL_SPREAD * size[0])
+        self.hidden_feet_, self.first_refusal_ = "no frames" if auto and frames is None else "kept", None
+        drop = hidden if self.drop_hidden_feet is True else np.zeros(n, bool)
+        fit, used, refusal = self._attempt(edges, tracks, border | drop, size, focal, principal, max_outlier_share)
+        if refusal is not None and auto and hidden.any() and not (border | hidden).all():
+            first = refusal
+            try:
+                fit, used, refusal = self._attempt(edges, tracks, border | hidden, size, focal, principal, max_outlier_share)
+            except ValueError as e:
+                raise ValueError(f"xyxy: {first} with every box; without the {int(hidden.sum())} boxes whose feet a "
+                                 f"nearer person may hide (--drop-hidden-feet auto): {e}") from None
+            if refusal is not None:
+                refusal = (f"{first} with every box, {refusal} without the {int(hidden.sum())} boxes whose feet a nearer "
+                           "person may hide (--drop-hidden-feet auto)")
+            drop, self.first_refusal_ = hidden, first
+        if refusal is not None:
+            hide = ""
+            if frames is not None and self.drop_hidden_feet is False:
+                hide = "; leave out the boxes whose feet a nearer person may hide (drop_hidden_feet, --drop-hidden-feet yes)"
+            elif auto and not hidden.any():
+                hide = " (--drop-hidden-feet auto: " + ("the boxes have no frames, no hidden feet looked for)" if frames is None
+                                                        else "no box's feet a nearer person may hide)")
+            raise ValueError(f"xyxy: {refusal} (implied height beyond {OUTLIER_SIGMAS:g} sd of {self.height_mean_m:g} m "
+                             f"at the fitted tilt): more than {max_outlier_share:.0%}, where the robust fit can follow "
+                             "the outliers; use boxes that reach from the top of the head to the lowest sole, or check "
+                             f"the camera height{hide}")
+        if drop.any() or self.drop_hidden_feet is True:
+            self.hidden_feet_ = "dropped"
         self.roll_deg_, self.tilt_roll_cov_, self.tilt_roll_sensitivity_ = 0.0, None, None
         if self.roll_estimated_:
-            fit = fit_tilt_roll(edges[used], tracks[used], focal, principal, self.camera_height_m_,
-                                self.height_mean_m, self.height_sd_m, fit)
             self.roll_deg_ = math.degrees(fit["roll"])
             self.tilt_roll_cov_, self.tilt_roll_sensitivity_ = fit["cov"], fit["sensitivity"]
-            fit["tilt_sigma"], fit["mean_sensitivity"] = math.sqrt(fit["cov"][0, 0]), fit["sensitivity"][0]
         self.base_transformer_ = transformer
         self.camera_origin_ = check_camera_origin(camera_origin)
         self.horizon_row_ = principal[1] + (horizon_row(fit["tilt"], focal, principal[1]) - principal[1]) / math.cos(fit["roll"] if self.roll_estimated_ else 0.0)
@@ -629,26 +656,41 @@ class PedestrianCorrector(Corrector):
         self.horizon_sigma_people_px_ = focal * secant2 * fit["tilt_sigma"]
         self.mean_sensitivity_px_per_cm_ = abs(focal * secant2 * fit["mean_sensitivity"]) / 100.0
         self._set_horizon_sigma()
-        self.n_boxes_, self.n_border_, self.n_hidden_ = n, int(border.sum()), int(hidden.sum())
+        self.n_boxes_, self.n_border_, self.n_hidden_ = n, int(border.sum()), int(drop.sum())
         self.n_outliers_ = int(used.sum() - fit["inlier_boxes"].sum())
         used_, outlier, cut, hid = BOX_STATUS
-        self.box_status_ = np.where(border, cut, np.where(hidden, hid, outlier))
+        self.box_status_ = np.where(border, cut, np.where(drop, hid, outlier))
         self.box_status_[np.flatnonzero(used)[fit["inlier_boxes"]]] = used_
         self.n_people_, self.n_people_used_ = len(np.unique(tracks[used])), fit["n_people"]
-        rejected = {"boxes": (self.n_outliers_, int(used.sum())),
-                    "people (tracks)": (self.n_people_ - self.n_people_used_, self.n_people_)}
-        for what, (out, of) in rejected.items():
-            if out > max_outlier_share * of:
-                hide = ("; leave out the boxes whose feet a nearer person may hide (drop_hidden_feet, "
-                        "--drop-hidden-feet yes)" if frames is not None and not self.drop_hidden_feet else "")
-                raise ValueError(f"xyxy: {out} of the {of} {what} are outliers (implied height beyond "
-                                 f"{OUTLIER_SIGMAS:g} sd of {self.height_mean_m:g} m at the fitted tilt): more than "
-                                 f"{max_outlier_share:.0%}, where the robust fit can follow the outliers; use boxes "
-                                 f"that reach from the top of the head to the lowest sole{hide}, or check the camera "
-                                 "height")
         self._set_transformer()
         self._check_points(image_points, ground_points)
         return self
+
+    def _attempt(self, edges: np.ndarray, tracks: np.ndarray, left_out: np.ndarray, size, focal: float,
+                 principal: tuple[float, float], max_outlier_share: float) -> tuple[dict, np.ndarray, str | None]:
+        """One fit of the boxes edges (N, 4) (undistorted) with tracks (N,) but those left_out (N,) bool: fit_tilt,
+        and fit_tilt_roll when estimate_roll and the used foot columns spread (sets roll_estimated_); returns the fit
+        (fit_tilt's dict, tilt_sigma and mean_sensitivity the tilt's where roll was fitted), the used boxes (N,) bool
+        and the refusal: "OUT of the OF boxes|people (tracks) are outliers" for the first share beyond
+        max_outlier_share, None if neither is."""
+        foot_rows, head_rows = edges[:, 3], edges[:, 1]
+        middle = (edges[:, 0] + edges[:, 2]) / 2
+        used = ~left_out & np.isfinite(middle) & np.isfinite(foot_rows) & np.isfinite(head_rows)
+        fit = fit_tilt(foot_rows[used], head_rows[used], tracks[used], focal, principal[1], self.camera_height_m_,
+                       self.height_mean_m, self.height_sd_m)
+        spread = np.subtract(*np.percentile(middle[used], [75, 25])) if used.any() else 0.0
+        self.roll_estimated_ = bool(self.estimate_roll and size is not None and spread >= ROLL_SPREAD * size[0])
+        if self.roll_estimated_:
+            fit = fit_tilt_roll(edges[used], tracks[used], focal, principal, self.camera_height_m_,
+                                self.height_mean_m, self.height_sd_m, fit)
+            fit["tilt_sigma"], fit["mean_sensitivity"] = math.sqrt(fit["cov"][0, 0]), fit["sensitivity"][0]
+        n_people = len(np.unique(tracks[used]))
+        rejected = {"boxes": (int(used.sum() - fit["inlier_boxes"].sum()), int(used.sum())),
+                    "people (tracks)": (n_people - fit["n_people"], n_people)}
+        for what, (out, of) in rejected.items():
+            if out > max_outlier_share * of:
+                return fit, used, f"{out} of the {of} {what} are outliers"
+        return fit, used, None
 
     def with_mapping(self, transformer: ViewTransformer) -> PedestrianCorrector:
         """The same fitted horizon on another clicked mapping of the same camera (a re-clicked trapezoid): a copy
@@ -694,6 +736,7 @@ class PedestrianCorrector(Corrector):
         self._set_roll_state(roll)
         self.n_boxes_ = self.n_people_ = self.n_people_used_ = integer(n_people, "n_people", MIN_PEOPLE, 2**62)
         self.n_border_ = self.n_hidden_ = self.n_outliers_ = 0
+        self.hidden_feet_, self.first_refusal_ = "kept", None
         self.base_transformer_, self.camera_origin_ = transformer, check_camera_origin(camera_origin)
         self._set_transformer()
         self._check_points(None, None)
@@ -840,7 +883,8 @@ class PedestrianCorrector(Corrector):
                 "focal_px": self.focal_px_, "principal_point": list(self.principal_point_),
                 "focal_source": self.focal_source_, "camera_height_m": self.camera_height_m_,
                 "camera_height_source": self.camera_height_source_, "n_boxes": self.n_boxes_,
-                "n_border": self.n_border_, "n_hidden": self.n_hidden_, "n_outliers": self.n_outliers_,
+                "n_border": self.n_border_, "n_hidden": self.n_hidden_, "hidden_feet": self.hidden_feet_,
+                "first_refusal": self.first_refusal_, "n_outliers": self.n_outliers_,
                 "n_people": self.n_people_, "n_people_used": self.n_people_used_,
                 "roll": None if not self.roll_estimated_ else {
                     "roll_deg": self.roll_deg_, "tilt_roll_cov_rad2": self.tilt_roll_cov_.tolist(),
@@ -875,6 +919,13 @@ class PedestrianCorrector(Corrector):
         self.n_border_ = integer(state["n_border"], "fitted.n_border", 0, self.n_boxes_ - 1)
         self.n_hidden_ = integer(state.get("n_hidden", 0), "fitted.n_hidden", 0, self.n_boxes_ - self.n_border_ - 1)  # older files: 0
         left = self.n_boxes_ - self.n_border_ - self.n_hidden_
+        self.hidden_feet_ = state.get("hidden_feet", "dropped" if self.drop_hidden_feet is True else "kept")  # older files
+        if self.hidden_feet_ not in HIDDEN_FEET:
+            raise ValueError(f"field fitted.hidden_feet: expected one of {', '.join(HIDDEN_FEET)}, got {self.hidden_feet_!r}")
+        self.first_refusal_ = state.get("first_refusal")
+        if not (self.first_refusal_ is None or isinstance(self.first_refusal_, str) and self.hidden_feet_ == "dropped"):
+            raise ValueError(f"field fitted.first_refusal: expected null, or text with hidden_feet 'dropped', got "
+                             f"{self.first_refusal_!r}")
         self.n_outliers_ = integer(state["n_outliers"], "fitted.n_outliers", 0, left)
         self.n_people_ = integer(state["n_people"], "fitted.n_people", 1, left)
         self.n_people_used_ = integer(state["n_people_used"], "fitted.n_people_used", MIN_PEOPLE, self.n_people_)

@@ -114,23 +114,30 @@ class Words:
 
 @dataclass(frozen=True)
 class YesNo:
-    """True or False, written yes or no."""
+    """True or False, written yes or no; with auto, also "auto" (the user of the value decides), written auto."""
+
+    auto: bool = False
+
+    @property
+    def choices(self) -> tuple[str, ...]:
+        """The words it takes."""
+        return ("yes", "no", "auto") if self.auto else ("yes", "no")
 
     def describe(self) -> str:
-        return "yes or no"
+        return ", ".join(self.choices[:-1]) + " or " + self.choices[-1]
 
     def check(self, value: Any) -> Any:
-        if not isinstance(value, bool):
+        if not (isinstance(value, bool) or (self.auto and isinstance(value, str) and value == "auto")):
             raise ValueError
         return value
 
     def from_text(self, text: str) -> Any:
-        if text not in ("yes", "no"):
+        if text not in self.choices:
             raise ValueError
-        return text == "yes"
+        return text if text == "auto" else text == "yes"
 
     def to_text(self, value: Any) -> str:
-        return "yes" if value else "no"
+        return value if value == "auto" else "yes" if value else "no"
 
 
 @dataclass(frozen=True)

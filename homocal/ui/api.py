@@ -74,8 +74,8 @@ def _number(req: dict, key: str, default: float | None, low: float, high: float,
 
 
 def _flag_text(value) -> str:
-    """A setting's value as a command line takes it back exactly: yes or no, or the number's repr."""
-    return ("yes" if value else "no") if isinstance(value, bool) else repr(value)
+    """A setting's value as a command line takes it back exactly: yes or no, a word (auto), or the number's repr."""
+    return ("yes" if value else "no") if isinstance(value, bool) else value if isinstance(value, str) else repr(value)
 
 
 def _points(value, name: str, width: int, most: int | None = None) -> np.ndarray:

@@ -82,11 +82,12 @@ class Session:
 
 def box_settings() -> list[dict]:
     """The page's fields of a fit from boxes, one per PedestrianCorrector setting (its declaration: name, the id of
-    its field (the flag without dashes), bounds (None: a yes-or-no setting, a checkbox), unit, help, and its
-    default; None: what none means)."""
+    its field (the flag without dashes), bounds (None: a yes-or-no setting, a checkbox), choices (a yes, no or auto
+    setting, a list; None otherwise), unit, help, and its default; None: what none means)."""
     defaults = PedestrianCorrector().get_params()
     return [{"name": name, "id": opt.flag.lstrip("-"), "low": getattr(opt.kind, "low", None),  # None: yes or no
              "high": getattr(opt.kind, "high", None), "unit": opt.unit,
+             "choices": list(opt.kind.choices) if getattr(opt.kind, "auto", False) else None,
              "help": opt.help, "default": defaults.get(name), "none": opt.none}
             for name, opt in PEDESTRIAN_SETTINGS.items()]
 

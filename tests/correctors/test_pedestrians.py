@@ -6,6 +6,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+import re
 from dataclasses import replace
 
 import cv2
@@ -17,6 +18,7 @@ import pytest
 from homocal.boxes import read_boxes, read_mot
 from homocal.correctors import pedestrians
 from homocal.correctors.base import load_corrector
+from homocal.correctors.catalogue import fit_note
 from homocal.correctors.pedestrians import (
     DEFAULT_HEIGHT_MEAN_M,
     DEFAULT_HEIGHT_MEAN_SIGMA_M,
@@ -38,6 +40,7 @@ from homocal.geometry import PinholeCamera, ViewTransformer, apply_homography
 from homocal.geometry.boxes import box_edges, hidden_feet, link_tracks, undistort_boxes
 from homocal.geometry.camera import tilt_homography
 from homocal.geometry.lens import Lens
+from homocal.study.options import OptionError
 from homocal.study.perturb import tilt_shift
 from homocal.uncertainty import ground_uncertainty
 
@@ -178,7 +181,7 @@ class TestOutlierShare:
         boxes, tracks = self.cut_boxes()
         kw = dict(convention="homocal", track_ids=tracks, K=CAM.K, camera_height_m=4.0, image_size=(1280, 720))
         with pytest.raises(ValueError, match=f"are outliers .* more than {MAX_OUTLIER_SHARE:.0%}") as refused:
-            PedestrianCorrector(1.7, 0.07).fit(clicked_mapping(), boxes, **kw)
+            PedestrianCorrector(1.7, 0.07, drop_hidden_feet=False).fit(clicked_mapping(), boxes, **kw)
         assert "drop_hidden_feet" not in str(refused.value)  # no frames: hidden feet cannot be found
         kept = PedestrianCorrector(1.7, 0.07).fit(clicked_mapping(), boxes, max_outlier_share=1.0, **kw)
         alone = fit_tilt(boxes[:, 3], boxes[:, 1], tracks, CAM.focal_px, CAM.K[1, 2], 4.0, 1.7, 0.07)
@@ -412,20 +415,123 @@ class TestDropHiddenFeet:
         assert saved["params"]["drop_hidden_feet"] is True and saved["fitted"]["n_hidden"] == c.n_hidden_
         back = load_corrector(tmp_path / "c.json")
         assert back.drop_hidden_feet and back.n_hidden_ == c.n_hidden_ and np.array_equal(back.m, c.m)
-        del saved["fitted"]["n_hidden"], saved["params"]["drop_hidden_feet"]  # a file written before the option
+        for key in ("n_hidden", "hidden_feet", "first_refusal"):  # a file written before the option
+            del saved["fitted"][key]
+        del saved["params"]["drop_hidden_feet"]
         (tmp_path / "old.json").write_text(json.dumps(saved))
         old = load_corrector(tmp_path / "old.json")
-        assert not old.drop_hidden_feet and old.n_hidden_ == 0
+        assert old.drop_hidden_feet is False and old.n_hidden_ == 0 and old.hidden_feet_ == "kept"
 
     def test_off_by_default_and_needs_frames(self):
         boxes, frames = self.boxes()
         args = dict(convention="homocal", track_ids=np.arange(200), K=CAM.K, camera_height_m=4.0, image_size=SIZE)
         c = PedestrianCorrector().fit(clicked_mapping(), boxes, frames=frames, **args)
-        assert not c.drop_hidden_feet and c.n_hidden_ == 0 and "hidden" not in c.box_status_
+        assert c.drop_hidden_feet is False and c.n_hidden_ == 0 and "hidden" not in c.box_status_
         with pytest.raises(ValueError, match="^frames: needed with drop_hidden_feet"):
             PedestrianCorrector(drop_hidden_feet=True).fit(clicked_mapping(), boxes, **args)
         with pytest.raises(ValueError, match="drop_hidden_feet"):
             PedestrianCorrector(drop_hidden_feet="yes")
+
+
+class TestDropHiddenFeetAuto:
+    """drop_hidden_feet "auto": the fit with every box, and only where the outlier check refuses it and the boxes have
+    frames, the fit without the boxes hidden_feet marks (drop_hidden_feet=True's), kept if it passes the check."""
+
+    ARGS = dict(convention="homocal", K=CAM.K, camera_height_m=4.0, image_size=SIZE)
+
+    @staticmethod
+    def crowd(frames: int = 40, seed: int = 0, near_range: tuple[float, float] | None = None):
+        """A near person at 8-12 m and two people behind them in each frame, 1.2-1.3 times as far and in their
+        columns, whose feet the near one hides: a far person's box ends at the near person's head row (the near
+        box's top edge), as a detector's box of the visible part does. Heights N(1.7 m, 0.07 m), the near people's
+        uniform over near_range if given (within 1.1-1.9 m: a head above the far feet, below the far heads).
+        Boxes (3 frames, 4), frames (3 frames,), cut (3 frames,) bool: the far boxes."""
+        rng = np.random.default_rng(seed)
+        boxes = []
+        for _ in range(frames):
+            near = rng.uniform(8, 12)
+            y = np.array([near, *rng.uniform(1.2, 1.3, 2) * near])
+            x = rng.uniform(-3, 3) * y / near + np.array([0.0, *rng.uniform(-0.15, 0.15, 2)])
+            ground = np.column_stack([x, y, np.zeros(3)])
+            h = rng.normal(1.7, 0.07, 3)
+            h[0] = h[0] if near_range is None else rng.uniform(*near_range)
+            foot, head = CAM.project(ground), CAM.project(ground + [0, 0, 1] * h[:, None])
+            half = CAM.focal_px * 0.2 / y
+            b = np.column_stack([foot[:, 0] - half, head[:, 1], foot[:, 0] + half, foot[:, 1]])
+            assert (np.minimum(b[0, 2], b[1:, 2]) > np.maximum(b[0, 0], b[1:, 0])).all()  # columns overlap
+            assert (b[0, 1] < b[1:, 3]).all()  # the near head above the far feet
+            b[1:, 3] = b[0, 1]
+            boxes.append(b)
+        return np.concatenate(boxes), np.repeat(np.arange(frames), 3), np.arange(3 * frames) % 3 > 0
+
+    def test_refused_with_them_fitted_without(self, tmp_path):
+        boxes, frames, cut = self.crowd()
+        args = dict(self.ARGS, frames=frames, track_ids=np.arange(len(boxes)))
+        assert np.array_equal(hidden_feet(boxes, frames), cut)  # the construction is what hidden_feet looks for
+        with pytest.raises(ValueError, match=r"are outliers .*\(drop_hidden_feet, --drop-hidden-feet yes\)$") as no:
+            PedestrianCorrector(1.7, 0.07, drop_hidden_feet=False).fit(clicked_mapping(), boxes, **args)
+        auto = PedestrianCorrector(1.7, 0.07, drop_hidden_feet="auto").fit(clicked_mapping(), boxes, **args)
+        yes = PedestrianCorrector(1.7, 0.07, drop_hidden_feet=True).fit(clicked_mapping(), boxes, **args)
+        assert auto.hidden_feet_ == "dropped" and auto.n_hidden_ == cut.sum() and yes.first_refusal_ is None
+        assert re.fullmatch(r"\d+ of the 120 boxes are outliers", auto.first_refusal_)
+        assert f"xyxy: {auto.first_refusal_} (" in str(no.value)  # the figures of the refused fit
+        assert np.array_equal(auto.m, yes.m) and np.array_equal(auto.box_status_ == "hidden", cut)
+        assert abs(auto.horizon_row_ - CAM.horizon_row) < 3 * auto.horizon_sigma_people_px_  # 0.40 px, sigma 1.54 px
+        assert f"(left out: with them {auto.first_refusal_})" in fit_note(auto)
+        auto.save(tmp_path / "c.json")
+        saved = json.loads((tmp_path / "c.json").read_text())
+        assert saved["params"]["drop_hidden_feet"] == "auto" and saved["fitted"]["hidden_feet"] == "dropped"
+        back = load_corrector(tmp_path / "c.json")
+        assert (back.drop_hidden_feet, back.hidden_feet_, back.first_refusal_) == ("auto", "dropped", auto.first_refusal_)
+        assert np.array_equal(back.m, auto.m) and fit_note(back) == fit_note(auto)
+        saved["fitted"]["first_refusal"], saved["fitted"]["hidden_feet"] = "x", "kept"
+        (tmp_path / "bad.json").write_text(json.dumps(saved))
+        with pytest.raises(ValueError, match="field fitted.first_refusal"):
+            load_corrector(tmp_path / "bad.json")
+
+    def test_both_refused_names_both(self):
+        """The near people's heights spread over 1.2-1.85 m where the prior's sd is 0.04 m: refused without the
+        hidden feet as well, in one line."""
+        boxes, frames, cut = self.crowd(near_range=(1.2, 1.85))
+        args = dict(self.ARGS, frames=frames, track_ids=np.arange(len(boxes)))
+        with pytest.raises(ValueError, match=r"^xyxy: \d+ of the 120 boxes are outliers with every box, \d+ of the 40 "
+                           r"boxes are outliers without the 80 boxes whose feet a nearer person may hide "
+                           r"\(--drop-hidden-feet auto\) \(implied height") as refused:
+            PedestrianCorrector(1.7, 0.04, drop_hidden_feet="auto").fit(clicked_mapping(), boxes, **args)
+        assert "\n" not in str(refused.value)
+
+    @pytest.mark.parametrize("estimate_roll", [False, True])
+    def test_a_fit_that_passes_is_the_same_bits(self, estimate_roll):
+        """Boxes with hidden feet whose fit passes the outlier check: auto gives every bit of no's fit (yes's differs)."""
+        boxes, frames = TestDropHiddenFeet().boxes()
+        args = dict(self.ARGS, frames=frames)
+        no, auto, yes = (PedestrianCorrector(drop_hidden_feet=d, estimate_roll=estimate_roll).fit(clicked_mapping(), boxes, **args)
+                         for d in (False, "auto", True))
+        assert auto.hidden_feet_ == "kept" and auto.n_hidden_ == 0 and auto.first_refusal_ is None and yes.n_hidden_ > 10
+        assert auto.roll_estimated_ == estimate_roll
+        assert np.array_equal(auto.m, no.m) and np.array_equal(auto.box_status_, no.box_status_)
+        assert (auto.horizon_row_, auto.horizon_sigma_px_, auto.roll_deg_) == (no.horizon_row_, no.horizon_sigma_px_, no.roll_deg_)
+        assert auto.horizon_row_ != yes.horizon_row_
+        assert "none left out for hidden feet (--drop-hidden-feet auto" in fit_note(auto) and "auto" not in fit_note(no)
+
+    def test_without_frames_as_no_and_says_so(self):
+        boxes, _, _ = self.crowd()
+        args = dict(self.ARGS, track_ids=np.arange(len(boxes)))
+        with pytest.raises(ValueError, match="are outliers") as no:
+            PedestrianCorrector(1.7, 0.07, drop_hidden_feet=False).fit(clicked_mapping(), boxes, **args)
+        with pytest.raises(ValueError, match=r"\(--drop-hidden-feet auto: the boxes have no frames, no hidden feet looked "
+                           r"for\)$") as auto:
+            PedestrianCorrector(1.7, 0.07, drop_hidden_feet="auto").fit(clicked_mapping(), boxes, **args)
+        assert str(auto.value).startswith(str(no.value))
+        _, boxes, tracks, _ = people(60, seed=3)
+        no, auto = (PedestrianCorrector(drop_hidden_feet=d).fit(clicked_mapping(), boxes, track_ids=tracks, **self.ARGS)
+                    for d in (False, "auto"))
+        assert auto.hidden_feet_ == "no frames" and np.array_equal(auto.m, no.m) and "(--drop-hidden-feet auto: no frames)" in fit_note(auto)
+
+    @pytest.mark.parametrize("value", ["Auto", "yes", 1, None, "auto "])
+    def test_bad_values(self, value):
+        with pytest.raises(OptionError, match=f"^drop_hidden_feet {re.escape(repr(value))}: expected yes, no or auto$"):
+            PedestrianCorrector(drop_hidden_feet=value)
 
 
 class TestBoxes:

@@ -420,8 +420,10 @@ def _bad_pedestrian_inputs():
          "argument --height-sd: expected at most height_mean_m / 4 = 0.4125 m, got 0.5"),
         ("estimate roll not yes or no", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--estimate-roll", "1"],
          "argument --estimate-roll: expected yes or no, got '1'"),
-        ("drop hidden feet not yes or no", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--drop-hidden-feet", "1"],
-         "argument --drop-hidden-feet: expected yes or no, got '1'"),
+        ("drop hidden feet not yes, no or auto", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--drop-hidden-feet",
+         "1"], "argument --drop-hidden-feet: expected yes, no or auto, got '1'"),
+        ("drop hidden feet Auto", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--drop-hidden-feet", "Auto"],
+         "argument --drop-hidden-feet: expected yes, no or auto, got 'Auto'"),
         ("height mean sigma negative", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--height-mean-sigma", "-1"],
          "argument --height-mean-sigma: expected a number in [0, 0.5] (m), got '-1'"),
         ("height mean nan", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--height-mean", "nan"],
@@ -478,13 +480,14 @@ def test_pedestrians_refuse_a_majority_of_outliers(work, capsys, monkeypatch):
     write_csv(work / "b.csv", ["frame", "x1", "y1", "x2", "y2"],
               [(i * 20, u - 5, t, u + 5, v) for i, ((u, v), t) in enumerate(zip(foot, top))])
     (work / "cam.json").write_text(_CAMERA_JSON)
-    result = homocal_main("fit", "--trapezoid", "trap.json", "-o", "c.json", "--method", "pedestrians", "--boxes",
-                          "b.csv", "--camera-json", "cam.json", "--camera-height", "4", cwd=work, capsys=capsys,
-                          monkeypatch=monkeypatch)
-    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
-    assert "are outliers" in result.stderr and f"more than {MAX_OUTLIER_SHARE:.0%}" in result.stderr
-    assert "(drop_hidden_feet, --drop-hidden-feet yes)" in result.stderr  # the boxes have frames: a way out named
-    assert not (work / "c.json").exists()
+    for drop, way_out in (("no", "(drop_hidden_feet, --drop-hidden-feet yes)"),  # the boxes have frames: a way out named
+                          ("auto", "(--drop-hidden-feet auto: no box's feet a nearer person may hide)")):
+        result = homocal_main("fit", "--trapezoid", "trap.json", "-o", "c.json", "--method", "pedestrians", "--boxes",
+                              "b.csv", "--camera-json", "cam.json", "--camera-height", "4", "--drop-hidden-feet", drop,
+                              cwd=work, capsys=capsys, monkeypatch=monkeypatch)
+        assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+        assert "are outliers" in result.stderr and f"more than {MAX_OUTLIER_SHARE:.0%}" in result.stderr
+        assert result.stderr.endswith(way_out + "\n") and not (work / "c.json").exists()
 
 
 def test_pedestrians_drop_hidden_feet(work, capsys, monkeypatch):
@@ -512,3 +515,27 @@ def test_pedestrians_drop_hidden_feet(work, capsys, monkeypatch):
     assert saved["fitted"]["n_hidden"] == reference.n_hidden_ > 0
     assert f", {reference.n_hidden_} with feet a nearer person may hide," in result.stdout
     (work / "c.json").unlink()
+
+
+def test_pedestrians_drop_hidden_feet_auto(work, capsys, monkeypatch):
+    """--drop-hidden-feet auto on boxes whose fit with every box is refused for hidden feet: the saved correction is
+    the library's fit with drop_hidden_feet="auto" (it left them out, fitted.first_refusal says why) and fit's line
+    says so."""
+    from homocal import PedestrianCorrector, read_boxes
+    from tests.correctors.test_pedestrians import TestDropHiddenFeetAuto
+
+    boxes, frames, _ = TestDropHiddenFeetAuto.crowd()
+    write_csv(work / "b.csv", ["frame", "x1", "y1", "x2", "y2"], [(f, *b) for f, b in zip(frames, boxes)])
+    (work / "cam.json").write_text(_CAMERA_JSON)
+    result = homocal_main("fit", "--trapezoid", "trap.json", "-o", "c.json", "--method", "pedestrians", "--boxes",
+                          "b.csv", "--camera-json", "cam.json", "--camera-height", "4", "--height-sd", "0.07",
+                          "--drop-hidden-feet", "auto", cwd=work, capsys=capsys, monkeypatch=monkeypatch)
+    assert result.returncode == 0, result.stderr
+    read = read_boxes(work / "b.csv")
+    reference = PedestrianCorrector(height_sd_m=0.07, drop_hidden_feet="auto").fit(
+        read_trapezoid_file(work / "trap.json")[0], read.xyxy, convention="homocal", frames=read.frames,
+        camera_height_m=4.0, K=CAM.K, image_size=(CAM.width, CAM.height))
+    saved = json.loads((work / "c.json").read_text())
+    assert saved == json.loads(json.dumps(reference.to_dict())) and saved["params"]["drop_hidden_feet"] == "auto"
+    assert saved["fitted"]["hidden_feet"] == "dropped" and saved["fitted"]["first_refusal"] == reference.first_refusal_
+    assert f"may hide (left out: with them {reference.first_refusal_})" in result.stdout

@@ -172,6 +172,12 @@ def test_pedestrians_fit_from_the_launch_boxes(boxes_server):
                                                          camera_height_m=4.0, image_size=(W, H))
     assert status == 200 and dropped["correction"] == json.loads(json.dumps(own.to_dict()))
     assert own.drop_hidden_feet and len(dropped["boxes"]["hidden"]) == own.n_hidden_  # the page's setting reaches the fit
+    assert [s["choices"] for s in info["box_settings"] if s["name"] == "drop_hidden_feet"] == [["yes", "no", "auto"]]
+    status, auto = post(boxes_server, "api/fit", request(trapezoid=trap, method="pedestrians", points=[],
+                                                         camera_height_m=4.0, drop_hidden_feet="auto"))
+    assert status == 200 and auto["correction"]["params"]["drop_hidden_feet"] == "auto"
+    assert auto["correction"]["fitted"]["hidden_feet"] == "kept"
+    assert auto["correction"]["fitted"]["horizon_row"] == fit["correction"]["fitted"]["horizon_row"]  # it passed: the same fit
     (u0, v0), (u1, v1) = fit["horizon"]
     at_cx = v0 + (v1 - v0) * (CAM.K[0, 2] - u0) / (u1 - u0)
     assert at_cx == pytest.approx(reference.horizon_row_, abs=1e-6) and abs(at_cx - CAM.horizon_row) < 2.0
@@ -268,7 +274,7 @@ def run_printed_command(command: str, out: Path) -> dict:
 
 
 @pytest.mark.parametrize("fields", [{"camera_height_m": 4.0}, {}, {"camera_height_m": 4.0, "height_mean_m": 1.7,
-                                                                   "height_sd_m": 0.08}])
+                                                                   "height_sd_m": 0.08, "drop_hidden_feet": "auto"}])
 def test_pedestrians_save_prints_the_command_that_reproduces_it(boxes_server, tmp_path, fields):
     """A boxes CSV has no image size or K: Save writes the frame's size to camera_intrinsics.json and names it in
     the command with every other setting of the page's fit, and the command's correction is the saved one."""

@@ -297,6 +297,9 @@ def test_pedestrians_fit_save_apply_in_a_browser(browser, server, tiny_dataset, 
     assert summary.startswith("pedestrians: no check points") and "people (tracks):" in summary
     fit = js(d, f"{S}.fit")
     clicked = js(d, f"{S}.view.horizon")
+    hidden = Select(d.find_element(By.ID, "drop-hidden-feet"))  # a yes, no or auto setting: a choice, at its default
+    assert [o.text for o in hidden.options] == ["yes", "no", "auto"] and hidden.first_selected_option.text == "no"
+    assert fit["correction"]["params"]["drop_hidden_feet"] is False
     cx = fit["correction"]["fitted"]["principal_point"][0]
     fitted_row = fit["correction"]["fitted"]["horizon_row"]
     assert horizon_at(fit["horizon"], cx) == pytest.approx(fitted_row, abs=1e-6)
@@ -342,6 +345,9 @@ def test_pedestrians_fit_save_apply_in_a_browser(browser, server, tiny_dataset, 
     np.testing.assert_allclose([[float(r["x"]), float(r["y"])] for r in rows], corrector.transform_points(feet), atol=1e-9)
     np.testing.assert_allclose([float(r["sigma_m"]) for r in rows], sigma_radius(corrector.ground_uncertainty(feet)),
                                rtol=1e-12)
+    hidden.select_by_visible_text("auto")  # the page's choice reaches the fit
+    d.find_element(By.ID, "fit").click()
+    wait_for(d, f"{S}.fit !== null && {S}.fit.correction.params.drop_hidden_feet === 'auto'")
     assert [entry for entry in d.get_log("browser") if entry["source"] == "javascript"] == []  # no script error
 
 

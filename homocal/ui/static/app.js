@@ -76,7 +76,8 @@ function boxRequest() {
   const req = {};
   if (S.info.boxes.detectors.length) req.detector = $("detector").value;
   for (const s of S.info.box_settings) {
-    if (s.low === null) req[s.name] = $(s.id).checked;  // yes or no
+    if (s.choices) req[s.name] = $(s.id).value === "auto" ? "auto" : $(s.id).value === "yes";  // yes, no or auto
+    else if (s.low === null) req[s.name] = $(s.id).checked;  // yes or no
     else if ($(s.id).value !== "") req[s.name] = number(s.id);
   }
   return req;
@@ -850,10 +851,15 @@ async function start() {
   showMethodFields();
   if (S.info.dataset) { $("use-hand-placed").hidden = false; $("use-calibration").hidden = false; }
   for (const s of S.info.box_settings) {  // one field per PedestrianCorrector setting, from its declaration
-    const input = Object.assign(document.createElement("input"), s.low === null
+    const input = s.choices ? Object.assign(document.createElement("select"), { id: s.id, title: s.help })
+      : Object.assign(document.createElement("input"), s.low === null
       ? { id: s.id, type: "checkbox", checked: s.default === true, title: s.help }
       : { id: s.id, className: "num", type: "number", step: "0.01", min: s.low, max: s.high, title: s.help,
           placeholder: s.default === null ? "" : String(s.default) });
+    if (s.choices) {
+      input.replaceChildren(...s.choices.map((c) => new Option(c)));
+      input.value = s.default === true ? "yes" : s.default === false ? "no" : s.default;
+    }
     input.addEventListener("change", () => { invalidateFit(); invalidateWatch(); render(); });
     const label = document.createElement("label");
     label.append(`${s.id.replace(/-/g, " ")} `, input, ` ${s.unit}${s.none ? ` (empty: ${s.none})` : ""} `);
