@@ -167,7 +167,7 @@ STUDENT_WEIGHT_TOLERANCE = 1e-6
 effect on any bar: the state moves by about this share of its update)."""
 STUDENT_MAX_ITERATIONS = 100
 """... and at most this many times (the bound on its time; the iteration is a coordinate ascent of the
-variational bound, which converges in a handful of iterations on the foot points)."""
+variational bound, which converges linearly: slowest where a point's weight is far from 1)."""
 
 
 def student_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray, dof: float
