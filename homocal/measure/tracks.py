@@ -155,9 +155,7 @@ scale c on the filter's measurement noise R (R -> c^2 R) and its degrees of free
 homocal.measure.kalman.fit_student_noise under the IMM (IMM_ACCEL_PSD, IMM_SWITCH_PER_S) on simgen's scene1 and
 scene2, seed 0, segmentation and rgb boxes pooled, the pedestrians' correction, --feet all: ``python
 research/measure_speeds.py DATA/scene1 DATA/scene2 --fit-foot-tails`` (c 0.163, dof 3.55: a core a sixth of
-the fixed model's sigma and tails a normal's likelihood of the same tracks cannot have; the summed
-log-likelihood is 39682 for a normal noise at c 0.452 (near its own best, 0.463), 58509 at c 0.3, dof 5 and 59476 at c
-0.25, dof 2)."""
+the fixed model's sigma, and heavy tails)."""
 
 
 def foot_noise_options(foot_noise: str, xyxy: np.ndarray, point_sigma_px: float, foot_tails: str = FOOT_TAILS[0]
