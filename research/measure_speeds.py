@@ -7,7 +7,9 @@ supervision's speed recipe (issue 34 item 4; docs/measure-accuracy.md).
     python research/measure_speeds.py DATASET [DATASET ...] --steadiness [--spread] [--mappings pedestrians] [--exact] [--box-sigma | --correlated] [--feet soles] [--accel-psd fitted|imm]
     python research/measure_speeds.py DATASET [DATASET ...] --fit-imm
     python research/measure_speeds.py DATASET [DATASET ...] --fit-foot-scale [--box-sigma | --correlated] [--feet soles]
+    python research/measure_speeds.py DATASET [DATASET ...] --fit-foot-tails [--box-sigma]
     python research/measure_speeds.py DATASET [DATASET ...] --spread --steadiness --accel-psd imm --foot-scale C
+    python research/measure_speeds.py DATASET [DATASET ...] --spread --steadiness --foot-noise-tails student
     python research/measure_speeds.py DATASET [DATASET ...] --horizons 10
     python research/measure_speeds.py DATASET [DATASET ...] --draws 2000 [--correlated] [--feet soles] [--accel-psd fitted]
     python research/measure_speeds.py DATASET --throughput 10 [--correlated]
@@ -70,6 +72,11 @@ IMM_SWITCH_PER_S) by maximum likelihood over the datasets' and --detectors' trac
 likely under the IMM (homocal.measure.kalman.fit_noise_scale at IMM_ACCEL_PSD, IMM_SWITCH_PER_S), per detector and
 (of more than one) the detectors pooled, with the foot noise model of --box-sigma / --correlated (default fixed)
 and --feet.
+--fit-foot-tails: instead, the Student-t foot noise (its scale c on R and degrees of freedom) that makes the
+tracks most likely under the IMM (homocal.measure.kalman.fit_student_noise), the detectors' tracks pooled, with
+the foot noise model of --box-sigma (default fixed), every box: homocal.measure.tracks.STUDENT_FOOT_NOISE.
+--foot-noise-tails normal|student: the foot noise's distribution (homocal measure --foot-noise-tails; student with
+the models STUDENT_FOOT_NOISE has: its scale and degrees of freedom, the scale times --foot-scale).
 --foot-scale C: the filter's measurement noise R times C^2 (measure_tracks(noise_scale=C)); the positions' sigma_m
 stay the mapping's.
 --horizons SECONDS: instead, the pedestrians' correction (as the tables fit it) on every disjoint window of
@@ -105,8 +112,8 @@ from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer, box_bottom_points
 from homocal.geometry.boxes import link_tracks
 from homocal.measure import ACCEL_PSD, measure_tracks
-from homocal.measure.kalman import IMM, fit_imm, fit_noise_scale, speed_and_sigma
-from homocal.measure.tracks import (FEET, TrapezoidMapping, as_mapping, map_points, first_batch_inputs, fit_tracks_accel_psd, foot_noise_options,
+from homocal.measure.kalman import IMM, fit_imm, fit_noise_scale, fit_student_noise, speed_and_sigma
+from homocal.measure.tracks import (FEET, FOOT_TAILS, TrapezoidMapping, as_mapping, map_points, first_batch_inputs, fit_tracks_accel_psd, foot_noise_options,
                                     foot_status, mapping_velocity_covariance)
 from homocal.study.perturb import base_quad
 
@@ -211,8 +218,9 @@ def imm_inputs(path: str, detector: str, shift: float, foot_noise: str = "box-he
     feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
     peds = pedestrians(ds, clicked_transformer(ds, shift), frames, xyxy, ids)
     foot = foot_status(xyxy, frames, ds.camera.image_size) if soles else None
-    return first_batch_inputs(peds, frames, feet, ids, float(ds.manifest["fps"]),
-                              **foot_noise_options(foot_noise, xyxy, 1.0), foot=foot)
+    noise = foot_noise_options(foot_noise, xyxy, 1.0)
+    noise.pop("student_dof")  # normal: the fits take the tails as their own parameters
+    return first_batch_inputs(peds, frames, feet, ids, float(ds.manifest["fps"]), **noise, foot=foot)
 
 
 def horizon_errors(path: str, detector: str, shift: float, seconds: float) -> list[dict]:
@@ -252,12 +260,13 @@ def per_box(mapping, frames: np.ndarray, feet: np.ndarray, ids: np.ndarray, fps:
 
 def evaluate(paths: list[str], detector: str, shift: float, split: bool = False, box_sigma: bool = False,
              correlated: bool = False, accel_psd: float | str = ACCEL_PSD, soles: bool = False,
-             exact: bool = False, only: tuple[str, ...] = MAPPINGS, foot_scale: float = 1.0) -> dict:
+             exact: bool = False, only: tuple[str, ...] = MAPPINGS, foot_scale: float = 1.0,
+             foot_tails: str = FOOT_TAILS[0]) -> dict:
     """{(mapping, estimator): dict of pooled arrays err (m/s), rel (%, NaN below WALKING_MPS), range, cover1/2
     (speeds), pos1/2 (positions within k sigma_m), ellipse1/2 (positions within the k-sigma ellipse: the squared
     Mahalanobis distance of the error under the mapped point's covariance within chi-square(2)'s quantile of the
     1-D k sigma's share, 68.3 / 95.4 %)} over the datasets; exact: the true mapping alone, bars of no mapping error;
-    foot_scale: the filter's measurement noise times its square (--foot-scale)."""
+    foot_scale: the filter's measurement noise times its square (--foot-scale); foot_tails a FOOT_TAILS."""
     pooled: dict = collections.defaultdict(lambda: collections.defaultdict(list))
     for path in paths:
         ds = load_dataset(path)
@@ -280,8 +289,10 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
         first, last = (np.array([f(frames[ids == k]) for k in range(ids.max() + 1)]) for f in (np.min, np.max))
         inner = (frames - first[ids] >= fps) & (last[ids] - frames >= fps)  # at least 1 s from its track's ends
         for name, mapping in maps.items():
-            noise = foot_noise_options("correlated" if correlated else "box-height" if box_sigma else "fixed", xyxy, 1.0)
+            noise = foot_noise_options("correlated" if correlated else "box-height" if box_sigma else "fixed", xyxy, 1.0,
+                                       foot_tails)
             noise["split_mapping_error"] |= split
+            noise["noise_scale"] *= foot_scale
             if exact:
                 noise["click_sigma_px"] = 0.0
             q = accel_psd
@@ -293,8 +304,7 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
             e = xy - true_xy
             pos_d2 = np.einsum("ni,ni->n", e, np.linalg.solve(cov, e[..., None])[..., 0])  # squared Mahalanobis
             for estimator, smooth in (("filter", False), ("smoother", True)):
-                m = per_box(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise, foot=foot,
-                            noise_scale=foot_scale)
+                m = per_box(mapping, frames, feet, ids, fps, smooth=smooth, accel_psd=q, **noise, foot=foot)
                 pos_err = np.hypot(m["x"] - true_xy[:, 0], m["y"] - true_xy[:, 1])
                 rows[f"{name}, {estimator}"] = (m["speed_mps"], m["speed_sigma_mps"], pos_err, m["sigma_m"], pos_d2)
             rows[f"{name}, 1 s diff"] = (recipe_speeds(mapping.transform_points(feet), frames, ids, fps), None, None, None, None)
@@ -483,7 +493,7 @@ def horizon_table(rows: list[dict]) -> str:
 
 
 def throughput(path: str, minutes: float, foot_noise: str = "fixed", accel_psd: float | str = ACCEL_PSD,
-               feet: str = FEET[0]) -> str:
+               feet: str = FEET[0], foot_tails: str = FOOT_TAILS[0]) -> str:
     ds = load_dataset(path)
     boxes = read_boxes(Path(path) / "detections.parquet", "segmentation")
     fps = float(ds.manifest["fps"])
@@ -503,7 +513,8 @@ def throughput(path: str, minutes: float, foot_noise: str = "fixed", accel_psd: 
         start = time.perf_counter()
         subprocess.run([sys.executable, "-m", "homocal.cli", "measure", str(trap), "--boxes", str(csv), "--fps",
                         f"{fps:g}", "--out", str(Path(tmp) / "tracks.parquet"), "--foot-noise", foot_noise,
-                        "--accel-psd", str(accel_psd), "--feet", feet, "--no-progress"], check=True)
+                        "--accel-psd", str(accel_psd), "--feet", feet, "--foot-noise-tails", foot_tails, "--no-progress"],
+                       check=True)
         seconds = time.perf_counter() - start
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
     return (f"throughput: {n:,} boxes in the file ({copies} copies of {ds.name}'s {length} frames of segmentation boxes, "
@@ -535,6 +546,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="the IMM's two q and switching rates by maximum likelihood over the datasets' tracks")
     parser.add_argument("--fit-foot-scale", action="store_true",
                         help="the scale of the filter's measurement noise by maximum likelihood under the IMM")
+    parser.add_argument("--foot-noise-tails", choices=FOOT_TAILS, default=FOOT_TAILS[0], help="homocal measure --foot-noise-tails")
+    parser.add_argument("--fit-foot-tails", action="store_true",
+                        help="the Student-t foot noise's scale and degrees of freedom by maximum likelihood under the IMM")
     parser.add_argument("--foot-scale", type=float, default=1.0, metavar="C",
                         help="the filter's measurement noise times C^2")
     parser.add_argument("--horizons", type=float, metavar="SECONDS",
@@ -564,6 +578,12 @@ def main(argv: list[str] | None = None) -> int:
         for name, group in list(inputs.items()) + pooled:
             print(f"{name} boxes, {noise}, feet {args.feet}, IMM: foot noise scale c {fit_noise_scale(group):.3f}")
         return 0
+    if args.fit_foot_tails:
+        noise = "box-height" if args.box_sigma else "fixed"
+        c, dof = fit_student_noise([imm_inputs(d, detector, args.shift, noise) for d in args.datasets
+                                    for detector in args.detectors.split(",")])
+        print(f"{args.detectors} boxes, {noise}, IMM: Student-t foot noise scale c {c:.3f}, degrees of freedom {dof:.3g}")
+        return 0
     if args.horizons:
         rows = [r for detector in args.detectors.split(",") for d in args.datasets
                 for r in horizon_errors(d, detector, args.shift, args.horizons)]
@@ -574,13 +594,13 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.throughput:
         print(throughput(args.datasets[0], args.throughput, "correlated" if args.correlated else "fixed", args.accel_psd,
-                         args.feet))
+                         args.feet, args.foot_noise_tails))
         return 0
     only = tuple(args.mappings.split(","))
     for detector in args.detectors.split(","):
         def run(paths: list[str]) -> dict:
             return evaluate(paths, detector, args.shift, args.split, args.box_sigma, args.correlated, args.accel_psd,
-                            args.feet == "soles", args.exact, only, args.foot_scale)
+                            args.feet == "soles", args.exact, only, args.foot_scale, args.foot_noise_tails)
 
         if args.spread:
             each = [run([d]) for d in args.datasets]

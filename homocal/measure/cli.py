@@ -18,7 +18,8 @@ from homocal.files import check_output_file, json_format, write_atomic
 from homocal.geometry import read_trapezoid_file
 from homocal.geometry.boxes import box_bottom_points, link_tracks, undistort_boxes
 from homocal.measure.kalman import ACCEL_PSD, ACCEL_PSD_BOUNDS, IMM, IMM_ACCEL_PSD, IMM_SWITCH_PER_S
-from homocal.measure.tracks import (COLUMNS, FEET, FOOT, FOOT_CORRELATION_S, FOOT_NOISE, FOOT_SIGMA_PER_BOX_HEIGHT, foot_noise_options, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
+from homocal.measure.tracks import (COLUMNS, FEET, FOOT, FOOT_CORRELATION_S, FOOT_NOISE, FOOT_SIGMA_PER_BOX_HEIGHT, FOOT_TAILS,
+                                    STUDENT_FOOT_NOISE, foot_noise_options, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
                                     TrapezoidMapping, check_people_per_frame, check_tracks, fit_tracks_accel_psd, foot_status, measure_tracks, pair_distances,
                                     summarise)
 from homocal.progress import add_progress_option, show_progress
@@ -82,6 +83,12 @@ def add_parser(subparsers) -> None:
                         "(fitted), is, and the shared mapping error goes into the speed's sigma; correlated: as "
                         f"box-height, the foot point's error correlated over {FOOT_CORRELATION_S:g} s (fitted), "
                         "an AR(1) in the filter's state (default fixed)")
+    p.add_argument("--foot-noise-tails", choices=FOOT_TAILS, default=FOOT_TAILS[0],
+                   help="the foot point's noise distribution: normal; student, heavy tailed (a Student-t, fitted per "
+                        "--foot-noise: " + ", ".join(f"{k} scale {c:g} x, {dof:g} degrees of freedom"
+                                                    for k, (c, dof) in STUDENT_FOOT_NOISE.items())
+                        + "), so that a foot point far off (hidden feet, a box merged or split) counts little; with "
+                        f"--foot-noise {' or '.join(STUDENT_FOOT_NOISE)} (default {FOOT_TAILS[0]})")
     p.add_argument("--feet", choices=FEET, default=FEET[0],
                    help="the foot points measured: all; soles: not those whose bottom edge may not be the sole, a box "
                         "whose feet a nearer person's box may hide or whose bottom or side the image border cuts (the "
@@ -193,7 +200,10 @@ def handle_measure(args: argparse.Namespace) -> int:
             check_people_per_frame(frames)
         except ValueError as e:
             raise ValueError(f"--pairs: {args.boxes}: {e}") from None
-    noise = foot_noise_options(args.foot_noise, xyxy[keep], args.point_sigma_px)
+    if args.foot_noise_tails != FOOT_TAILS[0] and args.foot_noise not in STUDENT_FOOT_NOISE:
+        raise ValueError(f"--foot-noise-tails {args.foot_noise_tails}: needs --foot-noise "
+                         f"{' or '.join(STUDENT_FOOT_NOISE)}, not {args.foot_noise} (no white part to weight)")
+    noise = foot_noise_options(args.foot_noise, xyxy[keep], args.point_sigma_px, args.foot_noise_tails)
     sigmas = {"click_sigma_px": args.click_sigma_px, "point_sigma_px": noise.pop("point_sigma_px")}
     q, fitted = args.accel_psd, ""
     if q == FITTED:

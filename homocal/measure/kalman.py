@@ -15,6 +15,14 @@ and stationary covariance R_b (2, 2), the foot point's own noise through the map
     b' = phi b + w_b,  phi = exp(-dt / tau),  Q_b = (1 - phi^2) R_b,  z = (x, y) + b + white noise (R),
 so s = (x, y, vx, vy, bx, by), F and Q block-diagonal (the motion's, the error's), H = [I, 0, I] (Gelb 1974,
 Section 4.5: state augmentation for coloured measurement noise).
+
+A heavy-tailed white measurement noise (``dof`` finite): a Student-t of scale R and dof degrees of freedom, a
+normal N(0, R / w) whose precision weight w is Gamma(dof / 2, dof / 2) distributed, so that a jump (a nearer
+person hides the feet, a box merges or splits) counts little. Each update is the variational Bayes one
+(Agamennoni, Nieto and Nebot 2012; Roth, Ozkan and Gustafsson 2013, Section III): the Kalman update with R / w,
+    w = (dof + 2) / (dof + tr(R^-1 E[(z - H s)(z - H s)^T])),
+the expectation over the updated state (``student_update``); the smoother takes the filtered covariances as the
+forward pass weighted them. dof = inf is the normal noise, the Kalman update itself.
 """
 from __future__ import annotations
 
@@ -76,11 +84,12 @@ def measurement_matrix(d: int) -> np.ndarray:
 
 
 def kalman_filter(t: np.ndarray, z: np.ndarray, R: np.ndarray, q: float = ACCEL_PSD,
-                  foot: tuple[np.ndarray, float] | None = None) -> dict[str, np.ndarray]:
+                  foot: tuple[np.ndarray, float] | None = None, dof: float = np.inf) -> dict[str, np.ndarray]:
     """Forward pass over tracks: t (n, L) seconds, non-decreasing along each row (a padded step repeats the last
     time and has NaN z), z (n, L, 2) metres, R (n, L, 2, 2) metres^2 (the white part of the measurement
     error); foot None, or (R_b (n, L, 2, 2) metres^2, tau seconds): the part correlated over frames (module
-    docstring), d = 6 states.
+    docstring), d = 6 states; dof: the white part's degrees of freedom (inf: normal; else Student-t of scale R,
+    ``update``).
 
     Returns "x", "P" (the filtered states (n, L, d) and covariances (n, L, d, d)), "x_pred", "P_pred" (the
     predictions before each update) and "F" (n, L, d, d), the transitions into each step (identity at step 0).
@@ -93,31 +102,31 @@ def kalman_filter(t: np.ndarray, z: np.ndarray, R: np.ndarray, q: float = ACCEL_
         x, P, F = predict(x, P, t[:, k] - t[:, k - 1] if k else np.zeros(n), q,
                           None if foot is None else (foot[0][:, k], foot[1]))
         out["x_pred"][:, k], out["P_pred"][:, k], out["F"][:, k] = x, P, F
-        x, P = update(x, P, z[:, k], R[:, k])
+        x, P = update(x, P, z[:, k], R[:, k], dof)
         out["x"][:, k], out["P"][:, k] = x, P
     return out
 
 
 def innovation_log_likelihood(t: np.ndarray, z: np.ndarray, R: np.ndarray, q: float,
-                              foot: tuple[np.ndarray, float] | None = None) -> float:
+                              foot: tuple[np.ndarray, float] | None = None, dof: float = np.inf) -> float:
     """The prediction-error log-likelihood of tracks under process noise q (arguments as ``kalman_filter``'s):
-    the sum over measured steps of -(ln det S + nu^T S^-1 nu) / 2, nu = z - H x_pred the innovation and
-    S = H P_pred H^T + R its covariance (the constant 2 pi dropped; Bar-Shalom, Li and Kirubarajan 2001,
-    Section 5.2.5; Harvey 1989, Section 3.4)."""
-    f = kalman_filter(t, z, R, q, foot)
+    the sum over measured steps of ``innovation_log_density`` of nu = z - H x_pred, the innovation, and S = H
+    P_pred H^T + R, its covariance (normal: -(ln det S + nu^T S^-1 nu) / 2, the constant 2 pi dropped;
+    Bar-Shalom, Li and Kirubarajan 2001, Section 5.2.5; Harvey 1989, Section 3.4)."""
+    f = kalman_filter(t, z, R, q, foot, dof)
     H = measurement_matrix(f["x"].shape[-1])
     ok = np.isfinite(z).all(axis=-1) & np.isfinite(R).all(axis=(-2, -1))
     nu = z[ok] - f["x_pred"][ok] @ H.T
     S = H @ f["P_pred"][ok] @ H.T + R[ok]
-    return float(-0.5 * (np.linalg.slogdet(S)[1].sum() + np.einsum("ni,ni->", nu, np.linalg.solve(S, nu[..., None])[..., 0])))
+    return float(innovation_log_density(nu, S, dof).sum())
 
 
-def fit_accel_psd(t: np.ndarray, z: np.ndarray, R: np.ndarray, foot: tuple[np.ndarray, float] | None = None
-                  ) -> float:
+def fit_accel_psd(t: np.ndarray, z: np.ndarray, R: np.ndarray, foot: tuple[np.ndarray, float] | None = None,
+                  dof: float = np.inf) -> float:
     """The maximum-likelihood q, m^2/s^3, of tracks (arguments as ``kalman_filter``'s): the maximum of
     ``innovation_log_likelihood`` over ln q in ln ACCEL_PSD_BOUNDS (Brent's bounded search, to
     ACCEL_PSD_LOG_TOLERANCE)."""
-    best = minimize_scalar(lambda s: -innovation_log_likelihood(t, z, R, float(np.exp(s)), foot),
+    best = minimize_scalar(lambda s: -innovation_log_likelihood(t, z, R, float(np.exp(s)), foot, dof),
                            bounds=np.log(ACCEL_PSD_BOUNDS), method="bounded",
                            options={"xatol": ACCEL_PSD_LOG_TOLERANCE})
     return float(np.exp(best.x))
@@ -142,23 +151,81 @@ def predict(x: np.ndarray, P: np.ndarray, dt: np.ndarray, q: float, foot: tuple[
     return np.einsum("nij,nj->ni", F, x), F @ P @ F.transpose(0, 2, 1) + Q, F
 
 
-def update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The Kalman update of states x (n, d), covariances P (n, d, d) by position measurements z (n, 2) with
-    covariances R (n, 2, 2), H = ``measurement_matrix(d)``, Joseph form; rows whose z or R is not finite are
-    returned as they are."""
-    ok = np.isfinite(z).all(axis=1) & np.isfinite(R).all(axis=(1, 2))
+def gain_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The Kalman update of states x (m, d), covariances P (m, d, d) by position measurements z (m, 2) with
+    covariances R (m, 2, 2), H = ``measurement_matrix(d)``, Joseph form (every row measured)."""
+    H = measurement_matrix(x.shape[1])
+    HP = H @ P  # (m, 2, d)
+    S = HP @ H.T + R
+    K = np.linalg.solve(S, HP).transpose(0, 2, 1)  # P H^T S^-1, (m, d, 2); S and P symmetric
+    A = np.eye(x.shape[1]) - K @ H
+    return x + np.einsum("nij,nj->ni", K, z - x @ H.T), A @ P @ A.transpose(0, 2, 1) + K @ R @ K.transpose(0, 2, 1)
+
+
+STUDENT_WEIGHT_TOLERANCE = 1e-6
+"""``student_update`` iterates until no weight moves by more than this share of itself (far below the weight's
+effect on any bar: the state moves by about this share of its update)."""
+STUDENT_MAX_ITERATIONS = 100
+"""... and at most this many times (the bound on its time; the iteration is a coordinate ascent of the
+variational bound, which converges linearly: slowest where a point's weight is far from 1)."""
+
+
+def student_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray, dof: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The variational Bayes update (module docstring) of states x (m, d), covariances P (m, d, d) by
+    measurements z (m, 2) of Student-t noise, scale R (m, 2, 2) and dof > 0 degrees of freedom (inf: normal, w
+    = 1): ``gain_update`` with R / w, w = (dof + 2) / (dof + tr(R^-1 ((z - H x')(z - H x')^T + H P' H^T))) at
+    the updated x', P', from w = 1 to STUDENT_WEIGHT_TOLERANCE (at most STUDENT_MAX_ITERATIONS). Returns x',
+    P' and the weights w (m,) (every row measured; each row iterated until its own weight stops)."""
+    w = np.ones(len(x))
+    xu, Pu = gain_update(x, P, z, R)
+    if np.isinf(dof):
+        return xu, Pu, w
+    H = measurement_matrix(x.shape[1])
+    open_ = np.arange(len(x))  # the rows whose weight still moves: each row's result is its own, whatever the batch
+    for _ in range(STUDENT_MAX_ITERATIONS):
+        e = z[open_] - xu[open_] @ H.T
+        spread = e[:, :, None] * e[:, None, :] + H @ Pu[open_] @ H.T  # E[(z - H s)(z - H s)^T], (m, 2, 2)
+        w_next = (dof + 2) / (dof + np.trace(np.linalg.solve(R[open_], spread), axis1=1, axis2=2))
+        moved = np.abs(w_next - w[open_]) > STUDENT_WEIGHT_TOLERANCE * w[open_]
+        w[open_] = w_next
+        xu[open_], Pu[open_] = gain_update(x[open_], P[open_], z[open_], R[open_] / w_next[:, None, None])
+        open_ = open_[moved]
+        if not open_.size:
+            break
+    return xu, Pu, w
+
+
+def measured(z: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """(n,) bool: the rows whose measurement z (n, 2) and its noise R (n, 2, 2) are finite."""
+    return np.isfinite(z).all(axis=1) & np.isfinite(R).all(axis=(1, 2))
+
+
+def update(x: np.ndarray, P: np.ndarray, z: np.ndarray, R: np.ndarray, dof: float = np.inf
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """The measurement update of states x (n, d), covariances P (n, d, d) by position measurements z (n, 2) with
+    noise R (n, 2, 2): the Kalman update (dof inf) or, for a Student-t noise of scale R and dof degrees of
+    freedom, ``student_update``; rows whose z or R is not finite are returned as they are."""
+    ok = measured(z, R)
     if not ok.any():
         return x, P
     x, P = x.copy(), P.copy()
-    xo, Po, zo, Ro = x[ok], P[ok], z[ok], R[ok]
-    H = measurement_matrix(x.shape[1])
-    HP = H @ Po  # (m, 2, d)
-    S = HP @ H.T + Ro
-    K = np.linalg.solve(S, HP).transpose(0, 2, 1)  # P H^T S^-1, (m, d, 2); S and P symmetric
-    x[ok] = xo + np.einsum("nij,nj->ni", K, zo - xo @ H.T)
-    A = np.eye(x.shape[1]) - K @ H
-    P[ok] = A @ Po @ A.transpose(0, 2, 1) + K @ Ro @ K.transpose(0, 2, 1)
+    x[ok], P[ok] = student_update(x[ok], P[ok], z[ok], R[ok], dof)[:2]
     return x, P
+
+
+def innovation_log_density(nu: np.ndarray, S: np.ndarray, dof: float = np.inf) -> np.ndarray:
+    """ln p (m,) of innovations nu (m, 2) of scale (covariance when normal) S (m, 2, 2), the constant 2 pi
+    dropped: normal (dof inf), -(ln det S + r^2) / 2, r^2 = nu^T S^-1 nu; or Student-t of dof degrees of freedom
+    (the measurement noise's, the prediction's normal error taken into its scale),
+    ln Gamma((dof + 2) / 2) - ln Gamma(dof / 2) - ln(dof / 2) - ln det S / 2 - (dof + 2) / 2 ln(1 + r^2 / dof),
+    whose first three terms cancel in two dimensions (Gamma(a + 1) = a Gamma(a)), and which tends to the
+    normal's as dof grows."""
+    r2 = np.einsum("ni,ni->n", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+    log_det = np.linalg.slogdet(S)[1]
+    if np.isinf(dof):
+        return -0.5 * (log_det + r2)
+    return -0.5 * log_det - (dof + 2) / 2 * np.log1p(r2 / dof)
 
 
 def rts_smoother(filtered: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -267,17 +334,17 @@ def mixture(w: np.ndarray, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np
 
 
 def imm_step(x: np.ndarray, P: np.ndarray, mu: np.ndarray, dt: np.ndarray, z: np.ndarray, R: np.ndarray,
-             qs: tuple[float, ...], rates: tuple[float, ...], foot: tuple[np.ndarray, float] | None = None
-             ) -> dict[str, np.ndarray]:
+             qs: tuple[float, ...], rates: tuple[float, ...], foot: tuple[np.ndarray, float] | None = None,
+             dof: float = np.inf) -> dict[str, np.ndarray]:
     """One IMM cycle (Blom and Bar-Shalom 1988; Bar-Shalom, Li and Kirubarajan 2001, Section 11.6.6) of n tracks
     with M = len(qs) models: per-model states x (n, M, d), covariances P (n, M, d, d), model probabilities mu
-    (n, M); dt (n,) s; z (n, 2), R (n, 2, 2) as ``update``'s (a NaN z: predict only); foot as ``transition``'s.
-    Mixing: each model j starts from the mixture of the models' states with weights mu_i Pi_ij / c_j,
-    c_j = sum_i mu_i Pi_ij (``switching``); then a prediction by ``transition`` with q_j and ``update``; mu_j ~
-    c_j N(nu_j; 0, S_j).
+    (n, M); dt (n,) s; z (n, 2), R (n, 2, 2), dof as ``update``'s (a NaN z: predict only); foot as
+    ``transition``'s. Mixing: each model j starts from the mixture of the models' states with weights
+    mu_i Pi_ij / c_j, c_j = sum_i mu_i Pi_ij (``switching``); then a prediction by ``transition`` with q_j and
+    ``update``; mu_j ~ c_j p(nu_j; S_j) (``innovation_log_density``: normal, or Student-t of dof).
 
     Returns "x", "P", "mu" (as given, one step on), "c" (n, M) the predicted model probabilities, "F" (n, d, d),
-    "Q" (n, M, d, d) each model's process noise, "Pi" (n, M, M) and "loglik" (n,) ln sum_j c_j N(nu_j; 0, S_j)
+    "Q" (n, M, d, d) each model's process noise, "Pi" (n, M, M) and "loglik" (n,) ln sum_j c_j p(nu_j; S_j)
     (the constant 2 pi dropped as in ``innovation_log_likelihood``; 0 where z is NaN)."""
     Pi = switching(dt, rates)
     c = np.einsum("ni,nij->nj", mu, Pi)
@@ -285,15 +352,14 @@ def imm_step(x: np.ndarray, P: np.ndarray, mu: np.ndarray, dt: np.ndarray, z: np
     x0, P0 = mixture(w.transpose(0, 2, 1), x[:, None], P[:, None])  # (n, j, d): each model's start
     out = {"x": np.empty_like(x0), "P": np.empty_like(P0), "Q": np.empty_like(P0), "c": c, "Pi": Pi}
     log_like = np.zeros(c.shape)
-    ok = np.isfinite(z).all(axis=1) & np.isfinite(R).all(axis=(1, 2))
+    ok = measured(z, R)
     H = measurement_matrix(x.shape[-1])
     for j, q in enumerate(qs):
         F, Q = transition(dt, q, foot)
         out["F"], out["Q"][:, j] = F, Q
         xp, Pp = np.einsum("nij,nj->ni", F, x0[:, j]), F @ P0[:, j] @ F.transpose(0, 2, 1) + Q
-        out["x"][:, j], out["P"][:, j] = update(xp, Pp, z, R)
-        nu, S = z[ok] - xp[ok] @ H.T, H @ Pp[ok] @ H.T + R[ok]
-        log_like[ok, j] = -0.5 * (np.linalg.slogdet(S)[1] + np.einsum("ni,ni->n", nu, np.linalg.solve(S, nu[..., None])[..., 0]))
+        out["x"][:, j], out["P"][:, j] = update(xp, Pp, z, R, dof)
+        log_like[ok, j] = innovation_log_density(z[ok] - xp[ok] @ H.T, H @ Pp[ok] @ H.T + R[ok], dof)
     top = log_like.max(axis=1, keepdims=True)
     weighted = c * np.exp(log_like - top)
     out["mu"] = weighted / weighted.sum(axis=1, keepdims=True)
@@ -311,8 +377,8 @@ def imm_start(n: int, M: int, rates: tuple[float, ...], R_b: np.ndarray | None =
 
 
 def imm_filter(t: np.ndarray, z: np.ndarray, R: np.ndarray, qs: tuple[float, ...] = IMM_ACCEL_PSD,
-               rates: tuple[float, ...] = IMM_SWITCH_PER_S, foot: tuple[np.ndarray, float] | None = None
-               ) -> dict[str, np.ndarray]:
+               rates: tuple[float, ...] = IMM_SWITCH_PER_S, foot: tuple[np.ndarray, float] | None = None,
+               dof: float = np.inf) -> dict[str, np.ndarray]:
     """The IMM forward pass over tracks (arguments as ``kalman_filter``'s; qs, rates as ``imm_step``'s), starting
     in every model from ``start_state`` with the chain's stationary probabilities. Returns ``imm_step``'s "x"
     (n, L, M, d), "P" (n, L, M, d, d), "mu", "c" (n, L, M), "F" (n, L, d, d), "Q" (n, L, M, d, d), "Pi"
@@ -323,7 +389,7 @@ def imm_filter(t: np.ndarray, z: np.ndarray, R: np.ndarray, qs: tuple[float, ...
     loglik = 0.0
     for k in range(L):
         step = imm_step(x, P, mu, t[:, k] - t[:, k - 1] if k else np.zeros(n), z[:, k], R[:, k], qs, rates,
-                        None if foot is None else (foot[0][:, k], foot[1]))
+                        None if foot is None else (foot[0][:, k], foot[1]), dof)
         x, P, mu = step["x"], step["P"], step["mu"]
         loglik += float(step.pop("loglik").sum())
         for key, value in step.items():
@@ -377,12 +443,12 @@ velocity jumps, or the foot points' outliers), no walker's motion."""
 
 
 def summed_log_likelihood(inputs: list[tuple], qs: tuple[float, ...], rates: tuple[float, ...],
-                          noise_scale2: float = 1.0) -> float:
+                          noise_scale2: float = 1.0, dof: float = np.inf) -> float:
     """The summed ``imm_filter`` log-likelihood of sets of tracks, inputs a list of ``kalman_filter``'s (t, z, R,
     foot), under the motion model (qs, rates), with the measurement noise (R and the correlated part's R_b) times
-    noise_scale2 (the scale's square)."""
-    return sum(imm_filter(t, z, noise_scale2 * R, qs, rates, None if foot is None else (noise_scale2 * foot[0], foot[1]))
-               ["loglik"] for t, z, R, foot in inputs)
+    noise_scale2 (the scale's square), the white part normal (dof inf) or Student-t of dof degrees of freedom."""
+    return sum(imm_filter(t, z, noise_scale2 * R, qs, rates, None if foot is None else (noise_scale2 * foot[0], foot[1]),
+                          dof)["loglik"] for t, z, R, foot in inputs)
 
 
 def fit_imm(inputs: list[tuple]) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -422,6 +488,28 @@ def fit_noise_scale(inputs: list[tuple], qs: tuple[float, ...] = IMM_ACCEL_PSD,
     return float(np.exp(best.x))
 
 
+STUDENT_DOF_BOUNDS = (0.5, 1000.0)
+"""The range of the Student-t foot noise's degrees of freedom ``fit_student_noise`` searches: tails heavier than
+a Cauchy's to all but normal."""
+
+
+def fit_student_noise(inputs: list[tuple], qs: tuple[float, ...] = IMM_ACCEL_PSD,
+                      rates: tuple[float, ...] = IMM_SWITCH_PER_S) -> tuple[float, float]:
+    """The maximum-likelihood Student-t measurement noise of sets of tracks (inputs, qs, rates as
+    ``fit_noise_scale``'s): its scale c (R -> c^2 R) and degrees of freedom dof, the maximum of the summed
+    ``imm_filter`` log-likelihood (each innovation Student-t, ``innovation_log_density``) over (ln c, ln dof)
+    within NOISE_SCALE_BOUNDS, STUDENT_DOF_BOUNDS (Nelder-Mead from c = 1, dof = 4, its first simplex halving
+    each, to NOISE_SCALE_LOG_TOLERANCE on both logs and IMM_FIT_LOGLIK_TOLERANCE; scipy's own first simplex, 5 %
+    of a coordinate and 0.00025 for ln c = 0, crawls)."""
+    start = np.log([1.0, 4.0])
+    best = minimize(lambda s: -summed_log_likelihood(inputs, qs, rates, float(np.exp(2 * s[0])), float(np.exp(s[1]))),
+                    start, method="Nelder-Mead", bounds=np.log([NOISE_SCALE_BOUNDS, STUDENT_DOF_BOUNDS]),
+                    options={"xatol": NOISE_SCALE_LOG_TOLERANCE, "fatol": IMM_FIT_LOGLIK_TOLERANCE,
+                             "initial_simplex": start + np.log([[1.0, 1.0], [0.5, 1.0], [1.0, 0.5]])})
+    c, dof = np.exp(best.x)
+    return float(c), float(dof)
+
+
 def motion_model(accel_psd: float | str) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """``imm_step``'s (qs, rates) of a process noise: a q alone (one model, no switching: the Kalman filter) or
     IMM's fitted two models; ValueError for a word that is not IMM."""
@@ -431,15 +519,16 @@ def motion_model(accel_psd: float | str) -> tuple[tuple[float, ...], tuple[float
 
 
 def track_states(t: np.ndarray, z: np.ndarray, R: np.ndarray, accel_psd: float | str, smooth: bool,
-                 foot: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 foot: tuple[np.ndarray, float] | None = None, dof: float = np.inf
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The models' probabilities (n, L, M), states (n, L, M, d) and covariances (n, L, M, d, d) of tracks
     (arguments as ``kalman_filter``'s) under a process noise q (one model: ``kalman_filter``, with smooth
     ``rts_smoother``) or IMM (two: ``imm_filter``, with smooth ``imm_smoother``); ``mixture`` gives their
     moment-matched state, ``mixture_speed`` the speed and its bars."""
     if accel_psd != IMM:
-        filtered = kalman_filter(t, z, R, accel_psd, foot)
+        filtered = kalman_filter(t, z, R, accel_psd, foot, dof)
         x, P = rts_smoother(filtered) if smooth else (filtered["x"], filtered["P"])
         return np.ones(t.shape + (1,)), x[:, :, None], P[:, :, None]
-    filtered = imm_filter(t, z, R, *motion_model(IMM), foot)
+    filtered = imm_filter(t, z, R, *motion_model(IMM), foot, dof)
     x, P, mu = imm_smoother(filtered) if smooth else (filtered["x"], filtered["P"], filtered["mu"])
     return mu, x, P

@@ -11,7 +11,7 @@ import numpy as np
 from homocal.correctors.pedestrians import _check_image_size
 from homocal.geometry.boxes import box_bottom_points, box_edges
 from homocal.measure.kalman import ACCEL_PSD, correlated_noise, imm_start, imm_step, motion_model
-from homocal.measure.tracks import (FEET, FOOT, FOOT_NOISE, as_mapping, foot_noise_options, foot_status, map_points,
+from homocal.measure.tracks import (FEET, FOOT, FOOT_NOISE, FOOT_TAILS, as_mapping, measurement_dof, foot_noise_options, foot_status, map_points,
                                    point_noise, state_speed)
 from homocal.uncertainty import sigma_radius
 
@@ -54,6 +54,8 @@ class GroundTracker:
         accel_psd, click_sigma_px, point_sigma_px: as homocal.measure.measure_tracks (accel_psd a q or IMM).
         foot_noise: the foot point's noise model, one of homocal.measure.tracks.FOOT_NOISE (homocal measure
             --foot-noise): "fixed" (point_sigma_px), "box-height" or "correlated".
+        foot_tails: its distribution, one of homocal.measure.tracks.FOOT_TAILS (homocal measure
+            --foot-noise-tails): "normal", or "student" (heavy tailed; with a foot_noise of STUDENT_FOOT_NOISE).
         feet: the foot points measured, one of homocal.measure.tracks.FEET (homocal measure --feet): "all", or
             "soles": not a box whose feet a nearer box of the frame may hide, nor, with image_size, one whose
             bottom or side edge the image border cuts (homocal.measure.tracks.foot_status).
@@ -62,15 +64,17 @@ class GroundTracker:
 
     def __init__(self, mapping, fps: float, *, convention: str = "corners", accel_psd: float | str = ACCEL_PSD,
                  click_sigma_px: float = 1.5, point_sigma_px: float = 1.0, foot_noise: str = FOOT_NOISE[0],
-                 feet: str = FEET[0], image_size: tuple[int, int] | None = None) -> None:
+                 feet: str = FEET[0], image_size: tuple[int, int] | None = None, foot_tails: str = FOOT_TAILS[0]
+                 ) -> None:
         if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
             raise ValueError(f"fps: expected a finite number > 0, got {fps!r}")
-        foot_noise_options(foot_noise, np.zeros((0, 4)), point_sigma_px)  # ValueError for an unknown model
+        foot_noise_options(foot_noise, np.zeros((0, 4)), point_sigma_px, foot_tails)  # ValueError for an unknown model
         if feet not in FEET:
             raise ValueError(f"feet: expected one of {', '.join(FEET)}, got {feet!r}")
         self.mapping, self.fps, self.convention = as_mapping(mapping), float(fps), convention
         self.accel_psd, self.click_sigma_px, self.point_sigma_px = accel_psd, click_sigma_px, point_sigma_px
         self.foot_noise, self.feet, self.image_size = foot_noise, feet, _check_image_size(image_size)
+        self.foot_tails = foot_tails
         self._motion = motion_model(accel_psd)
         self._tracks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, int, bool]] = {}  # id -> each model's state
         # (M, d), covariance (M, d, d), the models' probabilities (M,), frame, a foot point measured yet
@@ -97,10 +101,10 @@ class GroundTracker:
         foot = (foot_status(edges, np.zeros(len(ids), np.int64), self.image_size) if self.feet == "soles"
                 else np.full(len(ids), FOOT[0]))
         used = foot == FOOT[0]
-        noise = foot_noise_options(self.foot_noise, np.asarray(xyxy), self.point_sigma_px)
+        noise = foot_noise_options(self.foot_noise, np.asarray(xyxy), self.point_sigma_px, self.foot_tails)
         xy, cov = map_points(self.mapping, feet, self.click_sigma_px, noise["point_sigma_px"])
-        R, correlated = correlated_noise(point_noise(self.mapping, feet, noise["point_sigma_px"])
-                                         if noise["split_mapping_error"] else cov, noise["foot_correlation_s"])
+        R, correlated = correlated_noise(noise["noise_scale"]**2 * (point_noise(self.mapping, feet, noise["point_sigma_px"])
+                                         if noise["split_mapping_error"] else cov), noise["foot_correlation_s"])
         x, P, mu = imm_start(len(ids), len(self._motion[0]), self._motion[1],
                              None if correlated is None else correlated[0])
         dt, known = np.zeros(len(ids)), used.copy()
@@ -108,7 +112,8 @@ class GroundTracker:
             if k in self._tracks:
                 x[i], P[i], mu[i], last, measured = self._tracks[k]
                 dt[i], known[i] = (frame - last) / self.fps, used[i] or measured
-        step = imm_step(x, P, mu, dt, np.where(used[:, None], xy, np.nan), R, *self._motion, correlated)
+        step = imm_step(x, P, mu, dt, np.where(used[:, None], xy, np.nan), R, *self._motion, correlated,
+                        measurement_dof(noise["student_dof"]))
         for i, k in enumerate(ids.tolist()):
             self._tracks[k] = (step["x"][i], step["P"][i], step["mu"][i], int(frame), bool(known[i]))
         x = np.where(known[:, None, None], step["x"], np.nan)  # no foot point of the track measured yet: nothing known

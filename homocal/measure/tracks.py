@@ -144,15 +144,38 @@ fixed, one sigma for every point and the whole covariance the filter's white mea
 correlated, box-height's with the foot error an AR(1) of FOOT_CORRELATION_S in the filter's state."""
 
 
-def foot_noise_options(foot_noise: str, xyxy: np.ndarray, point_sigma_px: float) -> dict:
-    """``measure_tracks``'s point_sigma_px, split_mapping_error and foot_correlation_s for a FOOT_NOISE model and
-    boxes xyxy (N, 4) px (point_sigma_px: fixed's sigma, px); ValueError for another name."""
+FOOT_TAILS = ("normal", "student")
+"""The foot point's noise distribution (homocal measure --foot-noise-tails, GroundTracker's foot_tails): normal;
+student, heavy tailed, a Student-t of STUDENT_FOOT_NOISE's scale and degrees of freedom for the FOOT_NOISE model,
+each update weighted by how far its foot point lies (homocal.measure.kalman.student_update); with the models
+STUDENT_FOOT_NOISE has (correlated has no white part to weight)."""
+STUDENT_FOOT_NOISE = {"fixed": (0.163, 3.55)}
+"""FITTED: per FOOT_NOISE model that has one (fixed; box-height's fit is not made), the Student-t foot noise's
+scale c on the filter's measurement noise R (R -> c^2 R) and its degrees of freedom:
+homocal.measure.kalman.fit_student_noise under the IMM (IMM_ACCEL_PSD, IMM_SWITCH_PER_S) on simgen's scene1 and
+scene2, seed 0, segmentation and rgb boxes pooled, the pedestrians' correction, --feet all: ``python
+research/measure_speeds.py DATA/scene1 DATA/scene2 --fit-foot-tails`` (c 0.163, dof 3.55: a core a sixth of
+the fixed model's sigma, and heavy tails)."""
+
+
+def foot_noise_options(foot_noise: str, xyxy: np.ndarray, point_sigma_px: float, foot_tails: str = FOOT_TAILS[0]
+                       ) -> dict:
+    """``measure_tracks``'s point_sigma_px, split_mapping_error, foot_correlation_s, noise_scale and student_dof
+    for a FOOT_NOISE model, a FOOT_TAILS distribution and boxes xyxy (N, 4) px (point_sigma_px: fixed's sigma,
+    px); ValueError for another name, or student tails with correlated."""
     if foot_noise not in FOOT_NOISE:
         raise ValueError(f"foot_noise: expected one of {', '.join(FOOT_NOISE)}, got {foot_noise!r}")
+    if foot_tails not in FOOT_TAILS:
+        raise ValueError(f"foot_tails: expected one of {', '.join(FOOT_TAILS)}, got {foot_tails!r}")
+    if foot_tails == "student" and foot_noise not in STUDENT_FOOT_NOISE:
+        raise ValueError(f"foot_tails: student needs a white foot noise ({' or '.join(STUDENT_FOOT_NOISE)}), got "
+                         f"foot_noise {foot_noise!r}")
+    scale, dof = STUDENT_FOOT_NOISE[foot_noise] if foot_tails == "student" else (1.0, None)
+    tails = {"noise_scale": scale, "student_dof": dof}
     if foot_noise == "fixed":
-        return {"point_sigma_px": point_sigma_px, "split_mapping_error": False, "foot_correlation_s": None}
+        return {"point_sigma_px": point_sigma_px, "split_mapping_error": False, "foot_correlation_s": None} | tails
     return {"point_sigma_px": box_height_sigma_px(np.asarray(xyxy, dtype=np.float64)), "split_mapping_error": True,
-            "foot_correlation_s": FOOT_CORRELATION_S if foot_noise == "correlated" else None}
+            "foot_correlation_s": FOOT_CORRELATION_S if foot_noise == "correlated" else None} | tails
 
 
 def mapping_modes(mapping: Mapping, feet: np.ndarray, click_sigma_px: float) -> tuple[np.ndarray, np.ndarray]:
@@ -198,6 +221,15 @@ def state_speed(mapping: Mapping, feet: np.ndarray, mu: np.ndarray, x: np.ndarra
     if click_sigma_px is not None:
         Pv = Pv + mapping_velocity_covariance(mapping, feet, mean[:, 2:4], click_sigma_px)[:, None]
     return (mean,) + mixture_speed(mu, x[..., 2:4], Pv)
+
+
+def measurement_dof(student_dof: float | None) -> float:
+    """kalman's dof of ``measure_tracks``' student_dof (None: normal, inf); ValueError unless None or > 0."""
+    if student_dof is None:
+        return np.inf
+    if isinstance(student_dof, bool) or not isinstance(student_dof, (int, float, np.number)) or not student_dof > 0:
+        raise ValueError(f"student_dof: expected None or a number > 0 (degrees of freedom), got {student_dof!r}")
+    return float(student_dof)
 
 
 def check_tracks(frames: np.ndarray, track_ids: np.ndarray) -> None:
@@ -259,20 +291,22 @@ def filter_inputs(mapping: Mapping, frames: np.ndarray, feet: np.ndarray, fps: f
 def fit_tracks_accel_psd(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
                          click_sigma_px: float = 1.5, point_sigma_px: float | np.ndarray = 1.0,
                          split_mapping_error: bool = False, foot_correlation_s: float | None = None,
-                         foot: np.ndarray | None = None) -> float:
+                         foot: np.ndarray | None = None, noise_scale: float = 1.0, student_dof: float | None = None
+                         ) -> float:
     """The filter's process noise q, m^2/s^3, fitted to the tracks by maximum likelihood of its innovations
     (``kalman.fit_accel_psd``; arguments as ``measure_tracks``'): no ground truth, the people's own motion
     under the measurement noise model. Its cost is bounded: the tracks of ``track_batches``' first batch
     (tracks in increasing id, at most BATCH_CELLS cells), each likelihood one forward filter over them."""
     return fit_accel_psd(*first_batch_inputs(mapping, frames, feet, track_ids, fps, click_sigma_px=click_sigma_px,
                                              point_sigma_px=point_sigma_px, split_mapping_error=split_mapping_error,
-                                             foot_correlation_s=foot_correlation_s, foot=foot))
+                                             foot_correlation_s=foot_correlation_s, foot=foot,
+                                             noise_scale=noise_scale), dof=measurement_dof(student_dof))
 
 
 def first_batch_inputs(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
                        click_sigma_px: float = 1.5, point_sigma_px: float | np.ndarray = 1.0,
                        split_mapping_error: bool = False, foot_correlation_s: float | None = None,
-                       foot: np.ndarray | None = None) -> tuple:
+                       foot: np.ndarray | None = None, noise_scale: float = 1.0) -> tuple:
     """kalman_filter's (t, z, R, foot) of ``track_batches``' first batch of the tracks (arguments as
     ``measure_tracks``'): what the process noise is fitted on."""
     mapping = as_mapping(mapping)
@@ -280,14 +314,14 @@ def first_batch_inputs(mapping, frames: np.ndarray, feet: np.ndarray, track_ids:
     point_sigma_px = point_sigma_px if np.ndim(point_sigma_px) == 0 else np.asarray(point_sigma_px, dtype=np.float64)
     batch = next(track_batches(track_ids, frames))
     return filter_inputs(mapping, frames, np.asarray(feet, dtype=np.float64), fps, batch, click_sigma_px,
-                         point_sigma_px, split_mapping_error, foot_correlation_s, foot)[2]
+                         point_sigma_px, split_mapping_error, foot_correlation_s, foot, noise_scale)[2]
 
 
 def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.ndarray, fps: float, *,
                    accel_psd: float | str = ACCEL_PSD, smooth: bool = True, click_sigma_px: float = 1.5,
                    point_sigma_px: float | np.ndarray = 1.0, split_mapping_error: bool = False,
-                   foot_correlation_s: float | None = None, foot: np.ndarray | None = None, noise_scale: float = 1.0
-                   ) -> Iterator[dict[str, np.ndarray]]:
+                   foot_correlation_s: float | None = None, foot: np.ndarray | None = None, noise_scale: float = 1.0,
+                   student_dof: float | None = None) -> Iterator[dict[str, np.ndarray]]:
     """homocal measure's table in batches of whole tracks (dicts of COLUMNS, each (rows,)), tracks in
     increasing id, each in frame order.
 
@@ -310,6 +344,9 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
             measured yet (filter) or in the whole track (smoother).
         noise_scale: the filter's measurement noise (white and correlated) times its square
             (kalman.fit_noise_scale); the points' sigma_m stay the mapping's.
+        student_dof: None: the white measurement noise normal; a number > 0: Student-t of these degrees of
+            freedom (its scale the measurement noise; STUDENT_FOOT_NOISE), each update weighted by its foot
+            point's distance (kalman.student_update); not with foot_correlation_s.
     x, y are the mapped foot points, sigma_m their 1-sigma radius (homocal.sigma_radius of the mapping's
     ground_uncertainty at click_sigma_px, point_sigma_px: the filter's measurement noise); x_smooth, y_smooth,
     vx, vy the filter's state (with IMM its models' moment-matched mixture); speed_mps = |(vx, vy)| and
@@ -321,6 +358,9 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
         raise ValueError(f"foot_correlation_s: expected > 0 with split_mapping_error=True, got {foot_correlation_s!r}")
     if not (np.isfinite(noise_scale) and noise_scale > 0):
         raise ValueError(f"noise_scale: expected a finite number > 0, got {noise_scale!r}")
+    if student_dof is not None and foot_correlation_s is not None:
+        raise ValueError("student_dof: a Student-t white noise needs foot_correlation_s None (no white part with it)")
+    dof = measurement_dof(student_dof)
     mapping = as_mapping(mapping)
     frames, track_ids = np.asarray(frames, dtype=np.int64), np.asarray(track_ids, dtype=np.int64)
     feet = np.asarray(feet, dtype=np.float64)
@@ -331,7 +371,7 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
         xy, cov, (t, z, R, correlated) = filter_inputs(mapping, frames, feet, fps, batch, click_sigma_px,
                                                        point_sigma_px, split_mapping_error, foot_correlation_s, foot,
                                                        noise_scale)
-        mu, x, P = track_states(t, z, R, accel_psd, smooth, correlated)
+        mu, x, P = track_states(t, z, R, accel_psd, smooth, correlated, dof)
         seen = np.isfinite(z).all(axis=2)  # (n, L): the steps measured
         x[np.broadcast_to(~seen.any(axis=1, keepdims=True) if smooth else np.cumsum(seen, axis=1) == 0, seen.shape)] = np.nan
         L = t.shape[1]

@@ -43,12 +43,12 @@ def run(tracker, make):
     return out
 
 
-def check_against_the_file_filter(out, foot_noise="fixed", foot=None, accel_psd=ACCEL_PSD):
+def check_against_the_file_filter(out, foot_noise="fixed", foot=None, accel_psd=ACCEL_PSD, foot_tails="normal"):
     frames, ids, boxes = walkers()
     feet = np.column_stack([(boxes[:, 0] + boxes[:, 2]) / 2 - 0.5, boxes[:, 3] - 0.5])  # corners -> homocal
     mapping = ViewTransformer(CAMERA.project_ground(GROUND), GROUND)
     for batch in measure_tracks(mapping, frames, feet, ids, FPS, smooth=False, foot=foot, accel_psd=accel_psd,
-                                **foot_noise_options(foot_noise, boxes, 1.0)):
+                                **foot_noise_options(foot_noise, boxes, 1.0, foot_tails)):
         for j, (f, k) in enumerate(zip(batch["frame"], batch["track_id"])):
             xy, v, speed, sigma = out[(int(f), int(k))]
             np.testing.assert_allclose(xy, [batch["x_smooth"][j], batch["y_smooth"][j]], rtol=1e-9)
@@ -105,6 +105,20 @@ def test_two_regime_model_as_the_file_filter(foot_noise):
     assert out[(19, 0)][3] != single[(19, 0)][3]
     with pytest.raises(ValueError, match="accel_psd: expected a number"):
         GroundTracker(mapping, FPS, accel_psd="fitted")
+
+
+@pytest.mark.parametrize("foot_noise, accel_psd", [("fixed", ACCEL_PSD), ("fixed", IMM)])
+def test_student_tails_as_the_file_filter(foot_noise, accel_psd):
+    """GroundTracker(foot_tails="student") frame by frame: homocal measure --foot-noise-tails student's forward
+    filter on the file (one model and the IMM); its bars are not the normal noise's."""
+    mapping = ViewTransformer(CAMERA.project_ground(GROUND), GROUND)
+    make = lambda xyxy, ids: SimpleNamespace(xyxy=xyxy, tracker_id=ids)  # noqa: E731
+    out = run(GroundTracker(mapping, FPS, accel_psd=accel_psd, foot_noise=foot_noise, foot_tails="student"), make)
+    check_against_the_file_filter(out, foot_noise, accel_psd=accel_psd, foot_tails="student")
+    normal = run(GroundTracker(mapping, FPS, accel_psd=accel_psd, foot_noise=foot_noise), make)
+    assert out[(19, 0)][3] != normal[(19, 0)][3]
+    with pytest.raises(ValueError, match="foot_tails: student needs a white foot noise"):
+        GroundTracker(mapping, FPS, foot_noise="correlated", foot_tails="student")
 
 
 def test_homocal_never_imports_supervision():

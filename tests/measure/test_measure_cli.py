@@ -10,6 +10,7 @@ from cli_run import homocal_main
 from homocal.geometry import PinholeCamera
 from homocal.measure import COLUMNS
 from homocal.measure.kalman import ACCEL_PSD, ACCEL_PSD_BOUNDS
+from homocal.measure.tracks import STUDENT_FOOT_NOISE
 
 CAMERA = PinholeCamera()  # 1280x720, 4 m high, 15 degrees down
 FPS = 10.0
@@ -126,6 +127,10 @@ BAD = [  # (writes the boxes, extra arguments, the error's words)
     (walker_rows, ["--boxes", "boxes.csv"], "--fps: required (boxes.csv does not say its frame rate)"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--foot-noise", "bogus"], "argument --foot-noise: invalid choice"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--feet", "heels"], "argument --feet: invalid choice: 'heels'"),
+    (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--foot-noise-tails", "cauchy"],
+     "argument --foot-noise-tails: invalid choice: 'cauchy'"),
+    (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--foot-noise-tails", "student", "--foot-noise", "correlated"],
+     "--foot-noise-tails student: needs --foot-noise fixed, not correlated"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--accel-psd", "fast"],
      "argument --accel-psd: fitted, imm or a number: expected a number, got 'fast'"),
     (walker_rows, ["--boxes", "boxes.csv", "--fps", "10", "--accel-psd", "0"],
@@ -247,6 +252,31 @@ def test_foot_noise_correlated(scene, capsys, monkeypatch):
         np.testing.assert_allclose(track.speed_mps, np.hypot(*WALKERS[k][2:]), atol=0.02)
     assert out["correlated"].speed_sigma_mps.median() > 1.1 * out["box-height"].speed_sigma_mps.median()
 
+
+
+@pytest.mark.parametrize("foot_noise", list(STUDENT_FOOT_NOISE))
+def test_foot_noise_tails_student(scene, capsys, monkeypatch, foot_noise):
+    """--foot-noise-tails student: a foot point 40 px low in one frame (hidden feet) moves the walker's smoothed
+    position and speed there less than with normal noise; the other frames' speeds stay the truth's, sigma_m
+    the mapping's."""
+    rows = walker_rows()
+    k = next(i for i, r in enumerate(rows) if r[:2] == (30, 0))
+    rows[k] = rows[k][:3] + (rows[k][3] + 40, rows[k][4], rows[k][5] + 40)
+    write_csv(scene / "jump.csv", rows)
+    out = {}
+    for tails in ("normal", "student"):
+        r = homocal_main("measure", "trap.json", "--boxes", "jump.csv", "--fps", "10", "--out", f"{tails}.parquet",
+                         "--foot-noise", foot_noise, "--foot-noise-tails", tails, cwd=scene, capsys=capsys,
+                         monkeypatch=monkeypatch)
+        assert r.returncode == 0, r.stderr
+        out[tails] = pq.read_table(scene / f"{tails}.parquet").to_pandas()
+    np.testing.assert_array_equal(out["student"].sigma_m, out["normal"].sigma_m)
+    true_speed = np.hypot(*WALKERS[0][2:])
+    err = {k: np.abs(v[(v.track_id == 0) & (v.frame.between(27, 33))].speed_mps - true_speed).max() for k, v in out.items()}
+    assert err["student"] < err["normal"] / 2, err
+    far = out["student"][~out["student"].frame.between(20, 40)]
+    for k, track in far.groupby("track_id"):
+        np.testing.assert_allclose(track.speed_mps, np.hypot(*WALKERS[k][2:]), atol=0.02)
 
 
 def test_accel_psd_fitted(scene, capsys, monkeypatch):

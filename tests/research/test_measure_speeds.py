@@ -161,3 +161,14 @@ def test_foot_scale_scales_the_filters_measurement_noise(tmp_path):
     sigma = [script.evaluate([path], "segmentation", 16, accel_psd=1e-12, exact=True, foot_scale=c)["exact, smoother"]["sigma"]
              for c in (1.0, 2.0)]
     np.testing.assert_allclose(sigma[1], 2 * sigma[0], rtol=1e-3)
+
+
+def test_student_tails_measure_the_true_speeds_of_exact_foot_points(tmp_path):
+    """--foot-noise-tails student (with fixed): noise-free points on straight walks are measured as
+    with normal noise (the smoother exact but for its start's velocity prior near a track's ends), and the
+    bars differ from the normal noise's (another scale, weights above 1 on points that lie where expected)."""
+    path = str(walkers(tmp_path))
+    p = {tails: script.evaluate([path], "segmentation", 16, exact=True, foot_tails=tails)["exact, smoother"]
+         for tails in ("normal", "student")}
+    assert np.nanpercentile(p["student"]["rel"], 90) < 1.0
+    assert not np.allclose(p["student"]["sigma"], p["normal"]["sigma"])
