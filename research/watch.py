@@ -180,15 +180,15 @@ def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure:
     sway = case.startswith("sway")
     before = [a for a, _, _ in alarms if t_move is None or a < t_move or sway]
     after = [(a, side, test) for a, side, test in alarms if a not in before]
-    # the detection: the first alarm after the move's start of the row test on the side the horizon's row at the
-    # principal column moved (+1: down the image), or of the roll test on the side the roll moved (+1: the horizon
+    # the detection: the first alarm after the move's start of the row or drift test on the side the horizon's row at
+    # the principal column moved (+1: down the image), or of the roll test on the side the roll moved (+1: the horizon
     # down on the right, the roll smaller); any alarm when neither moved (a row by less than a pixel, a roll by
     # less than 0.1 degree: a yaw)
     rows = None if ds.pose is None else ds.pose.horizon_rows(ds.camera.K[0, 2])
     shift = 0.0 if rows is None else rows[-1] - rows[0]
     turn = 0.0 if ds.pose is None else ds.pose.roll_deg[-1] - ds.pose.roll_deg[0]
     found = [a for a, side, test in after if (abs(shift) < 1.0 and abs(turn) < 0.1) or (
-        side == np.sign(shift) if test == "row" else abs(turn) >= 0.1 and side == -np.sign(turn))]
+        side == np.sign(shift) if test != "roll" else abs(turn) >= 0.1 and side == -np.sign(turn))]
     result = {"case": case, "t_move": t_move, "seconds": seconds, "static_s": seconds if t_move is None else t_move,
               "false": len(before), "detected": found[0] if found else None, "later": len(after) - bool(found)}
     if not measure:

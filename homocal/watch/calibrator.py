@@ -42,9 +42,11 @@ the person's leverage on the roll: the score of a roll change), with k = tan(ROL
 reference for a roll change of ROLL_REF_DEG; it runs with estimate_roll and rests (its statistics 0) while
 the roll is not fitted. The row
 test sees a change of v_0 (a tilt); the roll test a turn of the horizon about the principal column, which moves
-the people on either side oppositely and leaves the row test's mean unchanged. A move is declared when a
-one-sided statistic exceeds its h, where h gives a mean of 2 ``arl0_people`` people (with estimate_roll; else
-``arl0_people``, the row test alone) between false alarms of the test on a steady camera, by Siegmund's
+the people on either side oppositely and leaves the row test's mean unchanged. A third, the drift test
+(``homocal.watch.drift``), sees a move from the people already in view: each person's implied row along their
+walk. A move is declared when a
+one-sided statistic exceeds its h, where h gives a mean of 3 ``arl0_people`` people (with estimate_roll; else
+2 ``arl0_people``, the row and drift tests; the drift test's converted to its residuals) between false alarms of the test on a steady camera, by Siegmund's
 approximation of a one-sided CUSUM's run length (Siegmund 1985, "Sequential analysis"; two sides: half of it):
 ARL0 = (exp(theta b) - theta b - 1) / (theta k) / 2, b = h + 1.166 sd (``cusum_threshold``), theta the
 increments' tilt, the root of E exp(theta (u - k)) = 1, and sd their root mean square: for normal increments of
@@ -58,14 +60,16 @@ heavy tail has a smaller tilt: the scale s, from the median absolute residual, d
 h would give a false alarm every fifth (at 200 people) or eighth (at 1,000) of ``arl0_people`` people on
 residuals of Student's t with 3 degrees of freedom (tests/watch/test_watch.py simulates it), as the rgb detector's
 boxes have (research/watch_residuals.py), and sooner on a heavier side (theirs: the horizon above the estimate,
-tilt 0.50 against 0.89 below). The two tests together then alarm every ``arl0_people``
-people (1 / ARL0 adds up over independent tests; the two share each person's |z|, which lengthens their
-joint run a little: tests/watch/test_watch.py simulates it). Each person is tested against the estimate of
+tilt 0.50 against 0.89 below). The tests together then alarm every ``arl0_people``
+people or a little less often (1 / ARL0 adds up over independent tests; a run from 0 must first climb, and the
+row and roll tests share each person's |z|, which lengthens their joint run: tests/watch/test_watch.py simulates
+it). Each person is tested against the estimate of
 the people before it, then joins it (a self-starting CUSUM, as Hawkins 1987). A person tells of a roll by
 tan(phi) w / sigma sd: a lateral offset X m at a person of height H under a camera h_c high gives about tan(phi)
 a X H / (h_c sd), 0.09 sd per metre of X per degree of roll on a 4 m camera (people 1.7 +- 0.09 m), against 1-3
 sd per degree of tilt: a roll takes many more people to notice than a tilt (docs/moving-camera.md measures it). At a move, the people since the alarming statistic's last 0 (its change point estimate) give
-the move's horizon after, and the new stretch (from that change point on) starts from their estimate; then
+the move's horizon after (the drift test's: the horizon before plus the people in view's shift since its last 0,
+``DriftTest.shift``), and the new stretch (from that change point on) starts from their estimate; then
 every live track is re-armed: each person in view gives a new observation from their boxes after the
 detection, so the stretch fills at once from the people in view, not only from newcomers. The new stretch
 holds only such observations (re-armed or new people): the people before the detection are dropped from it,
@@ -450,7 +454,12 @@ class OnlineCalibrator:
             return None
         i = max(over, key=lambda i: drift.cusum[i] / drift.h[i])
         self._since_zero[4 + i] = max(1, sum(p[0] >= drift.since_zero_s[i] for p in self._people))  # one at least
-        return self._move(4 + i, t, tuple(self._h) + tuple(drift.h))
+        shift, sigma = drift.shift(i)
+        move = self._move(4 + i, t, tuple(self._h) + tuple(drift.h))
+        # the horizon after: the people in view's shift (the people since the change point may be few, or one)
+        row, sigma = move.horizon_before + shift, math.hypot(move.sigma_before, sigma)
+        self.estimate = dataclasses.replace(self.estimate, row=row, tan_roll=0.0, cov=np.diag([sigma ** 2, math.nan]))
+        return dataclasses.replace(move, horizon_after=row, sigma_after=sigma)
 
     # ---- people -> estimate and test ------------------------------------------------------------
     def _observe(self, person: tuple) -> tuple[Move | None, float]:

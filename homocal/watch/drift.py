@@ -65,16 +65,17 @@ def edge_gains(boxes: np.ndarray, K: np.ndarray, camera_height_m: float, height_
     return rows, slopes, np.hypot(foot, head)
 
 
-def block_residual(sums: np.ndarray, m: float, x: float, g: float, prior: float) -> float | None:
+def block_residual(sums: np.ndarray, m: float, x: float, g: float, prior: float) -> tuple[float, float] | None:
     """A person's block (implied row m px, its slope x px/m, edge gain g) against the fit of their earlier blocks:
-    the recursive residual e (module docstring; None for their first block), prior the precision s^2 /
-    height_sd^2 on dH; then the block joins the fit's sums (6,): (sum w, sum w x, sum w x^2, sum w m, sum w x m,
-    blocks), w = 1 / g^2, updated in place."""
+    (r, q), the prediction error r = m - (1, x) beta px and its sd in units of s, q = sqrt(g^2 + (1, x) A^-1 (1,
+    x)^T), whose ratio is the recursive residual e (module docstring; None for their first block), prior the
+    precision s^2 / height_sd^2 on dH; then the block joins the fit's sums (6,): (sum w, sum w x, sum w x^2, sum w
+    m, sum w x m, blocks), w = 1 / g^2, updated in place."""
     e = None
     if sums[5]:
         inv = np.linalg.inv(np.array([[sums[0], sums[1]], [sums[1], sums[2] + prior]]))
         v = np.array([1.0, x])
-        e = float((m - v @ inv @ sums[3:5]) / math.sqrt(g * g + v @ inv @ v))
+        e = (float(m - v @ inv @ sums[3:5]), math.sqrt(g * g + v @ inv @ v))
     w = 1 / g ** 2
     sums += (w, w * x, w * x * x, w * m, w * x * m, 1.0)
     return e
@@ -99,6 +100,13 @@ class DriftTest:
         self._tracks.clear()
         self.cusum, self.h = [0.0, 0.0], [math.nan, math.nan]  # S+, S- and their thresholds
         self.since_zero_s = [math.nan, math.nan]  # the time each side last left 0
+        self._shift = [[0.0, 0.0], [0.0, 0.0]]  # each side's sums since then: r / (s q)^2, 1 / (s q)^2
+
+    def shift(self, side: int) -> tuple[float, float]:
+        """The horizon's shift (px) since side's (0: S+, 1: S-) statistic last left 0, and its 1-sigma: the
+        weighted mean of the prediction errors r since then (weights 1 / (s q)^2); a step's size at its alarm."""
+        a, b = self._shift[side]
+        return a / b, 1 / math.sqrt(b)
 
     @property
     def scale(self) -> float:
@@ -117,26 +125,28 @@ class DriftTest:
             key = int(ids[i])
             track = self._tracks.setdefault(key, [frame, t, [], np.zeros(6)])
             if t - track[1] >= self.block_s or len(track[2]) >= MAX_BLOCK_BOXES:
-                e = self._close(track)
-                if e is not None:
-                    out.append((key, e))
+                rq = self._close(track)
+                if rq is not None:
+                    out.append((key, *rq))
                 track[1], track[2] = t, []
             track[0] = frame
             track[2].append((rows[i], slopes[i], gains[i]))
         for key in [k for k, v in self._tracks.items() if frame - v[0] > self.fps * self.block_s]:
             del self._tracks[key]  # gone (or hidden) for a block's time
-        for _, e in out:
-            self._step(t, e, arl0)
-        return out
+        for _, r, q in out:
+            self._step(t, r, q, arl0)
+        return [(key, r / q) for key, r, q in out]
 
-    def _close(self, track: list) -> float | None:
+    def _close(self, track: list) -> tuple[float, float] | None:
         """Close the track's open block (None for a block too thin): ``block_residual`` of its medians."""
         if len(track[2]) < self._least:
             return None
         return block_residual(track[3], *np.median(np.array(track[2]), axis=0), (self.scale / self.height_sd_m) ** 2)
 
-    def _step(self, t: float, e: float, arl0: float | None) -> None:
-        """One residual: standardise by the window's scale, advance the CUSUM (armed), then join the window."""
+    def _step(self, t: float, r: float, q: float, arl0: float | None) -> None:
+        """One residual e = r / q: standardise by the window's scale, advance the CUSUM (armed) and each side's
+        shift since its last 0, then join the window."""
+        e = r / q
         if arl0 is not None and len(self.window) >= MIN_RESIDUALS:
             s = self.scale
             u = max(-CLIP, min(CLIP, e / s)) / SD_CLIPPED
@@ -144,7 +154,9 @@ class DriftTest:
                 if self.cusum[i] == 0.0:  # set while at 0, held while it climbs
                     x = np.clip(np.array(self.window) / s, -CLIP, CLIP) / SD_CLIPPED
                     self.h[i] = side_threshold(arl0, CUSUM_K, (1 - 2 * i) * (x - x.mean()))
-                    self.since_zero_s[i] = t
+                    self.since_zero_s[i], self._shift[i] = t, [0.0, 0.0]
                 self.cusum[i] = max(0.0, self.cusum[i] + step - CUSUM_K)
+                self._shift[i][0] += r / (s * q) ** 2
+                self._shift[i][1] += 1 / (s * q) ** 2
         self.window.append(e)
         self.residuals += 1

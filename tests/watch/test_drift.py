@@ -41,12 +41,13 @@ def test_block_residuals_are_the_predictive_residuals_and_independent_unit_norma
     for person in range(3000):
         m = 300.0 + x * rng.normal(0, sd_h) + g * rng.standard_normal(blocks)
         sums = np.zeros(6)
-        e = [block_residual(sums, *b, prior) for b in zip(m, x, g)]
-        assert e[0] is None
+        rq = [block_residual(sums, *b, prior) for b in zip(m, x, g)]
+        assert rq[0] is None
+        e = [r / q for r, q in rq[1:]]
         if person < 20:
-            np.testing.assert_allclose(e[1:], predictive_residuals(m, x, g, prior), rtol=1e-9, atol=1e-9)
-        pooled += e[1:]
-        pairs += list(zip(e[1:-1], e[2:]))
+            np.testing.assert_allclose(e, predictive_residuals(m, x, g, prior), rtol=1e-9, atol=1e-9)
+        pooled += e
+        pairs += list(zip(e[:-1], e[1:]))
     z = np.array(pooled)
     assert abs(z.mean()) < 0.024 and abs(z.std() - 1) < 0.02
     assert stats.kstest(z, "norm").pvalue > 0.001
