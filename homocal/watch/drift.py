@@ -30,7 +30,7 @@ calibrator's box edge error; as its scale is at least the model's: the segmentat
 a fifth of a pixel, their pixel quantisation, which a walk's slow changes exceed, research/watch_drift.py). The test: a two-sided CUSUM (Page 1954) on u = psi(e / s) / SD_CLIPPED (clipped at +-CLIP, unit variance
 under the normal), the row test's, with its reference CUSUM_K; each side's h by Siegmund's general form at the
 tilt and root mean square of that side's increments over the window (``calibrator.side_threshold``), set while
-the side's statistic is at 0 and held while it climbs. Its false-alarm budget is the row test's in people: it
+the side's statistic is at 0 (at most every REFRESH residuals: the work) and held while it climbs. Its false-alarm budget is the row test's in people: it
 runs at n_tests x arl0_people people, converted to its own residuals by the stream's residuals per person
 (counted on the stream: ``people`` is the calibrator's count), so that the tests together alarm every arl0_people people (1 / ARL0 adds over the
 tests). It is armed once the window holds MIN_RESIDUALS residuals and the stretch MIN_PEOPLE people; at a move
@@ -50,6 +50,7 @@ BLOCK_S = 2.0  # seconds of a track's boxes in one block (research/watch_drift.p
 MAX_BLOCK_BOXES = 64  # boxes in one block at most: a block closes at BLOCK_S or at this many boxes
 WINDOW = 400  # the last residuals giving the scale s and the threshold's tilt
 MIN_RESIDUALS = 100  # residuals in the window before the test is armed
+REFRESH = 20  # a side's h is recomputed at 0 once this many residuals have joined the window since (the work)
 
 
 def edge_gains(boxes: np.ndarray, K: np.ndarray, camera_height_m: float, height_m: float):
@@ -99,6 +100,7 @@ class DriftTest:
         """Forget every track's blocks and the statistics (at a move); the window and the counts stay."""
         self._tracks.clear()
         self.cusum, self.h = [0.0, 0.0], [math.nan, math.nan]  # S+, S- and their thresholds
+        self._set = [-REFRESH, -REFRESH]  # self.residuals when each h was last set
         self.since_zero_s = [math.nan, math.nan]  # the time each side last left 0
         self._shift = [[0.0, 0.0], [0.0, 0.0]]  # each side's sums since then: r / (s q)^2, 1 / (s q)^2
 
@@ -151,9 +153,10 @@ class DriftTest:
             s = self.scale
             u = max(-CLIP, min(CLIP, e / s)) / SD_CLIPPED
             for i, step in enumerate((u, -u)):
-                if self.cusum[i] == 0.0:  # set while at 0, held while it climbs
-                    x = np.clip(np.array(self.window) / s, -CLIP, CLIP) / SD_CLIPPED
-                    self.h[i] = side_threshold(arl0, CUSUM_K, (1 - 2 * i) * (x - x.mean()))
+                if self.cusum[i] == 0.0:  # set while at 0 (every REFRESH residuals), held while it climbs
+                    if not self.residuals - self._set[i] < REFRESH:
+                        x = np.clip(np.array(self.window) / s, -CLIP, CLIP) / SD_CLIPPED
+                        self.h[i], self._set[i] = side_threshold(arl0, CUSUM_K, (1 - 2 * i) * (x - x.mean())), self.residuals
                     self.since_zero_s[i], self._shift[i] = t, [0.0, 0.0]
                 self.cusum[i] = max(0.0, self.cusum[i] + step - CUSUM_K)
                 self._shift[i][0] += r / (s * q) ** 2
