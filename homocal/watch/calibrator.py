@@ -78,8 +78,9 @@ step it is early or late by several people, so some of them saw the camera befor
 person's median is from whichever pose most of their boxes saw), while every box after the detection
 saw the moved camera (after a step; a ramp may go on); those still in view give their new observation anyway (one person, one observation),
 only those gone are lost. The test re-arms at MIN_PEOPLE people. Memory: the last WINDOW_PEOPLE people of the
-stretch and the live tracks of the last LINK_GAP frames (at most MAX_TRACKS, each at most PERSON_BOXES rows):
-bounded whatever the stream's length; work per box is constant (a move re-arms the live tracks once).
+stretch, the live tracks of the last LINK_GAP frames (at most MAX_TRACKS, each at most PERSON_BOXES rows) and the
+drift test's per live track (an open block and six numbers, homocal.watch.drift): bounded whatever the stream's
+length; work per box is constant (a move re-arms the live tracks once).
 
 A gap in the stream longer than LINK_GAP frames ends every track (a person seen again is a new person): a gap
 is a gap, the estimate and the test go on; a move during a gap is found from the people after it.
