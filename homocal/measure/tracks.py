@@ -168,8 +168,8 @@ def foot_noise_options(foot_noise: str, xyxy: np.ndarray, point_sigma_px: float,
     if foot_tails not in FOOT_TAILS:
         raise ValueError(f"foot_tails: expected one of {', '.join(FOOT_TAILS)}, got {foot_tails!r}")
     if foot_tails == "student" and foot_noise not in STUDENT_FOOT_NOISE:
-        raise ValueError(f"foot_tails: student needs a white foot noise ({' or '.join(STUDENT_FOOT_NOISE)}), got "
-                         f"foot_noise {foot_noise!r}")
+        raise ValueError(f"foot_tails student: needs foot_noise {' or '.join(STUDENT_FOOT_NOISE)}, not {foot_noise} "
+                         "(box-height has no fitted constants, correlated no white part to weight)")
     scale, dof = STUDENT_FOOT_NOISE[foot_noise] if foot_tails == "student" else (1.0, None)
     tails = {"noise_scale": scale, "student_dof": dof}
     if foot_noise == "fixed":

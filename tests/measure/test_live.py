@@ -117,7 +117,7 @@ def test_student_tails_as_the_file_filter(foot_noise, accel_psd):
     check_against_the_file_filter(out, foot_noise, accel_psd=accel_psd, foot_tails="student")
     normal = run(GroundTracker(mapping, FPS, accel_psd=accel_psd, foot_noise=foot_noise), make)
     assert out[(19, 0)][3] != normal[(19, 0)][3]
-    with pytest.raises(ValueError, match="foot_tails: student needs a white foot noise"):
+    with pytest.raises(ValueError, match="foot_tails student: needs foot_noise fixed, not correlated"):
         GroundTracker(mapping, FPS, foot_noise="correlated", foot_tails="student")
 
 

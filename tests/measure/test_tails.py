@@ -167,7 +167,7 @@ def test_bad_degrees_of_freedom_are_refused_by_name(bad):
 
 
 def test_student_tails_need_a_white_foot_noise():
-    with pytest.raises(ValueError, match="foot_tails: student needs a white foot noise"):
+    with pytest.raises(ValueError, match="foot_tails student: needs foot_noise fixed, not correlated"):
         foot_noise_options("correlated", np.zeros((0, 4)), 1.0, "student")
     with pytest.raises(ValueError, match="foot_tails: expected one of normal, student, got 'cauchy'"):
         foot_noise_options("fixed", np.zeros((0, 4)), 1.0, "cauchy")
