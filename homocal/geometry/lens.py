@@ -24,6 +24,7 @@ import numpy as np
 from homocal.geometry.homography import as_points
 
 MAX_IMAGE_SIDE = 100_000  # px: an image's width or height (78x our datasets' 1280)
+FRAME_MARGIN_PX = 1.0  # px: how far outside its frame a clicked point may lie (a click on the frame's edge pixel)
 UNDISTORT_TOLERANCE_PX = 1e-9  # an undistorted point is accepted when it re-distorts within this of its input, px
 MAX_NEWTON_STEPS = 100  # per stage; a safeguarded radial step at least halves the bracket, so 100 exhausts float64
 MAX_HALVINGS = 30  # of one Newton step on the full model (2^-30: below the tolerance of any step that could help)
@@ -258,6 +259,14 @@ def undistort_input(points: np.ndarray, lens: Lens | None, name: str) -> np.ndar
         raise ValueError(f"{name}: point {lost[0]} = {p[lost[0]].tolist()} lies beyond the lens's fold (radius "
                          f"{lens.max_distorted_radius:.4g} normalised): no ray of this lens reaches it")
     return out
+
+
+def first_outside_frame(points: np.ndarray, image_size: tuple[int, int]) -> int | None:
+    """The index of the first of points (N, 2) px (homocal's convention: the frame spans -0.5 .. size - 0.5) more
+    than FRAME_MARGIN_PX outside the image_size frame, or None: a point clicked on another camera's frame."""
+    (w, h), m = image_size, FRAME_MARGIN_PX + 0.5
+    outside = np.flatnonzero(~((points >= -m) & (points <= np.array([w, h]) - 1 + m)).all(axis=1))
+    return int(outside[0]) if outside.size else None
 
 
 def check_image_size(size) -> tuple[int, int]:

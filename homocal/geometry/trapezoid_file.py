@@ -18,7 +18,7 @@ from pathlib import Path
 from homocal.files import read_json
 from homocal.geometry.camera_file import read_camera
 from homocal.geometry.homography import ViewTransformer, check_orientation, validate_quad
-from homocal.geometry.lens import Lens, check_image_size, undistort_input
+from homocal.geometry.lens import Lens, check_image_size, first_outside_frame, undistort_input
 from homocal.geometry.sitemap import SiteMap
 
 
@@ -42,6 +42,10 @@ def read_trapezoid_file(path: str | Path, lens: Lens | None = None) -> tuple[Vie
             sm = data.get("site_map")
             site_map = None if sm is None else SiteMap.from_dict(sm, f"{path} site_map")
         image, ground = validate_quad(entry["image"], "image"), validate_quad(entry["map"], "map")
+        if lens is not None and (i := first_outside_frame(image, lens.image_size)) is not None:
+            raise ValueError(f"image: vertex {i} = {image[i].tolist()} lies outside the lens's "
+                             f"{lens.image_size[0]}x{lens.image_size[1]} frame (--camera-json): the trapezoid was "
+                             "clicked on another camera's frame")
         image = validate_quad(undistort_input(image, lens, "image"), "image (undistorted)")
         if site_map is not None:
             ground = site_map.to_metres(ground)

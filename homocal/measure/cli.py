@@ -16,6 +16,7 @@ from homocal.correctors.catalogue import label
 from homocal.correctors.serialization import FORMAT
 from homocal.files import check_output_file, json_format, write_atomic
 from homocal.geometry import read_trapezoid_file
+from homocal.geometry.lens import first_outside_frame
 from homocal.geometry.boxes import box_bottom_points, link_tracks, undistort_boxes
 from homocal.measure.kalman import ACCEL_PSD, ACCEL_PSD_BOUNDS, IMM, IMM_ACCEL_PSD, IMM_SWITCH_PER_S
 from homocal.measure.tracks import (COLUMNS, FEET, FOOT, FOOT_CORRELATION_S, FOOT_NOISE, FOOT_SIGMA_PER_BOX_HEIGHT, FOOT_TAILS,
@@ -130,12 +131,10 @@ def check_image_size(mapping, size: tuple[int, int] | None, args: argparse.Names
     fit's principal point) lie outside that image by more than a pixel: a correction of another camera."""
     if size is None:
         return
-    w, h = size
-    points = [*mapping.base_transformer_.source] + ([mapping.principal_point_] if hasattr(mapping, "principal_point_") else [])
-    for u, v in points:
-        if not (-1.5 <= u <= w + 0.5 and -1.5 <= v <= h + 0.5):
-            raise ValueError(f"{args.correction}: its image point ({u:g}, {v:g}) lies outside the {w}x{h} image of "
-                             f"{args.boxes}: a correction of another image size or camera")
+    points = np.array([*mapping.base_transformer_.source] + ([mapping.principal_point_] if hasattr(mapping, "principal_point_") else []))
+    if (i := first_outside_frame(points, size)) is not None:
+        raise ValueError(f"{args.correction}: its image point ({points[i, 0]:g}, {points[i, 1]:g}) lies outside the "
+                         f"{size[0]}x{size[1]} image of {args.boxes}: a correction of another image size or camera")
 
 
 def parquet_columns(path: Path) -> list[str] | None:

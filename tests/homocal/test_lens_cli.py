@@ -90,6 +90,24 @@ def test_bad_lens_input(work, capsys, monkeypatch, change, args, message):
     assert len(r.stderr.strip().splitlines()) == 1 and not (work / "c.json").exists()
 
 
+@pytest.mark.parametrize("i, u, refused", [(2, 1280.4, False), (2, 1280.6, True), (3, -1.4, False), (3, -1.6, True)])
+def test_a_trapezoid_vertex_outside_the_lens_frame(work, capsys, monkeypatch, i, u, refused):
+    """The 1280 px frame spans -0.5 .. 1279.5 (homocal's pixel centres at integers); a click may lie a pixel
+    beyond it, further is a trapezoid of another camera's frame."""
+    trap = json.loads((work / "trap.json").read_text())
+    trap["image"][i][0] = u
+    (work / "trap.json").write_text(json.dumps(trap))
+    r = homocal_main("fit", "--trapezoid", "trap.json", "--points", "ref.csv", "-o", "c.json", "--camera-json",
+                     "lens.json", cwd=work, capsys=capsys, monkeypatch=monkeypatch)
+    if refused:
+        assert r.returncode == 2 and r.stderr == (f"homocal: error: trap.json: image: vertex {i} = [{u}, {trap['image'][i][1]}] "
+                                                  "lies outside the lens's 1280x720 frame (--camera-json): the "
+                                                  "trapezoid was clicked on another camera's frame\n")
+        assert not (work / "c.json").exists()
+    else:
+        assert r.returncode == 0, r.stderr
+
+
 def test_apply_marks_feet_beyond_the_fold(work, capsys, monkeypatch):
     fit_apply(work, capsys, monkeypatch, "horizon", "--camera-json", "lens.json")
     (work / "feet.csv").write_text("u,v\n-5000,-5000\n640,500\n")
