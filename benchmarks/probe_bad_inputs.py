@@ -128,6 +128,10 @@ def apply(*extra: str, c: str = "{F}/correction.json", f: str = "{F}/feet.csv", 
     return ["homocal", "apply", c, "--points", f, "-o", o, *extra]
 
 
+MEASURE = ["homocal", "measure", "{F}/trap.json", "--boxes", "{F}/boxes.csv", "--fps", "10", "--no-progress", "-o"]
+WATCH = ["homocal", "watch", "--trapezoid", "{F}/trap.json", "--boxes", "{F}/boxes.csv", "--fps", "10", "--camera-height", "4",
+         "--camera-json", "{F}/lens.json", "-o"]
+LENS = ["homocal", "lens", "--lines", "{F}/lines.json", "-o"]
 ADVISE = ["homocal", "advise", "--trapezoid", "{F}/trap.json", "--distances", "10,20,30,40", "--samples", "2"]
 REPORT = ["homocal", "report", "--no-progress"]
 SWEEP = ["homocal", "sweep", "{F}/synth", "--variants", "1", "--n-test", "50", "--no-progress", "-o"]
@@ -331,6 +335,59 @@ def cli_cases() -> list[Case]:
         # ---- output folders: a user's .lock
         Case("study out: a user's empty .lock", [*STUDY, "out"], setup=put(**{"out__.lock": ""}), message="not a lock of ours"),
         Case("study out: a user's empty .lock, resume", [*STUDY, "out", "--resume"], setup=copy("results", "out", put(**{"out__.lock": ""})), message="not a lock of ours"),
+        # ---- homocal measure
+        Case("measure writes, then replaces its own", [*MEASURE, "t.parquet"], expect="ok", setup=_measure_once, writes=("t.parquet",)),
+        *[Case(f"measure fps {fps}", [*MEASURE[:5], "--fps", fps, "-o", "t.parquet"], message="--fps") for fps in ("0", "nan", "inf", "1e9", "-10")],
+        Case("measure boxes UTF-16", [*MEASURE[:3], "--boxes", "b.csv", *MEASURE[5:], "t.parquet"], setup=put(**{"b.csv": "frame,track_id,x1,y1,x2,y2\n0,1,1,2,3,4\n".encode("utf-16")}), message="b.csv"),
+        Case("measure boxes binary", [*MEASURE[:3], "--boxes", "b.csv", *MEASURE[5:], "t.parquet"], setup=put(**{"b.csv": BINARY}), message="b.csv"),
+        Case("measure boxes empty", [*MEASURE[:3], "--boxes", "b.csv", *MEASURE[5:], "t.parquet"], setup=put(**{"b.csv": ""}), message="b.csv"),
+        Case("measure boxes NaN", [*MEASURE[:3], "--boxes", "b.csv", *MEASURE[5:], "t.parquet"], setup=put(**{"b.csv": "frame,track_id,x1,y1,x2,y2\n0,1,600,300,nan,360\n1,1,600,300,620,360\n"}), message="b.csv"),
+        Case("measure boxes upside down", [*MEASURE[:3], "--boxes", "b.csv", *MEASURE[5:], "t.parquet"], setup=put(**{"b.csv": "frame,track_id,x1,y1,x2,y2\n0,1,600,360,620,300\n1,1,600,360,620,300\n"}), message="b.csv"),
+        Case("measure (frame, track) twice", [*MEASURE[:3], "--boxes", "b.csv", *MEASURE[5:], "t.parquet"], setup=put(**{"b.csv": "frame,track_id,x1,y1,x2,y2\n0,1,600,300,620,360\n0,1,600,300,620,360\n1,1,600,300,620,360\n"}), message="b.csv"),
+        Case("measure tracks of one frame", [*MEASURE[:3], "--boxes", "b.csv", *MEASURE[5:], "t.parquet"], setup=put(**{"b.csv": "frame,track_id,x1,y1,x2,y2\n0,1,600,300,620,360\n1,2,600,300,620,360\n"}), message="no track has"),
+        Case("measure boxes missing", [*MEASURE[:3], "--boxes", "nowhere.csv", *MEASURE[5:], "t.parquet"], message="nowhere.csv"),
+        Case("measure correction binary", ["homocal", "measure", "c.json", *MEASURE[3:], "t.parquet"], setup=put(**{"c.json": BINARY}), message="c.json"),
+        Case("measure correction of another image", ["homocal", "measure", "c.json", *MEASURE[3:], "t.parquet", "--camera-json", "{F}/lens.json"], setup=put(**{"c.json": json.dumps({**TRAP, "image": [[x + 2000, y] for x, y in TRAP["image"]]})}), message="outside the lens's 1280x720 frame"),
+        Case("measure -o user's file", [*MEASURE, "mine.parquet"], setup=put(**{"mine.parquet": b"PAR1 mine"}), message="mine.parquet"),
+        Case("measure -o its own input", [*MEASURE[:3], "--boxes", "b.csv", *MEASURE[5:], "b.csv"], setup=copy("boxes.csv", "b.csv"), message="b.csv"),
+        Case("measure -o and --summary one file", [*MEASURE, "t.parquet", "--summary", "t.parquet"], message="its own file"),
+        Case("measure -o a folder", [*MEASURE, "d"], setup=put(d__x="x"), message="d"),
+        Case("measure -o full disk", [*MEASURE, "mnt/t.parquet"], fault="full", message="No space left on device"),
+        Case("measure -o read-only", [*MEASURE, "mnt/t.parquet"], fault="readonly", message="Read-only file system"),
+        Case("measure accel-psd nan", [*MEASURE, "t.parquet", "--accel-psd", "nan"], message="--accel-psd"),
+        Case("measure student tails, box-height noise", [*MEASURE, "t.parquet", "--foot-noise-tails", "student", "--foot-noise", "box-height"], message="--foot-noise-tails student"),
+        # ---- homocal watch
+        Case("watch writes its folder", [*WATCH, "w"], expect="ok", writes=("w",)),
+        Case("watch -o its own earlier folder", [*WATCH, "w"], setup=_watch_once, message="not empty"),
+        Case("watch -o user's folder", [*WATCH, "out"], setup=USER, message="not empty"),
+        Case("watch -o a file", [*WATCH, "out"], setup=put(out="x"), message="not a folder"),
+        Case("watch -o full disk", [*WATCH, "mnt/w"], fault="full", message="No space left on device"),
+        Case("watch -o read-only", [*WATCH, "mnt/w"], fault="readonly", message="Read-only file system"),
+        Case("watch boxes out of time order", [*WATCH[:4], "--boxes", "b.csv", *WATCH[6:], "w"], setup=put(**{"b.csv": "frame,track_id,x1,y1,x2,y2\n1,1,600,300,620,360\n0,1,600,300,620,360\n"}), message="time order"),
+        Case("watch boxes binary", [*WATCH[:4], "--boxes", "b.csv", *WATCH[6:], "w"], setup=put(**{"b.csv": BINARY}), message="b.csv"),
+        Case("watch boxes UTF-16", [*WATCH[:4], "--boxes", "b.csv", *WATCH[6:], "w"], setup=put(**{"b.csv": "frame,track_id,x1,y1,x2,y2\n0,1,1,2,3,4\n".encode("utf-16")}), message="b.csv"),
+        Case("watch boxes inf", [*WATCH[:4], "--boxes", "b.csv", *WATCH[6:], "w"], setup=put(**{"b.csv": "frame,track_id,x1,y1,x2,y2\n0,1,600,300,inf,360\n"}), message="b.csv"),
+        Case("watch camera-json binary", [*WATCH[:-3], "--camera-json", "l.json", "-o", "w"], setup=put(**{"l.json": BINARY}), message="l.json"),
+        Case("watch camera-json folds", [*WATCH[:-3], "--camera-json", "l.json", "-o", "w"], setup=copy("lens.json", "l.json", edit_json("l.json", lambda d: d.update(distortion=[0.9, -0.7, 0, 0, 0]))), message="l.json"),
+        Case("watch trapezoid of another camera", ["homocal", "watch", "--trapezoid", "t.json", *WATCH[4:], "w"], setup=put(**{"t.json": json.dumps({**TRAP, "image": [[x + 2000, y] for x, y in TRAP["image"]]})}), message="outside the lens's 1280x720 frame"),
+        *[Case(f"watch arl0-people {n}", [*WATCH, "w", "--arl0-people", n], message="--arl0-people") for n in ("0", "nan", "1e300")],
+        Case("watch camera-height inf", [*WATCH, "w", "--camera-height", "inf"], message="--camera-height"),
+        Case("watch fps nan", [*WATCH, "w", "--fps", "nan"], message="--fps"),
+        Case("two watches at once", [*WATCH, "w"], fault="concurrent", first=[*WATCH, "w"], wait_for="w/watch.json", writes=("w",), message="locked by"),
+        # ---- homocal lens
+        Case("lens writes, then replaces its own", [*LENS, "l.json"], expect="ok", setup=_lens_once, writes=("l.json",)),
+        Case("lens lines binary", ["homocal", "lens", "--lines", "x.json", "-o", "l.json"], setup=put(**{"x.json": BINARY}), message="x.json"),
+        Case("lens lines UTF-16", ["homocal", "lens", "--lines", "x.json", "-o", "l.json"], setup=copy("lines.json", "x.json", _utf16("x.json")), message="x.json"),
+        Case("lens lines NaN", ["homocal", "lens", "--lines", "x.json", "-o", "l.json"], setup=copy("lines.json", "x.json", edit_json("x.json", lambda d: d["lines"][0][0].__setitem__(0, float("nan")))), message="x.json"),
+        Case("lens lines empty list", ["homocal", "lens", "--lines", "x.json", "-o", "l.json"], setup=put(**{"x.json": json.dumps({"image_size": [1280, 720], "lines": []})}), message="x.json"),
+        Case("lens line of one point", ["homocal", "lens", "--lines", "x.json", "-o", "l.json"], setup=put(**{"x.json": json.dumps({"image_size": [1280, 720], "lines": [[[1, 2]]] * 4})}), message="x.json"),
+        Case("lens image size huge", ["homocal", "lens", "--lines", "x.json", "-o", "l.json"], setup=copy("lines.json", "x.json", edit_json("x.json", lambda d: d.update(image_size=[10**9, 720]))), message="x.json"),
+        Case("lens -o user's file", [*LENS, "mine.json"], setup=put(**{"mine.json": "{}"}), message="mine.json"),
+        Case("lens -o full disk", [*LENS, "mnt/l.json"], fault="full", message="No space left on device"),
+        Case("lens frame binary", ["homocal", "lens", "--frame", "f.png", "-o", "l.json"], setup=put(**{"f.png": BINARY}), message="f.png"),
+        Case("lens checkerboard matches nothing", ["homocal", "lens", "--checkerboard", "none/*.png", "--pattern", "9x6", "--square-m", "0.025", "-o", "l.json"], message="--checkerboard"),
+        Case("lens checkerboard pattern 0x6", ["homocal", "lens", "--checkerboard", "{F}/map.png", "--pattern", "0x6", "--square-m", "0.025", "-o", "l.json"], message="--pattern"),
+        Case("lens hfov nan", [*LENS, "l.json", "--hfov", "nan"], message="--hfov"),
         # ---- homocal ui (command line)
         Case("ui -o two missing folders", ["homocal", "ui", "--frame", "{F}/map.png", "--site-map", "{F}/map.png", "--scale", "10", "-o", "a/b"], timeout=30, message="its parent folder"),
         Case("ui frame UTF-16 text", ["homocal", "ui", "--frame", "f.png", "--site-map", "{F}/map.png", "--scale", "10", "-o", "."], setup=put(**{"f.png": "x".encode("utf-16")}), timeout=30, message="f.png"),
@@ -395,6 +452,18 @@ def _truncated_shard(d: Path) -> None:
 
 def _preview_once(d: Path) -> None:
     run(["simgen", "preview", str(FIXTURES / "scene"), "-o", "a.png"], d)
+
+
+def _measure_once(d: Path) -> None:
+    run([*MEASURE, "t.parquet"], d)
+
+
+def _watch_once(d: Path) -> None:
+    run([*WATCH, "w"], d)
+
+
+def _lens_once(d: Path) -> None:
+    run([*LENS, "l.json"], d)
 
 
 def _report_once(d: Path) -> None:
@@ -667,6 +736,25 @@ def run_case(case: Case, d: Path) -> tuple[str, bool]:
     return got, ok
 
 
+def write_people(root: Path) -> None:
+    """The people's fixtures: boxes.csv (two walkers seen by the card's camera, 10 fps, in time order), lens.json
+    (that camera's K, no distortion) and lines.json (straight lines seen through a barrel lens)."""
+    import numpy as np
+    from homocal.geometry import Lens, PinholeCamera
+
+    camera, rows = PinholeCamera(), []
+    for frame in range(40):
+        for k, (x0, y0, vx, vy) in enumerate([(-2.0, 10.0, 0.3, 1.2), (2.0, 25.0, -0.5, -1.0)]):
+            (u, v), = camera.project_ground(np.array([[x0 + vx * frame / 10, y0 + vy * frame / 10]]))
+            rows.append(f"{frame},{k},{u - 10:.1f},{v - 60:.1f},{u + 10:.1f},{v:.1f}\n")
+    (root / "boxes.csv").write_text("frame,track_id,x1,y1,x2,y2\n" + "".join(rows))
+    (root / "lens.json").write_text(json.dumps({"K": camera.K.tolist(), "distortion": [0.0] * 5, "image_size": [1280, 720]}))
+    barrel = Lens(camera.K, [-0.2, 0.03, 0.0, 0.0, 0.0], (1280, 720))
+    lines = [barrel.distort_points(np.column_stack([np.linspace(60, 1220, 12), np.full(12, row)])).tolist() for row in (80, 200, 520, 640)]
+    lines += [barrel.distort_points(np.column_stack([np.full(12, col), np.linspace(40, 680, 12)])).tolist() for col in (120, 300, 980, 1160)]
+    (root / "lines.json").write_text(json.dumps({"image_size": [1280, 720], "lines": lines}))
+
+
 def make_fixtures(root: Path) -> None:
     """The shared inputs: a small scene and its 0.5 s dataset (simgen generate), a synthetic dataset, a quick
     study of it, the street example's trapezoid, points and correction, a site-map image."""
@@ -681,6 +769,7 @@ def make_fixtures(root: Path) -> None:
     (root / "ref.csv").write_text(REF)
     (root / "feet.csv").write_text("u,v\n640,400\n700,350\n")
     (root / "det.txt").write_text(MOT)
+    write_people(root)
     shutil.copy(REPO / "scenes" / "scene1" / "site_map.png", root / "map.png") if (REPO / "scenes" / "scene1" / "site_map.png").exists() else None
     for argv in (["simgen", "generate", str(root / "scene"), "--out", str(root / "dataset"), "--seconds", "0.5", "--no-progress"],
                  [*STUDY, str(root / "results")],
