@@ -72,7 +72,7 @@ def fit(scene, data: dict, seconds: float, fps: float, drop_hidden_feet) -> dict
     inside = np.isfinite(pixels).all(axis=1) & (pixels >= -0.5).all(axis=1) & (pixels < [cam.width - 0.5, cam.height - 0.5]).all(axis=1)
     r = np.hypot(*feet.T)
     near = inside & (r >= RANGE_M[0]) & (r <= RANGE_M[1])
-    return {"people": c.n_people_used_, "hidden_feet": c.hidden_feet_, "roll_deg": c.roll_deg_,
+    return {"people": c.n_people_used_, "hidden_feet": c.hidden_feet_, "roll_deg": c.roll_deg_, "roll_sigma_deg": c.roll_sigma_deg_,
             "horizon_px": horizon_rms(c.horizon_row_, c.roll_deg_, c.principal_point_, cam.horizon, cam.width),
             "range_pct": median_range_error(c, pixels[near], feet[near], np.zeros(2)), "points": int(near.sum())}
 
