@@ -19,8 +19,8 @@ def test_bounds_refused(args):
 def test_a_short_recording_does_not_run_away():
     """Seed 7's first 10 s of scene3's render-free walkers at 5 fps (docs/real-camera.md's recording-length table):
     24 people, walking along the street on the yawed camera, where the walks' sole offset follows their roll. With
-    the walks weighed as if that offset were known, the fit's second round put the roll at 8.7 degrees, a third of
-    the people fell out and the third round ran to -23 degrees (refused); the walks' weight with the offset profiled
+    the walks weighed as if that offset were known, the fit's second round put the roll at 8.7 degrees, 11 of the
+    24 people fell out and the third round ran to -23 degrees (refused); the walks' weight with the offset profiled
     out (walk_weight's nuisance) keeps the fit within 3 of its sigmas of the camera's 1 degree."""
     sys.path.insert(0, str(SCRIPT.parents[1]))
     from research.recording_length import fit, stream
