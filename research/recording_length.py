@@ -1,7 +1,7 @@
 """How long a recording the people's fit needs on a scene's camera (docs/real-camera.md, "How long a recording"),
 from render-free boxes: who walked by, with nothing else in the way.
 
-    python research/recording_length.py --seeds 20 --seconds 10,30,60,120 [--scene scene3] [--fps 20]
+    python research/recording_length.py --seeds 20 --seconds 10,30,60,120 [--scene scene3|FOLDER] [--fps 20]
         [--drop-hidden-feet yes|no|auto]
 
 Per seed (simgen's walkers as `simgen generate SCENE --seed S` places them), one stream of the longest length of
@@ -72,14 +72,15 @@ def fit(scene, data: dict, seconds: float, fps: float, drop_hidden_feet) -> dict
     inside = np.isfinite(pixels).all(axis=1) & (pixels >= -0.5).all(axis=1) & (pixels < [cam.width - 0.5, cam.height - 0.5]).all(axis=1)
     r = np.hypot(*feet.T)
     near = inside & (r >= RANGE_M[0]) & (r <= RANGE_M[1])
-    return {"people": c.n_people_used_, "hidden_feet": c.hidden_feet_, "roll_deg": c.roll_deg_,
+    return {"people": c.n_people_used_, "hidden_feet": c.hidden_feet_, "roll_deg": c.roll_deg_, "roll_sigma_deg": c.roll_sigma_deg_,
             "horizon_px": horizon_rms(c.horizon_row_, c.roll_deg_, c.principal_point_, cam.horizon, cam.width),
             "range_pct": median_range_error(c, pixels[near], feet[near], np.zeros(2)), "points": int(near.sum())}
 
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--scene", default="scene3", help="a shipped scene's name (simgen/scenes)")
+    ap.add_argument("--scene", default="scene3", help="a shipped scene's name (simgen/scenes), or a scene's folder "
+                    "(its name, the folder's, keys the walkers' draws)")
     ap.add_argument("--seeds", type=int, default=20, help="seeds 0 .. N-1")
     ap.add_argument("--seconds", default="10,30,60,120", help="the lengths, s, a comma list")
     ap.add_argument("--fps", type=float, default=20.0, help="the boxes' frame rate (a rendered dataset's: 20)")
@@ -93,7 +94,8 @@ def main(argv: list[str] | None = None) -> None:
                             ("--fps", 0 < args.fps <= 60, "in (0, 60]")):
         if not ok:
             ap.error(f"argument {flag}: expected {bound}")
-    scene = load_scene(Path(__file__).resolve().parents[1] / "simgen" / "scenes" / args.scene)
+    folder = Path(args.scene)
+    scene = load_scene(folder if folder.is_dir() else Path(__file__).resolve().parents[1] / "simgen" / "scenes" / args.scene)
     results = {s: [] for s in lengths}
     for seed in range(args.seeds):
         data = stream(scene, seed, lengths[-1], args.fps)

@@ -4,8 +4,8 @@ person's share of the roll and tilt error at the camera's true pose.
 Run: python research/roll_budget.py DATASET [--detector segmentation] [--drop-hidden-feet yes|no] [--walks yes|no]
          [--people 8]
 
-The fit's equations (homocal.correctors.pedestrians.fit_tilt_roll) linearised at camera.json's tilt_deg and
-roll_deg, with the dataset's own people (detections.parquet's agent_id; their boxes clear of the border, and of
+The fit's equations (homocal.correctors.pedestrians.fit_tilt_roll, its walks' sole offset held at 0: the fit's
+prior mean) linearised at camera.json's tilt_deg and roll_deg, with the dataset's own people (detections.parquet's agent_id; their boxes clear of the border, and of
 hidden_feet's boxes with --drop-hidden-feet yes, within 3 sd of the prior mean): each person's height r_p = (H_p -
 mu) / sigma (H_p the median of its boxes') and, with --walks yes (the fit's), each box's r_j = (H_j - mean_p H) /
 (BOX_HEIGHT_SD mu) about its person's mean, weighted m = (1, 1) and (0, c) (c = walk_weight). The error of (tilt,

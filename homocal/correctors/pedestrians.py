@@ -59,8 +59,17 @@ heights H_j(tilt, roll) must stay their own h_p along the walk, however tall, an
 is the roll. So ``fit_tilt_roll`` takes the roll from both (the people's heights against the prior, and each
 box's height about its person's mean, h_p profiled out: a free height per person), the tilt from the people's heights
 alone as fit_tilt does (within a walk the nearest sole's edge makes near boxes look taller, which reads as a tilt),
-and weighs the walks by their honest information: a person's boxes are not independent (consecutive frames, the
-gait), so the walks' weight is their information as if independent over its spread among the people. Lens
+and weighs the walks by their honest information. On a yawed camera a walk along the street changes its range with
+its column, so the near boxes' excess would read as a roll too (without it the fitted roll on scene3's render-free
+walkers falls from 1.0 to 0.45 degrees as the recording grows from 10 to 120 s: docs/real-camera.md): the walks' heights are the box's with its bottom edge taken d
+metres nearer than the body's axis (upright_heights' sole_offset_m), d one offset shared by everyone, fitted with
+the roll from the walks (its prior SOLE_OFFSET_M: without walks whose range changes, no offset), and d >= 0: the
+nearest sole is never behind the axis (where every walk runs the same way, d follows the roll and ran to -0.9 m
+without the bound, tests/correctors/test_pedestrians.py -k walks_give). The walks' weight: a person's boxes are not
+independent (consecutive frames, the gait), so the walks' weight is their information as if independent over its
+spread among the people, the information and the spread of the roll's score with d profiled out (walk_weight's
+nuisance): where d follows the roll the walks know the roll less than their roll slopes alone say, and weighed as
+if d were known they took a 10 s recording's roll to 8.7 degrees, then -23 (tests/research/test_recording_length.py). Lens
 distortion: the boxes' foot and head points are undistorted first (``homocal.geometry.Lens``).
 
 What it takes from the clicked mapping: nothing for theta when K and h_c are given. Without K: the focal
@@ -116,6 +125,11 @@ MAX_ROLL_DEG = 10.0  # a fitted roll beyond this is refused (a camera on a pole 
 DIFF_STEP = 1e-7  # radians: central-difference step of the people's heights in fit_tilt_roll
 STEP_TOLERANCE = 1e-9  # radians: fit_tilt_roll stops at a step this small, the size of the rounding in its
 # gradient (a height's 2e-16 relative rounding over DIFF_STEP)
+SOLE_OFFSET_M = (0.0, 0.2)  # metres: the prior N(mean, sd^2) of how much nearer a box's bottom edge (the nearest
+# sole) lies than the body's axis, shared by the people's walks (fit_tilt_roll; d >= 0: never behind it): none without
+# evidence (mean 0: a box of the axis alone is fitted exactly), up to a quarter stride and half a foot (0.3-0.45 m) within 2 sd
+SOLE_STEP_TOLERANCE_M = 1e-6  # metres: fit_tilt_roll stops at a step of the sole's offset this small (its rounding
+# floor is 1e-8 m; a micrometre moves a box's height at 5 m by under 1e-6 m, where a pixel is a centimetre)
 SETTINGS = {
     "height_mean_m": Option("--height-mean", Number(0.5, 2.5), "the people's mean height (the default: adults, "
                             "docs/pedestrians.md)", metavar="M", unit="m"),
@@ -365,16 +379,23 @@ def upright_columns(middle: np.ndarray, foot_rows: np.ndarray, head_rows: np.nda
 
 
 def upright_heights(edges: np.ndarray, tilt: float, roll: float, focal_px: float, principal: tuple[float, float],
-                    camera_height_m: float) -> np.ndarray:
+                    camera_height_m: float, sole_offset_m: float = 0.0) -> np.ndarray:
     """Implied heights (N,) m of upright people's boxes (N, 4) homocal px (undistorted) on a camera tilted ``tilt``
     and rolled ``roll`` radians (camera.json's sign), focal length focal_px, principal point (cx, cy) px,
     camera_height_m over a flat ground: the foot and the head at their columns (upright_columns) on the box's
     bottom and top rows, turned back to the unrolled camera's rows (derolled_rows), then implied_heights. Roll 0:
-    implied_heights of the box's rows (the columns do not matter)."""
+    implied_heights of the box's rows (the columns do not matter). sole_offset_m: the box's bottom edge is the
+    nearest sole's, d metres nearer along the line of sight than the body's axis at forward distance Y + d (Y =
+    h_c / tan(tilt + beta_f), the box's foot point's): the head's ray then meets the axis at
+    H_d = H - (h_c - H) d / Y (exact for that geometry; d = 0: H)."""
     x1, y1, x2, y2 = np.asarray(edges, dtype=np.float64).T
     foot, head = upright_columns((x1 + x2) / 2, y2, y1, tilt, roll, focal_px, principal)
     rows = [derolled_rows(np.column_stack(p), roll, principal) for p in ((foot, y2), (head, y1))]
-    return implied_heights(rows[0], rows[1], tilt, focal_px, principal[1], camera_height_m)
+    H = implied_heights(rows[0], rows[1], tilt, focal_px, principal[1], camera_height_m)
+    if sole_offset_m == 0.0:
+        return H
+    inverse_range = np.tan(tilt + np.arctan((rows[0] - principal[1]) / focal_px)) / camera_height_m  # 1 / Y, per m
+    return H - (camera_height_m - H) * sole_offset_m * inverse_range
 
 
 def roll_homography(K: np.ndarray, roll: float) -> np.ndarray:
@@ -385,13 +406,27 @@ def roll_homography(K: np.ndarray, roll: float) -> np.ndarray:
     return K @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.linalg.inv(K)
 
 
-def walk_weight(slopes: np.ndarray, psi: np.ndarray, dpsi: np.ndarray, labels: np.ndarray, n_people: int) -> float:
+def walk_weight(slopes: np.ndarray, psi: np.ndarray, dpsi: np.ndarray, labels: np.ndarray, n_people: int,
+                nuisance: np.ndarray | None = None, prior_curvature: float = 0.0) -> float:
     """The walks' weight c = A_W / B_W in fit_tilt_roll (at most 1; 0 for walks with no spread), from the walk
-    residuals' roll slopes dr_j / droll (n,), psi(r_j) and psi'(r_j) (n,) and their people labels (n,) 0..P-1:
-    A_W = sum psi'_j slope_j^2, B_W = P times the sample variance over people of sum_j psi_j slope_j."""
-    walks = np.bincount(labels, slopes * psi, n_people)
-    spread = np.sum((walks - walks.mean()) ** 2) * n_people / (n_people - 1)
-    return min(1.0, float(np.sum(dpsi * slopes**2)) / spread) if spread > 0 else 0.0
+    residuals' roll slopes s_j = dr_j / droll (n,), psi(r_j) and psi'(r_j) (n,) and their people labels (n,) 0..P-1:
+    A_W = sum psi'_j s_j^2, B_W = P times the sample variance over people of sum_j psi_j s_j. nuisance (n,): the
+    slopes t_j = dr_j / dd of a parameter d fitted from the same walks alongside (fit_tilt_roll's sole offset; its
+    prior's curvature prior_curvature, per unit of d squared): the roll's score is then the one with d profiled out,
+    s - k t, k = c I_st / (c I_tt + prior_curvature) (I_st = sum psi' s t), and A_W = sum psi' s (s - k t), the
+    roll's information that d leaves (both make c's roll variance (c A_W)^-1 the true one, B_W / A_W^2), at the c
+    that is its own weight: the root of A_W / B_W = c in [0, 1] (bisection). Where the walks' range changes with their
+    column (a yawed camera's walks along the street) t follows s, and the walks know the roll less than s says."""
+    def weight(k: float) -> float:
+        profiled = slopes - k * nuisance if k else slopes
+        walks = np.bincount(labels, profiled * psi, n_people)
+        spread = np.sum((walks - walks.mean()) ** 2) * n_people / (n_people - 1)
+        return min(1.0, float(np.sum(dpsi * slopes * profiled)) / spread) if spread > 0 else 0.0
+
+    if nuisance is None:
+        return weight(0.0)
+    i_st, i_tt = float(np.sum(dpsi * slopes * nuisance)), float(np.sum(dpsi * nuisance**2))
+    return _bisect(lambda c: weight(c * i_st / (c * i_tt + prior_curvature)) - c, 0.0, 1.0)
 
 
 def fit_tilt_roll(edges: np.ndarray, tracks: np.ndarray, focal_px: float, principal: tuple[float, float],
@@ -404,22 +439,29 @@ def fit_tilt_roll(edges: np.ndarray, tracks: np.ndarray, focal_px: float, princi
     r_p = (H_p - mu) / sigma (H_p its median inlier box's at the start, the mean of the two middle ones for an even
     count, held through the fit: chosen anew as the roll moves, the median box moved along the walk and the rounds
     did not settle on scene3's boxes) and each box's r_j = (H_j - mean_p H) / (BOX_HEIGHT_SD mu), its height about
-    its person's mean (the walk: the person's own height cancels). The equations
-    sum psi(r) m grad r = 0 weigh the people's (tilt, roll) by m = (1, 1) and the walks' by m = (0, c): the walks
-    give the roll alone, c their roll information as if their boxes were independent over its spread among the
-    people (walk_weight), set at the start of each inlier round; solved by
+    its person's mean (the walk: the person's own height cancels), H_j with its sole d metres nearer than the axis
+    (upright_heights' sole_offset_m; d shared by all, a third unknown, d >= 0). The equations
+    sum psi(r) m grad r + P_d = 0 in (tilt, roll, d) weigh the people's by m = (1, 1, 0) and the walks' by
+    m = (0, c, c): the walks give the roll and d alone, c their information as if their boxes were independent over
+    its spread among the people (walk_weight, of the roll with d profiled out), set at the start of each inlier
+    round; P_d the Gaussian prior SOLE_OFFSET_M's on d ((d - d_0) / s_d^2, curvature 1 / s_d^2); solved by
     iteratively reweighted least squares (Huber's weights min(1, k / |r|); grad r by central differences,
-    DIFF_STEP; until a step is below STEP_TOLERANCE), the inlier boxes (within OUTLIER_SIGMAS sd of mu) updated
-    until they settle or return to an earlier set. Uncertainty: the sandwich A^-1 (sum_p s_p s_p^T) A^-T over the
-    people, A = sum psi' m grad r grad r^T and s_p = sum psi m grad r over the person's own residual and its boxes'
-    (a person's boxes are not independent); the prior mean's effect d(tilt, roll) / dmu = A^-1 sum_p psi'_p grad r_p / sigma.
+    DIFF_STEP; a step that takes d below 0 puts d at 0 and solves the tilt and roll with d held there; until a step
+    is below STEP_TOLERANCE, SOLE_STEP_TOLERANCE_M for d), the inlier boxes (within
+    OUTLIER_SIGMAS sd of mu) updated until they settle or return to an earlier set. Uncertainty: the sandwich
+    A^-1 (sum_p s_p s_p^T) A^-T over the people (over tilt and roll alone where d ends at 0, held there),
+    A = sum psi' m grad r grad r^T plus the prior's curvature and
+    s_p = sum psi m grad r over the person's own residual and its boxes' (a person's boxes are not independent); the
+    prior mean's effect d(tilt, roll) / dmu = A^-1 sum_p psi'_p grad r_p / sigma.
     Returns a dict: tilt, roll (radians; roll in camera.json's sign), cov (2, 2) radians^2 (people), sensitivity (2,)
-    radians per metre, inlier_boxes (N,) bool (each box's implied height within OUTLIER_SIGMAS sd of mu at the fitted
-    tilt and roll), n_people, walk_weight (c), rounds. ValueError as fit_tilt, or for a roll beyond MAX_ROLL_DEG."""
-    beta, box_sd = np.array([start["tilt"], 0.0]), BOX_HEIGHT_SD * mean_m
+    radians per metre, sole_offset_m (d), inlier_boxes (N,) bool (each box's implied height within OUTLIER_SIGMAS sd
+    of mu at the fitted tilt and roll), n_people, walk_weight (c), rounds. ValueError as fit_tilt, or for a roll
+    beyond MAX_ROLL_DEG."""
+    beta, box_sd = np.array([start["tilt"], 0.0, SOLE_OFFSET_M[0]]), BOX_HEIGHT_SD * mean_m
+    prior = np.diag([0.0, 0.0, SOLE_OFFSET_M[1] ** -2])  # the sole's offset's prior: its curvature
 
-    def box_heights(b: np.ndarray, e: np.ndarray) -> np.ndarray:
-        return upright_heights(e, b[0], b[1], focal_px, principal, camera_height_m)
+    def box_heights(b: np.ndarray, e: np.ndarray, sole_offset_m: float = 0.0) -> np.ndarray:
+        return upright_heights(e, b[0], b[1], focal_px, principal, camera_height_m, sole_offset_m)
 
     pick = np.flatnonzero(start["inlier_boxes"])  # fit_tilt's inlier boxes: a person's height is their median's
     _, labels, starts, counts = _people(tracks[pick], mean_m)
@@ -438,23 +480,26 @@ def fit_tilt_roll(edges: np.ndarray, tracks: np.ndarray, focal_px: float, princi
         owner = np.concatenate([labels, np.arange(P)])  # the person of each residual: the boxes', then the people's
 
         def residuals(b: np.ndarray) -> np.ndarray:  # (n + P,): the walks' r_j, the people's r_p
-            H = box_heights(b, e)
+            H = box_heights(b, e, b[2])
             return np.concatenate([(H - (np.bincount(labels, H, P) / counts)[labels]) / box_sd,
                                    (held(b, used) - mean_m) / sd_m])
 
-        def gradient(b: np.ndarray) -> np.ndarray:  # (n + P, 2)
-            return np.column_stack([(residuals(b + e) - residuals(b - e)) / (2 * DIFF_STEP)
-                                    for e in (np.array([DIFF_STEP, 0.0]), np.array([0.0, DIFF_STEP]))])
+        def gradient(b: np.ndarray) -> np.ndarray:  # (n + P, 3)
+            return np.column_stack([(residuals(b + e) - residuals(b - e)) / (2 * DIFF_STEP) for e in np.eye(3) * DIFF_STEP])
 
         J, psi, dpsi = gradient(beta), *_huber(residuals(beta))
-        c = walk_weight(J[:n, 1], psi[:n], dpsi[:n], labels, P)
-        m = np.where(np.arange(n + P)[:, None] < n, [0.0, c], [1.0, 1.0])
+        c = walk_weight(J[:n, 1], psi[:n], dpsi[:n], labels, P, J[:n, 2], prior[2, 2])
+        m = np.where(np.arange(n + P)[:, None] < n, [0.0, c, c], [1.0, 1.0, 0.0])
         for _ in range(MAX_ROUNDS):
             r, J = residuals(beta), gradient(beta)
             weights = np.minimum(1.0, HUBER_K / np.maximum(np.abs(r), 1e-300))
-            step = -np.linalg.solve((m * J * weights[:, None]).T @ J, (m * J).T @ _huber(r)[0])
+            A = (m * J * weights[:, None]).T @ J + prior
+            g = (m * J).T @ _huber(r)[0] + prior @ (beta - [0.0, 0.0, SOLE_OFFSET_M[0]])
+            step = -np.linalg.solve(A, g)
+            if beta[2] + step[2] < 0:  # d >= 0: d to its bound, the tilt and roll with it held there
+                step = np.append(-np.linalg.solve(A[:2, :2], g[:2]), -beta[2])
             beta = beta + step
-            if np.abs(step).max() < STEP_TOLERANCE:
+            if (np.abs(step) < [STEP_TOLERANCE, STEP_TOLERANCE, SOLE_STEP_TOLERANCE_M]).all():
                 break
         if abs(math.degrees(beta[1])) > MAX_ROLL_DEG:
             raise ValueError(f"the people imply a roll of {math.degrees(beta[1]):.1f} degrees, beyond "
@@ -465,11 +510,12 @@ def fit_tilt_roll(edges: np.ndarray, tracks: np.ndarray, focal_px: float, princi
         if people.tobytes() + inliers.tobytes() in seen:  # settled, or back to an earlier round's
             break
     J, (psi, dpsi) = gradient(beta), _huber(residuals(beta))
-    A_inv = np.linalg.inv((m * J * dpsi[:, None]).T @ J)
-    scores = np.column_stack([np.bincount(owner, m[:, k] * J[:, k] * psi, P) for k in range(2)])  # (P, 2) each person's share
-    return {"tilt": float(beta[0]), "roll": float(beta[1]), "cov": A_inv @ scores.T @ scores @ A_inv.T,
-            "sensitivity": A_inv @ (J[n:].T @ dpsi[n:]) / sd_m, "inlier_boxes": inliers, "n_people": P,
-            "walk_weight": c, "rounds": rounds}
+    free = 3 if beta[2] > 0 else 2  # d at its bound is held there: the tilt and roll's uncertainty without it
+    A_inv = np.linalg.inv(((m * J * dpsi[:, None]).T @ J + prior)[:free, :free])
+    scores = np.column_stack([np.bincount(owner, m[:, k] * J[:, k] * psi, P) for k in range(free)])  # (P, free) each person's share
+    return {"tilt": float(beta[0]), "roll": float(beta[1]), "cov": (A_inv @ scores.T @ scores @ A_inv.T)[:2, :2],
+            "sensitivity": (A_inv @ (J[n:, :free].T @ dpsi[n:]) / sd_m)[:2], "sole_offset_m": float(beta[2]),
+            "inlier_boxes": inliers, "n_people": P, "walk_weight": c, "rounds": rounds}
 
 
 class PedestrianCorrector(Corrector):
