@@ -43,6 +43,7 @@ import dataclasses
 import io
 import json
 import math
+import pickle
 import sys
 import time
 import tracemalloc
@@ -86,6 +87,19 @@ def seen_boxes(scenes: dict, seed: int, seconds: float, fps: float) -> dict[str,
                 done[cam] = (frame, xyxy, ids[seen])
             out[name].append(done[cam])
     return out
+
+
+def cached_boxes(cache: str | None, scenes: dict, seed: int, seconds: float, fps: float, at: float) -> dict[str, list]:
+    """seen_boxes, kept in the folder ``cache`` (None: not kept) as one pickle per scene, seed, length, frame rate,
+    move time and cases, and read back from there when it exists."""
+    if cache is None:
+        return seen_boxes(scenes, seed, seconds, fps)
+    name = f"{next(iter(scenes.values())).name}_s{seed}_{seconds:g}s_{fps:g}fps_at{at:g}_{'+'.join(scenes)}.pickle"
+    path = Path(cache) / name.replace(" ", "").replace(",", "")
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(pickle.dumps(seen_boxes(scenes, seed, seconds, fps)))
+    return pickle.loads(path.read_bytes())
 
 
 def ground_grid() -> np.ndarray:
@@ -166,15 +180,15 @@ def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure:
     sway = case.startswith("sway")
     before = [a for a, _, _ in alarms if t_move is None or a < t_move or sway]
     after = [(a, side, test) for a, side, test in alarms if a not in before]
-    # the detection: the first alarm after the move's start of the row test on the side the horizon's row at the
-    # principal column moved (+1: down the image), or of the roll test on the side the roll moved (+1: the horizon
+    # the detection: the first alarm after the move's start of the row or drift test on the side the horizon's row at
+    # the principal column moved (+1: down the image), or of the roll test on the side the roll moved (+1: the horizon
     # down on the right, the roll smaller); any alarm when neither moved (a row by less than a pixel, a roll by
     # less than 0.1 degree: a yaw)
     rows = None if ds.pose is None else ds.pose.horizon_rows(ds.camera.K[0, 2])
     shift = 0.0 if rows is None else rows[-1] - rows[0]
     turn = 0.0 if ds.pose is None else ds.pose.roll_deg[-1] - ds.pose.roll_deg[0]
     found = [a for a, side, test in after if (abs(shift) < 1.0 and abs(turn) < 0.1) or (
-        side == np.sign(shift) if test == "row" else abs(turn) >= 0.1 and side == -np.sign(turn))]
+        side == np.sign(shift) if test != "roll" else abs(turn) >= 0.1 and side == -np.sign(turn))]
     result = {"case": case, "t_move": t_move, "seconds": seconds, "static_s": seconds if t_move is None else t_move,
               "false": len(before), "detected": found[0] if found else None, "later": len(after) - bool(found)}
     if not measure:
@@ -290,12 +304,14 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scene", default="scene1")
     ap.add_argument("--seeds", type=int, default=6)
+    ap.add_argument("--first-seed", type=int, default=0, help="the seeds are this one and the next --seeds - 1")
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--fps", type=float, default=5.0)
     ap.add_argument("--at", type=float, default=300.0, help="the move's time, s")
     ap.add_argument("--arl0", default=f"2000,5000,{DEFAULT_ARL0_PEOPLE},100000", help="static: ARL0 values, people")
     ap.add_argument("--static-only", action="store_true", help="only the static streams' false alarms")
     ap.add_argument("--case-arl0", type=float, default=DEFAULT_ARL0_PEOPLE, help="the moving cases' ARL0, people")
+    ap.add_argument("--cache", metavar="DIR", help="keep the posed streams' boxes in DIR and read them back from there")
     ap.add_argument("--datasets", nargs="+", metavar="DIR", help="rendered simgen datasets instead (module docstring)")
     ap.add_argument("--detectors", default="segmentation,rgb", help="--datasets: the detectors whose boxes are watched")
     ap.add_argument("--work", default="watch-runs", help="--datasets: a folder for the homocal watch outputs (new)")
@@ -310,10 +326,11 @@ def main() -> None:
     t0 = time.time()
     moving = {name: dataclasses.replace(scene, moves=case(args.at)[0], sway=case(args.at)[1]) for name, case in CASES.items()}
     scenes = {"static": scene, **({} if args.static_only else moving)}
-    cached = [seen_boxes(scenes, seed, seconds, args.fps) for seed in range(args.seeds)]
+    cached = [cached_boxes(args.cache, scenes, seed, seconds, args.fps, args.at)
+              for seed in range(args.first_seed, args.first_seed + args.seeds)]
     hours = args.seeds * seconds / 3600
     people = sum(len(np.unique(np.concatenate([ids for _, _, ids in c["static"]]))) for c in cached)
-    print(f"{args.scene}: {args.seeds} seeds x {args.minutes:g} min at {args.fps:g} fps, {people:,} people in view "
+    print(f"{args.scene}: {args.seeds} seeds from {args.first_seed} x {args.minutes:g} min at {args.fps:g} fps, {people:,} people in view "
           f"(static camera), posed and seen in {time.time() - t0:.0f} s")
 
     print("\nstatic: false alarms per simulated hour by ARL0 (people)")

@@ -252,28 +252,38 @@ def test_heavy_tailed_people_raise_the_row_tests_threshold():
     assert {s.threshold for s in states if s.n_people == WINDOW_PEOPLE} == {cal.threshold}
 
 
-def test_the_row_and_roll_tests_together_alarm_at_the_stated_rate():
-    """The four one-sided CUSUMs of a steady camera (the row test's on u, the roll test's on u g at k =
-    tan(ROLL_REF_DEG) g_rms / 2; u the clipped standardised normal, g the people's roll regressors, here uniform
-    with unit RMS), each test at its Siegmund threshold for len(TESTS) x ARL0, alarm every ARL0 people in the mean
-    (Monte Carlo, 4000 runs at ARL0 200, roll references 0.15 and 0.3 sd: the mean's standard error is 1.6 %;
-    Siegmund's approximation is within a few %, and the tests share each person's |u|, which lengthens their joint
-    run: under 20 %; fully dependent tests would double it)."""
-    arl0, runs = 200, 4000
-    for k_roll in (0.15, 0.3):
-        h = np.array([cusum_threshold(len(TESTS) * arl0)] * 2 + [cusum_threshold(len(TESTS) * arl0, k_roll)] * 2)[:, None]
-        k = np.array([CUSUM_K] * 2 + [k_roll] * 2)[:, None]
-        rng = np.random.default_rng(5)
-        stats, alive, length = np.zeros((4, runs)), np.ones(runs, bool), np.zeros(runs)
-        for step in range(1, 100_000):
-            u = np.clip(rng.standard_normal(runs), -CLIP, CLIP) / SD_CLIPPED
-            g = rng.uniform(-math.sqrt(3), math.sqrt(3), runs)
-            stats = np.maximum(0, stats + np.stack([u, -u, g * u, -g * u]) - k)
-            fired = alive & (stats > h).any(axis=0)
-            length[fired], alive = step, alive & ~fired
-            if not alive.any():
-                break
-        assert 0.95 < length.mean() / arl0 < 1.2, (k_roll, length.mean())
+@pytest.mark.parametrize("k_roll", [None, 0.15, 0.3])
+def test_the_change_tests_together_alarm_at_the_stated_rate(k_roll):
+    """The one-sided CUSUMs of a steady camera, each test at its Siegmund threshold for (tests run) x ARL0, alarm
+    every ARL0 people or a little less often, in the mean (Monte Carlo, 4000 runs at ARL0 200: the mean's standard error is 1.6 %): the
+    row test's on u, the clipped standardised normal, one a person; the drift test's on its own residuals, RATE
+    independent clipped standardised normals a person, at its threshold for RATE x (tests run) x ARL0 residuals;
+    with the roll (k_roll, sd), the roll test's on u g at k = k_roll (tan(ROLL_REF_DEG) g_rms / 2), g the people's
+    roll regressors, here uniform with unit RMS. Siegmund's approximation is within a few % of one test's run
+    (+4 % here); a CUSUM's run from 0 is not memoryless (it must climb to h first), so the first alarm of several
+    tests comes later than 1 / (sum of 1 / ARL0) says, and the row and roll tests share each person's |u|: the
+    split budget is conservative (measured: +23 % with the row and drift tests, +21 % and +13 % with the roll)."""
+    arl0, runs, rate = 200, 4000, 3
+    tests = len(TESTS) - (k_roll is None)
+    h = np.array([cusum_threshold(tests * arl0)] * 2 + [cusum_threshold(tests * arl0 * rate)] * 2
+                 + ([] if k_roll is None else [cusum_threshold(tests * arl0, k_roll)] * 2))[:, None]
+    k = np.array([CUSUM_K] * 4 + ([] if k_roll is None else [k_roll] * 2))[:, None]
+    rng = np.random.default_rng(5)
+    stats, alive, length = np.zeros((len(h), runs)), np.ones(runs, bool), np.zeros(runs)
+    for step in range(1, 100_000):
+        u = np.clip(rng.standard_normal(runs), -CLIP, CLIP) / SD_CLIPPED
+        g = rng.uniform(-math.sqrt(3), math.sqrt(3), runs)
+        person = [u, -u] if k_roll is None else [u, -u, g * u, -g * u]
+        stats[[0, 1] + list(range(4, len(h)))] = np.maximum(0, stats[[0, 1] + list(range(4, len(h)))]
+                                                            + np.stack(person) - k[[0, 1] + list(range(4, len(h)))])
+        for _ in range(rate):
+            d = np.clip(rng.standard_normal(runs), -CLIP, CLIP) / SD_CLIPPED
+            stats[2:4] = np.maximum(0, stats[2:4] + np.stack([d, -d]) - k[2:4])
+        fired = alive & (stats > h).any(axis=0)
+        length[fired], alive = step, alive & ~fired
+        if not alive.any():
+            break
+    assert 0.95 < length.mean() / arl0 < 1.3, length.mean()
 
 
 def test_steady_camera_tracks_its_horizon_in_bounded_memory():
@@ -296,7 +306,7 @@ def test_a_rolled_camera_gives_its_horizon_line(roll):
     assert abs(last.roll_deg - roll) < 4 * last.roll_sigma_deg < 0.8
     cal, states = run(stream(60, roll=lambda t: roll, side=12.0, seed=1))
     assert states[-1].roll_deg == 0.0 and math.isnan(states[-1].roll_sigma_deg) and math.isnan(states[-1].cusum_roll_up)
-    assert cal.threshold == cusum_threshold(cal.arl0_people)
+    assert cal.threshold == cusum_threshold((len(TESTS) - 1) * cal.arl0_people)  # the row and drift tests
 
 
 def test_a_roll_step_is_a_move_of_the_roll_test():
@@ -661,7 +671,7 @@ def test_a_move_rearms_the_people_in_view_and_the_new_stretch_is_unbiased():
     usable = [usable(xyxy, ids) for _, xyxy, ids in frames[d + 1:d + 1 + PERSON_BOXES]]
     in_view = set(frames[d][2].tolist()).intersection(*usable)
     after = states[d + PERSON_BOXES]  # newcomers need PERSON_BOXES boxes after the detection: none is in yet
-    assert len(in_view) >= 10 and after.n_people == len(in_view)
+    assert len(in_view) >= 8 and after.n_people == len(in_view)  # 9: the drift test fires 2 s after the step
     true_row = moving.camera_at(after.t_s).horizon_row
     error = abs(after.horizon_row - true_row)
     # the change point's people (3eaf950's new stretch: 2.97 px off at this frame) are further off
