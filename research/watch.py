@@ -34,6 +34,7 @@ pooled per detector:
 
 (the second: the false alarms on the static minutes, the static recordings and the parts before each move, at each
 --arl0; the third: with the roll estimated and tested, the watched calibration with each stretch's roll).
+``--drift-test no`` runs homocal watch without its drift test (OnlineCalibrator(drift_test=False)), either way.
 """
 from __future__ import annotations
 
@@ -115,11 +116,12 @@ def range_error(transformer: ViewTransformer, camera, ground: np.ndarray) -> flo
     return float(np.nanmedian(np.abs(np.hypot(*got.T) - true) / true)) * 100
 
 
-def run(scene, frames, fps, arl0):
+def run(scene, frames, fps, arl0, drift: bool = True):
     """The calibrator over the frames' boxes (``seen_boxes``) of the scene's camera as it moves (``Scene.camera_at``):
     moves, (t, estimate, true row) per person and the estimate at every frame (row)."""
     cam0 = scene.camera
-    cal = OnlineCalibrator(cam0.K, cam0.mount_height_m, fps, (cam0.width, cam0.height), *HEIGHT, arl0_people=arl0)
+    cal = OnlineCalibrator(cam0.K, cam0.mount_height_m, fps, (cam0.width, cam0.height), *HEIGHT, arl0_people=arl0,
+                           drift_test=drift)
     moves, track, rows = [], [], np.full(len(frames), np.nan)
     for frame, xyxy, ids in frames:
         t = frame / fps
@@ -157,9 +159,10 @@ def motion(pose, gt_dt: float) -> tuple[str, float | None]:
     return f"ramp {name} {x[-1]:+.3g} over {(reach - i + 1) * gt_dt:.3g} s", float(pose.t[i - 1])
 
 
-def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure: bool = True, roll: str = "no") -> dict:
+def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure: bool = True, roll: str = "no",
+                  drift: str = "yes") -> dict:
     """``homocal watch`` on a dataset's boxes of ``detector`` (its hand-placed trapezoid, camera.json, the camera's
-    true height, the people's own height prior, --estimate-roll ``roll``) into ``out``, measured against the dataset's true camera
+    true height, the people's own height prior, --estimate-roll ``roll``, --drift-test ``drift``) into ``out``, measured against the dataset's true camera
     (load_dataset's pose track): its motion and start (``motion``), the alarms before it (false: the static
     minutes), the first alarm after it on the side the horizon moved (the detection; none on a swaying camera:
     every alarm is false), the other alarms after it; with ``measure``, the horizon RMS (px) before the move and from the detection on (a
@@ -172,6 +175,7 @@ def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure:
                              "--detector", detector, "--fps", str(ds.manifest["fps"]), "--camera-json", str(dataset / "camera.json"),
                              "--camera-height", str(ds.camera.mount_height_m), "--height-mean", str(HEIGHT[0]),
                              "--height-sd", str(HEIGHT[1]), "--arl0-people", str(arl0), "--estimate-roll", roll,
+                             "--drift-test", drift,
                              "--out", str(out)])
     assert code == 0, f"homocal watch failed on {dataset} ({detector})"
     case, t_move = motion(ds.pose, ds.manifest["gt_dt"])
@@ -272,14 +276,14 @@ def datasets_main(args) -> None:
             print(f"\n{detector} boxes: false alarms on the static minutes by ARL0 (people)")
             for arl0 in [float(a) for a in args.arl0.split(",")]:
                 p = pooled([watch_dataset(d, detector, Path(args.work) / f"{d.name}_{detector}_{arl0:.0f}", arl0, False,
-                                          args.estimate_roll) for d in datasets])
+                                          args.estimate_roll, args.drift_test) for d in datasets])
                 print(f"  ARL0 {arl0:>9,.0f}: {p['false']} alarms in {p['static_minutes']:.1f} min = {p['false_per_hour']:.1f} per hour")
             continue
         print(f"\n{detector} boxes, --arl0-people {args.case_arl0:,.0f}:")
         results = []
         for dataset in datasets:
             r = watch_dataset(dataset, detector, Path(args.work) / f"{dataset.name}_{detector}", args.case_arl0,
-                              roll=args.estimate_roll)
+                              roll=args.estimate_roll, drift=args.drift_test)
             results.append(r)
             ranges = "; ".join("-" if x is None else f"{x[0]:.1f} -> {x[1]:.1f}" for x in r["ranges"])
             end = "-" if r["end"] is None else f"{r['end'][0]:.1f} -> {r['end'][1]:.1f}"
@@ -316,11 +320,12 @@ def main() -> None:
     ap.add_argument("--detectors", default="segmentation,rgb", help="--datasets: the detectors whose boxes are watched")
     ap.add_argument("--work", default="watch-runs", help="--datasets: a folder for the homocal watch outputs (new)")
     ap.add_argument("--estimate-roll", choices=("yes", "no"), default="no", help="--datasets: homocal watch's --estimate-roll")
+    ap.add_argument("--drift-test", choices=("yes", "no"), default="yes", help="homocal watch's --drift-test")
     args = ap.parse_args()
     if args.datasets:
         return datasets_main(args)
     scene = load_scene(Path(__file__).resolve().parents[1] / "simgen" / "scenes" / args.scene)
-    cam0, seconds = scene.camera, args.minutes * 60
+    cam0, seconds, drift = scene.camera, args.minutes * 60, args.drift_test == "yes"
     clicked = ViewTransformer(cam0.project_ground(scene.trapezoid_ground), scene.trapezoid_ground)
     ground = ground_grid()
     t0 = time.time()
@@ -335,7 +340,7 @@ def main() -> None:
 
     print("\nstatic: false alarms per simulated hour by ARL0 (people)")
     for arl0 in [float(a) for a in args.arl0.split(",")]:
-        alarms = sum(len(run(scene, c["static"], args.fps, arl0)[0]) for c in cached)
+        alarms = sum(len(run(scene, c["static"], args.fps, arl0, drift)[0]) for c in cached)
         print(f"  ARL0 {arl0:>9,.0f}: {alarms} alarms in {hours:.2f} h = {alarms / hours:.2f} per hour")
     if args.static_only:
         return
@@ -345,7 +350,7 @@ def main() -> None:
     for name in CASES:
         delays, false, rms, errors = [], 0, [], []
         for c in cached:
-            moves, track, rows = run(moving[name], c[name], args.fps, args.case_arl0)
+            moves, track, rows = run(moving[name], c[name], args.fps, args.case_arl0, drift)
             sway = name.startswith("sway")
             false += len(moves) if sway else sum(m.detected_s < args.at for m in moves)
             after = [m.detected_s for m in moves if m.detected_s >= args.at]
@@ -378,7 +383,7 @@ def main() -> None:
         offset = int(k * seconds * args.fps)
         stream += [(frame + offset, xyxy, ids + 10**6 * k) for frame, xyxy, ids in c["static"]]
     def feed(watch_memory: bool) -> tuple[float, int, list, int]:
-        cal = OnlineCalibrator(cam0.K, cam0.mount_height_m, args.fps, (cam0.width, cam0.height), *HEIGHT)
+        cal = OnlineCalibrator(cam0.K, cam0.mount_height_m, args.fps, (cam0.width, cam0.height), *HEIGHT, drift_test=drift)
         start, boxes, peaks, hidden = time.perf_counter(), 0, [], 0
         for i, (frame, xyxy, ids) in enumerate(stream):
             hidden += cal.update(frame, xyxy, ids).hidden_boxes

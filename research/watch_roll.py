@@ -7,7 +7,7 @@ alarm after the move of a test that sees it, the roll test for a roll and the ro
 it moved) median and per seed, the missed moves, the people and their columns' interquartile range (px: the roll is
 fitted when it spans ROLL_SPREAD of the width) and the roll estimate at the end against the camera's.
 
-    python research/watch_roll.py --scene scene1 --seeds 3 --minutes 10
+    python research/watch_roll.py --scene scene1 --seeds 3 --minutes 10 [--drift-test no]
 """
 from __future__ import annotations
 
@@ -40,6 +40,7 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--at", type=float, default=300.0, help="the move's time, s")
+    ap.add_argument("--drift-test", choices=("yes", "no"), default="yes", help="homocal watch's --drift-test")
     args = ap.parse_args()
     scene = load_scene(Path(__file__).resolve().parents[1] / "simgen" / "scenes" / args.scene)
     cam = scene.camera
@@ -50,7 +51,7 @@ def main() -> None:
         delays, false, lines = [], 0, []
         for seed in range(args.seeds):
             cal = OnlineCalibrator(cam.K, cam.mount_height_m, FPS, (cam.width, cam.height), *HEIGHT,
-                                   estimate_roll=True)
+                                   estimate_roll=True, drift_test=args.drift_test == "yes")
             columns, found, state = [], None, None
             for frame, xyxy, ids in box_stream(moving, seed, args.minutes * 60, FPS):
                 state = cal.update(frame, xyxy, ids)

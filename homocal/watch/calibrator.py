@@ -45,8 +45,9 @@ test sees a change of v_0 (a tilt); the roll test a turn of the horizon about th
 the people on either side oppositely and leaves the row test's mean unchanged. A third, the drift test
 (``homocal.watch.drift``), sees a move from the people already in view: each person's implied row along their
 walk. A move is declared when a
-one-sided statistic exceeds its h, where h gives a mean of 3 ``arl0_people`` people (with estimate_roll; else
-2 ``arl0_people``, the row and drift tests; the drift test's converted to its residuals) between false alarms of the test on a steady camera, by Siegmund's
+one-sided statistic exceeds its h, where h gives a mean of (the tests run) x ``arl0_people`` people (the row
+test, the roll test with estimate_roll, the drift test unless drift_test=False; the drift test's converted to its
+residuals) between false alarms of the test on a steady camera, by Siegmund's
 approximation of a one-sided CUSUM's run length (Siegmund 1985, "Sequential analysis"; two sides: half of it):
 ARL0 = (exp(theta b) - theta b - 1) / (theta k) / 2, b = h + 1.166 sd (``cusum_threshold``), theta the
 increments' tilt, the root of E exp(theta (u - k)) = 1, and sd their root mean square: for normal increments of
@@ -335,11 +336,14 @@ class OnlineCalibrator:
             otherwise, Lens.check_matches): update takes the camera's
             pixels, tests the border there (PedestrianCorrector.fit(lens=)'s rule) and then undistorts the boxes
             (undistort_boxes); the horizon rows are then the undistorted image's. None: a pinhole.
+        drift_test: run the drift test (homocal.watch.drift: the people already in view; default True) with
+            the row test, each at its share of arl0_people; False: the row test (and the roll's) alone.
     """
 
     def __init__(self, K, camera_height_m: float, fps: float, image_size: tuple[int, int] | None = None,
                  height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
-                 arl0_people: float = DEFAULT_ARL0_PEOPLE, lens: Lens | None = None, estimate_roll: bool = False) -> None:
+                 arl0_people: float = DEFAULT_ARL0_PEOPLE, lens: Lens | None = None, estimate_roll: bool = False,
+                 drift_test: bool = True) -> None:
         self.estimate_roll = PedestrianCorrector(height_mean_m, height_sd_m, estimate_roll=estimate_roll).estimate_roll
         K = intrinsics(None, None, K)
         if not (isinstance(camera_height_m, (int, float)) and 0 < camera_height_m <= 100):
@@ -348,10 +352,13 @@ class OnlineCalibrator:
             raise ValueError(f"fps must be in (0, {MAX_FPS:g}], got {fps!r}")
         if not (isinstance(arl0_people, (int, float)) and 10 <= arl0_people <= 1e9):
             raise ValueError(f"arl0_people must be in [10, 1e9] people, got {arl0_people!r}")
+        if not isinstance(drift_test, bool):
+            raise ValueError(f"drift_test must be True or False, got {drift_test!r}")
         self.K, self.camera_height_m, self.fps, self.image_size = K, float(camera_height_m), float(fps), image_size
         self.lens = None if lens is None else lens.check_matches(K, image_size)
         self.height_mean_m, self.height_sd_m = float(height_mean_m), float(height_sd_m)
-        self._tests = len(TESTS) - (not self.estimate_roll)  # the tests run: each at this many times arl0_people
+        self.drift_test = drift_test
+        self._tests = 1 + self.estimate_roll + drift_test  # the tests run (TESTS): each at this many times arl0_people
         self.arl0_people, self.threshold = float(arl0_people), cusum_threshold(self._tests * arl0_people)
         self._roll_width = ROLL_SPREAD * image_size[0] if self.estimate_roll and image_size is not None else None
         self._linker = TrackLinker(max_gap=LINK_GAP)
@@ -365,7 +372,7 @@ class OnlineCalibrator:
         self._h = [self.threshold] * 2 + [math.nan] * 2  # each one-sided statistic's threshold (_threshold)
         self.n_people = 0  # the people behind the estimate
         from homocal.watch.drift import DriftTest  # it builds on this module
-        self._drift = DriftTest(K, self.camera_height_m, self.fps, self.height_mean_m, self.height_sd_m)  # its statistics
+        self._drift = DriftTest(K, self.camera_height_m, self.fps, self.height_mean_m, self.height_sd_m) if drift_test else None
 
     # ---- boxes -> people ------------------------------------------------------------------------
     def update(self, frame: int, boxes: np.ndarray, track_ids: np.ndarray | None = None) -> State:
@@ -420,8 +427,10 @@ class OnlineCalibrator:
             del self._tracks[key]
         if len(self._tracks) > MAX_TRACKS:
             raise ValueError(f"frame {frame}: more than {MAX_TRACKS} people (tracks) at once")
-        move, observed, zs = self._drift_update(t, frame, ids, undistorted, ~hidden_all if self.image_size is None else
-                                                ~hidden_all & ~on_border(boxes, self.image_size), len(people)), [], []
+        move, observed, zs = None, [], []
+        if self._drift is not None:
+            move = self._drift_update(t, frame, ids, undistorted, ~hidden_all if self.image_size is None else
+                                      ~hidden_all & ~on_border(boxes, self.image_size), len(people))
         for person in people if move is None else ():
             observed.append(person)
             move, z = self._observe(person)
@@ -433,7 +442,8 @@ class OnlineCalibrator:
         stats = self._cusum if armed else [math.nan] * len(self._cusum)
         h = [max(self._h[:2]), max(self._h[2:])]  # each test's: the larger of its sides'
         roll = stats[2:4] + [h[1]] if armed and math.isfinite(h[1]) else [math.nan] * 3
-        drift = stats[4:] + [max(self._drift.h)] if armed and math.isfinite(max(self._drift.h)) else [math.nan] * 3
+        drift_h = math.nan if self._drift is None else max(self._drift.h)
+        drift = stats[4:] + [drift_h] if armed and math.isfinite(drift_h) else [math.nan] * 3
         cx = float(self.K[0, 2])
         return State(t, self.stretch_start_s, line.row, line.sigma, self.n_people, *stats[:2],
                      h[0] if armed else math.nan, move, tuple(p[1] for p in observed),
@@ -520,7 +530,8 @@ class OnlineCalibrator:
         self._since_zero, self._cusum = [0] * len(self._cusum), [0.0] * len(self._cusum)
         self.stretch_start_s, self.estimate, self.n_people = people[start][0], after, len(people) - start
         self._h = [self.threshold] * 2 + [math.nan] * 2  # re-armed at MIN_PEOPLE people (thresholds then)
-        self._drift.rearm()
+        if self._drift is not None:
+            self._drift.rearm()
         return move
 
     # ---- corrections ---------------------------------------------------------------------------

@@ -480,7 +480,8 @@ def test_watch_with_the_roll_writes_it_and_apply_uses_it(tmp_path, capsys, monke
     assert [m["test"] for m in moves] == ["roll"] and moves[0]["roll_after_deg"] > 1.0
     assert json.loads((tmp_path / "out/watch.json").read_text())["estimate_roll"] is True
     table = pq.read_table(tmp_path / "out/horizon.parquet")
-    assert table.column_names[-5:] == ["person_column_px", "roll_deg", "roll_sigma_deg", "cusum_roll_up", "cusum_roll_down"]
+    assert table.column_names[-7:] == ["person_column_px", "roll_deg", "roll_sigma_deg", "cusum_roll_up", "cusum_roll_down",
+                                       "cusum_drift_up", "cusum_drift_down"]
     last = table.slice(table.num_rows - 1).to_pylist()[0]
     assert abs(last["roll_deg"] - 2.0) < 4 * last["roll_sigma_deg"]
     rolled = dataclasses.replace(CAM, roll_deg=2.0)
@@ -628,6 +629,7 @@ def test_apply_at_needs_a_watch_folder(tmp_path, capsys, monkeypatch):
     (["--height-sd", "0.6"], "argument --height-sd: expected at most height_mean_m / 4 = 0.425 m, got 0.6"),
     (["--camera-height", "1e-9"], "argument --camera-height: expected a number in"),
     (["--estimate-roll", "maybe"], "argument --estimate-roll: expected yes or no, got 'maybe'"),
+    (["--drift-test", "auto"], "argument --drift-test: expected yes or no, got 'auto'"),
     (["--out", "full"], "full: exists and is not empty (use another output folder)"),
 ])
 def test_watch_refuses_its_settings_as_fit_does(tmp_path, capsys, monkeypatch, extra, message):
@@ -676,3 +678,28 @@ def test_a_move_rearms_the_people_in_view_and_the_new_stretch_is_unbiased():
     error = abs(after.horizon_row - true_row)
     # the change point's people (3eaf950's new stretch: 2.97 px off at this frame) are further off
     assert error < abs(states[d].move.horizon_after - true_row) and error < 3 * after.horizon_sigma_px
+
+
+@pytest.mark.parametrize("drift, tests", [(True, 2), (False, 1)])
+def test_the_drift_test_takes_its_share_of_the_budget_or_none(drift, tests):
+    """drift_test=False is the row test alone at arl0_people; True shares it with the drift test (each test at twice
+    it): the threshold h solves Siegmund's ARL0 for normal increments of unit variance, (exp(2 k b) - 2 k b - 1) /
+    (2 k^2) / 2 = tests x arl0_people with b = h + 1.166 (written out here); without the test, no drift statistic
+    (with it, tests/watch/test_drift.py)."""
+    from homocal.watch.calibrator import CUSUM_K
+
+    cal = OnlineCalibrator(CAM.K, 4.0, FPS, (CAM.width, CAM.height), 1.70, 0.07, arl0_people=5000, drift_test=drift)
+    b, k = cal.threshold + 1.166, CUSUM_K
+    assert (math.exp(2 * k * b) - 2 * k * b - 1) / (2 * k * k) / 2 == pytest.approx(tests * 5000, rel=1e-6)
+    state = None
+    for f, boxes, ids in stream(60, seed=3):
+        state = cal.update(f, boxes, ids)
+    assert math.isfinite(state.threshold)
+    if not drift:
+        assert all(map(math.isnan, (state.drift_threshold, state.cusum_drift_up, state.cusum_drift_down)))
+
+
+@pytest.mark.parametrize("value", ["no", 1, None])
+def test_drift_test_is_true_or_false(value):
+    with pytest.raises(ValueError, match=f"drift_test must be True or False, got {value!r}"):
+        OnlineCalibrator(CAM.K, 4.0, FPS, (CAM.width, CAM.height), 1.70, 0.07, drift_test=value)
