@@ -69,8 +69,8 @@ the people before it, then joins it (a self-starting CUSUM, as Hawkins 1987). A 
 tan(phi) w / sigma sd: a lateral offset X m at a person of height H under a camera h_c high gives about tan(phi)
 a X H / (h_c sd), 0.09 sd per metre of X per degree of roll on a 4 m camera (people 1.7 +- 0.09 m), against 1-3
 sd per degree of tilt: a roll takes many more people to notice than a tilt (docs/moving-camera.md measures it). At a move, the people since the alarming statistic's last 0 (its change point estimate) give
-the move's horizon after (the drift test's: the horizon before plus the people in view's shift since its last 0,
-``DriftTest.shift``), and the new stretch (from that change point on) starts from their estimate; then
+the move's horizon after (the drift test's: the horizon before plus the step the people in view tell a block
+after its alarm, ``DriftTest.alarm``), and the new stretch (from that change point on) starts from their estimate; then
 every live track is re-armed: each person in view gives a new observation from their boxes after the
 detection, so the stretch fills at once from the people in view, not only from newcomers. The new stretch
 holds only such observations (re-armed or new people): the people before the detection are dropped from it,
@@ -80,7 +80,7 @@ person's median is from whichever pose most of their boxes saw), while every box
 saw the moved camera (after a step; a ramp may go on); those still in view give their new observation anyway (one person, one observation),
 only those gone are lost. The test re-arms at MIN_PEOPLE people. Memory: the last WINDOW_PEOPLE people of the
 stretch, the live tracks of the last LINK_GAP frames (at most MAX_TRACKS, each at most PERSON_BOXES rows) and the
-drift test's per live track (an open block and six numbers, homocal.watch.drift): bounded whatever the stream's
+drift test's per live track (an open block and 19 numbers, homocal.watch.drift): bounded whatever the stream's
 length; work per box is constant (a move re-arms the live tracks once).
 
 A gap in the stream longer than LINK_GAP frames ends every track (a person seen again is a new person): a gap
@@ -453,21 +453,21 @@ class OnlineCalibrator:
     def _drift_update(self, t: float, frame: int, ids: np.ndarray, boxes: np.ndarray, usable: np.ndarray,
                       people: int) -> Move | None:
         """The drift test on the frame's boxes (undistorted; usable (N,) bool) at its share of the budget, armed with
-        the row test, and its move, if it alarms (homocal.watch.drift)."""
+        the row test, and its move once its alarm's step is measured (homocal.watch.drift)."""
         drift = self._drift
         drift.people += people
         armed = len(self._people) >= MIN_PEOPLE
         drift.update(t, frame, ids, boxes, usable,
                      self._tests * self.arl0_people * drift.residuals / max(drift.people, 1) if armed else None)
         self._cusum[4:] = drift.cusum
-        over = [i for i in (0, 1) if drift.cusum[i] > drift.h[i]]
-        if not over:
+        if drift.alarm is None:
             return None
-        i = max(over, key=lambda i: drift.cusum[i] / drift.h[i])
+        i, shift, sigma = drift.alarm
         self._since_zero[4 + i] = max(1, sum(p[0] >= drift.since_zero_s[i] for p in self._people))  # one at least
-        shift, sigma = drift.shift(i)
         move = self._move(4 + i, t, tuple(self._h) + tuple(drift.h))
-        # the horizon after: the people in view's shift (the people since the change point may be few, or one)
+        if not math.isfinite(shift):  # no one in view told the step: the people since the change point do
+            return move
+        # the horizon after: the people in view's step (the people since the change point may be few, or one)
         row, sigma = move.horizon_before + shift, math.hypot(move.sigma_before, sigma)
         self.estimate = dataclasses.replace(self.estimate, row=row, tan_roll=0.0, cov=np.diag([sigma ** 2, math.nan]))
         return dataclasses.replace(move, horizon_after=row, sigma_after=sigma)

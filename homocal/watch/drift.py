@@ -22,8 +22,9 @@ with a prior) against the weighted least squares fit of the person's earlier blo
 in units of s: under no change and independent blocks of normal noise the e_k / s are independent unit normals
 (the person's height is fitted; the prior makes the second block's residual exist), and after a step of D px of
 horizon every person in view gives residuals of about D / (s g_k). A track keeps its last frame, its open block
-(at most MAX_BLOCK_BOXES boxes' three numbers) and six numbers (A's three, the two sums of m, its block count):
-bounded memory.
+(at most MAX_BLOCK_BOXES boxes' three numbers), six numbers (A's three, the two sums of m, its block count), the
+same six for each side as they stood when the side's statistic was last 0 (its blocks before the change point
+estimate) and its last block's place in the stream: bounded memory.
 
 s is the stream's own: the median absolute e over the last WINDOW residuals / 0.6745, at least BOX_SIGMA_PX (the
 calibrator's box edge error; as its scale is at least the model's: the segmentation boxes' median residual is
@@ -35,6 +36,19 @@ runs at n_tests x arl0_people people, converted to its own residuals by the stre
 (counted on the stream: ``people`` is the calibrator's count), so that the tests together alarm every arl0_people people (1 / ARL0 adds over the
 tests). It is armed once the window holds MIN_RESIDUALS residuals and the stretch MIN_PEOPLE people; at a move
 (any test's) every track's blocks are forgotten (the calibrator's re-arming), the window and counts kept.
+
+The step's size (``alarm``): when a side's statistic exceeds its h at t_a, every track's open block is dropped and
+a new one starts; the move is declared once these close (BLOCK_S later: the step is then told by blocks that saw
+only the moved camera; once each person in view has told it or gone, 2 BLOCK_S at most), each giving one
+prediction error: their first block after t_a against the
+fit of their blocks before the side's statistic last left 0 (the change point estimate), r = D + s' q N(0, 1)
+for a step of D px, s' the window's spread (s without its floor: the CUSUM's scale keeps at least the model's
+BOX_SIGMA_PX, which would overstate the step's sigma where the blocks' noise is below it). The step is their
+weighted mean (weights 1 / (s' q)^2), its sigma that of the mean, widened by
+the square root of their chi-square per degree of freedom where it exceeds 1 (Birge's ratio: people who disagree
+more than their noise allows). Neither the blocks that close while the statistic climbs (they may straddle the
+step: a block half before it tells half of it) nor a person's later blocks (their fit has absorbed part of the
+step) enter it: each would bias the step short (tests/watch/test_drift.py). The statistics rest meanwhile.
 """
 from __future__ import annotations
 
@@ -91,7 +105,9 @@ class DriftTest:
         self.K, self.camera_height_m, self.height_mean_m = K, camera_height_m, height_mean_m
         self.fps, self.block_s, self.height_sd_m = float(fps), float(block_s), float(height_sd_m)
         self._least = max(1, math.ceil(block_s * fps / 2))  # boxes a block needs
-        self._tracks: dict[int, list] = {}  # id -> [last frame, block start t, open block [(m, x, g)], fit sums]
+        # id -> [last frame, block start t, open block [(m, x, g)], fit sums (6,), each side's sums at its last 0
+        # (2, 6), its last block's place (self.residuals then)]
+        self._tracks: dict[int, list] = {}
         self.window: deque = deque(maxlen=WINDOW)  # the last residuals e (units of s)
         self.residuals = self.people = 0  # the stream's residuals and people (the budget's conversion)
         self.rearm()
@@ -102,34 +118,43 @@ class DriftTest:
         self.cusum, self.h = [0.0, 0.0], [math.nan, math.nan]  # S+, S- and their thresholds
         self._set = [-REFRESH, -REFRESH]  # self.residuals when each h was last set
         self.since_zero_s = [math.nan, math.nan]  # the time each side last left 0
-        self._shift = [[0.0, 0.0], [0.0, 0.0]]  # each side's sums since then: r / (s q)^2, 1 / (s q)^2
+        self._zero = [self.residuals] * 2  # self.residuals when each side was last 0
+        self._alarm: list | None = None  # [side, t_a, sums of w, w r, w r^2, people] while the step is measured
+        self.alarm: tuple[int, float, float] | None = None  # (side, step px, its sigma) once measured
 
-    def shift(self, side: int) -> tuple[float, float]:
-        """The horizon's shift (px) since side's (0: S+, 1: S-) statistic last left 0, and its 1-sigma: the
-        weighted mean of the prediction errors r since then (weights 1 / (s q)^2); a step's size at its alarm."""
-        a, b = self._shift[side]
-        return a / b, 1 / math.sqrt(b)
+    @property
+    def spread(self) -> float:
+        """The window's median absolute residual / 0.6745 (px; NaN while empty): the blocks' edge noise."""
+        return float(np.median(np.abs(self.window))) / 0.6745 if self.window else math.nan
 
     @property
     def scale(self) -> float:
-        """s: the window's median absolute residual / 0.6745, at least BOX_SIGMA_PX (px; that while empty)."""
-        return max(float(np.median(np.abs(self.window))) / 0.6745, BOX_SIGMA_PX) if self.window else BOX_SIGMA_PX
+        """s: the spread, at least BOX_SIGMA_PX (px; that while empty)."""
+        return max(self.spread, BOX_SIGMA_PX) if self.window else BOX_SIGMA_PX
 
     def update(self, t: float, frame: int, ids, boxes: np.ndarray, usable: np.ndarray,
                arl0: float | None) -> list[tuple[int, float]]:
         """Take a frame's boxes (N, 4) (homocal's pixel edges, undistorted; track ids (N,), usable (N,) bool) at
         time t s; advance the CUSUM on each closed block's residual when armed (arl0: the test's ARL0 in
-        residuals; None: unarmed) and return those residuals (``e``, units of s) with their track ids."""
-        out = []
+        residuals; None: unarmed) and return those residuals (``e``, units of s) with their track ids. After an
+        alarm, ``alarm`` is set once its step is measured (module docstring)."""
+        out, closed = [], []
         rows, slopes, gains = edge_gains(boxes, self.K, self.camera_height_m, self.height_mean_m)
         ok = usable & np.isfinite(rows) & np.isfinite(slopes) & np.isfinite(gains) & (gains > 0)
         for i in np.flatnonzero(ok):
             key = int(ids[i])
-            track = self._tracks.setdefault(key, [frame, t, [], np.zeros(6)])
+            track = self._tracks.setdefault(key, [frame, t, [], np.zeros(6), np.zeros((2, 6)), self.residuals])
             if t - track[1] >= self.block_s or len(track[2]) >= MAX_BLOCK_BOXES:
-                rq = self._close(track)
-                if rq is not None:
-                    out.append((key, *rq))
+                if self._alarm is None:
+                    for side in (0, 1):  # its blocks so far are all before the side's last 0
+                        if track[5] <= self._zero[side]:
+                            track[4][side] = track[3]
+                    rq = self._close(track)
+                    if rq is not None:
+                        out.append((key, *rq))
+                    closed.append(track)
+                elif track[4][self._alarm[0]][5]:  # the step: its first block after the alarm, once
+                    self._measure(track)
                 track[1], track[2] = t, []
             track[0] = frame
             track[2].append((rows[i], slopes[i], gains[i]))
@@ -137,6 +162,23 @@ class DriftTest:
             del self._tracks[key]  # gone (or hidden) for a block's time
         for _, r, q in out:
             self._step(t, r, q, arl0)
+        for track in closed:
+            track[5] = self.residuals
+        if self._alarm is None:
+            over = [i for i in (0, 1) if self.cusum[i] > self.h[i]]
+            if over:  # every track's next block starts after the alarm
+                side = max(over, key=lambda i: self.cusum[i] / self.h[i])
+                self._alarm = [side, t, 0.0, 0.0, 0.0, 0]
+                for track in self._tracks.values():
+                    if track[5] <= self._zero[side]:
+                        track[4][side] = track[3]
+                    track[1], track[2] = t, []
+        elif self.alarm is None and (t - self._alarm[1] >= 2 * self.block_s or not any(
+                track[4][self._alarm[0]][5] for track in self._tracks.values())):
+            side, _, w, wr, wrr, n = self._alarm
+            step = wr / w if n else math.nan
+            birge = (wrr - step * wr) / (n - 1) if n > 1 else 1.0
+            self.alarm = (side, step, math.sqrt(max(1.0, birge) / w) if n else math.nan)
         return [(key, r / q) for key, r, q in out]
 
     def _close(self, track: list) -> tuple[float, float] | None:
@@ -145,9 +187,20 @@ class DriftTest:
             return None
         return block_residual(track[3], *np.median(np.array(track[2]), axis=0), (self.scale / self.height_sd_m) ** 2)
 
+    def _measure(self, track: list) -> None:
+        """The step from the track's first block after the alarm: its prediction error r against its blocks
+        before the alarming side's last 0 (the fit's sums then, left unchanged), weight 1 / (spread q)^2."""
+        base = track[4][self._alarm[0]]
+        if len(track[2]) < self._least:
+            return
+        rq = block_residual(base.copy(), *np.median(np.array(track[2]), axis=0), (self.scale / self.height_sd_m) ** 2)
+        r, w = rq[0], 1 / (self.spread * rq[1]) ** 2
+        self._alarm[2:] = [self._alarm[2] + w, self._alarm[3] + w * r, self._alarm[4] + w * r * r, self._alarm[5] + 1]
+        base[:] = 0.0  # once
+
     def _step(self, t: float, r: float, q: float, arl0: float | None) -> None:
-        """One residual e = r / q: standardise by the window's scale, advance the CUSUM (armed) and each side's
-        shift since its last 0, then join the window."""
+        """One residual e = r / q: standardise by the window's scale, advance the CUSUM (armed), then join the
+        window."""
         e = r / q
         if arl0 is not None and len(self.window) >= MIN_RESIDUALS:
             s = self.scale
@@ -157,9 +210,10 @@ class DriftTest:
                     if not self.residuals - self._set[i] < REFRESH:
                         x = np.clip(np.array(self.window) / s, -CLIP, CLIP) / SD_CLIPPED
                         self.h[i], self._set[i] = side_threshold(arl0, CUSUM_K, (1 - 2 * i) * (x - x.mean())), self.residuals
-                    self.since_zero_s[i], self._shift[i] = t, [0.0, 0.0]
+                    self.since_zero_s[i] = t
                 self.cusum[i] = max(0.0, self.cusum[i] + step - CUSUM_K)
-                self._shift[i][0] += r / (s * q) ** 2
-                self._shift[i][1] += 1 / (s * q) ** 2
         self.window.append(e)
         self.residuals += 1
+        for i in (0, 1):
+            if self.cusum[i] == 0.0:
+                self._zero[i] = self.residuals
