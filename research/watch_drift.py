@@ -14,6 +14,13 @@ shift near the principal point).
     python research/watch.py --scene scene1 --seeds 6 --minutes 10 --fps 5 --cache CACHE   # makes the streams
     python research/watch_drift.py --cache CACHE --seeds 0,1,2 --blocks 1,2,4
     python research/watch_drift.py --datasets /work/wt/moves2-data/rec/static_scene1_s4 ... --blocks 1,2,4
+
+With --alarms WORK, instead: ``homocal watch`` on each recording's boxes (research/watch.py's ``watch_dataset``, the
+default --arl0-people, into WORK) and, per drift test alarm on its static minutes, the residuals that made it: the
+alarming side's run since its statistic last left 0 (its residuals, tracks and seconds), the mean of e / s over it
+(signed the side's way), the share beyond 3, and the clipped increments' sum carried by its two largest tracks.
+
+    python research/watch_drift.py --datasets DIRS --detectors rgb --alarms WORK
 """
 from __future__ import annotations
 
@@ -76,6 +83,45 @@ def summary(name: str, res: list, gains: list, step_px: float) -> None:
           f"{lag1:+.2f}; 1-degree step / (s g) median {np.median(step_px / (s * np.array(gains))):.1f}")
 
 
+def alarm_runs(datasets: list[Path], detectors: list[str], work: Path) -> None:
+    """Print the runs behind each drift alarm on the datasets' static minutes (module docstring)."""
+    from watch import watch_dataset  # research/watch.py
+
+    from homocal.watch.calibrator import CLIP, CUSUM_K, SD_CLIPPED
+    log, update = [], DriftTest.update
+
+    def logged(self, t, *args):
+        out = update(self, t, *args)
+        log.extend((t, key, e / self.scale, tuple(self.cusum)) for key, e in out)
+        return out
+
+    DriftTest.update = logged
+    for d in datasets:
+        for detector in detectors:
+            log.clear()
+            out = work / f"{d.name}_{detector}"
+            static_s = watch_dataset(d, detector, out, 20000.0, measure=False)["static_s"]
+            for m in json.loads((out / "moves.json").read_text())["moves"]:
+                if m["test"] != "drift" or m["detected_s"] >= static_s:
+                    continue
+                side, run = (0 if m["direction"] > 0 else 1), []
+                for t, key, z, cusum in (x for x in reversed(log) if x[0] <= m["detected_s"]):
+                    if cusum[side] == 0.0:
+                        break
+                    run.append((t, key, z * m["direction"]))
+                z = np.array([r[2] for r in run])
+                u = np.clip(z, -CLIP, CLIP) / SD_CLIPPED - CUSUM_K
+                by_track = {}
+                for (_, key, _), x in zip(run, u):
+                    by_track[key] = by_track.get(key, 0.0) + x
+                top = sum(sorted(by_track.values())[-2:])
+                print(f"  {d.name} {detector}: drift alarm declared at {m['detected_s']:.1f} s; its run {len(run)} residuals "
+                      f"of {len(by_track)} tracks over {run[0][0] - run[-1][0]:.1f} s, mean e/s {z.mean():+.2f}, "
+                      f"|e/s| > 3: {np.mean(np.abs(z) > 3) * 100:.0f} %, the two largest tracks' share of the "
+                      f"increments' sum {top / u.sum() * 100:.0f} %")
+    DriftTest.update = update
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cache", help="research/watch.py --cache's folder (render-free streams)")
@@ -84,7 +130,10 @@ def main() -> None:
     ap.add_argument("--datasets", nargs="+", metavar="DIR", help="rendered recordings (their static part)")
     ap.add_argument("--detectors", default="segmentation,rgb")
     ap.add_argument("--blocks", default="1,2,4", help="block lengths, s")
+    ap.add_argument("--alarms", metavar="WORK", help="the drift alarms' runs on --datasets instead (homocal watch into WORK)")
     args = ap.parse_args()
+    if args.alarms:
+        return alarm_runs([Path(d) for d in args.datasets], args.detectors.split(","), Path(args.alarms))
     blocks = [float(b) for b in args.blocks.split(",")]
     if args.cache:
         from simgen.scene import load_scene
