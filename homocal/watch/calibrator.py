@@ -186,7 +186,7 @@ def side_threshold(arl0: float, k: float, x: np.ndarray | None = None) -> float:
 @dataclass(frozen=True)
 class Move:
     """A detected move: t_s the change point estimate (the first person of the new stretch), detected_s when
-    the test fired, the horizon row before and after (px, at the principal column) with their 1-sigma, the
+    the test fired (the drift test: when the step it alarmed on was measured, a block or two later), the horizon row before and after (px, at the principal column) with their 1-sigma, the
     CUSUM statistic and threshold at the alarm, direction +1 (the horizon went down the image; for the roll
     test: on the image's right side) or -1, n_before the people of the estimate before; test, the test that
     fired (one of TESTS); the roll before and after (degrees, camera.json's sign) with their 1-sigma (0 and NaN
