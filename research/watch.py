@@ -34,6 +34,7 @@ pooled per detector:
 
 (the second: the false alarms on the static minutes, the static recordings and the parts before each move, at each
 --arl0; the third: with the roll estimated and tested, the watched calibration with each stretch's roll).
+``--drift-test no`` runs homocal watch without its drift test (OnlineCalibrator(drift_test=False)), either way.
 """
 from __future__ import annotations
 
@@ -43,6 +44,7 @@ import dataclasses
 import io
 import json
 import math
+import pickle
 import sys
 import time
 import tracemalloc
@@ -88,6 +90,19 @@ def seen_boxes(scenes: dict, seed: int, seconds: float, fps: float) -> dict[str,
     return out
 
 
+def cached_boxes(cache: str | None, scenes: dict, seed: int, seconds: float, fps: float, at: float) -> dict[str, list]:
+    """seen_boxes, kept in the folder ``cache`` (None: not kept) as one pickle per scene, seed, length, frame rate,
+    move time and cases, and read back from there when it exists."""
+    if cache is None:
+        return seen_boxes(scenes, seed, seconds, fps)
+    name = f"{next(iter(scenes.values())).name}_s{seed}_{seconds:g}s_{fps:g}fps_at{at:g}_{'+'.join(scenes)}.pickle"
+    path = Path(cache) / name.replace(" ", "").replace(",", "")
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(pickle.dumps(seen_boxes(scenes, seed, seconds, fps)))
+    return pickle.loads(path.read_bytes())
+
+
 def ground_grid() -> np.ndarray:
     """Ground points (N, 2) m at ranges 5-50 m, 16 bearings within the view."""
     r, b = np.meshgrid(np.linspace(5, 50, 10), np.radians(np.linspace(-35, 35, 15)))
@@ -101,11 +116,12 @@ def range_error(transformer: ViewTransformer, camera, ground: np.ndarray) -> flo
     return float(np.nanmedian(np.abs(np.hypot(*got.T) - true) / true)) * 100
 
 
-def run(scene, frames, fps, arl0):
+def run(scene, frames, fps, arl0, drift: bool = True):
     """The calibrator over the frames' boxes (``seen_boxes``) of the scene's camera as it moves (``Scene.camera_at``):
     moves, (t, estimate, true row) per person and the estimate at every frame (row)."""
     cam0 = scene.camera
-    cal = OnlineCalibrator(cam0.K, cam0.mount_height_m, fps, (cam0.width, cam0.height), *HEIGHT, arl0_people=arl0)
+    cal = OnlineCalibrator(cam0.K, cam0.mount_height_m, fps, (cam0.width, cam0.height), *HEIGHT, arl0_people=arl0,
+                           drift_test=drift)
     moves, track, rows = [], [], np.full(len(frames), np.nan)
     for frame, xyxy, ids in frames:
         t = frame / fps
@@ -143,9 +159,10 @@ def motion(pose, gt_dt: float) -> tuple[str, float | None]:
     return f"ramp {name} {x[-1]:+.3g} over {(reach - i + 1) * gt_dt:.3g} s", float(pose.t[i - 1])
 
 
-def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure: bool = True, roll: str = "no") -> dict:
+def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure: bool = True, roll: str = "no",
+                  drift: str = "yes") -> dict:
     """``homocal watch`` on a dataset's boxes of ``detector`` (its hand-placed trapezoid, camera.json, the camera's
-    true height, the people's own height prior, --estimate-roll ``roll``) into ``out``, measured against the dataset's true camera
+    true height, the people's own height prior, --estimate-roll ``roll``, --drift-test ``drift``) into ``out``, measured against the dataset's true camera
     (load_dataset's pose track): its motion and start (``motion``), the alarms before it (false: the static
     minutes), the first alarm after it on the side the horizon moved (the detection; none on a swaying camera:
     every alarm is false), the other alarms after it; with ``measure``, the horizon RMS (px) before the move and from the detection on (a
@@ -158,6 +175,7 @@ def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure:
                              "--detector", detector, "--fps", str(ds.manifest["fps"]), "--camera-json", str(dataset / "camera.json"),
                              "--camera-height", str(ds.camera.mount_height_m), "--height-mean", str(HEIGHT[0]),
                              "--height-sd", str(HEIGHT[1]), "--arl0-people", str(arl0), "--estimate-roll", roll,
+                             "--drift-test", drift,
                              "--out", str(out)])
     assert code == 0, f"homocal watch failed on {dataset} ({detector})"
     case, t_move = motion(ds.pose, ds.manifest["gt_dt"])
@@ -166,15 +184,15 @@ def watch_dataset(dataset: Path, detector: str, out: Path, arl0: float, measure:
     sway = case.startswith("sway")
     before = [a for a, _, _ in alarms if t_move is None or a < t_move or sway]
     after = [(a, side, test) for a, side, test in alarms if a not in before]
-    # the detection: the first alarm after the move's start of the row test on the side the horizon's row at the
-    # principal column moved (+1: down the image), or of the roll test on the side the roll moved (+1: the horizon
+    # the detection: the first alarm after the move's start of the row or drift test on the side the horizon's row at
+    # the principal column moved (+1: down the image), or of the roll test on the side the roll moved (+1: the horizon
     # down on the right, the roll smaller); any alarm when neither moved (a row by less than a pixel, a roll by
     # less than 0.1 degree: a yaw)
     rows = None if ds.pose is None else ds.pose.horizon_rows(ds.camera.K[0, 2])
     shift = 0.0 if rows is None else rows[-1] - rows[0]
     turn = 0.0 if ds.pose is None else ds.pose.roll_deg[-1] - ds.pose.roll_deg[0]
     found = [a for a, side, test in after if (abs(shift) < 1.0 and abs(turn) < 0.1) or (
-        side == np.sign(shift) if test == "row" else abs(turn) >= 0.1 and side == -np.sign(turn))]
+        side == np.sign(shift) if test != "roll" else abs(turn) >= 0.1 and side == -np.sign(turn))]
     result = {"case": case, "t_move": t_move, "seconds": seconds, "static_s": seconds if t_move is None else t_move,
               "false": len(before), "detected": found[0] if found else None, "later": len(after) - bool(found)}
     if not measure:
@@ -258,14 +276,14 @@ def datasets_main(args) -> None:
             print(f"\n{detector} boxes: false alarms on the static minutes by ARL0 (people)")
             for arl0 in [float(a) for a in args.arl0.split(",")]:
                 p = pooled([watch_dataset(d, detector, Path(args.work) / f"{d.name}_{detector}_{arl0:.0f}", arl0, False,
-                                          args.estimate_roll) for d in datasets])
+                                          args.estimate_roll, args.drift_test) for d in datasets])
                 print(f"  ARL0 {arl0:>9,.0f}: {p['false']} alarms in {p['static_minutes']:.1f} min = {p['false_per_hour']:.1f} per hour")
             continue
         print(f"\n{detector} boxes, --arl0-people {args.case_arl0:,.0f}:")
         results = []
         for dataset in datasets:
             r = watch_dataset(dataset, detector, Path(args.work) / f"{dataset.name}_{detector}", args.case_arl0,
-                              roll=args.estimate_roll)
+                              roll=args.estimate_roll, drift=args.drift_test)
             results.append(r)
             ranges = "; ".join("-" if x is None else f"{x[0]:.1f} -> {x[1]:.1f}" for x in r["ranges"])
             end = "-" if r["end"] is None else f"{r['end'][0]:.1f} -> {r['end'][1]:.1f}"
@@ -290,35 +308,39 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--scene", default="scene1")
     ap.add_argument("--seeds", type=int, default=6)
+    ap.add_argument("--first-seed", type=int, default=0, help="the seeds are this one and the next --seeds - 1")
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--fps", type=float, default=5.0)
     ap.add_argument("--at", type=float, default=300.0, help="the move's time, s")
     ap.add_argument("--arl0", default=f"2000,5000,{DEFAULT_ARL0_PEOPLE},100000", help="static: ARL0 values, people")
     ap.add_argument("--static-only", action="store_true", help="only the static streams' false alarms")
     ap.add_argument("--case-arl0", type=float, default=DEFAULT_ARL0_PEOPLE, help="the moving cases' ARL0, people")
+    ap.add_argument("--cache", metavar="DIR", help="keep the posed streams' boxes in DIR and read them back from there")
     ap.add_argument("--datasets", nargs="+", metavar="DIR", help="rendered simgen datasets instead (module docstring)")
     ap.add_argument("--detectors", default="segmentation,rgb", help="--datasets: the detectors whose boxes are watched")
     ap.add_argument("--work", default="watch-runs", help="--datasets: a folder for the homocal watch outputs (new)")
     ap.add_argument("--estimate-roll", choices=("yes", "no"), default="no", help="--datasets: homocal watch's --estimate-roll")
+    ap.add_argument("--drift-test", choices=("yes", "no"), default="yes", help="homocal watch's --drift-test")
     args = ap.parse_args()
     if args.datasets:
         return datasets_main(args)
     scene = load_scene(Path(__file__).resolve().parents[1] / "simgen" / "scenes" / args.scene)
-    cam0, seconds = scene.camera, args.minutes * 60
+    cam0, seconds, drift = scene.camera, args.minutes * 60, args.drift_test == "yes"
     clicked = ViewTransformer(cam0.project_ground(scene.trapezoid_ground), scene.trapezoid_ground)
     ground = ground_grid()
     t0 = time.time()
     moving = {name: dataclasses.replace(scene, moves=case(args.at)[0], sway=case(args.at)[1]) for name, case in CASES.items()}
     scenes = {"static": scene, **({} if args.static_only else moving)}
-    cached = [seen_boxes(scenes, seed, seconds, args.fps) for seed in range(args.seeds)]
+    cached = [cached_boxes(args.cache, scenes, seed, seconds, args.fps, args.at)
+              for seed in range(args.first_seed, args.first_seed + args.seeds)]
     hours = args.seeds * seconds / 3600
     people = sum(len(np.unique(np.concatenate([ids for _, _, ids in c["static"]]))) for c in cached)
-    print(f"{args.scene}: {args.seeds} seeds x {args.minutes:g} min at {args.fps:g} fps, {people:,} people in view "
+    print(f"{args.scene}: {args.seeds} seeds from {args.first_seed} x {args.minutes:g} min at {args.fps:g} fps, {people:,} people in view "
           f"(static camera), posed and seen in {time.time() - t0:.0f} s")
 
     print("\nstatic: false alarms per simulated hour by ARL0 (people)")
     for arl0 in [float(a) for a in args.arl0.split(",")]:
-        alarms = sum(len(run(scene, c["static"], args.fps, arl0)[0]) for c in cached)
+        alarms = sum(len(run(scene, c["static"], args.fps, arl0, drift)[0]) for c in cached)
         print(f"  ARL0 {arl0:>9,.0f}: {alarms} alarms in {hours:.2f} h = {alarms / hours:.2f} per hour")
     if args.static_only:
         return
@@ -328,7 +350,7 @@ def main() -> None:
     for name in CASES:
         delays, false, rms, errors = [], 0, [], []
         for c in cached:
-            moves, track, rows = run(moving[name], c[name], args.fps, args.case_arl0)
+            moves, track, rows = run(moving[name], c[name], args.fps, args.case_arl0, drift)
             sway = name.startswith("sway")
             false += len(moves) if sway else sum(m.detected_s < args.at for m in moves)
             after = [m.detected_s for m in moves if m.detected_s >= args.at]
@@ -361,7 +383,7 @@ def main() -> None:
         offset = int(k * seconds * args.fps)
         stream += [(frame + offset, xyxy, ids + 10**6 * k) for frame, xyxy, ids in c["static"]]
     def feed(watch_memory: bool) -> tuple[float, int, list, int]:
-        cal = OnlineCalibrator(cam0.K, cam0.mount_height_m, args.fps, (cam0.width, cam0.height), *HEIGHT)
+        cal = OnlineCalibrator(cam0.K, cam0.mount_height_m, args.fps, (cam0.width, cam0.height), *HEIGHT, drift_test=drift)
         start, boxes, peaks, hidden = time.perf_counter(), 0, [], 0
         for i, (frame, xyxy, ids) in enumerate(stream):
             hidden += cal.update(frame, xyxy, ids).hidden_boxes

@@ -3,11 +3,11 @@
 
 Per seed, --minutes at FPS, the camera steady or, at --at seconds, rolled by 1 or 2 degrees or tilted 1 degree
 further down (a step). Printed per case: the alarms before the move (false), the detection delay (s: the first
-alarm after the move of the test that sees it, the roll test for a roll and the row test for a tilt, on the side
+alarm after the move of a test that sees it, the roll test for a roll and the row or drift test for a tilt, on the side
 it moved) median and per seed, the missed moves, the people and their columns' interquartile range (px: the roll is
 fitted when it spans ROLL_SPREAD of the width) and the roll estimate at the end against the camera's.
 
-    python research/watch_roll.py --scene scene1 --seeds 3 --minutes 10
+    python research/watch_roll.py --scene scene1 --seeds 3 --minutes 10 [--drift-test no]
 """
 from __future__ import annotations
 
@@ -28,9 +28,9 @@ HEIGHT = (1.71, 0.09)  # simgen's people (data_schema.md), as research/watch.py'
 FPS = 5.0  # the stream's frame rate: research/watch.py's default
 CASES = {  # name: (the move at ``at`` s, the test that sees it, the side it moves: Move.direction)
     "steady": (lambda at: (), None, 0),
-    "roll 1 degree": (lambda at: (CameraMove(at, roll_deg=1.0),), "roll", -1),
-    "roll 2 degrees": (lambda at: (CameraMove(at, roll_deg=2.0),), "roll", -1),
-    "tilt 1 degree": (lambda at: (CameraMove(at, tilt_deg=1.0),), "row", -1),
+    "roll 1 degree": (lambda at: (CameraMove(at, roll_deg=1.0),), ("roll",), -1),
+    "roll 2 degrees": (lambda at: (CameraMove(at, roll_deg=2.0),), ("roll",), -1),
+    "tilt 1 degree": (lambda at: (CameraMove(at, tilt_deg=1.0),), ("row", "drift"), -1),
 }
 
 
@@ -40,6 +40,7 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--at", type=float, default=300.0, help="the move's time, s")
+    ap.add_argument("--drift-test", choices=("yes", "no"), default="yes", help="homocal watch's --drift-test")
     args = ap.parse_args()
     scene = load_scene(Path(__file__).resolve().parents[1] / "simgen" / "scenes" / args.scene)
     cam = scene.camera
@@ -50,7 +51,7 @@ def main() -> None:
         delays, false, lines = [], 0, []
         for seed in range(args.seeds):
             cal = OnlineCalibrator(cam.K, cam.mount_height_m, FPS, (cam.width, cam.height), *HEIGHT,
-                                   estimate_roll=True)
+                                   estimate_roll=True, drift_test=args.drift_test == "yes")
             columns, found, state = [], None, None
             for frame, xyxy, ids in box_stream(moving, seed, args.minutes * 60, FPS):
                 state = cal.update(frame, xyxy, ids)
@@ -58,7 +59,7 @@ def main() -> None:
                 m = state.move
                 if m and (test is None or m.detected_s < args.at):
                     false += 1
-                elif m and found is None and m.test == test and m.direction == side:
+                elif m and found is None and m.test in test and m.direction == side:
                     found = m.detected_s - args.at
             delays.append(found)
             iqr = np.subtract(*np.percentile(columns, [75, 25]))

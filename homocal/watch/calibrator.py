@@ -42,9 +42,12 @@ the person's leverage on the roll: the score of a roll change), with k = tan(ROL
 reference for a roll change of ROLL_REF_DEG; it runs with estimate_roll and rests (its statistics 0) while
 the roll is not fitted. The row
 test sees a change of v_0 (a tilt); the roll test a turn of the horizon about the principal column, which moves
-the people on either side oppositely and leaves the row test's mean unchanged. A move is declared when a
-one-sided statistic exceeds its h, where h gives a mean of 2 ``arl0_people`` people (with estimate_roll; else
-``arl0_people``, the row test alone) between false alarms of the test on a steady camera, by Siegmund's
+the people on either side oppositely and leaves the row test's mean unchanged. A third, the drift test
+(``homocal.watch.drift``), sees a move from the people already in view: each person's implied row along their
+walk. A move is declared when a
+one-sided statistic exceeds its h, where h gives a mean of (the tests run) x ``arl0_people`` people (the row
+test, the roll test with estimate_roll, the drift test unless drift_test=False; the drift test's converted to its
+residuals) between false alarms of the test on a steady camera, by Siegmund's
 approximation of a one-sided CUSUM's run length (Siegmund 1985, "Sequential analysis"; two sides: half of it):
 ARL0 = (exp(theta b) - theta b - 1) / (theta k) / 2, b = h + 1.166 sd (``cusum_threshold``), theta the
 increments' tilt, the root of E exp(theta (u - k)) = 1, and sd their root mean square: for normal increments of
@@ -58,14 +61,16 @@ heavy tail has a smaller tilt: the scale s, from the median absolute residual, d
 h would give a false alarm every fifth (at 200 people) or eighth (at 1,000) of ``arl0_people`` people on
 residuals of Student's t with 3 degrees of freedom (tests/watch/test_watch.py simulates it), as the rgb detector's
 boxes have (research/watch_residuals.py), and sooner on a heavier side (theirs: the horizon above the estimate,
-tilt 0.50 against 0.89 below). The two tests together then alarm every ``arl0_people``
-people (1 / ARL0 adds up over independent tests; the two share each person's |z|, which lengthens their
-joint run a little: tests/watch/test_watch.py simulates it). Each person is tested against the estimate of
+tilt 0.50 against 0.89 below). The tests together then alarm every ``arl0_people``
+people or a little less often (1 / ARL0 adds up over independent tests; a run from 0 must first climb, and the
+row and roll tests share each person's |z|, which lengthens their joint run: tests/watch/test_watch.py simulates
+it). Each person is tested against the estimate of
 the people before it, then joins it (a self-starting CUSUM, as Hawkins 1987). A person tells of a roll by
 tan(phi) w / sigma sd: a lateral offset X m at a person of height H under a camera h_c high gives about tan(phi)
 a X H / (h_c sd), 0.09 sd per metre of X per degree of roll on a 4 m camera (people 1.7 +- 0.09 m), against 1-3
 sd per degree of tilt: a roll takes many more people to notice than a tilt (docs/moving-camera.md measures it). At a move, the people since the alarming statistic's last 0 (its change point estimate) give
-the move's horizon after, and the new stretch (from that change point on) starts from their estimate; then
+the move's horizon after (the drift test's: the horizon before plus the step the people in view tell a block
+after its alarm, ``DriftTest.alarm``), and the new stretch (from that change point on) starts from their estimate; then
 every live track is re-armed: each person in view gives a new observation from their boxes after the
 detection, so the stretch fills at once from the people in view, not only from newcomers. The new stretch
 holds only such observations (re-armed or new people): the people before the detection are dropped from it,
@@ -74,8 +79,9 @@ step it is early or late by several people, so some of them saw the camera befor
 person's median is from whichever pose most of their boxes saw), while every box after the detection
 saw the moved camera (after a step; a ramp may go on); those still in view give their new observation anyway (one person, one observation),
 only those gone are lost. The test re-arms at MIN_PEOPLE people. Memory: the last WINDOW_PEOPLE people of the
-stretch and the live tracks of the last LINK_GAP frames (at most MAX_TRACKS, each at most PERSON_BOXES rows):
-bounded whatever the stream's length; work per box is constant (a move re-arms the live tracks once).
+stretch, the live tracks of the last LINK_GAP frames (at most MAX_TRACKS, each at most PERSON_BOXES rows) and the
+drift test's per live track (an open block and 19 numbers, homocal.watch.drift): bounded whatever the stream's
+length; work per box is constant (a move re-arms the live tracks once).
 
 A gap in the stream longer than LINK_GAP frames ends every track (a person seen again is a new person): a gap
 is a gap, the estimate and the test go on; a move during a gap is found from the people after it.
@@ -115,7 +121,7 @@ CUSUM_K = 0.5  # the CUSUM's reference value, sd: optimal for a shift of 2 k = 1
 DEFAULT_ARL0_PEOPLE = 20_000  # mean people between false alarms (about 14 h at scene1's 1,400 people an hour)
 CLIP = OUTLIER_SIGMAS  # sd: Huber's psi of the estimate and the test clips standardised residuals here
 MAX_TRACKS = 10_000  # live tracks with given ids at most (a stream naming more at once is refused)
-TESTS = ("row", "roll")  # the change tests (module docstring), each a two-sided CUSUM at len(TESTS) times arl0_people
+TESTS = ("row", "roll", "drift")  # the change tests (module docstring; drift: homocal.watch.drift), each a two-sided CUSUM at (tests run) times arl0_people
 ROLL_REF_DEG = 1.0  # degrees: the roll test's reference value is optimal for a roll change of this size
 
 
@@ -166,10 +172,21 @@ def tilt(x: np.ndarray, k: float) -> float:
     return 0.5 * (lo + hi)
 
 
+def side_threshold(arl0: float, k: float, x: np.ndarray | None = None) -> float:
+    """A one-sided CUSUM's h for a two-sided ARL0 of arl0 at reference k: the normal increments' (cusum_threshold),
+    or, where its increments x (n,) (about mean 0; None: none yet) have a tail heavier than the normal's (their tilt
+    below 2 k), the larger of that and the h at their tilt and root mean square (module docstring)."""
+    h = cusum_threshold(arl0, k)
+    theta = math.nan if x is None else tilt(x, k)
+    if theta < 2 * k:  # a lighter tail, or NaN, leaves the normal's h the larger
+        h = max(h, cusum_threshold(arl0, k, theta, float(np.sqrt(np.mean(x * x)))))
+    return h
+
+
 @dataclass(frozen=True)
 class Move:
     """A detected move: t_s the change point estimate (the first person of the new stretch), detected_s when
-    the test fired, the horizon row before and after (px, at the principal column) with their 1-sigma, the
+    the test fired (the drift test: when the step it alarmed on was measured, a block or two later), the horizon row before and after (px, at the principal column) with their 1-sigma, the
     CUSUM statistic and threshold at the alarm, direction +1 (the horizon went down the image; for the roll
     test: on the image's right side) or -1, n_before the people of the estimate before; test, the test that
     fired (one of TESTS); the roll before and after (degrees, camera.json's sign) with their 1-sigma (0 and NaN
@@ -209,7 +226,8 @@ class State:
     roll_threshold: the roll test's statistics and threshold (the larger of its sides'; NaN as the row's, and
     while the roll is not fitted).
     person_z: each person's standardised residual z against the estimate before it (module docstring, Change
-    tests; NaN while the stretch has fewer than MIN_PEOPLE)."""
+    tests; NaN while the stretch has fewer than MIN_PEOPLE). cusum_drift_up, cusum_drift_down, drift_threshold: the
+    drift test's (homocal.watch.drift; NaN as the row's, and while it has too few residuals)."""
 
     t_s: float
     stretch_start_s: float
@@ -230,6 +248,9 @@ class State:
     cusum_roll_down: float = math.nan
     roll_threshold: float = math.nan
     person_z: tuple = ()
+    cusum_drift_up: float = math.nan
+    cusum_drift_down: float = math.nan
+    drift_threshold: float = math.nan
 
 
 def implied_line_terms(boxes: np.ndarray, K: np.ndarray, camera_height_m: float, height_m: float, roll: bool = True):
@@ -315,11 +336,14 @@ class OnlineCalibrator:
             otherwise, Lens.check_matches): update takes the camera's
             pixels, tests the border there (PedestrianCorrector.fit(lens=)'s rule) and then undistorts the boxes
             (undistort_boxes); the horizon rows are then the undistorted image's. None: a pinhole.
+        drift_test: run the drift test (homocal.watch.drift: the people already in view; default True) with
+            the row test, each at its share of arl0_people; False: the row test (and the roll's) alone.
     """
 
     def __init__(self, K, camera_height_m: float, fps: float, image_size: tuple[int, int] | None = None,
                  height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
-                 arl0_people: float = DEFAULT_ARL0_PEOPLE, lens: Lens | None = None, estimate_roll: bool = False) -> None:
+                 arl0_people: float = DEFAULT_ARL0_PEOPLE, lens: Lens | None = None, estimate_roll: bool = False,
+                 drift_test: bool = True) -> None:
         self.estimate_roll = PedestrianCorrector(height_mean_m, height_sd_m, estimate_roll=estimate_roll).estimate_roll
         K = intrinsics(None, None, K)
         if not (isinstance(camera_height_m, (int, float)) and 0 < camera_height_m <= 100):
@@ -328,10 +352,13 @@ class OnlineCalibrator:
             raise ValueError(f"fps must be in (0, {MAX_FPS:g}], got {fps!r}")
         if not (isinstance(arl0_people, (int, float)) and 10 <= arl0_people <= 1e9):
             raise ValueError(f"arl0_people must be in [10, 1e9] people, got {arl0_people!r}")
+        if not isinstance(drift_test, bool):
+            raise ValueError(f"drift_test must be True or False, got {drift_test!r}")
         self.K, self.camera_height_m, self.fps, self.image_size = K, float(camera_height_m), float(fps), image_size
         self.lens = None if lens is None else lens.check_matches(K, image_size)
         self.height_mean_m, self.height_sd_m = float(height_mean_m), float(height_sd_m)
-        self._tests = len(TESTS) if self.estimate_roll else 1  # the tests run: each at this many times arl0_people
+        self.drift_test = drift_test
+        self._tests = 1 + self.estimate_roll + drift_test  # the tests run (TESTS): each at this many times arl0_people
         self.arl0_people, self.threshold = float(arl0_people), cusum_threshold(self._tests * arl0_people)
         self._roll_width = ROLL_SPREAD * image_size[0] if self.estimate_roll and image_size is not None else None
         self._linker = TrackLinker(max_gap=LINK_GAP)
@@ -344,6 +371,8 @@ class OnlineCalibrator:
         self.estimate = NO_LINE
         self._h = [self.threshold] * 2 + [math.nan] * 2  # each one-sided statistic's threshold (_threshold)
         self.n_people = 0  # the people behind the estimate
+        from homocal.watch.drift import DriftTest  # it builds on this module
+        self._drift = DriftTest(K, self.camera_height_m, self.fps, self.height_mean_m, self.height_sd_m) if drift_test else None
 
     # ---- boxes -> people ------------------------------------------------------------------------
     def update(self, frame: int, boxes: np.ndarray, track_ids: np.ndarray | None = None) -> State:
@@ -369,17 +398,19 @@ class OnlineCalibrator:
         for key in ids.tolist():  # every box keeps its track alive; only tracks yet to give a person are measured
             tracks.setdefault(key, [frame, [], [], [], []])[0] = frame
         todo = np.array([i for i, key in enumerate(ids.tolist()) if tracks[key][1] is not None], dtype=np.int64)
-        try:  # only the boxes still measured: a track's later boxes are skipped, undistorted or not
-            b = boxes[todo] if self.lens is None else undistort_boxes(boxes[todo], self.lens)
+        try:
+            undistorted = boxes if self.lens is None else undistort_boxes(boxes, self.lens)
         except ValueError as e:
             raise ValueError(f"frame {frame}: {e}") from None
+        b = undistorted[todo]  # only the boxes still measured: a track's later boxes are skipped
         rows, slope, ws, columns = implied_line_terms(b, self.K, self.camera_height_m, self.height_mean_m,
                                                       self.estimate_roll)
         sigmas = np.abs(slope) * np.hypot(self.height_sd_m, self.height_mean_m * BOX_SIGMA_PX / (b[:, 3] - b[:, 1]))
         usable = np.isfinite(rows) & np.isfinite(sigmas) & (sigmas > 0) & (np.isfinite(ws) | (not self.estimate_roll))
         if self.image_size is not None:  # cut by the frame: in the camera's pixels
             usable &= ~on_border(boxes[todo], self.image_size)
-        hidden = hidden_feet(boxes, np.zeros(len(boxes), np.int64))[todo] if todo.size else np.zeros(0, bool)
+        hidden_all = hidden_feet(boxes, np.zeros(len(boxes), np.int64))
+        hidden = hidden_all[todo]
         usable &= ~hidden
         people = []
         for i in np.flatnonzero(usable):
@@ -397,7 +428,10 @@ class OnlineCalibrator:
         if len(self._tracks) > MAX_TRACKS:
             raise ValueError(f"frame {frame}: more than {MAX_TRACKS} people (tracks) at once")
         move, observed, zs = None, [], []
-        for person in people:
+        if self._drift is not None:
+            move = self._drift_update(t, frame, ids, undistorted, ~hidden_all if self.image_size is None else
+                                      ~hidden_all & ~on_border(boxes, self.image_size), len(people))
+        for person in people if move is None else ():
             observed.append(person)
             move, z = self._observe(person)
             zs.append(z)
@@ -407,12 +441,36 @@ class OnlineCalibrator:
         armed = len(self._people) >= MIN_PEOPLE
         stats = self._cusum if armed else [math.nan] * len(self._cusum)
         h = [max(self._h[:2]), max(self._h[2:])]  # each test's: the larger of its sides'
-        roll = stats[2:] + [h[1]] if armed and math.isfinite(h[1]) else [math.nan] * 3
+        roll = stats[2:4] + [h[1]] if armed and math.isfinite(h[1]) else [math.nan] * 3
+        drift_h = math.nan if self._drift is None else max(self._drift.h)
+        drift = stats[4:] + [drift_h] if armed and math.isfinite(drift_h) else [math.nan] * 3
         cx = float(self.K[0, 2])
         return State(t, self.stretch_start_s, line.row, line.sigma, self.n_people, *stats[:2],
                      h[0] if armed else math.nan, move, tuple(p[1] for p in observed),
                      tuple(p[2] for p in observed), int(hidden.sum()), tuple(cx + p[4] for p in observed),
-                     line.roll_deg, line.roll_sigma_deg, *roll, tuple(zs))
+                     line.roll_deg, line.roll_sigma_deg, *roll, tuple(zs), *drift)
+
+    def _drift_update(self, t: float, frame: int, ids: np.ndarray, boxes: np.ndarray, usable: np.ndarray,
+                      people: int) -> Move | None:
+        """The drift test on the frame's boxes (undistorted; usable (N,) bool) at its share of the budget, armed with
+        the row test, and its move once its alarm's step is measured (homocal.watch.drift)."""
+        drift = self._drift
+        drift.people += people
+        armed = len(self._people) >= MIN_PEOPLE
+        drift.update(t, frame, ids, boxes, usable,
+                     self._tests * self.arl0_people * drift.residuals / max(drift.people, 1) if armed else None)
+        self._cusum[4:] = drift.cusum
+        if drift.alarm is None:
+            return None
+        i, shift, sigma = drift.alarm
+        self._since_zero[4 + i] = max(1, sum(p[0] >= drift.since_zero_s[i] for p in self._people))  # one at least
+        move = self._move(4 + i, t, tuple(self._h) + tuple(drift.h))
+        if not math.isfinite(shift):  # no one in view told the step: the people since the change point do
+            return move
+        # the horizon after: the people in view's step (the people since the change point may be few, or one)
+        row, sigma = move.horizon_before + shift, math.hypot(move.sigma_before, sigma)
+        self.estimate = dataclasses.replace(self.estimate, row=row, tan_roll=0.0, cov=np.diag([sigma ** 2, math.nan]))
+        return dataclasses.replace(move, horizon_after=row, sigma_after=sigma)
 
     # ---- people -> estimate and test ------------------------------------------------------------
     def _observe(self, person: tuple) -> tuple[Move | None, float]:
@@ -440,7 +498,7 @@ class OnlineCalibrator:
         line = self.estimate = robust_line(people, self._roll_width)
         self.n_people = len(people)
         if not (math.isfinite(line.roll_rms) and line.roll_rms > 0):  # the roll not fitted: its test rests
-            self._cusum[2:], self._since_zero[2:] = [0.0, 0.0], [0, 0]
+            self._cusum[2:4], self._since_zero[2:4] = [0.0, 0.0], [0, 0]
         for i in range(len(self._h)):
             if self._cusum[i] == 0.0:  # held while the statistic climbs
                 self._h[i] = self._threshold(i)
@@ -454,13 +512,8 @@ class OnlineCalibrator:
         k = CUSUM_K if test == 0 else line.roll_k
         if not math.isfinite(k):
             return math.nan
-        h = self.threshold if test == 0 else cusum_threshold(self._tests * self.arl0_people, k)
-        if line.increments is not None:
-            x = sign * (line.increments[:, test] - line.increments[:, test].mean())
-            theta = tilt(x, k)
-            if theta < 2 * k:  # a tail heavier than the normal's (a lighter one, or NaN, leaves the normal's h the larger)
-                h = max(h, cusum_threshold(self._tests * self.arl0_people, k, theta, float(np.sqrt(np.mean(x * x)))))
-        return h
+        x = None if line.increments is None else sign * (line.increments[:, test] - line.increments[:, test].mean())
+        return side_threshold(self._tests * self.arl0_people, k, x)
 
     def _move(self, i: int, now: float, thresholds: tuple) -> Move:
         """Split the stretch at the alarming statistic's (i) last 0, whose people give the new stretch's first
@@ -477,6 +530,8 @@ class OnlineCalibrator:
         self._since_zero, self._cusum = [0] * len(self._cusum), [0.0] * len(self._cusum)
         self.stretch_start_s, self.estimate, self.n_people = people[start][0], after, len(people) - start
         self._h = [self.threshold] * 2 + [math.nan] * 2  # re-armed at MIN_PEOPLE people (thresholds then)
+        if self._drift is not None:
+            self._drift.rearm()
         return move
 
     # ---- corrections ---------------------------------------------------------------------------

@@ -27,7 +27,7 @@ from homocal.correctors.cli import add_pedestrian_flags, pedestrian_flag_error
 from homocal.files import create_temporary, output_folder, write_json_atomic
 from homocal.geometry import ViewTransformer, read_trapezoid_file
 from homocal.geometry.boxes import MAX_BOXES_PER_FRAME, box_edges
-from homocal.study.options import OptionError
+from homocal.study.options import Option, OptionError, YesNo, flag_type
 from homocal.watch.calibrator import (
     DEFAULT_ARL0_PEOPLE,
     MIN_PEOPLE,
@@ -40,11 +40,14 @@ from homocal.watch.folder import MARKER, TOOL
 
 PRIOR = ("height_mean_m", "height_sd_m", "estimate_roll")  # the people's height prior and the roll: with camera_height_m, watch's pedestrian settings
 WATCH_SETTINGS = ("camera_height_m", *PRIOR)  # the pedestrian settings (PEDESTRIAN_SETTINGS) homocal watch takes
+DRIFT_TEST = Option("--drift-test", YesNo(), "also test for a move from the people already in view, each one's "
+                    "implied horizon along their walk (homocal.watch.drift), sharing --arl0-people with the row test",
+                    metavar="{yes,no}")  # OnlineCalibrator's drift_test
 ROW_GROUP = 4096  # horizon.parquet rows held before they are written
 MAX_MOVES = 10_000  # moves (and stretches) one run records at most: past it the run stops
 HORIZON_COLUMNS = ("t_s", "person_row_px", "person_sigma_px", "horizon_row_px", "horizon_sigma_px", "n_people",
                    "stretch_start_s", "cusum_up", "cusum_down", "threshold", "person_column_px", "roll_deg",
-                   "roll_sigma_deg", "cusum_roll_up", "cusum_roll_down")
+                   "roll_sigma_deg", "cusum_roll_up", "cusum_roll_down", "cusum_drift_up", "cusum_drift_down")
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -52,8 +55,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "watch", help="watch a camera for moves from people's boxes, with a correction per stretch",
         description="Read people's boxes in time order, keep the camera's horizon estimated from them, detect "
-                    "moves (a two-sided CUSUM, with --estimate-roll yes one on the row and one on the roll, whose "
-                    "false-alarm rate together is --arl0-people) and write a correction per stretch between moves "
+                    "moves (two-sided CUSUMs: one on the row, with --estimate-roll yes one on the roll, with --drift-test "
+                    "yes one on the people in view, whose false-alarm rate together is --arl0-people) and write a correction per stretch between moves "
                     "(docs/moving-camera.md).")
     p.add_argument("--trapezoid", required=True, type=Path, metavar="TRAP.json", help="the clicked trapezoid (as homocal fit's)")
     p.add_argument("--boxes", required=True, metavar="BOXES", help="a MOT .txt, a detections.parquet (--detector), a "
@@ -69,6 +72,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--arl0-people", type=number(float, 10, 1e9), default=DEFAULT_ARL0_PEOPLE, metavar="N",
                    help="mean number of people between false alarms on a steady camera (default %(default)g; "
                         "the CUSUM thresholds follow)")
+    p.add_argument(DRIFT_TEST.flag, type=flag_type(DRIFT_TEST), default=True, metavar=DRIFT_TEST.metavar,
+                   help=f"{DRIFT_TEST.help}: {DRIFT_TEST.expected()} (default: yes)")
     p.add_argument("--camera-origin", type=xy_pair, default=(0.0, 0.0), metavar="X,Y",
                    help="ground point under the camera, metres (default 0,0)")
     p.add_argument("-o", "--out", required=True, type=Path, metavar="DIR", help="a new output folder")
@@ -92,13 +97,14 @@ def handle_watch(args: argparse.Namespace) -> int:
     K, height = camera_of(transformer, size, K, args.camera_height_m)
     prior = {name: getattr(args, name) for name in PRIOR if getattr(args, name) is not None}
     try:
-        calibrator = OnlineCalibrator(K, height, fps, size, **prior, arl0_people=args.arl0_people, lens=lens)
+        calibrator = OnlineCalibrator(K, height, fps, size, **prior, arl0_people=args.arl0_people, lens=lens,
+                                      drift_test=args.drift_test)
     except OptionError as e:
         raise pedestrian_flag_error(e) from None
     settings = {"format": TOOL, "boxes": str(args.boxes), "detector": args.detector, "fps": fps,
                 "camera_height_m": height, "K": K.tolist(), "image_size": None if size is None else list(size),
                 "height_mean_m": calibrator.height_mean_m, "height_sd_m": calibrator.height_sd_m,
-                "estimate_roll": calibrator.estimate_roll, "arl0_people": args.arl0_people, "threshold": calibrator.threshold}
+                "estimate_roll": calibrator.estimate_roll, "drift_test": args.drift_test, "arl0_people": args.arl0_people, "threshold": calibrator.threshold}
     with output_folder(args.out, TOOL, resume=False, marker=MARKER, resumable=False) as folder:
         write_json_atomic(folder.marker, {**settings, "ended": None})
         (folder.path / "corrections").mkdir()
@@ -167,7 +173,8 @@ class _Run:
             self.people += 1
             self.rows.append((state.t_s, row, sigma, state.horizon_row, state.horizon_sigma_px, state.n_people,
                               state.stretch_start_s, state.cusum_up, state.cusum_down, state.threshold, column,
-                              state.roll_deg, state.roll_sigma_deg, state.cusum_roll_up, state.cusum_roll_down))
+                              state.roll_deg, state.roll_sigma_deg, state.cusum_roll_up, state.cusum_roll_down,
+                              state.cusum_drift_up, state.cusum_drift_down))
         if state.person_rows and state.n_people % MIN_PEOPLE == 0:
             self._save(state.stretch_start_s, state.horizon_row, state.horizon_sigma_px, state.roll_deg,
                        state.roll_sigma_deg, state.n_people)
