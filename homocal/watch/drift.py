@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -96,6 +97,46 @@ def block_residual(sums: np.ndarray, m: float, x: float, g: float, prior: float)
     return e
 
 
+@dataclass
+class _Track:
+    """A live track's state: bounded (an open block and 19 numbers)."""
+
+    last_frame: int
+    block_start_s: float
+    last_block_at: int  # DriftTest.residuals when its last block closed
+    block: list = field(default_factory=list)  # the open block's (m, x, g), at most MAX_BLOCK_BOXES
+    sums: np.ndarray = field(default_factory=lambda: np.zeros(6))  # the fit of its closed blocks (block_residual)
+    sums_at_zero: np.ndarray = field(default_factory=lambda: np.zeros((2, 6)))  # sums as at each side's last 0
+
+    def keep_sums_before(self, side: int, zero: int) -> None:
+        """Hold the fit as the side's change point estimate sees it, if every block so far is before its last 0."""
+        if self.last_block_at <= zero:
+            self.sums_at_zero[side] = self.sums
+
+
+@dataclass
+class _Alarm:
+    """A side's alarm at t_s while its step is measured: the people's weighted prediction errors' sums."""
+
+    side: int
+    t_s: float
+    w: float = 0.0
+    wr: float = 0.0
+    wrr: float = 0.0
+    people: int = 0
+
+    def add(self, r: float, w: float) -> None:
+        self.w, self.wr, self.wrr, self.people = self.w + w, self.wr + w * r, self.wrr + w * r * r, self.people + 1
+
+    def step(self) -> tuple[int, float, float]:
+        """(side, the step px: the weighted mean, its sigma widened by Birge's ratio where above 1); NaN for none."""
+        if not self.people:
+            return self.side, math.nan, math.nan
+        step = self.wr / self.w
+        birge = (self.wrr - step * self.wr) / (self.people - 1) if self.people > 1 else 1.0
+        return self.side, step, math.sqrt(max(1.0, birge) / self.w)
+
+
 class DriftTest:
     """The within-person change test (module docstring) of a stream at fps frames per second, under a camera of
     intrinsics K (3, 3) camera_height_m high, people's heights height_mean_m +- height_sd_m (the calibrator's)."""
@@ -105,9 +146,7 @@ class DriftTest:
         self.K, self.camera_height_m, self.height_mean_m = K, camera_height_m, height_mean_m
         self.fps, self.block_s, self.height_sd_m = float(fps), float(block_s), float(height_sd_m)
         self._least = max(1, math.ceil(block_s * fps / 2))  # boxes a block needs
-        # id -> [last frame, block start t, open block [(m, x, g)], fit sums (6,), each side's sums at its last 0
-        # (2, 6), its last block's place (self.residuals then)]
-        self._tracks: dict[int, list] = {}
+        self._tracks: dict[int, _Track] = {}
         self.window: deque = deque(maxlen=WINDOW)  # the last residuals e (units of s)
         self.residuals = self.people = 0  # the stream's residuals and people (the budget's conversion)
         self.rearm()
@@ -119,7 +158,7 @@ class DriftTest:
         self._set = [-REFRESH, -REFRESH]  # self.residuals when each h was last set
         self.since_zero_s = [math.nan, math.nan]  # the time each side last left 0
         self._zero = [self.residuals] * 2  # self.residuals when each side was last 0
-        self._alarm: list | None = None  # [side, t_a, sums of w, w r, w r^2, people] while the step is measured
+        self._alarm: _Alarm | None = None  # while the step is measured
         self.alarm: tuple[int, float, float] | None = None  # (side, step px, its sigma) once measured
 
     @property
@@ -143,59 +182,56 @@ class DriftTest:
         ok = usable & np.isfinite(rows) & np.isfinite(slopes) & np.isfinite(gains) & (gains > 0)
         for i in np.flatnonzero(ok):
             key = int(ids[i])
-            track = self._tracks.setdefault(key, [frame, t, [], np.zeros(6), np.zeros((2, 6)), self.residuals])
-            if t - track[1] >= self.block_s or len(track[2]) >= MAX_BLOCK_BOXES:
+            track = self._tracks.setdefault(key, _Track(frame, t, self.residuals))
+            if t - track.block_start_s >= self.block_s or len(track.block) >= MAX_BLOCK_BOXES:
                 if self._alarm is None:
-                    for side in (0, 1):  # its blocks so far are all before the side's last 0
-                        if track[5] <= self._zero[side]:
-                            track[4][side] = track[3]
+                    for side in (0, 1):
+                        track.keep_sums_before(side, self._zero[side])
                     rq = self._close(track)
                     if rq is not None:
                         out.append((key, *rq))
                     closed.append(track)
-                elif track[4][self._alarm[0]][5]:  # the step: its first block after the alarm, once
+                elif self._told(track):  # the step: its first block after the alarm, once
                     self._measure(track)
-                track[1], track[2] = t, []
-            track[0] = frame
-            track[2].append((rows[i], slopes[i], gains[i]))
-        for key in [k for k, v in self._tracks.items() if frame - v[0] > self.fps * self.block_s]:
+                track.block_start_s, track.block = t, []
+            track.last_frame = frame
+            track.block.append((rows[i], slopes[i], gains[i]))
+        for key in [k for k, v in self._tracks.items() if frame - v.last_frame > self.fps * self.block_s]:
             del self._tracks[key]  # gone (or hidden) for a block's time
         for _, r, q in out:
             self._step(t, r, q, arl0)
         for track in closed:
-            track[5] = self.residuals
+            track.last_block_at = self.residuals
         if self._alarm is None:
             over = [i for i in (0, 1) if self.cusum[i] > self.h[i]]
             if over:  # every track's next block starts after the alarm
-                side = max(over, key=lambda i: self.cusum[i] / self.h[i])
-                self._alarm = [side, t, 0.0, 0.0, 0.0, 0]
+                self._alarm = _Alarm(max(over, key=lambda i: self.cusum[i] / self.h[i]), t)
                 for track in self._tracks.values():
-                    if track[5] <= self._zero[side]:
-                        track[4][side] = track[3]
-                    track[1], track[2] = t, []
-        elif self.alarm is None and (t - self._alarm[1] >= 2 * self.block_s or not any(
-                track[4][self._alarm[0]][5] for track in self._tracks.values())):
-            side, _, w, wr, wrr, n = self._alarm
-            step = wr / w if n else math.nan
-            birge = (wrr - step * wr) / (n - 1) if n > 1 else 1.0
-            self.alarm = (side, step, math.sqrt(max(1.0, birge) / w) if n else math.nan)
+                    track.keep_sums_before(self._alarm.side, self._zero[self._alarm.side])
+                    track.block_start_s, track.block = t, []
+        elif self.alarm is None and (t - self._alarm.t_s >= 2 * self.block_s
+                                     or not any(self._told(track) for track in self._tracks.values())):
+            self.alarm = self._alarm.step()
         return [(key, r / q) for key, r, q in out]
 
-    def _close(self, track: list) -> tuple[float, float] | None:
-        """Close the track's open block (None for a block too thin): ``block_residual`` of its medians."""
-        if len(track[2]) < self._least:
-            return None
-        return block_residual(track[3], *np.median(np.array(track[2]), axis=0), (self.scale / self.height_sd_m) ** 2)
+    def _told(self, track: _Track) -> bool:
+        """Whether the track has yet to tell the alarm's step: it has blocks before the change point estimate."""
+        return bool(track.sums_at_zero[self._alarm.side][5])
 
-    def _measure(self, track: list) -> None:
+    def _close(self, track: _Track) -> tuple[float, float] | None:
+        """Close the track's open block (None for a block too thin): ``block_residual`` of its medians."""
+        if len(track.block) < self._least:
+            return None
+        return block_residual(track.sums, *np.median(np.array(track.block), axis=0), (self.scale / self.height_sd_m) ** 2)
+
+    def _measure(self, track: _Track) -> None:
         """The step from the track's first block after the alarm: its prediction error r against its blocks
         before the alarming side's last 0 (the fit's sums then, left unchanged), weight 1 / (spread q)^2."""
-        base = track[4][self._alarm[0]]
-        if len(track[2]) < self._least:
+        base = track.sums_at_zero[self._alarm.side]
+        if len(track.block) < self._least:
             return
-        rq = block_residual(base.copy(), *np.median(np.array(track[2]), axis=0), (self.scale / self.height_sd_m) ** 2)
-        r, w = rq[0], 1 / (self.spread * rq[1]) ** 2
-        self._alarm[2:] = [self._alarm[2] + w, self._alarm[3] + w * r, self._alarm[4] + w * r * r, self._alarm[5] + 1]
+        r, q = block_residual(base.copy(), *np.median(np.array(track.block), axis=0), (self.scale / self.height_sd_m) ** 2)
+        self._alarm.add(r, 1 / (self.spread * q) ** 2)
         base[:] = 0.0  # once
 
     def _step(self, t: float, r: float, q: float, arl0: float | None) -> None:
