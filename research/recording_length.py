@@ -2,15 +2,15 @@
 from render-free boxes: who walked by, with nothing else in the way.
 
     python research/recording_length.py --seeds 20 --seconds 10,30,60,120 [--scene scene3|FOLDER] [--fps 20]
-        [--drop-hidden-feet yes|no|auto]
+        [--drop-hidden-feet yes|no|auto] [--height-mean M] [--height-sd M]
 
 Per seed (simgen's walkers as `simgen generate SCENE --seed S` places them), one stream of the longest length of
 render-free boxes (simgen.boxstream.box_stream: each body's geoms seen by the scene's camera, people hiding people;
 no props hiding people, no detector noise or misses: a best case of the segmentation detector), and for each
 length its first S seconds. box_stream's boxes are the camera's pixels through its lens (the outline points
 distorted, simgen.truth), so the fit is given the lens, as `homocal fit --camera-json` gives it a dataset's. Each
-box's track is its person's agent id. The fit: PedestrianCorrector(1.71, 0.09, estimate_roll=True) with
---drop-hidden-feet (default: the library's), the camera's K, lens and height given, the scene's hand-placed trapezoid as the clicked
+box's track is its person's agent id. The fit: PedestrianCorrector(1.71, 0.09, estimate_roll=True) (or --height-mean,
+--height-sd) with --drop-hidden-feet (default: the library's), the camera's K, lens and height given, the scene's hand-placed trapezoid as the clicked
 one (research/scene3_pedestrians.py's fit of a rendered recording). Its figures: the horizon line's RMS against the
 camera's (scene3_pedestrians.horizon_rms) and the median relative range error at 5-50 m
 (scene3_pedestrians.median_range_error) of the walkers' foot points in frame, once a second. The target: both
@@ -52,15 +52,15 @@ def stream(scene, seed: int, seconds: float, fps: float) -> dict:
             "feet_t": np.concatenate([np.full(len(xy), t) for t, xy in states])}
 
 
-def fit(scene, data: dict, seconds: float, fps: float, drop_hidden_feet) -> dict:
-    """The figures of the fit on the first seconds of a stream (the module docstring; drop_hidden_feet:
-    PedestrianCorrector's); {"refused": message} if PedestrianCorrector.fit refuses the boxes."""
+def fit(scene, data: dict, seconds: float, fps: float, drop_hidden_feet, height: tuple[float, float] = HEIGHT) -> dict:
+    """The figures of the fit on the first seconds of a stream (the module docstring; drop_hidden_feet and the prior
+    height (mean, sd) m: PedestrianCorrector's); {"refused": message} if PedestrianCorrector.fit refuses the boxes."""
     cam, lens = scene.camera, scene.camera.lens
     clicked = ViewTransformer(lens.undistort_points(scene.hand_placed_image),
                               scene.site_map.to_metres(scene.hand_placed_map))
     first = data["frames"] < seconds * fps
     try:
-        c = PedestrianCorrector(*HEIGHT, estimate_roll=True, drop_hidden_feet=drop_hidden_feet).fit(
+        c = PedestrianCorrector(*height, estimate_roll=True, drop_hidden_feet=drop_hidden_feet).fit(
             clicked, data["boxes"][first], convention="homocal", frames=data["frames"][first],
             track_ids=data["ids"][first], camera_height_m=cam.mount_height_m, K=cam.K,
             image_size=(cam.width, cam.height), lens=lens)
@@ -87,7 +87,12 @@ def main(argv: list[str] | None = None) -> None:
     drop = SETTINGS["drop_hidden_feet"]
     ap.add_argument(drop.flag, type=flag_type(drop), default=PedestrianCorrector().drop_hidden_feet, metavar=drop.metavar,
                     help=drop.help)
+    for name, what, default in zip(("height_mean_m", "height_sd_m"), ("mean height", "heights' spread"), HEIGHT):
+        option = SETTINGS[name]
+        ap.add_argument(option.flag, type=flag_type(option), default=default, metavar=option.metavar,
+                        help=f"the prior's {what}, m (default {default:g}: simgen's people)")
     args = ap.parse_args(argv)
+    height = (args.height_mean, args.height_sd)
     lengths = sorted(float(s) for s in args.seconds.split(","))
     for flag, ok, bound in (("--seeds", 1 <= args.seeds <= 1000, "1-1000"),
                             ("--seconds", 0 < lengths[0] and lengths[-1] <= MAX_SECONDS, f"in (0, {MAX_SECONDS:g}]"),
@@ -100,13 +105,13 @@ def main(argv: list[str] | None = None) -> None:
     for seed in range(args.seeds):
         data = stream(scene, seed, lengths[-1], args.fps)
         for s in lengths:
-            e = fit(scene, data, s, args.fps, args.drop_hidden_feet)
+            e = fit(scene, data, s, args.fps, args.drop_hidden_feet, height)
             results[s].append(e)
             print(f"seed {seed}, {s:g} s: " + (f"refused: {e['refused']}" if "refused" in e else
                   f"{e['people']} people (hidden feet {e['hidden_feet']}), roll {e['roll_deg']:.2f} deg, horizon "
                   f"{e['horizon_px']:.2f} px, range {e['range_pct']:.2f} % ({e['points']} foot points)"), flush=True)
-    print(f"\n{args.scene}, seeds 0-{args.seeds - 1}, render-free boxes at {args.fps:g} fps, prior {HEIGHT[0]:g} m, "
-          f"{HEIGHT[1]:g} m, --drop-hidden-feet {SETTINGS['drop_hidden_feet'].to_text(args.drop_hidden_feet)}; target: horizon <= {TARGET[0]:g} px and range <= {TARGET[1]:g} %")
+    print(f"\n{args.scene}, seeds 0-{args.seeds - 1}, render-free boxes at {args.fps:g} fps, prior {height[0]:g} m, "
+          f"{height[1]:g} m, --drop-hidden-feet {SETTINGS['drop_hidden_feet'].to_text(args.drop_hidden_feet)}; target: horizon <= {TARGET[0]:g} px and range <= {TARGET[1]:g} %")
     for s, es in results.items():
         fitted = [e for e in es if "refused" not in e]
         h, r, roll = (np.array([e[k] for e in fitted]) for k in ("horizon_px", "range_pct", "roll_deg"))

@@ -8,7 +8,8 @@ import pytest
 SCRIPT = Path(__file__).resolve().parents[2] / "research" / "recording_length.py"
 
 
-@pytest.mark.parametrize("args", [["--seeds", "0"], ["--seconds", "10,601"], ["--fps", "61"], ["--drop-hidden-feet", "maybe"]])
+@pytest.mark.parametrize("args", [["--seeds", "0"], ["--seconds", "10,601"], ["--fps", "61"], ["--drop-hidden-feet", "maybe"],
+                                  ["--height-mean", "3"], ["--height-sd", "nan"]])
 def test_bounds_refused(args):
     done = subprocess.run([sys.executable, str(SCRIPT), *args], capture_output=True, text=True, timeout=60)
     assert done.returncode == 2 and done.stdout == "" and done.stderr.count("error:") == 1, done.stderr
