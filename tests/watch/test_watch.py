@@ -506,6 +506,10 @@ def test_boxes_that_are_not_people_get_no_correction(tmp_path, capsys, monkeypat
         if refused:
             assert r.stderr.count("\n") == 1 and "line 2: t = 20 s has no correction in out_True" in r.stderr
             assert "people are outliers (implied height beyond 3 sd of 1.7 m at the horizon row" in written["refused"]
+            (tmp_path / out / "corrections/0.00.json").write_text(json.dumps({**written, "refused": 5}))  # not ours
+            r = homocal_main("apply", out, "--at", "20", "--points", "feet.csv", "-o", f"{out}.csv", cwd=tmp_path,
+                             capsys=capsys, monkeypatch=monkeypatch)
+            assert r.returncode == 2 and "0.00.json: field refused: expected text" in r.stderr, r.stderr
 
 
 def test_watch_with_the_roll_writes_it_and_apply_uses_it(tmp_path, capsys, monkeypatch):
