@@ -279,6 +279,11 @@ def handle_apply(args: argparse.Namespace) -> int:
             raise ValueError(f"{args.points}, line {lines[bad[0]]}: t is not a finite number of seconds")
         which = correction_at(stretches, t)
         correctors = load_stretches(args.correction)
+        refused = np.flatnonzero([isinstance(correctors[k], str) for k in which])
+        if refused.size:
+            i = int(refused[0])
+            raise ValueError(f"{args.points}, line {lines[i]}: t = {t[i]:g} s has no correction in {args.correction}: "
+                             f"{correctors[which[i]]}")
         corrector = correctors[int(np.bincount(which, minlength=len(correctors)).argmax())]
     else:
         if args.at is not None:

@@ -685,10 +685,7 @@ class PedestrianCorrector(Corrector):
             elif auto and not hidden.any():
                 hide = " (--drop-hidden-feet auto: " + ("the boxes have no frames, no hidden feet looked for)" if frames is None
                                                         else "no box's feet a nearer person may hide)")
-            raise ValueError(f"xyxy: {refusal} (implied height beyond {OUTLIER_SIGMAS:g} sd of {self.height_mean_m:g} m "
-                             f"at the fitted tilt): more than {max_outlier_share:.0%}, where the robust fit can follow "
-                             "the outliers; use boxes that reach from the top of the head to the lowest sole, or check "
-                             f"the camera height{hide}")
+            raise ValueError(f"xyxy: {self._refusal(refusal, 'the fitted tilt', max_outlier_share)}{hide}")
         if drop.any() or self.drop_hidden_feet is True:
             self.hidden_feet_ = "dropped"
         self.roll_deg_, self.tilt_roll_cov_, self.tilt_roll_sensitivity_ = 0.0, None, None
@@ -738,6 +735,13 @@ class PedestrianCorrector(Corrector):
                 return fit, used, f"{out} of the {of} {what} are outliers"
         return fit, used, None
 
+    def _refusal(self, outliers: str, at: str, max_outlier_share: float) -> str:
+        """Why a fit is refused: outliers ("OUT of the OF boxes|people are outliers") beyond max_outlier_share, their
+        implied heights judged at ``at`` (the fitted tilt, a horizon)."""
+        return (f"{outliers} (implied height beyond {OUTLIER_SIGMAS:g} sd of {self.height_mean_m:g} m at {at}): more "
+                f"than {max_outlier_share:.0%}, where the robust fit can follow the outliers; use boxes that reach from "
+                "the top of the head to the lowest sole, or check the camera height")
+
     def with_mapping(self, transformer: ViewTransformer) -> PedestrianCorrector:
         """The same fitted horizon on another clicked mapping of the same camera (a re-clicked trapezoid): a copy
         whose correction takes that mapping's horizon to the fitted one, with no check points. Only for a fit
@@ -755,13 +759,15 @@ class PedestrianCorrector(Corrector):
 
     def from_horizon(self, transformer: ViewTransformer, horizon_row_px: float, horizon_sigma_px: float, K: np.ndarray,
                      camera_height_m: float, n_people: int, camera_origin=(0.0, 0.0), roll_deg: float | None = None,
-                     roll_sigma_deg: float = 0.0) -> PedestrianCorrector:
+                     roll_sigma_deg: float = 0.0, n_outliers: int = 0,
+                     max_outlier_share: float = MAX_OUTLIER_SHARE) -> PedestrianCorrector:
         """Set up as fit would from a horizon row (px at the principal column, with its 1-sigma) found elsewhere from
         n_people people (each one box: homocal.watch.OnlineCalibrator's estimate), with K and the camera height given
         and no check points; with roll_deg (degrees, camera.json's sign; its 1-sigma roll_sigma_deg) the camera's
         roll found with the row, stored as a fit with roll stores it: the (tilt, roll) covariance from the two
-        sigmas (their correlation left out), no sensitivity to the prior mean. Returns self; ValueError naming the
-        argument for bad input."""
+        sigmas (their correlation left out), no sensitivity to the prior mean; n_outliers of the people beyond
+        OUTLIER_SIGMAS of the prior at that horizon, refused (ValueError, as fit refuses) beyond max_outlier_share of
+        them. Returns self; ValueError naming the argument for bad input."""
         if not isinstance(transformer, ViewTransformer):
             raise TypeError(f"transformer: expected a homocal.ViewTransformer, got {type(transformer).__name__}")
         K = np.asarray(K, dtype=np.float64)
@@ -781,7 +787,11 @@ class PedestrianCorrector(Corrector):
                     np.diag([tilt_sigma, math.radians(number(roll_sigma_deg, "roll_sigma_deg", minimum=0))]) ** 2}
         self._set_roll_state(roll)
         self.n_boxes_ = self.n_people_ = self.n_people_used_ = integer(n_people, "n_people", MIN_PEOPLE, 2**62)
-        self.n_border_ = self.n_hidden_ = self.n_outliers_ = 0
+        self.n_outliers_ = integer(n_outliers, "n_outliers", 0, self.n_people_)
+        if self.n_outliers_ > max_outlier_share * self.n_people_:
+            raise ValueError(self._refusal(f"{self.n_outliers_} of the {self.n_people_} people are outliers",
+                                           f"the horizon row {self.horizon_row_:.1f} px", max_outlier_share))
+        self.n_border_ = self.n_hidden_ = 0
         self.hidden_feet_, self.first_refusal_ = "kept", None
         self.base_transformer_, self.camera_origin_ = transformer, check_camera_origin(camera_origin)
         self._set_transformer()

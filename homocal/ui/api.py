@@ -295,7 +295,7 @@ def _watched(session: Session, req: dict) -> dict:
     """Run homocal.watch's OnlineCalibrator over the session's boxes (of the request's detector, at its camera
     height and height prior, K and the camera height as homocal watch takes them: watch.camera_of), in time order at
     the session's fps. Returns {"states": [State per frame], "moves": [Move], "stretches": [(start_s, horizon row,
-    1-sigma px, people, roll degrees, its 1-sigma)] (as homocal watch's corrections/: each stretch's estimate when it ended, the last one's
+    1-sigma px, people, roll degrees, its 1-sigma, outlier people)] (as homocal watch's corrections/: each stretch's estimate when it ended, the last one's
     at the end of the boxes; stretches of fewer than 3 people left out), "K", "camera_height_m", "transformer",
     "calibrator" (the OnlineCalibrator after them: its prior and settings)}."""
     if session.fps is None:
@@ -311,12 +311,13 @@ def _watched(session: Session, req: dict) -> dict:
     states = [calibrator.update(*frame) for frame in by_frame(boxes.frames, boxes.xyxy, boxes.track_ids,
                                                               str(session.boxes))]
     moves = [s.move for s in states if s.move is not None]
-    stretches = [(start, m.horizon_before, m.sigma_before, m.n_before, m.roll_before_deg, m.roll_sigma_before_deg)
+    stretches = [(start, m.horizon_before, m.sigma_before, m.n_before, m.roll_before_deg, m.roll_sigma_before_deg,
+                  m.n_outliers_before)
                  for start, m in zip([0.0] + [m.t_s for m in moves], moves)]
     if states:
         last = states[-1]
         stretches.append((last.stretch_start_s, last.horizon_row, last.horizon_sigma_px, last.n_people, last.roll_deg,
-                          last.roll_sigma_deg))
+                          last.roll_sigma_deg, last.n_outliers))
     return {"states": states, "moves": moves, "stretches": [s for s in stretches if s[3] >= 3], "K": K,
             "camera_height_m": height, "transformer": transformer, "calibrator": calibrator}
 
@@ -330,9 +331,9 @@ def _stretch(session: Session, req: dict) -> tuple[PedestrianCorrector, dict]:
     if not run["stretches"]:
         raise ValueError("at_s: no stretch of the boxes has 3 people yet")
     picked = correction_at([(s[0], None) for s in run["stretches"]], np.array([at]))[0]
-    start, row, sigma, n, roll, roll_sigma = run["stretches"][int(picked)]
+    start, row, sigma, n, roll, roll_sigma, outliers = run["stretches"][int(picked)]
     corrector = stretch_correction(run["transformer"], run["calibrator"], row, sigma, roll, roll_sigma, n,
-                                   _camera_origin(req))
+                                   _camera_origin(req), outliers)
     corrector.lens_ = session.lens
     return corrector, {**_box_settings(session, req), "stretch": (start, at)}
 
@@ -341,7 +342,8 @@ def watch(session: Session, req: dict) -> dict:
     """The camera's horizon over time from the session's boxes (``_watched``: the request as a pedestrians fit's),
     for the page's time plot: "people" {"t": s, "row": px} (each person's implied horizon row), "estimate" {"t",
     "row", "sigma"} (the running estimate and its 1-sigma after each person), each at most MAX_PLOT_POINTS (every
-    k-th beyond), "moves" (Move.to_dict), "stretches" [{"start_s", "horizon_row", "sigma_px", "n_people"}],
+    k-th beyond), "moves" (Move.to_dict), "stretches" [{"start_s", "horizon_row", "sigma_px", "n_people", "roll_deg",
+    "roll_sigma_deg", "n_outliers"}],
     "clicked_row" (the clicked mapping's horizon row) and "column" (the principal column all rows are at),
     undistorted pixels; "summary" in words."""
     run = _watched(session, req)
@@ -360,7 +362,7 @@ def watch(session: Session, req: dict) -> dict:
     moves, stretches = run["moves"], run["stretches"]
     return {"people": thinned(people), "estimate": thinned(estimate), "moves": [m.to_dict() for m in moves],
             "stretches": [{"start_s": a, "horizon_row": b, "sigma_px": c, "n_people": n, "roll_deg": r,
-                           "roll_sigma_deg": float_or_none(rs)} for a, b, c, n, r, rs in stretches],
+                           "roll_sigma_deg": float_or_none(rs), "n_outliers": k} for a, b, c, n, r, rs, k in stretches],
             "clicked_row": float(run["transformer"].horizon_row(cx)), "column": cx,
             "summary": f"{len(people)} people over {run['states'][-1].t_s:.1f} s: {len(moves)} move"
                        f"{'' if len(moves) == 1 else 's'} detected" + "".join(

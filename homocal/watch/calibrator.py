@@ -29,7 +29,11 @@ Estimate (``robust_line``): over the last WINDOW_PEOPLE people of the current st
 the line (v_0, tan phi) (psi clipping standardised residuals at +-CLIP) with a scale s (the median absolute
 standardised residual / 0.6745, at least 1: a prior sd too small or extra pixel noise is absorbed) and its
 sandwich 2x2 covariance; the roll only with estimate_roll and when the people's columns spread over ROLL_SPREAD of
-the image width (PedestrianCorrector's rule), else v_0 alone with phi = 0.
+the image width (PedestrianCorrector's rule), else v_0 alone with phi = 0. Its outliers: the people whose implied
+row is beyond OUTLIER_SIGMAS of their own sigma from it (PedestrianCorrector.fit's, whose implied heights are beyond
+OUTLIER_SIGMAS prior sds at the fitted tilt); where they are more than MAX_OUTLIER_SHARE of its people, the boxes are
+not people standing on the ground (a background subtractor's on a moving camera: docs/moving-camera.md) and the
+stretch's correction is refused as fit refuses (``stretch_correction``); the estimate and the tests go on.
 
 Change tests: two two-sided CUSUMs (Page 1954) on each new person's standardised residual against the estimate
 at the person's column, z = (v - v_0 + tan(phi) w) / sqrt(s^2 sigma^2 + var), var the estimate's variance there,
@@ -190,7 +194,8 @@ class Move:
     CUSUM statistic and threshold at the alarm, direction +1 (the horizon went down the image; for the roll
     test: on the image's right side) or -1, n_before the people of the estimate before; test, the test that
     fired (one of TESTS); the roll before and after (degrees, camera.json's sign) with their 1-sigma (0 and NaN
-    where not fitted: ``robust_line``)."""
+    where not fitted: ``robust_line``); n_outliers_before, the people of the estimate before beyond OUTLIER_SIGMAS of
+    it (``Line.n_outliers``)."""
 
     t_s: float
     detected_s: float
@@ -207,6 +212,7 @@ class Move:
     roll_sigma_before_deg: float
     roll_after_deg: float
     roll_sigma_after_deg: float
+    n_outliers_before: int = 0
 
     def to_dict(self) -> dict:
         """The fields, floats rounded to 6 decimals, a number that is not finite (a roll not fitted) None."""
@@ -227,7 +233,9 @@ class State:
     while the roll is not fitted).
     person_z: each person's standardised residual z against the estimate before it (module docstring, Change
     tests; NaN while the stretch has fewer than MIN_PEOPLE). cusum_drift_up, cusum_drift_down, drift_threshold: the
-    drift test's (homocal.watch.drift; NaN as the row's, and while it has too few residuals)."""
+    drift test's (homocal.watch.drift; NaN as the row's, and while it has too few residuals). n_outliers: the
+    estimate's people beyond OUTLIER_SIGMAS of it (``Line.n_outliers``: beyond MAX_OUTLIER_SHARE of n_people, its
+    correction is refused)."""
 
     t_s: float
     stretch_start_s: float
@@ -251,6 +259,7 @@ class State:
     cusum_drift_up: float = math.nan
     cusum_drift_down: float = math.nan
     drift_threshold: float = math.nan
+    n_outliers: int = 0
 
 
 def implied_line_terms(boxes: np.ndarray, K: np.ndarray, camera_height_m: float, height_m: float, roll: bool = True):
@@ -279,7 +288,9 @@ class Line:
     root mean square of the people's standardised roll regressors w_i / (s sigma_i) (NaN where the roll is not
     fitted: the roll test then rests), increments the change tests' increments on the people (n, 2): the row
     test's u_i = psi(r_i) / SD_CLIPPED and the roll test's u_i g_i / g_rms (NaN where the roll is not fitted;
-    None before MIN_PEOPLE; module docstring)."""
+    None before MIN_PEOPLE; module docstring), n_outliers the people whose implied row is beyond OUTLIER_SIGMAS of
+    their own sigma (the prior's, not scaled by s) from the line: PedestrianCorrector.fit's outliers, as the people's
+    implied heights beyond OUTLIER_SIGMAS sd of the prior at this horizon."""
 
     row: float
     tan_roll: float
@@ -287,6 +298,7 @@ class Line:
     scale: float
     roll_rms: float = math.nan
     increments: np.ndarray | None = None
+    n_outliers: int = 0
 
     @property
     def roll_k(self) -> float:
@@ -448,7 +460,7 @@ class OnlineCalibrator:
         return State(t, self.stretch_start_s, line.row, line.sigma, self.n_people, *stats[:2],
                      h[0] if armed else math.nan, move, tuple(p[1] for p in observed),
                      tuple(p[2] for p in observed), int(hidden.sum()), tuple(cx + p[4] for p in observed),
-                     line.roll_deg, line.roll_sigma_deg, *roll, tuple(zs), *drift)
+                     line.roll_deg, line.roll_sigma_deg, *roll, tuple(zs), *drift, line.n_outliers)
 
     def _drift_update(self, t: float, frame: int, ids: np.ndarray, boxes: np.ndarray, usable: np.ndarray,
                       people: int) -> Move | None:
@@ -523,7 +535,7 @@ class OnlineCalibrator:
         before, after = (robust_line(p, self._roll_width) for p in (people[:start], people[start:]))
         move = Move(people[start][0], now, before.row, before.sigma, after.row, after.sigma, self._cusum[i],
                     thresholds[i], 1 if i % 2 == 0 else -1, start, TESTS[i // 2], before.roll_deg,
-                    before.roll_sigma_deg, after.roll_deg, after.roll_sigma_deg)
+                    before.roll_sigma_deg, after.roll_deg, after.roll_sigma_deg, before.n_outliers)
         self._people = deque(maxlen=WINDOW_PEOPLE)
         for track in self._tracks.values():
             track[1:] = [[] for _ in range(4)]
@@ -542,19 +554,21 @@ class OnlineCalibrator:
         if not math.isfinite(line.row):
             raise ValueError("no person seen yet: no horizon to correct with")
         return stretch_correction(transformer, self, line.row, line.sigma, line.roll_deg, line.roll_sigma_deg,
-                                  self.n_people, camera_origin)
+                                  self.n_people, camera_origin, line.n_outliers)
 
 
 def stretch_correction(transformer: ViewTransformer, calibrator: OnlineCalibrator, row: float, sigma: float,
-                       roll_deg: float, roll_sigma_deg: float, n_people: int, camera_origin=(0.0, 0.0)) -> PedestrianCorrector:
+                       roll_deg: float, roll_sigma_deg: float, n_people: int, camera_origin=(0.0, 0.0),
+                       n_outliers: int = 0) -> PedestrianCorrector:
     """A stretch's correction of a clicked mapping: a PedestrianCorrector (model "camera", the calibrator's prior,
     K and camera height) whose horizon is the row (px at the principal column, 1-sigma sigma; NaN: 0) and,
     where fitted (roll_sigma_deg finite), the roll (degrees) of the stretch's estimate
-    (``PedestrianCorrector.from_horizon``)."""
+    (``PedestrianCorrector.from_horizon``); ValueError, as fit refuses, when more than MAX_OUTLIER_SHARE of its
+    n_people are outliers (n_outliers: ``Line.n_outliers``)."""
     fitted = math.isfinite(roll_sigma_deg)
     return PedestrianCorrector(calibrator.height_mean_m, calibrator.height_sd_m).from_horizon(
         transformer, row, sigma if math.isfinite(sigma) else 0.0, calibrator.K, calibrator.camera_height_m,
-        n_people, camera_origin, roll_deg if fitted else None, roll_sigma_deg if fitted else 0.0)
+        n_people, camera_origin, roll_deg if fitted else None, roll_sigma_deg if fitted else 0.0, n_outliers)
 
 
 def robust_line(people, roll_width: float | None = None) -> Line:
@@ -597,7 +611,8 @@ def robust_line(people, roll_width: float | None = None) -> Line:
     else:
         cov[0, 0] = math.inf
     g = w / (scale * s)  # the standardised roll regressors
-    line = Line(float(beta[0]), float(beta[1]) if roll else 0.0, cov, scale, float(np.sqrt(np.mean(g ** 2))) if roll else math.nan)
+    line = Line(float(beta[0]), float(beta[1]) if roll else 0.0, cov, scale, float(np.sqrt(np.mean(g ** 2))) if roll else math.nan,
+                n_outliers=int(np.sum(np.abs(r) * scale > OUTLIER_SIGMAS)))
     if not robust:
         return line
     u = psi / SD_CLIPPED  # the change tests' increments on these people (OnlineCalibrator._observe)

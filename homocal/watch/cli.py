@@ -36,7 +36,7 @@ from homocal.watch.calibrator import (
     camera_of,
     stretch_correction,
 )
-from homocal.watch.folder import MARKER, TOOL
+from homocal.watch.folder import MARKER, REFUSED, TOOL
 
 PRIOR = ("height_mean_m", "height_sd_m", "estimate_roll")  # the people's height prior and the roll: with camera_height_m, watch's pedestrian settings
 WATCH_SETTINGS = ("camera_height_m", *PRIOR)  # the pedestrian settings (PEDESTRIAN_SETTINGS) homocal watch takes
@@ -47,7 +47,7 @@ ROW_GROUP = 4096  # horizon.parquet rows held before they are written
 MAX_MOVES = 10_000  # moves (and stretches) one run records at most: past it the run stops
 HORIZON_COLUMNS = ("t_s", "person_row_px", "person_sigma_px", "horizon_row_px", "horizon_sigma_px", "n_people",
                    "stretch_start_s", "cusum_up", "cusum_down", "threshold", "person_column_px", "roll_deg",
-                   "roll_sigma_deg", "cusum_roll_up", "cusum_roll_down", "cusum_drift_up", "cusum_drift_down")
+                   "roll_sigma_deg", "cusum_roll_up", "cusum_roll_down", "cusum_drift_up", "cusum_drift_down", "n_outliers")
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -129,9 +129,14 @@ def handle_watch(args: argparse.Namespace) -> int:
                                               "moves": len(run.moves)})
     if error is not None:
         raise error
+    refused = [why for why in run.stretches.values() if why]
+    if refused:
+        print(f"homocal watch: warning: {len(refused)} of the {len(run.stretches)} stretches' corrections refused "
+              f"(homocal apply refuses their times): {refused[0]}", file=sys.stderr)
     print(f"homocal watch: {run.boxes} boxes, {run.people} people of {args.boxes} ({ended}): {len(run.moves)} "
-          f"move{'s' if len(run.moves) != 1 else ''} detected; {run.stretches} correction"
-          f"{'s' if run.stretches != 1 else ''} written to {args.out / 'corrections'}.")
+          f"move{'s' if len(run.moves) != 1 else ''} detected; {len(run.stretches)} correction"
+          f"{'s' if len(run.stretches) != 1 else ''} written to {args.out / 'corrections'}"
+          f"{f' ({len(refused)} refused)' if refused else ''}.")
     return 0
 
 
@@ -147,10 +152,11 @@ class _Run:
         self.lens = None if lens is None or lens.is_identity else lens  # saved with each stretch's correction
         self.moves: list = []
         self.rows: list = []
-        self.boxes = self.people = self.stretches = self.hidden = 0
+        self.boxes = self.people = self.hidden = 0
+        self.stretches: dict[Path, str | None] = {}  # each stretch's corrections/<start_s>.json: None, or why refused
         self.stretch_start = 0.0
         self.tmp = create_temporary(path / "horizon.parquet")
-        schema = pa.schema([(c, pa.int64() if c == "n_people" else pa.float64()) for c in HORIZON_COLUMNS])
+        schema = pa.schema([(c, pa.int64() if c in ("n_people", "n_outliers") else pa.float64()) for c in HORIZON_COLUMNS])
         self.writer = pq.ParquetWriter(self.tmp, schema)
         write_json_atomic(path / "moves.json", {"moves": []})
 
@@ -165,7 +171,7 @@ class _Run:
             m = state.move
             if m.n_before >= 3:
                 self._save(self.stretch_start, m.horizon_before, m.sigma_before, m.roll_before_deg,
-                           m.roll_sigma_before_deg, m.n_before)
+                           m.roll_sigma_before_deg, m.n_before, m.n_outliers_before)
             self.moves.append(m.to_dict())
             write_json_atomic(self.path / "moves.json", {"moves": self.moves})
         self.stretch_start = state.stretch_start_s
@@ -174,20 +180,27 @@ class _Run:
             self.rows.append((state.t_s, row, sigma, state.horizon_row, state.horizon_sigma_px, state.n_people,
                               state.stretch_start_s, state.cusum_up, state.cusum_down, state.threshold, column,
                               state.roll_deg, state.roll_sigma_deg, state.cusum_roll_up, state.cusum_roll_down,
-                              state.cusum_drift_up, state.cusum_drift_down))
+                              state.cusum_drift_up, state.cusum_drift_down, state.n_outliers))
         if state.person_rows and state.n_people % MIN_PEOPLE == 0:
             self._save(state.stretch_start_s, state.horizon_row, state.horizon_sigma_px, state.roll_deg,
-                       state.roll_sigma_deg, state.n_people)
+                       state.roll_sigma_deg, state.n_people, state.n_outliers)
         if len(self.rows) >= ROW_GROUP:
             self._flush()
 
-    def _save(self, start: float, row: float, sigma: float, roll_deg: float, roll_sigma_deg: float, n: int) -> None:
-        """Write the stretch's correction, corrections/<start_s>.json (``stretch_correction``)."""
-        corrector = stretch_correction(self.transformer, self.calibrator, row, sigma, roll_deg, roll_sigma_deg, n,
-                                       self.origin)
-        corrector.lens_ = self.lens  # apply undistorts the feet it is given
+    def _save(self, start: float, row: float, sigma: float, roll_deg: float, roll_sigma_deg: float, n: int,
+              n_outliers: int) -> None:
+        """Write the stretch's correction, corrections/<start_s>.json (``stretch_correction``), or where it is refused
+        (its people's outliers) the refusal there: {"format": REFUSED, "start_s", "refused": why}."""
         name = self.path / "corrections" / f"{start:.2f}.json"
-        self.stretches += not name.exists()
+        try:
+            corrector = stretch_correction(self.transformer, self.calibrator, row, sigma, roll_deg, roll_sigma_deg, n,
+                                           self.origin, n_outliers)
+        except ValueError as e:
+            self.stretches[name] = f"the stretch from {start:.2f} s: {e}"
+            write_json_atomic(name, {"format": REFUSED, "start_s": round(start, 2), "refused": self.stretches[name]})
+            return
+        self.stretches[name] = None
+        corrector.lens_ = self.lens  # apply undistorts the feet it is given
         corrector.save(name)
 
     def _flush(self) -> None:
@@ -201,7 +214,7 @@ class _Run:
         n = cal.n_people
         if n >= 3:
             line = cal.estimate
-            self._save(cal.stretch_start_s, line.row, line.sigma, line.roll_deg, line.roll_sigma_deg, n)
+            self._save(cal.stretch_start_s, line.row, line.sigma, line.roll_deg, line.roll_sigma_deg, n, line.n_outliers)
         self._flush()
         self.writer.close()
         self.tmp.replace(self.path / "horizon.parquet")

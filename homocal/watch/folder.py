@@ -10,6 +10,7 @@ from homocal.files import read_json
 
 TOOL = "homocal-watch"
 MARKER = "watch.json"  # the folder's marker (homocal.files.output_folder)
+REFUSED = "homocal-watch-refused"  # the format of corrections/<start_s>.json for a stretch whose correction is refused
 
 
 def watch_corrections(folder: Path) -> list[tuple[float, Path]]:
@@ -36,5 +37,15 @@ def correction_at(stretches: list[tuple[float, Path]], t_s: np.ndarray) -> np.nd
 
 
 def load_stretches(folder: Path) -> list:
-    """The correctors of a watch folder's stretches, in watch_corrections' order."""
-    return [load_corrector(p) for _, p in watch_corrections(folder)]
+    """The correctors of a watch folder's stretches, in watch_corrections' order; for a stretch whose correction was
+    refused (homocal watch's REFUSED file: its people's outliers) why, as text."""
+    loaded = []
+    for _, path in watch_corrections(folder):
+        document = read_json(path)
+        if document.get("format") != REFUSED:
+            loaded.append(load_corrector(path))
+        elif isinstance(document.get("refused"), str):
+            loaded.append(document["refused"])
+        else:
+            raise ValueError(f"{path}: field refused: expected text (why the stretch's correction was refused)")
+    return loaded

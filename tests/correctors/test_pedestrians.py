@@ -982,6 +982,19 @@ class TestRollAndLens:
         with pytest.raises(ValueError, match="roll_deg"):
             PedestrianCorrector().from_horizon(clicked, 200.0, 1.0, cam.K, 4.0, 10, roll_deg=math.nan)
 
+    def test_from_horizon_refuses_more_outliers_than_fit_allows(self):
+        """from_horizon with n_outliers of n_people: kept (and recorded) at half of them, refused beyond half as fit
+        refuses (MAX_OUTLIER_SHARE), naming the count, the prior and the horizon; a count beyond the people refused."""
+        cam = PinholeCamera()
+        clicked = ViewTransformer(cam.project_ground(GROUND), GROUND)
+        kept = PedestrianCorrector(1.71, 0.09).from_horizon(clicked, 200.0, 1.0, cam.K, 4.0, 10, n_outliers=5)
+        assert kept.n_outliers_ == 5 and PedestrianCorrector.from_dict(kept.to_dict()).n_outliers_ == 5
+        with pytest.raises(ValueError, match=r"^6 of the 10 people are outliers \(implied height beyond 3 sd of 1.71 m "
+                                             r"at the horizon row 200.0 px\): more than 50%"):
+            PedestrianCorrector(1.71, 0.09).from_horizon(clicked, 200.0, 1.0, cam.K, 4.0, 10, n_outliers=6)
+        with pytest.raises(ValueError, match="n_outliers"):
+            PedestrianCorrector().from_horizon(clicked, 200.0, 1.0, cam.K, 4.0, 10, n_outliers=11)
+
     @pytest.mark.parametrize("degrees", [1.0, 0.0])
     def test_walks_give_the_roll_whoever_walks_by(self, degrees, monkeypatch):
         """40 people walking 10 m to the right across scene3's camera (its lens and yaw; rolled 1 degree, or not) at

@@ -36,9 +36,10 @@ FPS = 5
 GROUND = np.array([[-3.5, 30.0], [3.5, 30.0], [3.5, 8.0], [-3.5, 8.0]])
 
 
-def stream(seconds, tilt=lambda t: 0.0, rate=1.5, seed=0, noise_px=0.3, roll=lambda t: 0.0, side=6.0, dof=None):
+def stream(seconds, tilt=lambda t: 0.0, rate=1.5, seed=0, noise_px=0.3, roll=lambda t: 0.0, side=6.0, dof=None,
+           heights=None):
     """Frames (frame, xyxy (N, 4) homocal edges, track ids) of people 1.70 +- 0.07 m tall (normal; with dof, 1.70
-    m plus 0.07 m times Student's t of dof degrees of freedom) standing 1 s each at random places 8-45 m ahead and
+    m plus 0.07 m times Student's t of dof degrees of freedom; heights(rng, n): theirs) standing 1 s each at random places 8-45 m ahead and
     up to ``side`` m to either side, arriving at ``rate`` a second, seen by CAM tilted tilt(t) degrees further down
     and rolled by roll(t) degrees; their foot and head points projected exactly, the box spanning both columns,
     each box edge plus normal noise of noise_px."""
@@ -47,6 +48,7 @@ def stream(seconds, tilt=lambda t: 0.0, rate=1.5, seed=0, noise_px=0.3, roll=lam
     start = np.sort(rng.uniform(0, seconds - 1, n))
     xy = np.column_stack([rng.uniform(-side, side, n), rng.uniform(8, 45, n)])
     height = 1.70 + 0.07 * (rng.standard_normal(n) if dof is None else rng.standard_t(dof, n))
+    height = height if heights is None else heights(rng, n)
     for frame in range(int(seconds * FPS)):
         t = frame / FPS
         cam = dataclasses.replace(CAM, tilt_deg=CAM.tilt_deg + tilt(t), roll_deg=roll(t))
@@ -237,6 +239,19 @@ def test_robust_line_gives_its_peoples_increments():
     assert x.shape == (4000, 2) and np.isnan(x[:, 1]).all()
     for side in (x[:, 0], -x[:, 0]):
         assert abs(tilt(side, CUSUM_K) / expected - 1) < 0.06
+
+
+def test_robust_line_counts_its_outliers_in_the_priors_sigma():
+    """Line.n_outliers: the people beyond OUTLIER_SIGMAS (3) of their own sigma from the line, whatever the robust
+    scale s. People placed symmetrically about row 200 (so the M-estimate is 200 by symmetry): 40 at +-0.5 sigma,
+    N at +-5 sigma; s is 1 while they are under half (the median |z| 0.5), and grows past them once they are
+    not; the count is the 2 N placed beyond 3 either way."""
+    for far in (4, 12, 24):
+        z = np.concatenate([np.tile([0.5, -0.5], 20), np.tile([5.0, -5.0], far)])
+        sigma = np.linspace(1.0, 3.0, len(z))
+        line = robust_line([(0.0, 200 + e * si, si, math.nan, 0.0) for e, si in zip(z, sigma)])
+        assert abs(line.row - 200) < 1e-9 and line.n_outliers == 2 * far
+    assert line.scale > 3.0  # 48 of 88 at 5 sigma: the median |z| is 5, the count still in the prior's sigma
 
 
 def test_heavy_tailed_people_raise_the_row_tests_threshold():
@@ -467,6 +482,36 @@ def test_watch_and_apply_at(tmp_path, capsys, monkeypatch):
     assert np.abs(early[-1, 1] - ground[-1, 1]) / ground[-1, 1] > 0.1
 
 
+def test_boxes_that_are_not_people_get_no_correction(tmp_path, capsys, monkeypatch):
+    """Boxes of things 0.3-3 m tall (a background subtractor's blobs on a moving camera, docs/moving-camera.md): more
+    than half of the estimate's people beyond 3 sd of the prior, so the stretch's correction is refused as homocal fit
+    refuses (corrections/0.00.json says why; one warning line; exit 0: the watch ran), and homocal apply at its time
+    exits 2 with one line, writing nothing. The same stream with people's heights gets its correction."""
+    (tmp_path / "feet.csv").write_text("u,v\n640,500\n")
+    for heights, refused in ((lambda rng, n: rng.uniform(0.3, 3.0, n), True), (None, False)):
+        out = f"out_{refused}"
+        flags = write_inputs(tmp_path, stream(40, seed=3, heights=heights))
+        r = homocal_main("watch", *flags, "--boxes", "boxes.csv", "--out", out, cwd=tmp_path, capsys=capsys,
+                         monkeypatch=monkeypatch)
+        assert r.returncode == 0, r.stderr
+        written = json.loads((tmp_path / out / "corrections/0.00.json").read_text())
+        last = pq.read_table(tmp_path / out / "horizon.parquet").to_pylist()[-1]
+        assert (last["n_outliers"] > last["n_people"] / 2) == refused
+        assert (written.get("format") == "homocal-watch-refused") == refused
+        assert ("1 of the 1 stretches' corrections refused" in r.stderr) == refused
+        assert ("(1 refused)" in r.stdout) == refused
+        r = homocal_main("apply", out, "--at", "20", "--points", "feet.csv", "-o", f"{out}.csv", cwd=tmp_path,
+                         capsys=capsys, monkeypatch=monkeypatch)
+        assert r.returncode == (2 if refused else 0) and (tmp_path / f"{out}.csv").exists() != refused, r.stderr
+        if refused:
+            assert r.stderr.count("\n") == 1 and "line 2: t = 20 s has no correction in out_True" in r.stderr
+            assert "people are outliers (implied height beyond 3 sd of 1.7 m at the horizon row" in written["refused"]
+            (tmp_path / out / "corrections/0.00.json").write_text(json.dumps({**written, "refused": 5}))  # not ours
+            r = homocal_main("apply", out, "--at", "20", "--points", "feet.csv", "-o", f"{out}.csv", cwd=tmp_path,
+                             capsys=capsys, monkeypatch=monkeypatch)
+            assert r.returncode == 2 and "0.00.json: field refused: expected text" in r.stderr, r.stderr
+
+
 def test_watch_with_the_roll_writes_it_and_apply_uses_it(tmp_path, capsys, monkeypatch):
     """--estimate-roll yes on a camera that rolls 2 degrees at 60 s: moves.json (strict JSON) has the roll test's
     move with the roll before and after, horizon.parquet the roll columns after the others, and the stretch's
@@ -480,8 +525,8 @@ def test_watch_with_the_roll_writes_it_and_apply_uses_it(tmp_path, capsys, monke
     assert [m["test"] for m in moves] == ["roll"] and moves[0]["roll_after_deg"] > 1.0
     assert json.loads((tmp_path / "out/watch.json").read_text())["estimate_roll"] is True
     table = pq.read_table(tmp_path / "out/horizon.parquet")
-    assert table.column_names[-7:] == ["person_column_px", "roll_deg", "roll_sigma_deg", "cusum_roll_up", "cusum_roll_down",
-                                       "cusum_drift_up", "cusum_drift_down"]
+    assert table.column_names[-8:] == ["person_column_px", "roll_deg", "roll_sigma_deg", "cusum_roll_up", "cusum_roll_down",
+                                       "cusum_drift_up", "cusum_drift_down", "n_outliers"]
     last = table.slice(table.num_rows - 1).to_pylist()[0]
     assert abs(last["roll_deg"] - 2.0) < 4 * last["roll_sigma_deg"]
     rolled = dataclasses.replace(CAM, roll_deg=2.0)
