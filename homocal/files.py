@@ -20,6 +20,8 @@ from pathlib import Path
 import numpy as np
 
 LOCK_NAME = ".lock"
+MAX_JSON_BYTES = 16 * 2**20  # a JSON file read (read_json) unless its reader bounds it otherwise: the ones homocal and
+# simgen write (corrections, study.json, manifests) are a few KB
 
 
 def create_temporary(path: str | Path) -> Path:
@@ -129,9 +131,9 @@ def check_input_file(path: str | Path, max_bytes: int | None = None) -> Path:
     return path
 
 
-def read_json(path: str | Path, max_bytes: int | None = None) -> dict:
+def read_json(path: str | Path, max_bytes: int = MAX_JSON_BYTES) -> dict:
     """Read a JSON object from path; ValueError (naming the file) if it is missing, not a regular file, larger
-    than max_bytes, unreadable or not an object (check_input_file)."""
+    than max_bytes (refused before any byte is read), unreadable or not an object (check_input_file)."""
     path = check_input_file(path, max_bytes)
     try:
         data = json.loads(path.read_text(encoding="utf-8"))

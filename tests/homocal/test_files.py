@@ -15,8 +15,9 @@ from pathlib import Path
 import pytest
 
 from homocal import files
-from homocal.files import (LOCK_NAME, OutputFolderError, create_temporary, os_message, output_folder, temporaries_of,
-                           write_atomic, write_text_atomic)
+from homocal.correctors.base import load_corrector
+from homocal.files import (LOCK_NAME, MAX_JSON_BYTES, OutputFolderError, create_temporary, os_message, output_folder,
+                           read_json, temporaries_of, write_atomic, write_text_atomic)
 
 TOOL = "demo-tool"
 OURS = json.dumps({"format": TOOL})
@@ -228,3 +229,16 @@ def test_write_atomic_errors_name_the_file_meant(tmp_path, write, message):
         write_atomic(out, write)
     assert os_message(caught.value) == message.format(out=out)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_read_json_refuses_a_file_beyond_its_bound_unread(tmp_path):
+    """A correction (any JSON file homocal reads) larger than MAX_JSON_BYTES is refused from its size alone (a
+    sparse file: nothing to read), naming it; one at the bound is read."""
+    big = tmp_path / "c.json"
+    with big.open("wb") as f:
+        f.truncate(MAX_JSON_BYTES + 1)
+    with pytest.raises(ValueError, match=r"c.json: larger than 16 MiB \(16,777,217 bytes\), the most read"):
+        load_corrector(big)
+    at = tmp_path / "at.json"
+    at.write_text('{"a": 1}' + " " * (MAX_JSON_BYTES - 8))
+    assert read_json(at) == {"a": 1}
