@@ -250,6 +250,8 @@ def cli_cases() -> list[Case]:
         Case("apply correction UTF-16", apply(c="c.json"), setup=copy("correction.json", "c.json", _utf16("c.json")), message="c.json"),
         Case("apply correction binary", apply(c="c.json"), setup=put(**{"c.json": BINARY}), message="c.json"),
         Case("apply correction empty", apply(c="c.json"), setup=put(**{"c.json": ""}), message="c.json"),
+        # a byte beyond homocal.files.MAX_JSON_BYTES
+        Case("apply correction huge (sparse)", apply(c="c.json"), setup=_sparse("c.json", 16 * 2**20 + 1), message="larger than 16 MiB"),
         Case("apply feet NaN and inf (kept, marked)", apply(f="f.csv"), expect="ok", setup=put(**{"f.csv": "u,v\n640,400\nnan,400\n640,inf\n"}), writes=("o.csv",)),
         Case("apply feet UTF-16", apply(f="f.csv"), setup=put(**{"f.csv": "u,v\n640,400\n".encode("utf-16")}), message="f.csv"),
         Case("apply feet binary", apply(f="f.csv"), setup=put(**{"f.csv": BINARY}), message="f.csv"),
@@ -373,6 +375,8 @@ def cli_cases() -> list[Case]:
         *[Case(f"watch arl0-people {n}", [*WATCH, "w", "--arl0-people", n], message="--arl0-people") for n in ("0", "nan", "1e300")],
         Case("watch camera-height inf", [*WATCH, "w", "--camera-height", "inf"], message="--camera-height"),
         Case("watch fps nan", [*WATCH, "w", "--fps", "nan"], message="--fps"),
+        Case("apply at a watch's refused stretch", apply("--at", "1", c="w"), setup=_watch_refused("the people disagree"), message="t = 1 s has no correction in w: the people disagree"),
+        Case("apply at a watch's refusal not ours", apply("--at", "1", c="w"), setup=_watch_refused(5), message="field refused: expected text"),
         Case("two watches at once", [*WATCH, "w"], fault="concurrent", first=[*WATCH, "w"], wait_for="w/watch.json", writes=("w",), message="locked by"),
         # ---- homocal lens
         Case("lens writes, then replaces its own", [*LENS, "l.json"], expect="ok", setup=_lens_once, writes=("l.json",)),
@@ -460,6 +464,23 @@ def _measure_once(d: Path) -> None:
 
 def _watch_once(d: Path) -> None:
     run([*WATCH, "w"], d)
+
+
+def _sparse(name: str, size: int) -> Callable[[Path], None]:
+    """A file of size bytes, all holes (nothing on disk)."""
+    def setup(d: Path) -> None:
+        with (d / name).open("wb") as f:
+            f.truncate(size)
+    return setup
+
+
+def _watch_refused(why) -> Callable[[Path], None]:
+    """A watch folder whose first stretch's correction is a refusal saying why (homocal watch writes it so where its
+    people are mostly outliers)."""
+    def setup(d: Path) -> None:
+        _watch_once(d)
+        (d / "w/corrections/0.00.json").write_text(json.dumps({"format": "homocal-watch-refused", "start_s": 0.0, "refused": why}))
+    return setup
 
 
 def _lens_once(d: Path) -> None:
