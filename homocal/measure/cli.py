@@ -199,10 +199,8 @@ def handle_measure(args: argparse.Namespace) -> int:
             check_people_per_frame(frames)
         except ValueError as e:
             raise ValueError(f"--pairs: {args.boxes}: {e}") from None
-    try:
-        noise = foot_noise_options(args.foot_noise, xyxy[keep], args.point_sigma_px, args.foot_noise_tails)
-    except ValueError as e:  # the flags' names for the library's
-        raise ValueError(str(e).replace("foot_tails", "--foot-noise-tails").replace("foot_noise", "--foot-noise")) from None
+    noise = foot_noise_options(args.foot_noise, xyxy[keep], args.point_sigma_px, args.foot_noise_tails,
+                               names=("--foot-noise", "--foot-noise-tails"))
     sigmas = {"click_sigma_px": args.click_sigma_px, "point_sigma_px": noise.pop("point_sigma_px")}
     q, fitted = args.accel_psd, ""
     if q == FITTED:

@@ -158,17 +158,19 @@ research/measure_speeds.py DATA/scene1 DATA/scene2 --fit-foot-tails`` (c 0.163, 
 the fixed model's sigma, and heavy tails)."""
 
 
-def foot_noise_options(foot_noise: str, xyxy: np.ndarray, point_sigma_px: float, foot_tails: str = FOOT_TAILS[0]
-                       ) -> dict:
+def foot_noise_options(foot_noise: str, xyxy: np.ndarray, point_sigma_px: float, foot_tails: str = FOOT_TAILS[0],
+                       names: tuple[str, str] = ("foot_noise", "foot_tails")) -> dict:
     """``measure_tracks``'s point_sigma_px, split_mapping_error, foot_correlation_s, noise_scale and student_dof
     for a FOOT_NOISE model, a FOOT_TAILS distribution and boxes xyxy (N, 4) px (point_sigma_px: fixed's sigma,
-    px); ValueError for another name, or student tails with correlated."""
+    px); ValueError for another name, or student tails with correlated, naming the two as ``names`` (a caller's
+    flags)."""
+    noise_name, tails_name = names
     if foot_noise not in FOOT_NOISE:
-        raise ValueError(f"foot_noise: expected one of {', '.join(FOOT_NOISE)}, got {foot_noise!r}")
+        raise ValueError(f"{noise_name}: expected one of {', '.join(FOOT_NOISE)}, got {foot_noise!r}")
     if foot_tails not in FOOT_TAILS:
-        raise ValueError(f"foot_tails: expected one of {', '.join(FOOT_TAILS)}, got {foot_tails!r}")
+        raise ValueError(f"{tails_name}: expected one of {', '.join(FOOT_TAILS)}, got {foot_tails!r}")
     if foot_tails == "student" and foot_noise not in STUDENT_FOOT_NOISE:
-        raise ValueError(f"foot_tails student: needs foot_noise {' or '.join(STUDENT_FOOT_NOISE)}, not {foot_noise} "
+        raise ValueError(f"{tails_name} student: needs {noise_name} {' or '.join(STUDENT_FOOT_NOISE)}, not {foot_noise} "
                          "(box-height has no fitted constants, correlated no white part to weight)")
     scale, dof = STUDENT_FOOT_NOISE[foot_noise] if foot_tails == "student" else (1.0, None)
     tails = {"noise_scale": scale, "student_dof": dof}
