@@ -535,8 +535,9 @@ class PedestrianCorrector(Corrector):
             (max_outlier_share) and the boxes have frames, fit again with those boxes left out and keep that fit
             if it passes the same check (else refuse, naming both); without frames as False (hidden_feet_ says
             "no frames"). False: every box. Default False: "auto" gives every bit of its fit where that fit is
-            not refused, but of the ten refused fits it fitted (docs/pedestrians.md, "Hidden feet") one is 24 px
-            off with a sigma of 4 px, the confident far-off answer the refusal is for.
+            not refused, but of the twelve refused fits it fitted (docs/pedestrians.md, "Hidden feet") two are
+            far off with sigmas five times smaller (24 px with 4 px, 13 px with 2.4 px), the confident far-off
+            answers the refusal is for.
         model: the corrected mapping (``transformer_``: the image trapezoid that maps with it onto the clicked
             map trapezoid, whose site-map frame is kept):
             "camera" (the default): the camera's own ground mapping (K, the camera height, the fitted tilt,
