@@ -520,6 +520,8 @@ class OnlineCalibrator:
         estimate; empty the stretch and re-arm every live track (module docstring)."""
         people = list(self._people)
         start = len(people) - min(self._since_zero[i], len(people) - 1)
+        if TESTS[i // 2] != "roll":  # a shift of the row (a roll's moves the people on either side oppositely)
+            start = split(people, start, self._roll_width, 1 if i % 2 == 0 else -1)
         before, after = (robust_line(p, self._roll_width) for p in (people[:start], people[start:]))
         move = Move(people[start][0], now, before.row, before.sigma, after.row, after.sigma, self._cusum[i],
                     thresholds[i], 1 if i % 2 == 0 else -1, start, TESTS[i // 2], before.roll_deg,
@@ -555,6 +557,24 @@ def stretch_correction(transformer: ViewTransformer, calibrator: OnlineCalibrato
     return PedestrianCorrector(calibrator.height_mean_m, calibrator.height_sd_m).from_horizon(
         transformer, row, sigma if math.isfinite(sigma) else 0.0, calibrator.K, calibrator.camera_height_m,
         n_people, camera_origin, roll_deg if fitted else None, roll_sigma_deg if fitted else 0.0)
+
+
+def split(people, start: int, roll_width: float | None, direction: int) -> int:
+    """The change point among the people [(t_s, row, sigma_i, w_i, column_i), ...] (0 < start < len(people): the
+    alarming statistic's last 0): the first of those after it from whom on a common shift of the implied rows in
+    the alarm's direction (+1 down the image) is likeliest, m >= start maximising (sum_i>=m r_i / s_i^2)^2 /
+    sum_i>=m 1 / s_i^2 where that sum is of the direction's sign (the normal likelihood ratio of a shift of px, its
+    estimate the weighted mean), r_i the person's residual against the line of the people before start
+    (robust_line) and s_i^2 = (scale sigma_i)^2 + the line's variance there. The CUSUM's last 0 may be early: the
+    people since it who saw the camera before the move would pull the horizon after toward the one before
+    (tests/watch/test_drift.py)."""
+    line = robust_line(people[:start], roll_width)
+    r, w = np.zeros(len(people) - start), np.zeros(len(people) - start)
+    for k, p in enumerate(people[start:]):
+        row, var = line.predicted(p[3])
+        r[k], w[k] = direction * (p[1] - row), 1 / ((line.scale * p[2]) ** 2 + var)
+    tails, weights = (np.cumsum(x[::-1])[::-1] for x in (w * r, w))  # sums from each person on
+    return start + int(np.argmax(np.maximum(tails, 0.0) ** 2 / weights))
 
 
 def robust_line(people, roll_width: float | None = None) -> Line:
