@@ -371,7 +371,7 @@ class OnlineCalibrator:
         self.estimate = NO_LINE
         self._h = [self.threshold] * 2 + [math.nan] * 2  # each one-sided statistic's threshold (_threshold)
         self.n_people = 0  # the people behind the estimate
-        from homocal.watch.drift import DriftTest  # it builds on this module
+        from homocal.watch.drift import DriftTest  # not at the top: drift imports this module's CUSUM (a cycle)
         self._drift = DriftTest(K, self.camera_height_m, self.fps, self.height_mean_m, self.height_sd_m) if drift_test else None
 
     # ---- boxes -> people ------------------------------------------------------------------------
@@ -379,7 +379,8 @@ class OnlineCalibrator:
         """Take the boxes (N, 4) homocal's pixel edges (x1, y1, x2, y2) of video frame ``frame`` (int, not before
         the last one; 0 <= N <= MAX_BOXES_PER_FRAME; the camera's pixels) with their track ids (N,) int or None
         (linked by overlap); return the State. ValueError for a frame going backwards, too many boxes, a box not
-        finite or upside down, or beyond the lens's fold."""
+        finite or upside down, or, in a frame where a box is measured (with the drift test: every frame), beyond
+        the lens's fold."""
         if self._last_frame is not None and frame < self._last_frame:
             raise ValueError(f"frame {frame} after frame {self._last_frame}: boxes must come in time order")
         boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
@@ -398,10 +399,12 @@ class OnlineCalibrator:
         for key in ids.tolist():  # every box keeps its track alive; only tracks yet to give a person are measured
             tracks.setdefault(key, [frame, [], [], [], []])[0] = frame
         todo = np.array([i for i, key in enumerate(ids.tolist()) if tracks[key][1] is not None], dtype=np.int64)
-        try:
-            undistorted = boxes if self.lens is None else undistort_boxes(boxes, self.lens)
-        except ValueError as e:
-            raise ValueError(f"frame {frame}: {e}") from None
+        undistorted = boxes  # the lens's undistortion where a box is measured: the drift test's every box, else todo's
+        if self.lens is not None and (self._drift is not None or len(todo)):  # its cost is mostly per call
+            try:
+                undistorted = undistort_boxes(boxes, self.lens)
+            except ValueError as e:
+                raise ValueError(f"frame {frame}: {e}") from None
         b = undistorted[todo]  # only the boxes still measured: a track's later boxes are skipped
         rows, slope, ws, columns = implied_line_terms(b, self.K, self.camera_height_m, self.height_mean_m,
                                                       self.estimate_roll)
