@@ -68,9 +68,9 @@ it). Each person is tested against the estimate of
 the people before it, then joins it (a self-starting CUSUM, as Hawkins 1987). A person tells of a roll by
 tan(phi) w / sigma sd: a lateral offset X m at a person of height H under a camera h_c high gives about tan(phi)
 a X H / (h_c sd), 0.09 sd per metre of X per degree of roll on a 4 m camera (people 1.7 +- 0.09 m), against 1-3
-sd per degree of tilt: a roll takes many more people to notice than a tilt (docs/moving-camera.md measures it). At a move, the people since the alarming statistic's last 0, from the first
-from whom a shift of the row is likeliest (``split``; the roll test's: all of them), give (their first: the change
-point estimate) the move's horizon after (the drift test's: the horizon before plus the step the people in view tell a block
+sd per degree of tilt: a roll takes many more people to notice than a tilt (docs/moving-camera.md measures it). At a move, the people since the alarming statistic's last 0 (its change point
+estimate; for the row's, averaged over where among them the change is, ``after_change``) give the move's horizon
+after (the drift test's: the horizon before plus the step the people in view tell a block
 after its alarm, ``DriftTest.alarm``), and the new stretch (from that change point on) starts from their estimate; then
 every live track is re-armed: each person in view gives a new observation from their boxes after the
 detection, so the stretch fills at once from the people in view, not only from newcomers. The new stretch
@@ -524,17 +524,18 @@ class OnlineCalibrator:
         estimate; empty the stretch and re-arm every live track (module docstring)."""
         people = list(self._people)
         start = len(people) - min(self._since_zero[i], len(people) - 1)
+        before = robust_line(people[:start], self._roll_width)
+        first, after = start, robust_line(people[start:], self._roll_width)
         if TESTS[i // 2] != "roll":  # a shift of the row (a roll's moves the people on either side oppositely)
-            start = split(people, start, self._roll_width, 1 if i % 2 == 0 else -1)
-        before, after = (robust_line(p, self._roll_width) for p in (people[:start], people[start:]))
-        move = Move(people[start][0], now, before.row, before.sigma, after.row, after.sigma, self._cusum[i],
+            first, after = after_change(people, start, before, self._roll_width, 1 if i % 2 == 0 else -1)
+        move = Move(people[first][0], now, before.row, before.sigma, after.row, after.sigma, self._cusum[i],
                     thresholds[i], 1 if i % 2 == 0 else -1, start, TESTS[i // 2], before.roll_deg,
                     before.roll_sigma_deg, after.roll_deg, after.roll_sigma_deg)
         self._people = deque(maxlen=WINDOW_PEOPLE)
         for track in self._tracks.values():
             track[1:] = [[] for _ in range(4)]
         self._since_zero, self._cusum = [0] * len(self._cusum), [0.0] * len(self._cusum)
-        self.stretch_start_s, self.estimate, self.n_people = people[start][0], after, len(people) - start
+        self.stretch_start_s, self.estimate, self.n_people = people[first][0], after, len(people) - first
         self._h = [self.threshold] * 2 + [math.nan] * 2  # re-armed at MIN_PEOPLE people (thresholds then)
         if self._drift is not None:
             self._drift.rearm()
@@ -563,22 +564,33 @@ def stretch_correction(transformer: ViewTransformer, calibrator: OnlineCalibrato
         n_people, camera_origin, roll_deg if fitted else None, roll_sigma_deg if fitted else 0.0)
 
 
-def split(people, start: int, roll_width: float | None, direction: int) -> int:
-    """The change point among the people [(t_s, row, sigma_i, w_i, column_i), ...] (0 < start < len(people): the
-    alarming statistic's last 0): the first of those after it from whom on a common shift of the implied rows in
-    the alarm's direction (+1 down the image) is likeliest, m >= start maximising (sum_i>=m r_i / s_i^2)^2 /
-    sum_i>=m 1 / s_i^2 where that sum is of the direction's sign (the normal likelihood ratio of a shift of px, its
-    estimate the weighted mean), r_i the person's residual against the line of the people before start
-    (robust_line) and s_i^2 = (scale sigma_i)^2 + the line's variance there. The CUSUM's last 0 may be early: the
-    people since it who saw the camera before the move would pull the horizon after toward the one before
-    (tests/watch/test_drift.py)."""
-    line = robust_line(people[:start], roll_width)
+def after_change(people, start: int, before: Line, roll_width: float | None, direction: int) -> tuple[int, Line]:
+    """The horizon after a change among the people [(t_s, row, sigma_i, w_i, column_i), ...] since the alarming
+    statistic's last 0 (0 < start < len(people)), whose change point that 0 only estimates (early by a few people
+    who saw the camera before the move, or late): averaged over the change point m >= start, each weighted by the
+    likelihood of a common shift of the people from m on in the alarm's direction (+1: down the image) against
+    ``before`` (the line of the people before start), exp(L_m / 2), L_m = (sum_i>=m r_i / s_i^2)^2 / sum_i>=m
+    1 / s_i^2 where that sum is of the direction's sign (else 0), r_i the person's residual against before and
+    s_i^2 = (scale sigma_i)^2 + its variance there: the row the weighted mean of the lines of the people from
+    each m (robust_line), its variance the weighted mean of theirs plus their spread about it. (the likeliest m,
+    that line with this row and variance; the roll as that line's.) The people since the last 0 alone pull the
+    row toward the one before where the 0 is early; the likeliest m alone overshoots on a small step (its own
+    people are those who looked shifted): tests/watch/test_watch.py, tests/watch/test_drift.py."""
     r, w = np.zeros(len(people) - start), np.zeros(len(people) - start)
     for k, p in enumerate(people[start:]):
-        row, var = line.predicted(p[3])
-        r[k], w[k] = direction * (p[1] - row), 1 / ((line.scale * p[2]) ** 2 + var)
+        row, var = before.predicted(p[3])
+        r[k], w[k] = direction * (p[1] - row), 1 / ((before.scale * p[2]) ** 2 + var)
     tails, weights = (np.cumsum(x[::-1])[::-1] for x in (w * r, w))  # sums from each person on
-    return start + int(np.argmax(np.maximum(tails, 0.0) ** 2 / weights))
+    llr = np.maximum(tails, 0.0) ** 2 / weights
+    odds = np.exp((llr - llr.max()) / 2)
+    odds /= odds.sum()
+    lines = [robust_line(people[start + m:], roll_width) for m in range(len(odds))]
+    rows, variances = np.array([x.row for x in lines]), np.array([x.cov[0, 0] for x in lines])
+    row = float(odds @ rows)
+    likeliest = int(np.argmax(odds))
+    cov = lines[likeliest].cov.copy()
+    cov[0, 0] = float(odds @ (variances + (rows - row) ** 2))
+    return start + likeliest, dataclasses.replace(lines[likeliest], row=row, cov=cov)
 
 
 def robust_line(people, roll_width: float | None = None) -> Line:

@@ -116,8 +116,8 @@ def test_a_step_while_the_tests_arm_is_measured_whole_whichever_test_finds_it(fp
     boxes of 1 px noise: over the seeds whose move a test finds (the drift test's step told by the people in
     view, or by the people since the change point when none is; the row test's), the move's horizon after is
     CAM's tilted horizon row (PinholeCamera.horizon_row) within 3.5 of its sigmas, the z-scores' mean 0 within
-    2.5 standard errors and their sd a unit normal's within about 2.5 (0.6-1.4; measured: mean 0.13 and 0.07, sd
-    1.01 and 0.80). Before, the drift test's change point was where it armed and the people since a CUSUM's last 0
+    2.5 standard errors and their sd a unit normal's within about 2.5 (0.6-1.4; measured: mean 0.12 and 0.08, sd
+    1.02 and 0.80). Before, the drift test's change point was where it armed and the people since a CUSUM's last 0
     held some from before the step: the step was measured short (mean z 0.63 and 0.67, up to 4.5 and 5.0)."""
     truth = dataclasses.replace(CAM, tilt_deg=CAM.tilt_deg + 2.0).horizon_row
     z = []
