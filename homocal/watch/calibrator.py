@@ -72,8 +72,9 @@ it). Each person is tested against the estimate of
 the people before it, then joins it (a self-starting CUSUM, as Hawkins 1987). A person tells of a roll by
 tan(phi) w / sigma sd: a lateral offset X m at a person of height H under a camera h_c high gives about tan(phi)
 a X H / (h_c sd), 0.09 sd per metre of X per degree of roll on a 4 m camera (people 1.7 +- 0.09 m), against 1-3
-sd per degree of tilt: a roll takes many more people to notice than a tilt (docs/moving-camera.md measures it). At a move, the people since the alarming statistic's last 0 (its change point estimate) give
-the move's horizon after (the drift test's: the horizon before plus the step the people in view tell a block
+sd per degree of tilt: a roll takes many more people to notice than a tilt (docs/moving-camera.md measures it). At a move, the people since the alarming statistic's last 0 (its change point
+estimate; for the row's, averaged over where among them the change is, ``after_change``) give the move's horizon
+after (the drift test's: the horizon before plus the step the people in view tell a block
 after its alarm, ``DriftTest.alarm``), and the new stretch (from that change point on) starts from their estimate; then
 every live track is re-armed: each person in view gives a new observation from their boxes after the
 detection, so the stretch fills at once from the people in view, not only from newcomers. The new stretch
@@ -85,7 +86,8 @@ saw the moved camera (after a step; a ramp may go on); those still in view give 
 only those gone are lost. The test re-arms at MIN_PEOPLE people. Memory: the last WINDOW_PEOPLE people of the
 stretch, the live tracks of the last LINK_GAP frames (at most MAX_TRACKS, each at most PERSON_BOXES rows) and the
 drift test's per live track (an open block and 19 numbers, homocal.watch.drift): bounded whatever the stream's
-length; work per box is constant (a move re-arms the live tracks once).
+length; work per box is constant (a move re-arms the live tracks once, and its horizon after is averaged over
+at most WINDOW_PEOPLE change points, a line of at most WINDOW_PEOPLE people each: 0.22 s for 200 on a shared 2-core machine, once per move).
 
 A gap in the stream longer than LINK_GAP frames ends every track (a person seen again is a new person): a gap
 is a gap, the estimate and the test go on; a move during a gap is found from the people after it.
@@ -383,7 +385,7 @@ class OnlineCalibrator:
         self.estimate = NO_LINE
         self._h = [self.threshold] * 2 + [math.nan] * 2  # each one-sided statistic's threshold (_threshold)
         self.n_people = 0  # the people behind the estimate
-        from homocal.watch.drift import DriftTest  # it builds on this module
+        from homocal.watch.drift import DriftTest  # not at the top: drift imports this module's CUSUM (a cycle)
         self._drift = DriftTest(K, self.camera_height_m, self.fps, self.height_mean_m, self.height_sd_m) if drift_test else None
 
     # ---- boxes -> people ------------------------------------------------------------------------
@@ -391,7 +393,8 @@ class OnlineCalibrator:
         """Take the boxes (N, 4) homocal's pixel edges (x1, y1, x2, y2) of video frame ``frame`` (int, not before
         the last one; 0 <= N <= MAX_BOXES_PER_FRAME; the camera's pixels) with their track ids (N,) int or None
         (linked by overlap); return the State. ValueError for a frame going backwards, too many boxes, a box not
-        finite or upside down, or beyond the lens's fold."""
+        finite or upside down, or, in a frame where a box is measured (with the drift test: every frame), beyond
+        the lens's fold."""
         if self._last_frame is not None and frame < self._last_frame:
             raise ValueError(f"frame {frame} after frame {self._last_frame}: boxes must come in time order")
         boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
@@ -410,10 +413,12 @@ class OnlineCalibrator:
         for key in ids.tolist():  # every box keeps its track alive; only tracks yet to give a person are measured
             tracks.setdefault(key, [frame, [], [], [], []])[0] = frame
         todo = np.array([i for i, key in enumerate(ids.tolist()) if tracks[key][1] is not None], dtype=np.int64)
-        try:
-            undistorted = boxes if self.lens is None else undistort_boxes(boxes, self.lens)
-        except ValueError as e:
-            raise ValueError(f"frame {frame}: {e}") from None
+        undistorted = boxes  # the lens's undistortion where a box is measured: the drift test's every box, else todo's
+        if self.lens is not None and (self._drift is not None or len(todo)):  # its cost is mostly per call
+            try:
+                undistorted = undistort_boxes(boxes, self.lens)
+            except ValueError as e:
+                raise ValueError(f"frame {frame}: {e}") from None
         b = undistorted[todo]  # only the boxes still measured: a track's later boxes are skipped
         rows, slope, ws, columns = implied_line_terms(b, self.K, self.camera_height_m, self.height_mean_m,
                                                       self.estimate_roll)
@@ -532,15 +537,18 @@ class OnlineCalibrator:
         estimate; empty the stretch and re-arm every live track (module docstring)."""
         people = list(self._people)
         start = len(people) - min(self._since_zero[i], len(people) - 1)
-        before, after = (robust_line(p, self._roll_width) for p in (people[:start], people[start:]))
-        move = Move(people[start][0], now, before.row, before.sigma, after.row, after.sigma, self._cusum[i],
+        before = robust_line(people[:start], self._roll_width)
+        first, after = start, robust_line(people[start:], self._roll_width)
+        if TESTS[i // 2] != "roll":  # a shift of the row (a roll's moves the people on either side oppositely)
+            first, after = after_change(people, start, before, self._roll_width, 1 if i % 2 == 0 else -1)
+        move = Move(people[first][0], now, before.row, before.sigma, after.row, after.sigma, self._cusum[i],
                     thresholds[i], 1 if i % 2 == 0 else -1, start, TESTS[i // 2], before.roll_deg,
                     before.roll_sigma_deg, after.roll_deg, after.roll_sigma_deg, before.n_outliers)
         self._people = deque(maxlen=WINDOW_PEOPLE)
         for track in self._tracks.values():
             track[1:] = [[] for _ in range(4)]
         self._since_zero, self._cusum = [0] * len(self._cusum), [0.0] * len(self._cusum)
-        self.stretch_start_s, self.estimate, self.n_people = people[start][0], after, len(people) - start
+        self.stretch_start_s, self.estimate, self.n_people = people[first][0], after, len(people) - first
         self._h = [self.threshold] * 2 + [math.nan] * 2  # re-armed at MIN_PEOPLE people (thresholds then)
         if self._drift is not None:
             self._drift.rearm()
@@ -569,6 +577,35 @@ def stretch_correction(transformer: ViewTransformer, calibrator: OnlineCalibrato
     return PedestrianCorrector(calibrator.height_mean_m, calibrator.height_sd_m).from_horizon(
         transformer, row, sigma if math.isfinite(sigma) else 0.0, calibrator.K, calibrator.camera_height_m,
         n_people, camera_origin, roll_deg if fitted else None, roll_sigma_deg if fitted else 0.0, n_outliers)
+
+
+def after_change(people, start: int, before: Line, roll_width: float | None, direction: int) -> tuple[int, Line]:
+    """The horizon after a change among the people [(t_s, row, sigma_i, w_i, column_i), ...] since the alarming
+    statistic's last 0 (0 < start < len(people)), whose change point that 0 only estimates (early by a few people
+    who saw the camera before the move, or late): averaged over the change point m >= start, each weighted by the
+    likelihood of a common shift of the people from m on in the alarm's direction (+1: down the image) against
+    ``before`` (the line of the people before start), exp(L_m / 2), L_m = (sum_i>=m r_i / s_i^2)^2 / sum_i>=m
+    1 / s_i^2 where that sum is of the direction's sign (else 0), r_i the person's residual against before and
+    s_i^2 = (scale sigma_i)^2 + its variance there: the row the weighted mean of the lines of the people from
+    each m (robust_line), its variance the weighted mean of theirs plus their spread about it. (the likeliest m,
+    that line with this row and variance; the roll as that line's.) The people since the last 0 alone pull the
+    row toward the one before where the 0 is early; the likeliest m alone overshoots on a small step (its own
+    people are those who looked shifted): tests/watch/test_watch.py, tests/watch/test_drift.py."""
+    r, w = np.zeros(len(people) - start), np.zeros(len(people) - start)
+    for k, p in enumerate(people[start:]):
+        row, var = before.predicted(p[3])
+        r[k], w[k] = direction * (p[1] - row), 1 / ((before.scale * p[2]) ** 2 + var)
+    tails, weights = (np.cumsum(x[::-1])[::-1] for x in (w * r, w))  # sums from each person on
+    llr = np.maximum(tails, 0.0) ** 2 / weights
+    odds = np.exp((llr - llr.max()) / 2)
+    odds /= odds.sum()
+    lines = [robust_line(people[start + m:], roll_width) for m in range(len(odds))]
+    rows, variances = np.array([x.row for x in lines]), np.array([x.cov[0, 0] for x in lines])
+    row = float(odds @ rows)
+    likeliest = int(np.argmax(odds))
+    cov = lines[likeliest].cov.copy()
+    cov[0, 0] = float(odds @ (variances + (rows - row) ** 2))
+    return start + likeliest, dataclasses.replace(lines[likeliest], row=row, cov=cov)
 
 
 def robust_line(people, roll_width: float | None = None) -> Line:

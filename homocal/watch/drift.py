@@ -24,7 +24,8 @@ in units of s: under no change and independent blocks of normal noise the e_k / 
 horizon every person in view gives residuals of about D / (s g_k). A track keeps its last frame, its open block
 (at most MAX_BLOCK_BOXES boxes' three numbers), six numbers (A's three, the two sums of m, its block count), the
 same six for each side as they stood when the side's statistic was last 0 (its blocks before the change point
-estimate) and its last block's place in the stream: bounded memory.
+estimate: those whose place in the stream, their residual's, is not after the last 0, which may fall between two
+residuals of one frame) and its last block's place: bounded memory.
 
 s is the stream's own: the median absolute e over the last WINDOW residuals / 0.6745, at least BOX_SIGMA_PX (the
 calibrator's box edge error; as its scale is at least the model's: the segmentation boxes' median residual is
@@ -34,7 +35,10 @@ tilt and root mean square of that side's increments over the window (``calibrato
 the side's statistic is at 0 (at most every REFRESH residuals: the work) and held while it climbs. Its false-alarm budget is the row test's in people: it
 runs at n_tests x arl0_people people, converted to its own residuals by the stream's residuals per person
 (counted on the stream: ``people`` is the calibrator's count), so that the tests together alarm every arl0_people people (1 / ARL0 adds over the
-tests). It is armed once the window holds MIN_RESIDUALS residuals and the stretch MIN_PEOPLE people; at a move
+tests). Its statistic runs from the first residual (at the scale of the residuals so far), so that its last 0 dates
+a change that came before the test was armed (the fits before it are then the people's before the change, not
+before the arming: tests/watch/test_drift.py); it is armed, its h set and an alarm possible, once the window holds
+MIN_RESIDUALS residuals and the stretch MIN_PEOPLE people; at a move
 (any test's) every track's blocks are forgotten (the calibrator's re-arming), the window and counts kept.
 
 The step's size (``alarm``): when a side's statistic exceeds its h at t_a, every track's open block is dropped and
@@ -108,10 +112,14 @@ class _Track:
     sums: np.ndarray = field(default_factory=lambda: np.zeros(6))  # the fit of its closed blocks (block_residual)
     sums_at_zero: np.ndarray = field(default_factory=lambda: np.zeros((2, 6)))  # sums as at each side's last 0
 
-    def keep_sums_before(self, side: int, zero: int) -> None:
-        """Hold the fit as the side's change point estimate sees it, if every block so far is before its last 0."""
+    def keep_sums_before(self, side: int, zero: int, before: np.ndarray | None = None, before_at: int = 0) -> None:
+        """Hold the fit as the side's change point estimate (its last 0, a place in the stream) sees it: the fit of
+        every block so far if the last is before it, else (before: the sums before the last block, which closed
+        in this frame, the one before it at before_at) the fit without the last block if that is."""
         if self.last_block_at <= zero:
             self.sums_at_zero[side] = self.sums
+        elif before is not None and before_at <= zero:
+            self.sums_at_zero[side] = before
 
 
 @dataclass
@@ -185,12 +193,11 @@ class DriftTest:
             track = self._tracks.setdefault(key, _Track(frame, t, self.residuals))
             if t - track.block_start_s >= self.block_s or len(track.block) >= MAX_BLOCK_BOXES:
                 if self._alarm is None:
-                    for side in (0, 1):
-                        track.keep_sums_before(side, self._zero[side])
+                    before = track.sums.copy()
                     rq = self._close(track)
                     if rq is not None:
                         out.append((key, *rq))
-                    closed.append(track)
+                    closed.append((track, before, self.residuals + len(out)))  # its place: after its residual
                 elif self._told(track):  # the step: its first block after the alarm, once
                     self._measure(track)
                 track.block_start_s, track.block = t, []
@@ -200,8 +207,10 @@ class DriftTest:
             del self._tracks[key]  # gone (or hidden) for a block's time
         for _, r, q in out:
             self._step(t, r, q, arl0)
-        for track in closed:
-            track.last_block_at = self.residuals
+        for track, before, place in closed:  # the statistic may have last been 0 between its blocks
+            before_at, track.last_block_at = track.last_block_at, place
+            for side in (0, 1):
+                track.keep_sums_before(side, self._zero[side], before, before_at)
         if self._alarm is None:
             over = [i for i in (0, 1) if self.cusum[i] > self.h[i]]
             if over:  # every track's next block starts after the alarm
@@ -235,19 +244,19 @@ class DriftTest:
         base[:] = 0.0  # once
 
     def _step(self, t: float, r: float, q: float, arl0: float | None) -> None:
-        """One residual e = r / q: standardise by the window's scale, advance the CUSUM (armed), then join the
-        window."""
-        e = r / q
-        if arl0 is not None and len(self.window) >= MIN_RESIDUALS:
-            s = self.scale
-            u = max(-CLIP, min(CLIP, e / s)) / SD_CLIPPED
-            for i, step in enumerate((u, -u)):
-                if self.cusum[i] == 0.0:  # set while at 0 (every REFRESH residuals), held while it climbs
-                    if not self.residuals - self._set[i] < REFRESH:
-                        x = np.clip(np.array(self.window) / s, -CLIP, CLIP) / SD_CLIPPED
-                        self.h[i], self._set[i] = side_threshold(arl0, CUSUM_K, (1 - 2 * i) * (x - x.mean())), self.residuals
-                    self.since_zero_s[i] = t
-                self.cusum[i] = max(0.0, self.cusum[i] + step - CUSUM_K)
+        """One residual e = r / q: standardise by the window's scale, advance the CUSUM (its h set once armed: arl0
+        not None and the window full to MIN_RESIDUALS), then join the window."""
+        e, s = r / q, self.scale
+        u = max(-CLIP, min(CLIP, e / s)) / SD_CLIPPED
+        armed = arl0 is not None and len(self.window) >= MIN_RESIDUALS
+        for i, step in enumerate((u, -u)):
+            if self.cusum[i] == 0.0:
+                self.since_zero_s[i] = t
+            # h: set at arming, then while at 0 (every REFRESH residuals), held while it climbs
+            if armed and (math.isnan(self.h[i]) or self.cusum[i] == 0.0 and not self.residuals - self._set[i] < REFRESH):
+                x = np.clip(np.array(self.window) / s, -CLIP, CLIP) / SD_CLIPPED
+                self.h[i], self._set[i] = side_threshold(arl0, CUSUM_K, (1 - 2 * i) * (x - x.mean())), self.residuals
+            self.cusum[i] = max(0.0, self.cusum[i] + step - CUSUM_K)
         self.window.append(e)
         self.residuals += 1
         for i in (0, 1):

@@ -24,6 +24,7 @@ from homocal.watch.calibrator import (
     SD_CLIPPED,
     TESTS,
     WINDOW_PEOPLE,
+    after_change,
     cusum_arl0,
     cusum_threshold,
     implied_line_terms,
@@ -300,6 +301,24 @@ def test_the_change_tests_together_alarm_at_the_stated_rate(k_roll):
             break
     assert 0.95 < length.mean() / arl0 < 1.3, length.mean()
 
+
+@pytest.mark.parametrize("step, early", [(-3.0, 0), (-20.0, 3)])
+def test_the_horizon_after_a_change_is_the_true_one_within_its_sigma(step, early):
+    """40 people at row 200 then 8 at 200 + step (px; their sd 2-8 px, so a step of 0.4-1.5 or 2.5-10 sd a person),
+    the CUSUM's last 0 ``early`` people before the change: over 200 draws, after_change's horizon after is the
+    true row within its sigma, the z-scores' mean within 0.4 of 0 and root mean square 0.7-1.15 (their standard
+    errors 0.07 and 0.05; measured -0.13, 0.79 and +0.07, 0.94). The people since the last 0 alone give z of mean
+    +3.4 (RMS 3.6) on the large step; the likeliest change point alone, about -0.6 (RMS 1.2) on the small one."""
+    rng = np.random.default_rng(5)
+    z = []
+    for _ in range(200):
+        sd = rng.uniform(2, 8, 48)
+        rows = np.r_[np.full(40, 200.0), np.full(8, 200.0 + step)] + sd * rng.standard_normal(48)
+        people = [(float(i), rows[i], sd[i], 0.0, 0.0) for i in range(48)]
+        before = robust_line(people[:40 - early])
+        after = after_change(people, 40 - early, before, None, -1)[1]
+        z.append((after.row - (200.0 + step)) / after.sigma)
+    assert abs(np.mean(z)) < 0.4 and 0.7 < np.sqrt(np.mean(np.square(z))) < 1.15, (np.mean(z), np.std(z))
 
 def test_steady_camera_tracks_its_horizon_in_bounded_memory():
     cal, states = run(stream(300))
