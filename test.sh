@@ -6,4 +6,4 @@ cd "$(dirname "$0")"
 bash scripts/install.sh
 export MUJOCO_GL="${MUJOCO_GL:-egl}"
 python3 -m ruff check .
-python3 -m pytest -q "$@"
+python3 -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder "$@"  # pytest-xdist: two processes, a test file in one, in collection order (tests/conftest.py) (docs/maintaining.md)

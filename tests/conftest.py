@@ -1,6 +1,7 @@
 """Shared fixtures: one small real dataset made by `simgen generate`, for the homocal tests that read datasets."""
 from __future__ import annotations
 
+import fcntl
 import os
 import subprocess
 import sys
@@ -10,6 +11,8 @@ import pytest
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 RENDERING_FIXTURES = {"tiny_dataset"}  # a test that uses one is marked generate and slow (a 20 s render; pyproject.toml)
+FIRST = ("test_packaging.py",)  # the longest file (a wheel, a fresh venv, every quick start: minutes) runs first,
+# so that test.sh's other pytest-xdist process runs the rest beside it
 
 
 def pytest_collection_modifyitems(items):
@@ -17,14 +20,23 @@ def pytest_collection_modifyitems(items):
         if RENDERING_FIXTURES & set(getattr(item, "fixturenames", ())):
             item.add_marker(pytest.mark.generate)
             item.add_marker(pytest.mark.slow)
+    items.sort(key=lambda item: item.path.name not in FIRST)  # stable: every other test in its order
 
 
 @pytest.fixture(scope="session")
 def tiny_dataset(tmp_path_factory) -> Path:
-    """A complete scene1 dataset of 1.5 s at 1280x720 (both detectors), written by the simgen command."""
-    out = tmp_path_factory.mktemp("datasets") / "scene1"
-    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
-    cmd = [sys.executable, "-m", "simgen.cli", "generate", str(SCENES / "scene1"), "--out", str(out),
-           "--seconds", "1.5", "--seed", "3", "--no-progress"]  # fmt: skip
-    subprocess.run(cmd, check=True, env=env, capture_output=True, timeout=600)
+    """A complete scene1 dataset of 1.5 s at 1280x720 (both detectors), written by the simgen command; rendered
+    once per run: pytest-xdist's workers (test.sh) share it through their run's folder, the first one renders."""
+    root = tmp_path_factory.getbasetemp()
+    if "PYTEST_XDIST_WORKER" in os.environ:
+        root = root.parent  # the run's folder, each worker's is inside it
+    out = root / "tiny_dataset" / "scene1"
+    with open(root / "tiny_dataset.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if not out.parent.joinpath("done").exists():
+            env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+            cmd = [sys.executable, "-m", "simgen.cli", "generate", str(SCENES / "scene1"), "--out", str(out),
+                   "--seconds", "1.5", "--seed", "3", "--no-progress"]  # fmt: skip
+            subprocess.run(cmd, check=True, env=env, capture_output=True, timeout=600)
+            out.parent.joinpath("done").touch()
     return out
