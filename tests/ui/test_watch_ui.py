@@ -188,6 +188,28 @@ def test_a_picked_stretch_is_the_fit_and_save_gives_homocal_watch_s(files, tmp_p
     assert theirs == json.loads((tmp_path / "correction.json").read_text())
 
 
+@slow
+def test_a_stretch_of_boxes_that_are_not_people_is_refused_on_the_page(files, tmp_path):
+    """The steady camera's boxes with their heights scaled by 0.3-3 (things that are not people standing on the
+    ground): the page's stretch counts its people beyond 3 sd (more than half), and a fit at its time is refused
+    with homocal watch's refusal (homocal.watch.calibrator.stretch_correction), as homocal apply refuses it."""
+    rng = np.random.default_rng(0)
+    header, *rows = files["static"].read_text().splitlines()
+    scaled = []
+    for row in rows:
+        frame, x1, y1, x2, y2, track = row.split(",")
+        top = float(y2) - (float(y2) - float(y1)) * rng.uniform(0.3, 3.0)
+        scaled.append(f"{frame},{x1},{top!r},{x2},{y2},{track}")
+    (tmp_path / "things.csv").write_text("\n".join([header, *scaled]) + "\n")
+    session = from_files(files["frame"], files["map"], SITE, (0.0, 0.0), tmp_path, boxes=tmp_path / "things.csv", fps=FPS)
+    req = {"trapezoid": TRAP, "camera_origin": [0, 0], "camera_height_m": CAM.mount_height_m, "points": [],
+           "method": "pedestrians", **PRIOR}
+    last = api.watch(session, req)["stretches"][-1]
+    assert last["n_outliers"] > last["n_people"] / 2
+    with pytest.raises(ValueError, match=r"people are outliers \(implied height beyond 3 sd of 1.71 m at the horizon row"):
+        api.fit(session, {**req, "at_s": SECONDS - 1})
+
+
 @pytest.mark.parametrize("rows, message", [
     (["3,100,300,120,360,1", "2,100,300,120,360,1"], "box 1 (from 0) is in frame 2 after frame 3: boxes out of time order"),
     (["0,100,300,120,100,1"], "boxes.csv, line 2: the box is upside down or empty"),
