@@ -23,15 +23,8 @@ import pyarrow.parquet as pq
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from homocal.cli import main as homocal_main  # noqa: E402
+from homocal.dataset import load_dataset  # noqa: E402
 from homocal.watch.folder import REFUSED  # noqa: E402
-
-
-def true_rows(dataset: Path) -> tuple[np.ndarray, np.ndarray]:
-    """(t (M,) s, the camera's horizon row at the principal column (M,) px) of camera_pose.parquet (its horizon line
-    a u + b v + c = 0, camera.json's principal column)."""
-    pose = pq.read_table(dataset / "camera_pose.parquet").to_pandas()
-    cx = json.loads((dataset / "camera.json").read_text())["K"][0][2]
-    return pose.t.to_numpy(), (-(pose.horizon_a * cx + pose.horizon_c) / pose.horizon_b).to_numpy()
 
 
 def stretches(dataset: Path, detector: str, out: Path) -> list[tuple[float, float, bool, float]]:
@@ -41,7 +34,8 @@ def stretches(dataset: Path, detector: str, out: Path) -> list[tuple[float, floa
                              str(dataset / "detections.parquet"), "--detector", detector, "--out", str(out)])
     if code != 0:
         raise SystemExit(f"watch_refusals: homocal watch failed on {dataset} ({detector})")
-    t, rows = true_rows(dataset)
+    ds = load_dataset(dataset)  # its camera_pose.parquet, checked: the camera's horizon at each step
+    t, rows = ds.pose.t, ds.pose.horizon_rows(ds.camera.K[0, 2])
     people = pq.read_table(out / "horizon.parquet").to_pandas()
     starts = sorted(float(p.stem) for p in (out / "corrections").glob("*.json"))
     found = []
