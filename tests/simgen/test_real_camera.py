@@ -3,6 +3,7 @@ ground truth through camera.json's K, R, t and distortion; the homographies are 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -15,6 +16,7 @@ from simgen.scene import load_scene
 from scene_copies import copy_scene
 
 pytestmark = [pytest.mark.generate, pytest.mark.slow]  # a dataset rendered
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -71,3 +73,29 @@ def test_calibration_and_trapezoids_are_the_distorted_pixels(dataset):
     np.testing.assert_allclose(trap["exact"]["image"], projected(camera, ground), atol=1e-6)
     off = np.hypot(*(np.array(trap["hand_placed"]["image"]) - projected(camera, ground)).T)
     assert np.all(off <= 2.0 + 1e-9), off
+
+
+def schema_names(section: str) -> list[str]:
+    """The key or column names data_schema.md's table under '## SECTION' lists, in order, each name of a row's first
+    cell ('x1, y1, x2, y2' is four)."""
+    text = (REPO / "data_schema.md").read_text(encoding="utf-8").split(f"\n## {section}\n", 1)[1].split("\n## ", 1)[0]
+    rows = [line for line in text.splitlines() if line.startswith("| ") and not line.startswith(("| key ", "| column "))]
+    return [name.strip() for row in rows for name in row.split("|")[1].split(",")]
+
+
+@pytest.mark.parametrize("section", ["manifest.json", "camera.json", "gt.parquet", "detections.parquet",
+                                     "calibration.parquet"])
+def test_data_schema_names_every_key_once(dataset, section):
+    """data_schema.md is exact: each key or column of a real camera's dataset file is in its table, once; the table
+    names no other but those a pinhole's camera.json writes instead (horizon_row)."""
+    _, out = dataset
+    path = out / section
+    written = list(pq.read_schema(path).names) if path.suffix == ".parquet" else list(json.loads(path.read_text()))
+    documented = schema_names(section)
+    assert sorted(set(documented)) == sorted(documented), f"named twice: {sorted({n for n in documented if documented.count(n) > 1})}"
+    assert set(written) - set(documented) == set(), "written, not documented"
+    assert set(documented) - set(written) <= {"horizon_row"}, "documented, not written"
+
+
+def test_schema_names_reads_a_row_of_several_names():
+    assert schema_names("camera.json")[:5] == ["K", "R", "t", "width", "height"]
