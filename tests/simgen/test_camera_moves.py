@@ -18,6 +18,7 @@ from simgen.scene import CameraMove, Sway, camera_offsets, load_scene
 from simgen.stage import Stage
 
 from scene_copies import SCENES, copy_scene
+from schema_tables import schema_names
 
 MOVES = (CameraMove(1.0, 0.0, 2.0), CameraMove(2.0, 4.0, -1.0, 0.5, 3.0))  # a step at 1 s; a ramp over 2-6 s
 
@@ -154,6 +155,12 @@ def test_camera_pose_table_is_each_steps_pose(moving):
 
 @pytest.mark.generate
 @pytest.mark.slow
+def test_data_schema_names_every_pose_column_once(moving):
+    """data_schema.md's camera_pose.parquet table is the file's columns, each once."""
+    documented = schema_names("camera_pose.parquet")
+    assert sorted(documented) == sorted(pq.read_schema(moving[1] / "camera_pose.parquet").names)
+
+
 def test_load_dataset_gives_the_pose_track(moving):
     """homocal.load_dataset's pose track (Dataset.pose) is camera_pose.parquet's rows, read through pyarrow alone."""
     _, out = moving

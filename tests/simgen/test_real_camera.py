@@ -3,7 +3,6 @@ ground truth through camera.json's K, R, t and distortion; the homographies are 
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -14,9 +13,9 @@ from simgen.cli import main
 from simgen.scene import load_scene
 
 from scene_copies import copy_scene
+from schema_tables import schema_names
 
 pytestmark = [pytest.mark.generate, pytest.mark.slow]  # a dataset rendered
-REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -73,14 +72,6 @@ def test_calibration_and_trapezoids_are_the_distorted_pixels(dataset):
     np.testing.assert_allclose(trap["exact"]["image"], projected(camera, ground), atol=1e-6)
     off = np.hypot(*(np.array(trap["hand_placed"]["image"]) - projected(camera, ground)).T)
     assert np.all(off <= 2.0 + 1e-9), off
-
-
-def schema_names(section: str) -> list[str]:
-    """The key or column names data_schema.md's table under '## SECTION' lists, in order, each name of a row's first
-    cell ('x1, y1, x2, y2' is four)."""
-    text = (REPO / "data_schema.md").read_text(encoding="utf-8").split(f"\n## {section}\n", 1)[1].split("\n## ", 1)[0]
-    rows = [line for line in text.splitlines() if line.startswith("| ") and not line.startswith(("| key ", "| column "))]
-    return [name.strip() for row in rows for name in row.split("|")[1].split(",")]
 
 
 @pytest.mark.parametrize("section", ["manifest.json", "camera.json", "gt.parquet", "detections.parquet",
