@@ -331,11 +331,27 @@ def _stretch(session: Session, req: dict) -> tuple[PedestrianCorrector, dict]:
     if not run["stretches"]:
         raise ValueError("at_s: no stretch of the boxes has 3 people yet")
     picked = correction_at([(s[0], None) for s in run["stretches"]], np.array([at]))[0]
-    start, row, sigma, n, roll, roll_sigma, outliers = run["stretches"][int(picked)]
-    corrector = stretch_correction(run["transformer"], run["calibrator"], row, sigma, roll, roll_sigma, n,
-                                   _camera_origin(req), outliers)
+    stretch = run["stretches"][int(picked)]
+    corrector = _stretch_corrector(run, stretch, _camera_origin(req))
     corrector.lens_ = session.lens
-    return corrector, {**_box_settings(session, req), "stretch": (start, at)}
+    return corrector, {**_box_settings(session, req), "stretch": (stretch[0], at)}
+
+
+def _stretch_corrector(run: dict, stretch: tuple, camera_origin) -> PedestrianCorrector:
+    """One of ``_watched``'s stretches' correction (homocal.watch.calibrator.stretch_correction, as homocal watch
+    writes it); ValueError with its refusal where homocal watch refuses it (its people mostly outliers)."""
+    _, row, sigma, n, roll, roll_sigma, outliers = stretch
+    return stretch_correction(run["transformer"], run["calibrator"], row, sigma, roll, roll_sigma, n, camera_origin,
+                              outliers)
+
+
+def _refusal(run: dict, stretch: tuple, camera_origin) -> str | None:
+    """Why homocal watch refuses a stretch's correction (``_stretch_corrector``'s ValueError), None if it does not."""
+    try:
+        _stretch_corrector(run, stretch, camera_origin)
+    except ValueError as e:
+        return str(e)
+    return None
 
 
 def watch(session: Session, req: dict) -> dict:
@@ -343,7 +359,7 @@ def watch(session: Session, req: dict) -> dict:
     for the page's time plot: "people" {"t": s, "row": px} (each person's implied horizon row), "estimate" {"t",
     "row", "sigma"} (the running estimate and its 1-sigma after each person), each at most MAX_PLOT_POINTS (every
     k-th beyond), "moves" (Move.to_dict), "stretches" [{"start_s", "horizon_row", "sigma_px", "n_people", "roll_deg",
-    "roll_sigma_deg", "n_outliers"}],
+    "roll_sigma_deg", "n_outliers", "refused" (why homocal watch refuses its correction, or None)}],
     "clicked_row" (the clicked mapping's horizon row) and "column" (the principal column all rows are at),
     undistorted pixels; "summary" in words."""
     run = _watched(session, req)
@@ -358,11 +374,13 @@ def watch(session: Session, req: dict) -> dict:
         rows = rows[::step] + ([rows[-1]] if (len(rows) - 1) % step else [])
         return dict(zip(("t", "row", "sigma"), ([float_or_none(v) for v in col] for col in zip(*rows))))
 
-    cx = float(run["K"][0, 2])
+    cx, origin = float(run["K"][0, 2]), _camera_origin(req)
     moves, stretches = run["moves"], run["stretches"]
     return {"people": thinned(people), "estimate": thinned(estimate), "moves": [m.to_dict() for m in moves],
             "stretches": [{"start_s": a, "horizon_row": b, "sigma_px": c, "n_people": n, "roll_deg": r,
-                           "roll_sigma_deg": float_or_none(rs), "n_outliers": k} for a, b, c, n, r, rs, k in stretches],
+                           "roll_sigma_deg": float_or_none(rs), "n_outliers": k,
+                           "refused": _refusal(run, (a, b, c, n, r, rs, k), origin)}
+                          for a, b, c, n, r, rs, k in stretches],
             "clicked_row": float(run["transformer"].horizon_row(cx)), "column": cx,
             "summary": f"{len(people)} people over {run['states'][-1].t_s:.1f} s: {len(moves)} move"
                        f"{'' if len(moves) == 1 else 's'} detected" + "".join(

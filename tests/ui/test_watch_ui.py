@@ -188,11 +188,9 @@ def test_a_picked_stretch_is_the_fit_and_save_gives_homocal_watch_s(files, tmp_p
     assert theirs == json.loads((tmp_path / "correction.json").read_text())
 
 
-@slow
-def test_a_stretch_of_boxes_that_are_not_people_is_refused_on_the_page(files, tmp_path):
+def things(files, folder: Path) -> Path:
     """The steady camera's boxes with their heights scaled by 0.3-3 (things that are not people standing on the
-    ground): the page's stretch counts its people beyond 3 sd (more than half), and a fit at its time is refused
-    with homocal watch's refusal (homocal.watch.calibrator.stretch_correction), as homocal apply refuses it."""
+    ground), as folder/things.csv."""
     rng = np.random.default_rng(0)
     header, *rows = files["static"].read_text().splitlines()
     scaled = []
@@ -200,14 +198,60 @@ def test_a_stretch_of_boxes_that_are_not_people_is_refused_on_the_page(files, tm
         frame, x1, y1, x2, y2, track = row.split(",")
         top = float(y2) - (float(y2) - float(y1)) * rng.uniform(0.3, 3.0)
         scaled.append(f"{frame},{x1},{top!r},{x2},{y2},{track}")
-    (tmp_path / "things.csv").write_text("\n".join([header, *scaled]) + "\n")
-    session = from_files(files["frame"], files["map"], SITE, (0.0, 0.0), tmp_path, boxes=tmp_path / "things.csv", fps=FPS)
+    (folder / "things.csv").write_text("\n".join([header, *scaled]) + "\n")
+    return folder / "things.csv"
+
+
+REFUSED = r"people are outliers \(implied height beyond 3 sd of 1.71 m at the horizon row"
+
+
+@slow
+def test_a_stretch_of_boxes_that_are_not_people_is_refused_on_the_page(files, tmp_path):
+    """Boxes of things: the page's stretch counts its people beyond 3 sd (more than half), says it is refused with
+    homocal watch's refusal (homocal.watch.calibrator.stretch_correction), and a fit at its time is refused with it,
+    as homocal apply refuses it; the people's stretches are not."""
+    session = from_files(files["frame"], files["map"], SITE, (0.0, 0.0), tmp_path, boxes=things(files, tmp_path), fps=FPS)
     req = {"trapezoid": TRAP, "camera_origin": [0, 0], "camera_height_m": CAM.mount_height_m, "points": [],
            "method": "pedestrians", **PRIOR}
     last = api.watch(session, req)["stretches"][-1]
     assert last["n_outliers"] > last["n_people"] / 2
-    with pytest.raises(ValueError, match=r"people are outliers \(implied height beyond 3 sd of 1.71 m at the horizon row"):
+    with pytest.raises(ValueError, match=REFUSED) as refusal:
         api.fit(session, {**req, "at_s": SECONDS - 1})
+    assert str(refusal.value).endswith(last["refused"])
+    for name in ("static", "moved"):
+        people = from_files(files["frame"], files["map"], SITE, (0.0, 0.0), tmp_path, boxes=files[name], fps=FPS)
+        assert [s["refused"] for s in api.watch(people, req)["stretches"]] == [None] * (1 if name == "static" else 2)
+
+
+@slow
+@pytest.mark.browser
+def test_the_page_shades_a_refused_stretch(browser, files, tmp_path):  # noqa: F811
+    """The plot shades a refused stretch red across its time span, and picking a time in it says homocal watch
+    refuses its correction."""
+    d = browser
+    with ui_server("--frame", str(files["frame"]), "--site-map", str(files["map"]), "--scale", "10", "--origin",
+                   "200,700", "--boxes", str(things(files, tmp_path)), "--fps", str(FPS), "--out", str(tmp_path)) as url:
+        d.get(url)
+        wait_for(d, "document.body.dataset.ready === '1'")
+        for i in range(4):
+            click(d, "frame", TRAP["image"][i])
+            click(d, "map", TRAP["map"][i])
+            idle(d)
+        Select(d.find_element(By.ID, "method")).select_by_visible_text("pedestrians")  # its fields shown
+        for field, value in (("camera-height", CAM.mount_height_m), ("height-mean", PRIOR["height_mean_m"]),
+                             ("height-sd", PRIOR["height_sd_m"])):  # the API test's settings
+            d.find_element(By.ID, field).clear()
+            d.find_element(By.ID, field).send_keys(str(value))
+        d.find_element(By.ID, "watch").click()
+        wait_for(d, "window.homocalUI.S.watch !== null")
+        stretches = js(d, "window.homocalUI.S.watch.stretches")
+        shaded = js(d, "window.homocalUI.drawn.plot.refused")
+        assert [s["start_s"] for s in stretches if s["refused"]] == [s["start_s"] for s in shaded] != []
+        box = d.find_element(By.ID, "timeplot").rect
+        ActionChains(d).move_to_element_with_offset(d.find_element(By.ID, "timeplot"), box["width"] // 2 - 15,
+                                                     0).click().perform()
+        assert "homocal watch refuses its correction" in d.find_element(By.ID, "watch-summary").text
+        assert [e for e in d.get_log("browser") if e["source"] == "javascript"] == []
 
 
 @pytest.mark.parametrize("rows, message", [

@@ -176,7 +176,7 @@ let drawn = null;  // {frame: {...}, map: {...}} of the last render (newDrawn)
 
 function newDrawn() {
   const one = () => ({ pending: [], taken: [], labels: [], hidden: [], ellipses: [], boxes: { used: 0, outlier: 0, border: 0, hidden: 0 } });
-  return { frame: one(), map: one(), plot: { people: 0, moves: [], band: 0, references: [] } };
+  return { frame: one(), map: one(), plot: { people: 0, moves: [], band: 0, references: [], refused: [] } };
 }
 
 function polyline(ctx, name, pts, close) {
@@ -395,7 +395,8 @@ function renderMap() {
 
 // The horizon over time (/api/watch): time (s) across, the horizon row (px, down as in the image) up the side;
 // each person's implied row (dots), the estimate with its 1-sigma band, the detected moves (vertical lines at
-// their change points), the clicked horizon and a fitted one (horizontal lines). Records what it drew in drawn.plot.
+// their change points), the clicked horizon and a fitted one (horizontal lines), and each stretch whose correction
+// homocal watch refuses shaded red across its time span. Records what it drew in drawn.plot.
 const PLOT_MARGIN = { left: 52, right: 10, top: 8, bottom: 20 };
 function renderPlot() {
   const w = S.watch;
@@ -423,6 +424,13 @@ function renderPlot() {
   ctx.save(); ctx.beginPath();
   ctx.rect(PLOT_MARGIN.left, PLOT_MARGIN.top, c.width - PLOT_MARGIN.left - PLOT_MARGIN.right, c.height - PLOT_MARGIN.top - PLOT_MARGIN.bottom);
   ctx.clip();
+  w.stretches.forEach((s, i) => {  // a refused stretch: from its start to the next one's (or the end)
+    if (!s.refused) return;
+    const x0 = X(s.start_s), x1 = X(i + 1 < w.stretches.length ? w.stretches[i + 1].start_s : t1);
+    ctx.fillStyle = "rgba(255,80,80,0.18)"; ctx.fillRect(x0, PLOT_MARGIN.top, x1 - x0, c.height - PLOT_MARGIN.top - PLOT_MARGIN.bottom);
+    ctx.fillStyle = "#ff5050"; ctx.fillText("refused", x0 + 3, PLOT_MARGIN.top + 24);
+    d.refused.push({ start_s: s.start_s, x0, x1 });
+  });
   if (band.length) {  // the 1-sigma band, then the estimate
     ctx.fillStyle = "rgba(159,211,255,0.3)"; ctx.beginPath();
     band.forEach(([t, v, s], i) => (i ? ctx.lineTo(X(t), Y(v - s)) : ctx.moveTo(X(t), Y(v - s))));
@@ -459,9 +467,9 @@ function pickStretch(e) {  // a click on the time plot: the stretch at that time
   invalidateFit();
   S.at = t;
   const start = w.stretches.filter((s) => s.start_s <= t).pop() || w.stretches[0];
-  $("watch-summary").textContent = w.summary + `\npicked ${t.toFixed(1)} s: ` + (start ?
-    `the stretch from ${start.start_s.toFixed(1)} s (horizon row ${start.horizon_row.toFixed(1)} px); Fit with pedestrians uses its correction` :
-    "no stretch has 3 people yet");
+  $("watch-summary").textContent = w.summary + `\npicked ${t.toFixed(1)} s: ` + (!start ? "no stretch has 3 people yet" :
+    `the stretch from ${start.start_s.toFixed(1)} s (horizon row ${start.horizon_row.toFixed(1)} px); ` +
+    (start.refused ? `homocal watch refuses its correction: ${start.refused}` : "Fit with pedestrians uses its correction"));
   render();
 }
 
