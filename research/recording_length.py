@@ -2,7 +2,7 @@
 from render-free boxes: who walked by, with nothing else in the way.
 
     python research/recording_length.py --seeds 20 --seconds 10,30,60,120 [--scene scene3|FOLDER] [--fps 20]
-        [--drop-hidden-feet yes|no|auto] [--height-mean M] [--height-sd M]
+        [--drop-hidden-feet yes|no|auto] [--height-mean M] [--height-sd M] [--oracle-mean]
 
 Per seed (simgen's walkers as `simgen generate SCENE --seed S` places them), one stream of the longest length of
 render-free boxes (simgen.boxstream.box_stream: each body's geoms seen by the scene's camera, people hiding people;
@@ -16,6 +16,9 @@ camera's (scene3_pedestrians.horizon_rms) and the median relative range error at
 (scene3_pedestrians.median_range_error) of the walkers' foot points in frame, once a second. The target: both
 within TARGET. Prints a line per seed and length, then per length: on how many seeds the target holds, the
 horizon (px), range error (%) and roll (degrees) mean and range, the fits refused.
+--oracle-mean: the prior's mean is, for each seed and length, the median implied height of that recording's boxes
+at the camera's true pose (``sample_mean_height``: the fit's own model, the boxes within 3 prior sds of
+--height-mean), a mean no user has: what the fit gives when its mean is right for the people who walked by.
 """
 from __future__ import annotations
 
@@ -26,8 +29,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from homocal.correctors.pedestrians import SETTINGS, PedestrianCorrector  # noqa: E402
+from homocal.correctors.pedestrians import OUTLIER_SIGMAS, SETTINGS, PedestrianCorrector, upright_heights  # noqa: E402
 from homocal.geometry import ViewTransformer  # noqa: E402
+from homocal.geometry.boxes import on_border, undistort_boxes  # noqa: E402
 from homocal.study.options import flag_type  # noqa: E402
 from research.scene3_pedestrians import RANGE_M, horizon_rms, median_range_error  # noqa: E402
 from simgen.agents import Crowd  # noqa: E402
@@ -50,6 +54,18 @@ def stream(scene, seed: int, seconds: float, fps: float) -> dict:
     return {"frames": np.concatenate(frames), "boxes": np.concatenate(boxes), "ids": np.concatenate(ids),
             "feet": np.concatenate([xy for _, xy in states]),
             "feet_t": np.concatenate([np.full(len(xy), t) for t, xy in states])}
+
+
+def sample_mean_height(scene, data: dict, seconds: float, fps: float, height: tuple[float, float]) -> float:
+    """The median implied height, m, of a stream's boxes of its first seconds (off the border, undistorted) at the
+    scene camera's true tilt, roll and height (upright_heights: the fit's own model), those within OUTLIER_SIGMAS
+    sds (height's) of height's mean."""
+    cam = scene.camera
+    first = data["frames"] < seconds * fps
+    boxes = data["boxes"][first][~on_border(data["boxes"][first], (cam.width, cam.height))]
+    H = upright_heights(undistort_boxes(boxes, cam.lens), np.radians(cam.tilt_deg), np.radians(cam.roll_deg),
+                        float(cam.K[1, 1]), (float(cam.K[0, 2]), float(cam.K[1, 2])), cam.mount_height_m)
+    return float(np.median(H[np.abs(H - height[0]) <= OUTLIER_SIGMAS * height[1]]))
 
 
 def fit(scene, data: dict, seconds: float, fps: float, drop_hidden_feet, height: tuple[float, float] = HEIGHT) -> dict:
@@ -91,6 +107,8 @@ def main(argv: list[str] | None = None) -> None:
         option = SETTINGS[name]
         ap.add_argument(option.flag, type=flag_type(option), default=default, metavar=option.metavar,
                         help=f"the prior's {what}, m (default {default:g}: simgen's people)")
+    ap.add_argument("--oracle-mean", action="store_true", help="the prior's mean: each recording's own median implied "
+                    "height at the camera's true pose (a mean no user has)")
     args = ap.parse_args(argv)
     height = (args.height_mean, args.height_sd)
     lengths = sorted(float(s) for s in args.seconds.split(","))
@@ -105,12 +123,15 @@ def main(argv: list[str] | None = None) -> None:
     for seed in range(args.seeds):
         data = stream(scene, seed, lengths[-1], args.fps)
         for s in lengths:
-            e = fit(scene, data, s, args.fps, args.drop_hidden_feet, height)
+            mean = sample_mean_height(scene, data, s, args.fps, height) if args.oracle_mean else height[0]
+            e = fit(scene, data, s, args.fps, args.drop_hidden_feet, (mean, height[1]))
             results[s].append(e)
-            print(f"seed {seed}, {s:g} s: " + (f"refused: {e['refused']}" if "refused" in e else
+            print(f"seed {seed}, {s:g} s: " + (f"prior mean {mean:.3f} m, " if args.oracle_mean else "") +
+                  (f"refused: {e['refused']}" if "refused" in e else
                   f"{e['people']} people (hidden feet {e['hidden_feet']}), roll {e['roll_deg']:.2f} deg, horizon "
                   f"{e['horizon_px']:.2f} px, range {e['range_pct']:.2f} % ({e['points']} foot points)"), flush=True)
-    print(f"\n{args.scene}, seeds 0-{args.seeds - 1}, render-free boxes at {args.fps:g} fps, prior {height[0]:g} m, "
+    mean = "each recording's median implied height at the true pose" if args.oracle_mean else f"{height[0]:g} m"
+    print(f"\n{args.scene}, seeds 0-{args.seeds - 1}, render-free boxes at {args.fps:g} fps, prior {mean}, "
           f"{height[1]:g} m, --drop-hidden-feet {SETTINGS['drop_hidden_feet'].to_text(args.drop_hidden_feet)}; target: horizon <= {TARGET[0]:g} px and range <= {TARGET[1]:g} %")
     for s, es in results.items():
         fitted = [e for e in es if "refused" not in e]
