@@ -110,12 +110,13 @@ def check_point_sigma(point_sigma_px, n: int) -> float | np.ndarray:
     return sigma
 
 
-FOOT_SIGMA_PER_BOX_HEIGHT = (0.06, 0.06)
-"""FITTED: a foot point's 1-sigma across (u) and along (v), px, per px of its box's height (sigma_px = 0.06 x box
-height on each): the pure ratio of u and v together fitted by research/foot_noise.py to the robust sigmas of
-the segmentation and the rgb boxes' foot-point errors against the truth on simgen's scene1 and scene2, seed 0
-(0.056 and 0.062; an intercept fits negative). The error is not white: its autocorrelation one frame apart
-(20 fps) is 0.93-0.97."""
+FOOT_SIGMA_PER_BOX_HEIGHT = (0.086, 0.032)
+"""FITTED: a foot point's 1-sigma across (u) and along (v), px, per px of its box's height (sigma_u = 0.086 x box
+height, sigma_v = 0.032 x box height): each coordinate's pure ratio fitted by research/foot_noise.py ("u alone",
+"v alone") to the robust sigmas of the foot-point errors against the truth on simgen's scene1 and scene2, seed 0,
+every box, the mean of the segmentation and the rgb boxes' (u 0.084 and 0.088, v 0.029 and 0.035; on the soles
+u 0.086 and 0.083, v 0.025 and 0.034; an intercept fits negative). The error is not white: its autocorrelation
+one frame apart (20 fps) is 0.93-0.97."""
 
 
 FOOT_CORRELATION_S = 0.16

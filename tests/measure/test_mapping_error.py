@@ -126,7 +126,8 @@ def test_per_axis_point_noise_against_the_mappings_derivative(lens):
 def test_box_height_sigma_is_the_fitted_pair_times_the_height():
     """A box of height h px: (u, v) sigmas FOOT_SIGMA_PER_BOX_HEIGHT x h, whichever way up its corners come."""
     xyxy = np.array([[100.0, 200.0, 140.0, 280.0], [10.0, 70.0, 20.0, 50.0]])  # 80 px, 20 px (y2 < y1)
-    np.testing.assert_allclose(box_height_sigma_px(xyxy), [[0.06 * 80, 0.06 * 80], [0.06 * 20, 0.06 * 20]], rtol=1e-14)
+    np.testing.assert_allclose(box_height_sigma_px(xyxy), [[0.086 * 80, 0.032 * 80], [0.086 * 20, 0.032 * 20]],
+                               rtol=1e-14)
 
 
 def test_point_sigma_of_another_shape_is_refused():

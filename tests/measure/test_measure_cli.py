@@ -237,6 +237,7 @@ def test_foot_noise_by_box_height(scene, capsys, monkeypatch):
         out[name] = pq.read_table(scene / f"{name}.parquet").to_pandas()
     assert (out["low"].sigma_m <= out["box"].sigma_m * (1 + 1e-12)).all()
     assert (out["box"].sigma_m <= out["high"].sigma_m * (1 + 1e-12)).all()
+    assert (out["box"].sigma_m > 1.01 * out["low"].sigma_m).any() and (out["box"].sigma_m < 0.99 * out["high"].sigma_m).any()
     for k, track in out["box"].groupby("track_id"):
         np.testing.assert_allclose(track.speed_mps, np.hypot(*WALKERS[k][2:]), atol=0.02)
 
