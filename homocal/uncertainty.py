@@ -52,6 +52,20 @@ def click_jacobian(transformer: ViewTransformer, image_points: np.ndarray, lens:
     return np.einsum("nikj,kjl->nikl", Js.reshape(len(Js), 2, 4, 2), corners).reshape(len(Js), 2, 8)
 
 
+def point_jacobian(transformer: ViewTransformer, image_points: np.ndarray, lens: Lens | None = None) -> np.ndarray:
+    """J_q (N, 2, 2) of ``ground_uncertainty``: the derivative of the mapped points, target units, with respect to
+    the image points (N, 2) px, analytic: the derivative of (H q)_xy / (H q)_w; with ``lens`` with respect to the
+    point on the distorted frame, where it is detected: J_q times inv(lens.distort_jacobian) at the undistorted
+    point. A point's covariance S (2, 2) px^2 on that frame maps to J_q S J_q^T. NaN on or above the horizon."""
+    q = as_points(image_points, "image_points")
+    H = transformer.m
+    w = (np.column_stack([q, np.ones(len(q))]) @ H[2])[:, None, None]
+    Jq = (H[None, :2, :2] - apply_homography(H, q)[:, :, None] * H[None, 2:3, :2]) / w
+    if lens is not None and not lens.is_identity:
+        Jq = Jq @ np.linalg.inv(lens.distort_jacobian(q))
+    return Jq
+
+
 def ground_uncertainty(
     transformer: ViewTransformer,
     image_points: np.ndarray,
@@ -68,12 +82,11 @@ def ground_uncertainty(
     of the trapezoid (J_s (2, 8)), map_sigma_px on each of the 8 map coordinates (J_t (2, 8); in the
     transformer's TARGET units: site-map pixels if it was built on site-map pixels, metres if on metres, so for
     homocal fit's files, which hold metres, divide a map clicking error in pixels by scale_px_per_m) and
-    point_sigma_px on each image coordinate of the point itself (J_q (2, 2), analytic: the derivative of
-    (H q)_xy / (H q)_w). J_s and J_t are central differences (step 1e-3 px; 1e-6 of the map's extent) of the
-    closed-form 4-point homography: the closed form is the one home of the homography, its analytic
-    derivative through the projective basis would be a second, longer one, and the differences are exact to
-    ~1e-9 relative (truncation ~ (step / distance to the horizon)^2, rounding ~1e-16 / step), far below the
-    first-order approximation's own error.
+    point_sigma_px on each image coordinate of the point itself (J_q (2, 2), ``point_jacobian``). J_s and J_t are
+    central differences (step 1e-3 px; 1e-6 of the map's extent) of the closed-form 4-point homography: the closed
+    form is the one home of the homography, its analytic derivative through the projective basis would be a second,
+    longer one, and the differences are exact to ~1e-9 relative (truncation ~ (step / distance to the horizon)^2,
+    rounding ~1e-16 / step), far below the first-order approximation's own error.
 
     lens: the camera's Lens when the trapezoid was clicked and the point detected on its distorted frame (the
     transformer's source and image_points are then undistorted pixels, as homocal fit --camera-json makes them):
@@ -91,12 +104,9 @@ def ground_uncertainty(
     sc = _check_sigma("click_sigma_px", click_sigma_px)
     sp = _check_sigma("point_sigma_px", point_sigma_px)
     sm = _check_sigma("map_sigma_px", map_sigma_px)
-    source, target, H = transformer.source, transformer.target, transformer.m
-    xyw = np.column_stack([q, np.ones(len(q))]) @ H.T
-    mapped = apply_homography(H, q)
-    Jq = (H[None, :2, :2] - mapped[:, :, None] * H[None, 2:3, :2]) / xyw[:, 2, None, None]  # (N, 2, 2)
-    if lens is not None and not lens.is_identity:
-        Jq = Jq @ np.linalg.inv(lens.distort_jacobian(q))  # the point detected on the distorted frame
+    source, target = transformer.source, transformer.target
+    mapped = apply_homography(transformer.m, q)
+    Jq = point_jacobian(transformer, q, lens)
     cov = sp**2 * Jq @ Jq.transpose(0, 2, 1)
     if sc > 0:
         Js = click_jacobian(transformer, q, lens)

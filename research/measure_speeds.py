@@ -44,7 +44,7 @@ true| <= k sigma_m, the 2D error against the semi-major axis; speeds: |speed - t
 given as mean [min, max] over the datasets.
 --split: the filter's measurement noise the foot point's own only, the shared mapping error added to the
 speed's bar (homocal.measure.measure_tracks(split_mapping_error=True)).
---box-sigma: the split with each foot point's own sigma FOOT_SIGMA_PER_BOX_HEIGHT x its box's height
+--box-sigma: the split with each foot point's own (u, v) sigmas FOOT_SIGMA_PER_BOX_HEIGHT x its box's height
 (homocal.measure.tracks.box_height_sigma_px; research/foot_noise.py) instead of 1 px.
 --correlated: --box-sigma with the foot point's error an AR(1) of correlation time FOOT_CORRELATION_S in the
 filter's state (measure_tracks(foot_correlation_s=...); homocal measure --foot-noise correlated).
@@ -530,7 +530,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--throughput", type=float, metavar="MINUTES")
     parser.add_argument("--split", action="store_true", help="measure_tracks(split_mapping_error=True)")
     parser.add_argument("--box-sigma", action="store_true",
-                        help="the split with each foot point's sigma FOOT_SIGMA_PER_BOX_HEIGHT x its box's height")
+                        help="the split with each foot point's (u, v) sigmas FOOT_SIGMA_PER_BOX_HEIGHT x its box's height")
     parser.add_argument("--correlated", action="store_true",
                         help="--box-sigma with the foot point's error an AR(1) of correlation time FOOT_CORRELATION_S")
     parser.add_argument("--accel-psd", type=lambda s: s if s in ("fitted", IMM) else float(s), default=ACCEL_PSD,

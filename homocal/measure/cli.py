@@ -80,8 +80,9 @@ def add_parser(subparsers) -> None:
                    help="error of each foot point coordinate, pixels (default 1.0)")
     p.add_argument("--foot-noise", choices=FOOT_NOISE, default=FOOT_NOISE[0],
                    help="fixed: each point's whole covariance (--point-sigma-px) is the filter's measurement noise; "
-                        f"box-height: the foot point's own error, {FOOT_SIGMA_PER_BOX_HEIGHT:g} x its box's height px "
-                        "(fitted), is, and the shared mapping error goes into the speed's sigma; correlated: as "
+                        f"box-height: the foot point's own error, {FOOT_SIGMA_PER_BOX_HEIGHT[0]:g} x its box's height "
+                        f"px across (u) and {FOOT_SIGMA_PER_BOX_HEIGHT[1]:g} x along (v) (fitted), is, and the shared "
+                        "mapping error goes into the speed's sigma; correlated: as "
                         f"box-height, the foot point's error correlated over {FOOT_CORRELATION_S:g} s (fitted), "
                         "an AR(1) in the filter's state (default fixed)")
     p.add_argument("--foot-noise-tails", choices=FOOT_TAILS, default=FOOT_TAILS[0],

@@ -17,7 +17,7 @@ from homocal.geometry import Lens, ViewTransformer
 from homocal.geometry.boxes import cut_edges, hidden_feet
 from homocal.measure.kalman import (ACCEL_PSD, correlated_noise, fit_accel_psd, mixture, mixture_speed,
                                    track_states)
-from homocal.uncertainty import STEP, click_jacobian, ground_uncertainty, sigma_radius
+from homocal.uncertainty import STEP, click_jacobian, ground_uncertainty, point_jacobian, sigma_radius
 
 COLUMNS = ("frame", "t", "track_id", "u", "v", "x", "y", "sigma_m", "x_smooth", "y_smooth", "vx", "vy", "speed_mps",
            "speed_sigma_mps", "foot")
@@ -78,7 +78,7 @@ def as_mapping(mapping) -> Mapping:
 def map_points(mapping: Mapping, feet: np.ndarray, click_sigma_px: float, point_sigma_px
                ) -> tuple[np.ndarray, np.ndarray]:
     """Ground points (N, 2) metres and their covariances (N, 2, 2) metres^2 of foot points (N, 2) px, point_sigma_px
-    one for all or one a foot point ((N,): ``point_noise``)."""
+    px one number for both coordinates of every point, or (N, 2) one (u, v) pair a foot point (``point_noise``)."""
     if np.ndim(point_sigma_px) == 0:
         return mapping.transform_points(feet), mapping.ground_uncertainty(feet, click_sigma_px=click_sigma_px,
                                                                          point_sigma_px=point_sigma_px)
@@ -88,19 +88,35 @@ def map_points(mapping: Mapping, feet: np.ndarray, click_sigma_px: float, point_
 
 def point_noise(mapping: Mapping, feet: np.ndarray, point_sigma_px) -> np.ndarray:
     """The part (N, 2, 2) metres^2 of the ground covariances of foot points (N, 2) px that is independent from
-    frame to frame: the foot point's own error, point_sigma_px (a number or (N,)) on each of its coordinates,
-    through the mapping (homocal.ground_uncertainty of its transformer and lens at no clicking error), not the
-    shared mapping error (clicking, a fitted horizon), which is the same in every frame of a track."""
-    unit = ground_uncertainty(mapping.mapping, feet, click_sigma_px=0.0, point_sigma_px=1.0,
-                              lens=getattr(mapping, "lens_", None))
-    return np.square(point_sigma_px)[..., None, None] * unit
+    frame to frame: the foot point's own error, independent on its two coordinates of 1-sigma point_sigma_px px
+    (``check_point_sigma``: a number for both, or (N, 2) (u, v) a point), J diag(s_u^2, s_v^2) J^T with J the
+    mapping's derivative at the point (homocal.uncertainty.point_jacobian of its transformer and lens: the
+    sigmas on the camera's distorted frame, as ground_uncertainty's), not the shared mapping error (clicking, a
+    fitted horizon), which is the same in every frame of a track. NaN on or above the horizon."""
+    sigma = np.broadcast_to(check_point_sigma(point_sigma_px, len(feet)), (len(feet), 2))
+    J = point_jacobian(mapping.mapping, feet, getattr(mapping, "lens_", None)) * sigma[:, None, :]
+    return J @ J.transpose(0, 2, 1)
 
 
-FOOT_SIGMA_PER_BOX_HEIGHT = 0.06
-"""FITTED: a foot point's 1-sigma per coordinate, px, per px of its box's height (sigma_px = 0.06 x box height):
-the pure ratio fitted by research/foot_noise.py to the robust sigmas of the segmentation and the rgb boxes'
-foot-point errors against the truth on simgen's scene1 and scene2, seed 0 (0.056 and 0.062; an intercept fits
-negative). The error is not white: its autocorrelation one frame apart (20 fps) is 0.93-0.97."""
+def check_point_sigma(point_sigma_px, n: int) -> float | np.ndarray:
+    """A foot point sigma as given (a number, px, for both coordinates) or as a float (n, 2) array (u, v) px of n
+    foot points; ValueError for another shape."""
+    if np.ndim(point_sigma_px) == 0:
+        return point_sigma_px
+    sigma = np.asarray(point_sigma_px, dtype=np.float64)
+    if sigma.shape != (n, 2):
+        raise ValueError(f"point_sigma_px: expected a number or (N, 2) px, (u, v) for each of the {n} foot points, "
+                         f"got shape {sigma.shape}")
+    return sigma
+
+
+FOOT_SIGMA_PER_BOX_HEIGHT = (0.086, 0.032)
+"""FITTED: a foot point's 1-sigma across (u) and along (v), px, per px of its box's height (sigma_u = 0.086 x box
+height, sigma_v = 0.032 x box height): each coordinate's pure ratio fitted by research/foot_noise.py ("u alone",
+"v alone") to the robust sigmas of the foot-point errors against the truth on simgen's scene1 and scene2, seed 0,
+every box, the mean of the segmentation and the rgb boxes' (u 0.084 and 0.088, v 0.029 and 0.035; on the soles
+u 0.086 and 0.083, v 0.025 and 0.034; an intercept fits negative). The error is not white: its autocorrelation
+one frame apart (20 fps) is 0.93-0.97."""
 
 
 FOOT_CORRELATION_S = 0.16
@@ -133,8 +149,9 @@ def foot_status(edges: np.ndarray, frames: np.ndarray, image_size: tuple[int, in
 
 
 def box_height_sigma_px(xyxy: np.ndarray) -> np.ndarray:
-    """Foot points' 1-sigma (N,) px of boxes xyxy (N, 4) px: FOOT_SIGMA_PER_BOX_HEIGHT x the box's height."""
-    return FOOT_SIGMA_PER_BOX_HEIGHT * np.abs(xyxy[:, 3] - xyxy[:, 1])
+    """Foot points' 1-sigma (N, 2) px, (u, v), of boxes xyxy (N, 4) px: FOOT_SIGMA_PER_BOX_HEIGHT x the box's
+    height."""
+    return np.abs(xyxy[:, 3] - xyxy[:, 1])[:, None] * np.asarray(FOOT_SIGMA_PER_BOX_HEIGHT)
 
 
 FOOT_NOISE = ("fixed", "box-height", "correlated")
@@ -313,7 +330,7 @@ def first_batch_inputs(mapping, frames: np.ndarray, feet: np.ndarray, track_ids:
     ``measure_tracks``'): what the process noise is fitted on."""
     mapping = as_mapping(mapping)
     frames, track_ids = np.asarray(frames, dtype=np.int64), np.asarray(track_ids, dtype=np.int64)
-    point_sigma_px = point_sigma_px if np.ndim(point_sigma_px) == 0 else np.asarray(point_sigma_px, dtype=np.float64)
+    point_sigma_px = check_point_sigma(point_sigma_px, len(frames))
     batch = next(track_batches(track_ids, frames))
     return filter_inputs(mapping, frames, np.asarray(feet, dtype=np.float64), fps, batch, click_sigma_px,
                          point_sigma_px, split_mapping_error, foot_correlation_s, foot, noise_scale)[2]
@@ -330,8 +347,8 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
     Args:
         mapping: a fitted Corrector or a ViewTransformer.
         frames: (N,) int video frames (t = frame / fps seconds); track_ids (N,) int, one box per track and
-            frame (``check_tracks``); feet (N, 2) foot points, px; point_sigma_px a number or one a foot point
-            (N,) (``box_height_sigma_px``).
+            frame (``check_tracks``); feet (N, 2) foot points, px; point_sigma_px px a number for both
+            coordinates of every foot point, or (N, 2) a (u, v) pair each (``box_height_sigma_px``).
         accel_psd: the filter's process noise q, m^2/s^3, or kalman.IMM: two constant-velocity models, a steady
             walker's and a manoeuvre's, switching (homocal.measure.kalman).
         smooth: True: the RTS (or IMM) smoother's states (each conditioned on the whole track); False: the forward
@@ -366,7 +383,7 @@ def measure_tracks(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
     mapping = as_mapping(mapping)
     frames, track_ids = np.asarray(frames, dtype=np.int64), np.asarray(track_ids, dtype=np.int64)
     feet = np.asarray(feet, dtype=np.float64)
-    point_sigma_px = point_sigma_px if np.ndim(point_sigma_px) == 0 else np.asarray(point_sigma_px, dtype=np.float64)
+    point_sigma_px = check_point_sigma(point_sigma_px, len(frames))
     foot = np.full(len(frames), FOOT[0]) if foot is None else np.asarray(foot)
     for batch in track_batches(track_ids, frames):
         rows = np.concatenate(batch)
@@ -441,9 +458,10 @@ def pair_distances(mapping, frames: np.ndarray, feet: np.ndarray, track_ids: np.
     mapping = as_mapping(mapping)
     frames, track_ids = np.asarray(frames, dtype=np.int64), np.asarray(track_ids, dtype=np.int64)
     check_people_per_frame(frames)
+    point_sigma_px = check_point_sigma(point_sigma_px, len(frames))
     for rows in frame_chunks(frames):
         rows = rows[np.lexsort((track_ids[rows], frames[rows]))]
-        sigma = point_sigma_px if np.ndim(point_sigma_px) == 0 else np.asarray(point_sigma_px, dtype=np.float64)[rows]
+        sigma = point_sigma_px if np.ndim(point_sigma_px) == 0 else point_sigma_px[rows]
         xy, cov = map_points(mapping, np.asarray(feet, dtype=np.float64)[rows], click_sigma_px, sigma)
         f, k = frames[rows], track_ids[rows]
         _, starts, n = np.unique(f, return_index=True, return_counts=True)

@@ -4,15 +4,17 @@ perturbed clicked trapezoids, and the smoothed speed's sigma against a batch lea
 import numpy as np
 import pytest
 
-from homocal.geometry import apply_homography, homography_from_quads, read_trapezoid_file
+from homocal.geometry import Lens, apply_homography, homography_from_quads, read_trapezoid_file
 from homocal.measure.kalman import HALF_WIDTH_TOLERANCE
-from homocal.measure.tracks import (TrapezoidMapping, mapping_modes, mapping_velocity_covariance, measure_tracks,
-                                    point_noise)
+from homocal.measure.tracks import (TrapezoidMapping, box_height_sigma_px, mapping_modes, mapping_velocity_covariance,
+                                    measure_tracks, point_noise)
 from homocal.uncertainty import ground_uncertainty
 
 CLICK_PX = 1.5
 TRANSFORMER = read_trapezoid_file("examples/street/trapezoid.json")[0]  # metres, camera at the origin
 MAPPING = TrapezoidMapping(TRANSFORMER)
+LENS = Lens(np.array([[586.452, 0.0, 639.5], [0.0, 586.452, 359.5], [0.0, 0.0, 1.0]]),
+            [-0.2, 0.04, 5e-4, -3e-4, -0.002], (1280, 720))  # a wide barrel lens on the street's 1280x720 frame
 
 
 def monte_carlo_velocity_cov(ground: np.ndarray, v: np.ndarray, n: int = 2000) -> np.ndarray:
@@ -98,17 +100,40 @@ def test_pedestrians_fitted_horizon_share_against_moving_the_horizon():
     assert d @ d > 1e-6  # not negligible
 
 
-def test_per_box_point_noise_against_the_mappings_derivative():
-    """point_noise with one sigma a foot point: sigma^2 J J^T, J the mapping's derivative by central differences
-    of its transform_points; exact for a sigma far below the clicking error at 40 m, where taking the shared part
-    away from the whole covariance (cov(1.5 px, sigma) - cov(1.5 px, 0)) lost 1e-4 of it at 1e-6 px."""
-    feet = TRANSFORMER.inverse_transform_points(np.array([[0.0, 10.0], [2.0, 25.0], [3.0, 45.0]]))
-    sigma = np.array([3.0, 0.5, 1e-6])
-    h = 1e-4
-    J = np.stack([(TRANSFORMER.transform_points(feet + h * e) - TRANSFORMER.transform_points(feet - h * e)) / (2 * h)
-                  for e in np.eye(2)], axis=-1)
-    np.testing.assert_allclose(point_noise(MAPPING, feet, sigma), sigma[:, None, None]**2 * J @ J.transpose(0, 2, 1),
-                               rtol=1e-6)
+@pytest.mark.parametrize("lens", [None, LENS], ids=["pinhole", "lens"])
+def test_per_axis_point_noise_against_the_mappings_derivative(lens):
+    """point_noise with a (u, v) sigma pair a foot point: J diag(s_u^2, s_v^2) J^T, J the derivative of the ground
+    point with respect to the foot point where it is detected (the lens's distorted frame), by central differences
+    of transform_points after the lens's inverse (undistort_points, exact to ~1e-12 px); exact also for a sigma far
+    below the clicking error at 40 m, where taking the shared part away from the whole covariance lost 1e-4 of it
+    at 1e-6 px. Tolerance: over h = 1e-3 px the differences' truncation is ~(h / d)^2 relative, d >= 30 px the
+    points' distance to the horizon (1e-9), their rounding ~1e-12 px / h (1e-9): rtol 1e-6."""
+    mapping = TrapezoidMapping(TRANSFORMER, lens)
+    feet = TRANSFORMER.inverse_transform_points(np.array([[0.0, 10.0], [2.0, 25.0], [3.0, 45.0]]))  # undistorted px
+    seen = feet if lens is None else lens.distort_points(feet)
+    to_ground = lambda d: TRANSFORMER.transform_points(d if lens is None else lens.undistort_points(d))  # noqa: E731
+    h = 1e-3
+    J = np.stack([(to_ground(seen + h * e) - to_ground(seen - h * e)) / (2 * h) for e in np.eye(2)], axis=-1)
+    sigma = np.array([[3.0, 1.0], [0.5, 2.0], [1e-6, 1e-6]])
+    expected = J @ (sigma[:, :, None]**2 * np.eye(2)) @ J.transpose(0, 2, 1)
+    actual = point_noise(mapping, feet, sigma)
+    for a, e in zip(actual, expected):  # an off-diagonal term near 0: to 1e-9 of its covariance's largest
+        np.testing.assert_allclose(a, e, rtol=1e-6, atol=1e-9 * np.abs(e).max())
+    swapped = point_noise(mapping, feet, sigma[:, ::-1])  # straight ahead the range, y, is v's: 3 px of v, not 1
+    assert swapped[0, 1, 1] > 4 * actual[0, 1, 1]
+
+
+def test_box_height_sigma_is_the_fitted_pair_times_the_height():
+    """A box of height h px: (u, v) sigmas FOOT_SIGMA_PER_BOX_HEIGHT x h, whichever way up its corners come."""
+    xyxy = np.array([[100.0, 200.0, 140.0, 280.0], [10.0, 70.0, 20.0, 50.0]])  # 80 px, 20 px (y2 < y1)
+    np.testing.assert_allclose(box_height_sigma_px(xyxy), [[0.086 * 80, 0.032 * 80], [0.086 * 20, 0.032 * 20]],
+                               rtol=1e-14)
+
+
+def test_point_sigma_of_another_shape_is_refused():
+    feet = TRANSFORMER.inverse_transform_points(np.array([[0.0, 10.0], [1.0, 11.0]]))
+    with pytest.raises(ValueError, match=r"point_sigma_px: expected a number or \(N, 2\)"):
+        next(measure_tracks(MAPPING, [0, 1], feet, [0, 0], 10.0, point_sigma_px=np.ones(2)))
 
 
 def test_per_box_sigma_of_one_value_is_the_scalar_and_the_bar_grows_with_it():
@@ -117,10 +142,10 @@ def test_per_box_sigma_of_one_value_is_the_scalar_and_the_bar_grows_with_it():
     feet = TRANSFORMER.inverse_transform_points(np.array([-2.0, 15.0]) + t[:, None] * v)
     frames, ids = np.arange(30), np.zeros(30, int)
     run = lambda s: next(measure_tracks(MAPPING, frames, feet, ids, fps, point_sigma_px=s, split_mapping_error=True))  # noqa: E731
-    same, scalar = run(np.full(30, 2.0)), run(2.0)
+    same, scalar = run(np.full((30, 2), 2.0)), run(2.0)
     for c in ("sigma_m", "speed_mps", "speed_sigma_mps"):
         np.testing.assert_allclose(same[c], scalar[c], rtol=1e-12)
-    wide = run(np.r_[np.full(15, 2.0), np.full(15, 8.0)])
+    wide = run(np.r_[np.full((15, 2), 2.0), np.full((15, 2), 8.0)])
     assert (wide["sigma_m"][15:] > scalar["sigma_m"][15:]).all()
     np.testing.assert_allclose(wide["sigma_m"][:15], scalar["sigma_m"][:15], rtol=1e-12)
     assert wide["speed_sigma_mps"][-1] > scalar["speed_sigma_mps"][-1]

@@ -10,7 +10,7 @@ from cli_run import homocal_main
 from homocal.geometry import PinholeCamera
 from homocal.measure import COLUMNS
 from homocal.measure.kalman import ACCEL_PSD, ACCEL_PSD_BOUNDS
-from homocal.measure.tracks import STUDENT_FOOT_NOISE
+from homocal.measure.tracks import FOOT_SIGMA_PER_BOX_HEIGHT, STUDENT_FOOT_NOISE
 
 CAMERA = PinholeCamera()  # 1280x720, 4 m high, 15 degrees down
 FPS = 10.0
@@ -224,15 +224,20 @@ def test_a_trapezoid_on_a_distorted_camera_takes_the_lens(tmp_path, capsys, monk
 
 
 def test_foot_noise_by_box_height(scene, capsys, monkeypatch):
-    """--foot-noise box-height: each foot point's sigma 0.06 x its box's 80 px (4.8 px, FOOT_SIGMA_PER_BOX_HEIGHT),
-    so sigma_m is that of --point-sigma-px 4.8 with the fixed noise, and the noise-free walkers' speeds stay."""
+    """--foot-noise box-height: each foot point's (u, v) sigmas FOOT_SIGMA_PER_BOX_HEIGHT x its box's 80 px, so
+    sigma_m is that of the mapping at the smaller of the two as one --point-sigma-px (fixed) or more, and at the
+    larger or less (the covariance is monotonic in each sigma), and the noise-free walkers' speeds stay."""
     out = {}
-    for name, extra in (("box", ["--foot-noise", "box-height"]), ("fixed", ["--point-sigma-px", "4.8"])):
+    low, high = (f"{80 * s!r}" for s in sorted(FOOT_SIGMA_PER_BOX_HEIGHT))
+    for name, extra in (("box", ["--foot-noise", "box-height"]), ("low", ["--point-sigma-px", low]),
+                        ("high", ["--point-sigma-px", high])):
         r = homocal_main("measure", "trap.json", "--boxes", "boxes.csv", "--fps", "10", "--out", f"{name}.parquet",
                          *extra, cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
         assert r.returncode == 0, r.stderr
         out[name] = pq.read_table(scene / f"{name}.parquet").to_pandas()
-    np.testing.assert_allclose(out["box"].sigma_m, out["fixed"].sigma_m, rtol=1e-9)
+    assert (out["low"].sigma_m <= out["box"].sigma_m * (1 + 1e-12)).all()
+    assert (out["box"].sigma_m <= out["high"].sigma_m * (1 + 1e-12)).all()
+    assert (out["box"].sigma_m > 1.01 * out["low"].sigma_m).any() and (out["box"].sigma_m < 0.99 * out["high"].sigma_m).any()
     for k, track in out["box"].groupby("track_id"):
         np.testing.assert_allclose(track.speed_mps, np.hypot(*WALKERS[k][2:]), atol=0.02)
 
