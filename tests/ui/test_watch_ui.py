@@ -112,14 +112,8 @@ def test_the_page_draws_the_horizon_over_time(browser, files, tmp_path, name, mo
     """The page's plot: the people, the band, the clicked horizon, and a magenta line at each detected move
     (canvas pixels), none for the steady camera."""
     d = browser
-    with ui_server("--frame", str(files["frame"]), "--site-map", str(files["map"]), "--scale", "10", "--origin",
-                   "200,700", "--boxes", str(files[name]), "--fps", str(FPS), "--out", str(tmp_path)) as url:
-        d.get(url)
-        wait_for(d, "document.body.dataset.ready === '1'")
-        for i in range(4):
-            click(d, "frame", TRAP["image"][i])
-            click(d, "map", TRAP["map"][i])
-            idle(d)
+    with ui_server(*page_args(files, files[name], tmp_path)) as url:
+        open_with_trapezoid(d, url)
         assert js(d, "window.homocalUI.S.view.complete")
         assert not d.find_element(By.ID, "plot-box").is_displayed()
         d.find_element(By.ID, "watch").click()
@@ -147,6 +141,22 @@ def test_the_page_draws_the_horizon_over_time(browser, files, tmp_path, name, mo
             assert fitted == pytest.approx(answer["stretches"][-1]["horizon_row"], abs=1e-9)
             assert [r["name"] for r in js(d, "window.homocalUI.drawn.plot")["references"]] == ["clicked", "fitted"]
         assert [e for e in d.get_log("browser") if e["source"] == "javascript"] == []
+
+
+def page_args(files, boxes: Path, out: Path) -> list[str]:
+    """homocal ui's arguments for the test frame and map with a boxes file at FPS."""
+    return ["--frame", str(files["frame"]), "--site-map", str(files["map"]), "--scale", "10", "--origin", "200,700",
+            "--boxes", str(boxes), "--fps", str(FPS), "--out", str(out)]
+
+
+def open_with_trapezoid(driver, url: str) -> None:
+    """Open the page at url, once ready click TRAP's four corners on the frame and the map."""
+    driver.get(url)
+    wait_for(driver, "document.body.dataset.ready === '1'")
+    for i in range(4):
+        click(driver, "frame", TRAP["image"][i])
+        click(driver, "map", TRAP["map"][i])
+        idle(driver)
 
 
 def magenta_columns(driver) -> list[int]:
@@ -229,14 +239,8 @@ def test_the_page_shades_a_refused_stretch(browser, files, tmp_path):  # noqa: F
     """The plot shades a refused stretch red across its time span, and picking a time in it says homocal watch
     refuses its correction."""
     d = browser
-    with ui_server("--frame", str(files["frame"]), "--site-map", str(files["map"]), "--scale", "10", "--origin",
-                   "200,700", "--boxes", str(things(files, tmp_path)), "--fps", str(FPS), "--out", str(tmp_path)) as url:
-        d.get(url)
-        wait_for(d, "document.body.dataset.ready === '1'")
-        for i in range(4):
-            click(d, "frame", TRAP["image"][i])
-            click(d, "map", TRAP["map"][i])
-            idle(d)
+    with ui_server(*page_args(files, things(files, tmp_path), tmp_path)) as url:
+        open_with_trapezoid(d, url)
         Select(d.find_element(By.ID, "method")).select_by_visible_text("pedestrians")  # its fields shown
         for field, value in (("camera-height", CAM.mount_height_m), ("height-mean", PRIOR["height_mean_m"]),
                              ("height-sd", PRIOR["height_sd_m"])):  # the API test's settings
