@@ -29,10 +29,11 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from homocal.correctors.pedestrians import OUTLIER_SIGMAS, SETTINGS, PedestrianCorrector, upright_heights  # noqa: E402
+from homocal.correctors.pedestrians import OUTLIER_SIGMAS, SETTINGS, PedestrianCorrector  # noqa: E402
 from homocal.geometry import ViewTransformer  # noqa: E402
 from homocal.geometry.boxes import on_border, undistort_boxes  # noqa: E402
 from homocal.study.options import flag_type  # noqa: E402
+from research.box_heights import box_heights  # noqa: E402
 from research.scene3_pedestrians import RANGE_M, horizon_rms, median_range_error  # noqa: E402
 from simgen.agents import Crowd  # noqa: E402
 from simgen.boxstream import box_stream  # noqa: E402
@@ -58,13 +59,12 @@ def stream(scene, seed: int, seconds: float, fps: float) -> dict:
 
 def sample_mean_height(scene, data: dict, seconds: float, fps: float, height: tuple[float, float]) -> float:
     """The median implied height, m, of a stream's boxes of its first seconds (off the border, undistorted) at the
-    scene camera's true tilt, roll and height (upright_heights: the fit's own model), those within OUTLIER_SIGMAS
-    sds (height's) of height's mean."""
+    scene camera's true tilt, roll and height (research/box_heights.py's: the fit's own model), those within
+    OUTLIER_SIGMAS sds (height's) of height's mean."""
     cam = scene.camera
     first = data["frames"] < seconds * fps
     boxes = data["boxes"][first][~on_border(data["boxes"][first], (cam.width, cam.height))]
-    H = upright_heights(undistort_boxes(boxes, cam.lens), np.radians(cam.tilt_deg), np.radians(cam.roll_deg),
-                        float(cam.K[1, 1]), (float(cam.K[0, 2]), float(cam.K[1, 2])), cam.mount_height_m)
+    H = box_heights(undistort_boxes(boxes, cam.lens), cam.K, cam.tilt_deg, cam.roll_deg, cam.mount_height_m)
     return float(np.median(H[np.abs(H - height[0]) <= OUTLIER_SIGMAS * height[1]]))
 
 
