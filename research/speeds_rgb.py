@@ -9,7 +9,12 @@ Per dataset and detector (boxes with an agent, as research/measure_speeds.py tak
   - the IoU linker's tracks: how many, their median length (frames), the share holding more than one agent,
     tracks per agent;
   - the pedestrians' fitted horizon (research/measure_speeds.py's fit: the clicked trapezoid's horizon 16 px
-    off, the default prior) against camera.json's, with its sigma;
+    off, the default prior) against camera.json's, with its sigma; its move per pixel of box height (every box
+    a quarter px taller at each edge, then shorter, each fitted anew: px / px) and the box margin its error amounts to
+    (the error over that move: boxes that many px taller than the people give it);
+  - the foot points mapped through the exact trapezoid (no horizon error) against the agents' true positions,
+    along the line of sight from the camera's ground point (m, + beyond the person), median and interquartile
+    range per range band: the foot point's bias as a position's;
   - the speed error of homocal measure's smoother (median at 5-50 m, % of the true speed; 1/2-sigma
     coverage) with each cause taken away in turn: the pedestrians' mapping or the exact one (the dataset's
     exact trapezoid: no horizon error), the linker's tracks or the agents' own (no fragments, no swaps), and
@@ -32,7 +37,7 @@ from homocal.geometry.boxes import link_tracks
 from homocal.measure import TrapezoidMapping, measure_tracks
 from homocal.measure.kalman import kalman_filter
 from homocal.measure.tracks import map_points, track_batches
-from measure_speeds import BANDS, WALKING_MPS, mappings, truth, undistorted
+from measure_speeds import BANDS, WALKING_MPS, clicked_transformer, mappings, pedestrians, truth, undistorted
 
 
 GRID_Q = (0.01, 0.1, 0.5)
@@ -79,6 +84,27 @@ def innovation_loglik(mapping, frames, feet, tracks, fps, q: float, point_sigma_
     return total / count
 
 
+def margin_slope(ds, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> float:
+    """The pedestrians' fitted horizon row's move per px of box height (px / px): the fit (measure_speeds'
+    pedestrians on its clicked trapezoid) of boxes xyxy (N, 4) homocal px a quarter px taller at each edge less that
+    of boxes a quarter px shorter, over the 1 px between them (a segmentation fragment can be 1 px tall); NaN where
+    either fit refuses."""
+    clicked, rows = clicked_transformer(ds, 16.0), []
+    for quarter in (0.25, -0.25):
+        try:
+            rows.append(pedestrians(ds, clicked, frames, xyxy + [0.0, -quarter, 0.0, quarter], ids).horizon_row_)
+        except ValueError:
+            return float("nan")
+    return rows[0] - rows[1]
+
+
+def line_of_sight_offsets(ds, mapped: np.ndarray, true_xy: np.ndarray) -> np.ndarray:
+    """(N,) m: mapped ground points (N, 2) m less the true ones (N, 2) m along the line of sight from the
+    camera's ground point to the true one (+: beyond it)."""
+    sight = true_xy - np.asarray(ds.camera_origin, float)
+    return np.einsum("ni,ni->n", mapped - true_xy, sight / np.linalg.norm(sight, axis=1)[:, None])
+
+
 def report(path: str, grid: bool) -> None:
     ds = load_dataset(path)
     fps, dt = float(ds.manifest["fps"]), float(ds.manifest["gt_dt"])
@@ -89,7 +115,7 @@ def report(path: str, grid: bool) -> None:
                                 ds.site_map.to_metres(np.asarray(exact["map"], float)))
     print(f"{ds.name} (seed {ds.manifest['seed']}): true horizon row {ds.camera.horizon_row:.1f} px")
     for detector in ("segmentation", "rgb"):
-        frames, xyxy, _, true_speed, rng, _ = truth(ds, detector)
+        frames, xyxy, true_xy, true_speed, rng, _ = truth(ds, detector)
         det = det_all[det_all.detector == detector].reset_index(drop=True)
         agents = det.agent_id.to_numpy()
         step = np.round(det.frame.to_numpy() / fps / dt).astype(np.int64)
@@ -110,9 +136,18 @@ def report(path: str, grid: bool) -> None:
             print(f"    {lo:g}-{hi:g} m ({band.sum():,} boxes): foot row {q(foot_err)} px, box height {q(height_err)} px")
         maps, _ = mappings(ds, 16.0, frames, xyxy, ids)
         peds = maps["pedestrians"]
+        error = peds.horizon_row_ - ds.camera.horizon_row
+        slope = margin_slope(ds, frames, xyxy, ids)
         print(f"    pedestrians' horizon {peds.horizon_row_:.1f} +- {peds.horizon_sigma_px_:.1f} px "
-              f"({peds.horizon_row_ - ds.camera.horizon_row:+.1f} px from the true one)")
+              f"({error:+.1f} px from the true one); {slope:+.2f} px per px of box height, the error of boxes "
+              f"{error / slope:+.1f} px taller than the people")
         feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
+        along = line_of_sight_offsets(ds, exact_map.transform_points(feet), true_xy)
+        for lo, hi in BANDS[:-1]:
+            band = has & (rng >= lo) & (rng < hi) & np.isfinite(along)
+            q25, q50, q75 = np.percentile(along[band], [25, 50, 75]) if band.any() else (np.nan,) * 3
+            print(f"    {lo:g}-{hi:g} m: the exact mapping's foot point {q50:+.3f} m along the line of sight "
+                  f"(IQR {q25:+.3f}, {q75:+.3f})")
         for mapping_name, mapping in (("pedestrians", peds), ("exact", exact_map)):
             for track_name, tracks in (("the linker's", ids), ("the agents' own", np.where(has, agents, -1))):
                 print(f"    smoother, {mapping_name} mapping, {track_name} tracks: median speed error at 5-50 m, "
