@@ -3,6 +3,7 @@ supervision's speed recipe (issue 34 item 4; docs/measure-accuracy.md).
 
     python research/measure_speeds.py DATASET [DATASET ...] [--detectors segmentation,rgb] [--shift 16]
     python research/measure_speeds.py DATASET [DATASET ...] --spread [--split | --box-sigma | --correlated] [--feet soles]
+    python research/measure_speeds.py DATASET [DATASET ...] --spread --detectors rgb --box-margin 2
     python research/measure_speeds.py DATASET [DATASET ...] --exact --spread [--split | --box-sigma | --correlated] [--feet soles]
     python research/measure_speeds.py DATASET [DATASET ...] --steadiness [--spread] [--mappings pedestrians] [--exact] [--box-sigma | --correlated] [--feet soles] [--accel-psd fitted|imm]
     python research/measure_speeds.py DATASET [DATASET ...] --fit-imm
@@ -77,6 +78,11 @@ tracks most likely under the IMM (homocal.measure.kalman.fit_student_noise), the
 the foot noise model of --box-sigma (default fixed), every box: homocal.measure.tracks.STUDENT_FOOT_NOISE.
 --foot-noise-tails normal|student: the foot noise's distribution (homocal measure --foot-noise-tails; student with
 the models STUDENT_FOOT_NOISE has: its scale and degrees of freedom, the scale times --foot-scale).
+--box-margin PX: the boxes' known excess height over the people's, PX / 2 px taken off each box's top and
+bottom edge (in the camera's pixels) before the fit and the foot points (``trimmed``): what a detector whose
+boxes are PX taller than the people's silhouettes would need told (the boxes no taller than PX are left out,
+their count printed to stderr); with --spread a dataset whose pedestrians' fit refuses the trimmed boxes is left
+out (its refusal printed to stderr).
 --foot-scale C: the filter's measurement noise R times C^2 (measure_tracks(noise_scale=C)); the positions' sigma_m
 stay the mapping's.
 --horizons SECONDS: instead, the pedestrians' correction (as the tables fit it) on every disjoint window of
@@ -166,6 +172,11 @@ def truth(ds, detector: str):
     change = np.linalg.norm(at(half) - 2 * xy + at(-half), axis=1) / (half * dt)
     return (det.frame.to_numpy(np.int64), xyxy, xy, np.linalg.norm(vel, axis=1),
             np.linalg.norm(xy - ds.camera_origin, axis=1), change)
+
+
+def trimmed(xyxy: np.ndarray, margin_px: float) -> np.ndarray:
+    """Boxes (N, 4) homocal px (x1, y1, x2, y2) with margin_px / 2 px taken off their top (y1) and bottom (y2) edges."""
+    return xyxy + np.array([0.0, 0.5, 0.0, -0.5]) * margin_px
 
 
 def undistorted(ds, points: np.ndarray) -> np.ndarray:
@@ -261,17 +272,24 @@ def per_box(mapping, frames: np.ndarray, feet: np.ndarray, ids: np.ndarray, fps:
 def evaluate(paths: list[str], detector: str, shift: float, split: bool = False, box_sigma: bool = False,
              correlated: bool = False, accel_psd: float | str = ACCEL_PSD, soles: bool = False,
              exact: bool = False, only: tuple[str, ...] = MAPPINGS, foot_scale: float = 1.0,
-             foot_tails: str = FOOT_TAILS[0]) -> dict:
+             foot_tails: str = FOOT_TAILS[0], box_margin_px: float = 0.0) -> dict:
     """{(mapping, estimator): dict of pooled arrays err (m/s), rel (%, NaN below WALKING_MPS), range, cover1/2
     (speeds), pos1/2 (positions within k sigma_m), ellipse1/2 (positions within the k-sigma ellipse: the squared
     Mahalanobis distance of the error under the mapped point's covariance within chi-square(2)'s quantile of the
     1-D k sigma's share, 68.3 / 95.4 %)} over the datasets; exact: the true mapping alone, bars of no mapping error;
-    foot_scale: the filter's measurement noise times its square (--foot-scale); foot_tails a FOOT_TAILS."""
+    foot_scale: the filter's measurement noise times its square (--foot-scale); foot_tails a FOOT_TAILS;
+    box_margin_px: the boxes ``trimmed`` by it (--box-margin)."""
     pooled: dict = collections.defaultdict(lambda: collections.defaultdict(list))
     for path in paths:
         ds = load_dataset(path)
         fps = float(ds.manifest["fps"])
         frames, xyxy, true_xy, true_speed, rng, change = truth(ds, detector)
+        if box_margin_px:
+            kept = xyxy[:, 3] - xyxy[:, 1] > box_margin_px  # a box no taller than the margin has nothing left
+            print(f"{Path(path).name}, {detector}: {np.sum(~kept):,} of {len(kept):,} boxes no taller than "
+                  f"{box_margin_px:g} px left out", file=sys.stderr)
+            frames, xyxy, true_xy, true_speed, rng, change = (a[kept] for a in (frames, trimmed(xyxy, box_margin_px),
+                                                                                true_xy, true_speed, rng, change))
         ids = link_tracks(frames, xyxy)
         feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
         foot = foot_status(xyxy, frames, ds.camera.image_size) if soles else None
@@ -549,6 +567,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--foot-noise-tails", choices=FOOT_TAILS, default=FOOT_TAILS[0], help="homocal measure --foot-noise-tails")
     parser.add_argument("--fit-foot-tails", action="store_true",
                         help="the Student-t foot noise's scale and degrees of freedom by maximum likelihood under the IMM")
+    parser.add_argument("--box-margin", type=float, default=0.0, metavar="PX",
+                        help="the boxes' known excess height: PX / 2 off each box's top and bottom edge")
     parser.add_argument("--foot-scale", type=float, default=1.0, metavar="C",
                         help="the filter's measurement noise times C^2")
     parser.add_argument("--horizons", type=float, metavar="SECONDS",
@@ -600,10 +620,20 @@ def main(argv: list[str] | None = None) -> int:
     for detector in args.detectors.split(","):
         def run(paths: list[str]) -> dict:
             return evaluate(paths, detector, args.shift, args.split, args.box_sigma, args.correlated, args.accel_psd,
-                            args.feet == "soles", args.exact, only, args.foot_scale, args.foot_noise_tails)
+                            args.feet == "soles", args.exact, only, args.foot_scale, args.foot_noise_tails,
+                            args.box_margin)
+
+        def fitted(path: str) -> dict | None:  # a dataset's evaluation, None where a fit refuses the trimmed boxes
+            try:
+                return run([path])
+            except ValueError as e:
+                if not args.box_margin:
+                    raise
+                print(f"{Path(path).name}, {detector}: left out, refused: {e}", file=sys.stderr)
+                return None
 
         if args.spread:
-            each = [run([d]) for d in args.datasets]
+            each = [e for e in map(fitted, args.datasets) if e is not None]
             print(spread_table(each, detector, args.shift) + "\n")
             if args.steadiness:  # the same evaluations pooled
                 print(steadiness_table({key: {k: np.concatenate([e[key][k] for e in each]) for k in each[0][key]}

@@ -172,3 +172,19 @@ def test_student_tails_measure_the_true_speeds_of_exact_foot_points(tmp_path):
          for tails in ("normal", "student")}
     assert np.nanpercentile(p["student"]["rel"], 90) < 1.0
     assert not np.allclose(p["student"]["sigma"], p["normal"]["sigma"])
+
+
+def test_box_margin_trims_each_box_and_leaves_out_those_no_taller(tmp_path, capsys):
+    """--box-margin PX: PX / 2 off each box's top and bottom edge, its columns kept; a box no taller than PX has
+    nothing left and is left out, counted on stderr."""
+    import pyarrow.parquet as pq
+
+    xyxy = np.array([[10.0, 20.0, 30.0, 120.0], [0.0, 5.0, 4.0, 7.0]])
+    np.testing.assert_array_equal(script.trimmed(xyxy, 2.0), [[10.0, 21.0, 30.0, 119.0], [0.0, 6.0, 4.0, 6.0]])
+    path = walkers(tmp_path)
+    det = pq.read_table(path / "detections.parquet")
+    short = int(np.sum(np.asarray(det["y2"]) - np.asarray(det["y1"]) <= 150.0))
+    assert 0 < short < det.num_rows  # the walkers' far boxes
+    p = script.evaluate([str(path)], "segmentation", 16, exact=True, box_margin_px=150.0)
+    assert f"{short:,} of {det.num_rows:,} boxes no taller than 150 px left out" in capsys.readouterr().err
+    assert len(p["exact, smoother"]["rel"]) <= det.num_rows - short
