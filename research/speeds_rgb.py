@@ -37,7 +37,7 @@ from homocal.geometry.boxes import link_tracks
 from homocal.measure import TrapezoidMapping, measure_tracks
 from homocal.measure.kalman import kalman_filter
 from homocal.measure.tracks import map_points, track_batches
-from measure_speeds import BANDS, WALKING_MPS, clicked_transformer, mappings, pedestrians, truth, undistorted
+from measure_speeds import BANDS, WALKING_MPS, clicked_transformer, mappings, pedestrians, trimmed, truth, undistorted
 
 
 GRID_Q = (0.01, 0.1, 0.5)
@@ -90,9 +90,9 @@ def margin_slope(ds, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> f
     of boxes a quarter px shorter, over the 1 px between them (a segmentation fragment can be 1 px tall); NaN where
     either fit refuses."""
     clicked, rows = clicked_transformer(ds, 16.0), []
-    for quarter in (0.25, -0.25):
+    for margin in (-0.5, 0.5):  # a negative margin: taller boxes
         try:
-            rows.append(pedestrians(ds, clicked, frames, xyxy + [0.0, -quarter, 0.0, quarter], ids).horizon_row_)
+            rows.append(pedestrians(ds, clicked, frames, trimmed(xyxy, margin), ids).horizon_row_)
         except ValueError:
             return float("nan")
     return rows[0] - rows[1]
