@@ -306,9 +306,11 @@ IMM_SWITCH_PER_S."""
 IMM_ACCEL_PSD = (4.4e-4, 10.0)
 """FITTED: the IMM's two q, m^2/s^3: a walker keeping a steady velocity (2 cm/s of wander in one second), one
 who turns, starts or stops (at ACCEL_PSD_BOUNDS' top). ``fit_imm`` on simgen's scene1 and scene2, seed 0,
-segmentation and rgb boxes pooled, the pedestrians' correction, --foot-noise box-height, --feet all:
-``python research/measure_speeds.py DATA/scene1 DATA/scene2 --fit-imm`` (q 0.000442 and 10, rates 0.0239 and
-0.931 per s)."""
+segmentation and rgb boxes pooled, the pedestrians' correction, --foot-noise box-height with one sigma of 0.06 x
+the box's height on both coordinates, --feet all (q 0.000442 and 10, rates 0.0239 and 0.931 per s). Not refitted
+with the per-axis FOOT_SIGMA_PER_BOX_HEIGHT, under which
+``python research/measure_speeds.py DATA/scene1 DATA/scene2 --fit-imm`` prints q 0.000344 and 10, rates 0.0205 and
+0.929 per s (docs/measure-accuracy.md, "Two regimes")."""
 IMM_SWITCH_PER_S = (0.024, 0.93)
 """FITTED (with IMM_ACCEL_PSD): the IMM's switching rates, per second, steady to manoeuvre and back (a steady
 stretch of 42 s on average, a manoeuvre of 1.1 s): over dt seconds a model is left with probability
