@@ -82,7 +82,8 @@ the models STUDENT_FOOT_NOISE has: its scale and degrees of freedom, the scale t
 bottom edge (in the camera's pixels) before the fit and the foot points (``trimmed``): what a detector whose
 boxes are PX taller than the people's silhouettes would need told (the boxes no taller than PX are left out,
 their count printed to stderr); with --spread a dataset whose pedestrians' fit refuses the trimmed boxes is left
-out (its refusal printed to stderr).
+out (its refusal printed to stderr). The speed tables only: refused with --draws, --fit-*, --horizons and
+--throughput, which read the boxes as detected.
 --foot-scale C: the filter's measurement noise R times C^2 (measure_tracks(noise_scale=C)); the positions' sigma_m
 stay the mapping's.
 --horizons SECONDS: instead, the pedestrians' correction (as the tables fit it) on every disjoint window of
@@ -576,6 +577,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--draws", type=int, metavar="N",
                         help="the pooled speed coverage against what honest parts give over N draws of the cameras' mapping errors")
     args = parser.parse_args(argv)
+    if args.box_margin and (args.draws or args.fit_imm or args.fit_foot_scale or args.fit_foot_tails or args.horizons
+                            or args.throughput):
+        parser.error("--box-margin: for the speed tables only, not --draws, --fit-*, --horizons or --throughput")
     if args.draws:
         for detector in args.detectors.split(","):
             parts = [bar_parts(d, detector, args.shift, "correlated" if args.correlated else "box-height",

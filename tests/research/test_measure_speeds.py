@@ -188,3 +188,14 @@ def test_box_margin_trims_each_box_and_leaves_out_those_no_taller(tmp_path, caps
     p = script.evaluate([str(path)], "segmentation", 16, exact=True, box_margin_px=150.0)
     assert f"{short:,} of {det.num_rows:,} boxes no taller than 150 px left out" in capsys.readouterr().err
     assert len(p["exact, smoother"]["rel"]) <= det.num_rows - short
+
+
+def test_box_margin_is_refused_where_the_boxes_are_read_as_detected(capsys):
+    for mode in (["--draws", "10"], ["--fit-imm"], ["--horizons", "10"], ["--throughput", "1"]):
+        try:
+            script.main(["d", "--box-margin", "2", *mode])
+        except SystemExit as e:
+            assert e.code == 2
+        else:
+            raise AssertionError(f"--box-margin with {mode} was not refused")
+        assert "--box-margin: for the speed tables only" in capsys.readouterr().err
