@@ -161,6 +161,8 @@ def test_data_schema_names_every_pose_column_once(moving):
     assert sorted(documented) == sorted(pq.read_schema(moving[1] / "camera_pose.parquet").names)
 
 
+@pytest.mark.generate
+@pytest.mark.slow
 def test_load_dataset_gives_the_pose_track(moving):
     """homocal.load_dataset's pose track (Dataset.pose) is camera_pose.parquet's rows, read through pyarrow alone."""
     _, out = moving
