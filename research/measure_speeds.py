@@ -113,6 +113,7 @@ import numpy as np
 from scipy.special import ndtr
 from scipy.stats import chi2
 
+from homocal.arguments import number
 from homocal.boxes import read_boxes
 from homocal.correctors import LeastChangeCorrector, PedestrianCorrector
 from homocal.dataset import load_dataset
@@ -173,6 +174,9 @@ def truth(ds, detector: str):
     change = np.linalg.norm(at(half) - 2 * xy + at(-half), axis=1) / (half * dt)
     return (det.frame.to_numpy(np.int64), xyxy, xy, np.linalg.norm(vel, axis=1),
             np.linalg.norm(xy - ds.camera_origin, axis=1), change)
+
+
+MAX_BOX_MARGIN_PX = 64.0  # --box-margin's bound: a detector's excess of a few px; more is no person's box
 
 
 def trimmed(xyxy: np.ndarray, margin_px: float) -> np.ndarray:
@@ -568,7 +572,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--foot-noise-tails", choices=FOOT_TAILS, default=FOOT_TAILS[0], help="homocal measure --foot-noise-tails")
     parser.add_argument("--fit-foot-tails", action="store_true",
                         help="the Student-t foot noise's scale and degrees of freedom by maximum likelihood under the IMM")
-    parser.add_argument("--box-margin", type=float, default=0.0, metavar="PX",
+    parser.add_argument("--box-margin", type=number(float, 0.0, MAX_BOX_MARGIN_PX), default=0.0, metavar="PX",
                         help="the boxes' known excess height: PX / 2 off each box's top and bottom edge")
     parser.add_argument("--foot-scale", type=float, default=1.0, metavar="C",
                         help="the filter's measurement noise times C^2")

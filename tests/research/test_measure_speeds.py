@@ -199,3 +199,16 @@ def test_box_margin_is_refused_where_the_boxes_are_read_as_detected(capsys):
         else:
             raise AssertionError(f"--box-margin with {mode} was not refused")
         assert "--box-margin: for the speed tables only" in capsys.readouterr().err
+
+
+def test_box_margin_bad_values_are_refused_in_one_line(capsys):
+    for text in ("nan", "inf", "-1", "65", "1e308", "two", ""):
+        try:
+            script.main(["d", "--box-margin", text])
+        except SystemExit as e:
+            assert e.code == 2
+        else:
+            raise AssertionError(f"--box-margin {text!r} was not refused")
+        err = capsys.readouterr().err
+        last = err.strip().splitlines()[-1]  # argparse's usage, then one line naming the flag
+        assert "error: argument --box-margin: " in last and sum("--box-margin:" in x for x in err.splitlines()) == 1, err
