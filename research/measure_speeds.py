@@ -78,11 +78,11 @@ tracks most likely under the IMM (homocal.measure.kalman.fit_student_noise), the
 the foot noise model of --box-sigma (default fixed), every box: homocal.measure.tracks.STUDENT_FOOT_NOISE.
 --foot-noise-tails normal|student: the foot noise's distribution (homocal measure --foot-noise-tails; student with
 the models STUDENT_FOOT_NOISE has: its scale and degrees of freedom, the scale times --foot-scale).
---box-margin PX: the boxes' known excess height over the people's, PX / 2 px taken off each box's top and
-bottom edge (in the camera's pixels) before the fit and the foot points (``trimmed``): what a detector whose
-boxes are PX taller than the people's silhouettes would need told (the boxes no taller than PX are left out,
-their count printed to stderr); with --spread a dataset whose pedestrians' fit refuses the trimmed boxes is left
-out (its refusal printed to stderr). The speed tables only: refused with --draws, --fit-*, --horizons and
+--box-margin PX: the boxes' known excess height over the people's, as homocal fit --box-margin and homocal
+measure take it (PedestrianCorrector(box_margin_px), homocal.geometry.trim_boxes: PX / 2 px off each box's top
+and bottom edge in the camera's pixels, for every mapping's foot points; a box no taller an outlier of the fit
+and its foot not measured, "short"); with --spread a dataset whose pedestrians' fit refuses the trimmed boxes is
+left out (its refusal printed to stderr). The speed tables only: refused with --draws, --fit-*, --horizons and
 --throughput, which read the boxes as detected.
 --foot-scale C: the filter's measurement noise R times C^2 (measure_tracks(noise_scale=C)); the positions' sigma_m
 stay the mapping's.
@@ -118,11 +118,11 @@ from homocal.boxes import read_boxes
 from homocal.correctors import LeastChangeCorrector, PedestrianCorrector
 from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer, box_bottom_points
-from homocal.geometry.boxes import link_tracks
+from homocal.geometry.boxes import MAX_BOX_MARGIN_PX, link_tracks, trim_boxes
 from homocal.measure import ACCEL_PSD, measure_tracks
 from homocal.measure.kalman import IMM, fit_imm, fit_noise_scale, fit_student_noise, speed_and_sigma
-from homocal.measure.tracks import (FEET, FOOT_TAILS, TrapezoidMapping, as_mapping, map_points, first_batch_inputs, fit_tracks_accel_psd, foot_noise_options,
-                                    foot_status, mapping_velocity_covariance)
+from homocal.measure.tracks import (FEET, FOOT, FOOT_TAILS, TrapezoidMapping, as_mapping, map_points, first_batch_inputs, fit_tracks_accel_psd, foot_noise_options,
+                                    foot_status, mapping_velocity_covariance, measured_feet)
 from homocal.study.perturb import base_quad
 
 BANDS = ((5.0, 15.0), (15.0, 30.0), (30.0, 50.0), (5.0, 50.0))
@@ -176,14 +176,6 @@ def truth(ds, detector: str):
             np.linalg.norm(xy - ds.camera_origin, axis=1), change)
 
 
-MAX_BOX_MARGIN_PX = 64.0  # --box-margin's bound: a detector's excess of a few px; more is no person's box
-
-
-def trimmed(xyxy: np.ndarray, margin_px: float) -> np.ndarray:
-    """Boxes (N, 4) homocal px (x1, y1, x2, y2) with margin_px / 2 px taken off their top (y1) and bottom (y2) edges."""
-    return xyxy + np.array([0.0, 0.5, 0.0, -0.5]) * margin_px
-
-
 def undistorted(ds, points: np.ndarray) -> np.ndarray:
     """Image points (N, 2) of the dataset (its camera's pixels) in the undistorted image (as given for a pinhole)."""
     lens = ds.camera.lens
@@ -205,21 +197,23 @@ def clicked_transformer(ds, shift: float) -> ViewTransformer:
     return ViewTransformer(base_quad(exact.source, K, row, ds.camera.horizon_row, shift, np.zeros(8)), exact.target)
 
 
-def mappings(ds, shift: float, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> dict:
+def mappings(ds, shift: float, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray, box_margin_px: float = 0.0) -> dict:
     clicked = clicked_transformer(ds, shift)
     q, g, distance = ds.calibration_points("segmentation")
     ahead = np.abs(g[:, 0] - ds.camera_origin[0]) < 1.0
     pick = [np.flatnonzero(ahead)[np.argmin(np.abs(distance[ahead] - r))] for r in REFERENCE_RANGES_M]
     least = LeastChangeCorrector().fit(clicked, undistorted(ds, q[pick]), g[pick], ds.camera_origin)
-    return {MAPPINGS[0]: clicked, MAPPINGS[1]: least, MAPPINGS[2]: pedestrians(ds, clicked, frames, xyxy, ids)}, clicked
+    return {MAPPINGS[0]: clicked, MAPPINGS[1]: least,
+            MAPPINGS[2]: pedestrians(ds, clicked, frames, xyxy, ids, box_margin_px)}, clicked
 
 
-def pedestrians(ds, clicked: ViewTransformer, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> PedestrianCorrector:
+def pedestrians(ds, clicked: ViewTransformer, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray,
+                box_margin_px: float = 0.0) -> PedestrianCorrector:
     """The pedestrians' correction of the clicked mapping from boxes xyxy (N, 4) homocal px of frames (N,) and
     tracks ids (N,): the default height prior, K, the camera height and the lens given, the roll estimated on a
-    rolled camera."""
+    rolled camera, box_margin_px the boxes' margin (PedestrianCorrector's)."""
     rolled = bool(abs(ds.camera.horizon[0]) > 1e-9)  # a horizon that is not a row
-    return PedestrianCorrector(estimate_roll=rolled).fit(
+    return PedestrianCorrector(estimate_roll=rolled, box_margin_px=box_margin_px).fit(
         clicked, xyxy, convention="homocal", frames=frames, track_ids=ids, K=ds.camera.K,
         camera_height_m=ds.camera.mount_height_m, image_size=ds.camera.image_size, camera_origin=ds.camera_origin,
         lens=None if ds.camera.lens.is_identity else ds.camera.lens)
@@ -283,28 +277,24 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
     Mahalanobis distance of the error under the mapped point's covariance within chi-square(2)'s quantile of the
     1-D k sigma's share, 68.3 / 95.4 %)} over the datasets; exact: the true mapping alone, bars of no mapping error;
     foot_scale: the filter's measurement noise times its square (--foot-scale); foot_tails a FOOT_TAILS;
-    box_margin_px: the boxes ``trimmed`` by it (--box-margin)."""
+    box_margin_px: the boxes' margin, px (--box-margin: the fit's, and every mapping's foot points as homocal
+    measure's)."""
     pooled: dict = collections.defaultdict(lambda: collections.defaultdict(list))
     for path in paths:
         ds = load_dataset(path)
         fps = float(ds.manifest["fps"])
         frames, xyxy, true_xy, true_speed, rng, change = truth(ds, detector)
-        if box_margin_px:
-            kept = xyxy[:, 3] - xyxy[:, 1] > box_margin_px  # a box no taller than the margin has nothing left
-            print(f"{Path(path).name}, {detector}: {np.sum(~kept):,} of {len(kept):,} boxes no taller than "
-                  f"{box_margin_px:g} px left out", file=sys.stderr)
-            frames, xyxy, true_xy, true_speed, rng, change = (a[kept] for a in (frames, trimmed(xyxy, box_margin_px),
-                                                                                true_xy, true_speed, rng, change))
         ids = link_tracks(frames, xyxy)
-        feet = undistorted(ds, box_bottom_points(xyxy, convention="homocal"))
-        foot = foot_status(xyxy, frames, ds.camera.image_size) if soles else None
-        if soles:
-            print(f"{Path(path).name}, {detector}: of {len(foot):,} boxes, feet hidden {100 * np.mean(foot == 'hidden'):.1f} %, "
-                  f"on the border {100 * np.mean(foot == 'border'):.1f} %", file=sys.stderr)
+        people = trim_boxes(xyxy, box_margin_px)  # homocal measure's, as is for no margin
+        feet = undistorted(ds, box_bottom_points(people, convention="homocal"))
+        foot = measured_feet(xyxy, frames, ds.camera.image_size, FEET[1] if soles else FEET[0], box_margin_px)
+        if soles or box_margin_px:
+            print(f"{Path(path).name}, {detector}: of {len(foot):,} boxes, " + ", ".join(
+                  f"{k} {100 * np.mean(foot == k):.1f} %" for k in FOOT[1:]), file=sys.stderr)
         if exact:
             maps, rows = {"exact": TrapezoidMapping(exact_transformer(ds), ds.camera.lens)}, {}
         else:
-            maps, clicked = mappings(ds, shift, frames, xyxy, ids)
+            maps, clicked = mappings(ds, shift, frames, xyxy, ids, box_margin_px)
             maps = {k: v for k, v in maps.items() if k in only}
             H = cv2.getPerspectiveTransform(clicked.source.astype(np.float32), clicked.target.astype(np.float32))
             sv_xy = cv2.perspectiveTransform(feet.reshape(-1, 1, 2).astype(np.float32), H).reshape(-1, 2).astype(float)
@@ -312,7 +302,7 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
         first, last = (np.array([f(frames[ids == k]) for k in range(ids.max() + 1)]) for f in (np.min, np.max))
         inner = (frames - first[ids] >= fps) & (last[ids] - frames >= fps)  # at least 1 s from its track's ends
         for name, mapping in maps.items():
-            noise = foot_noise_options("correlated" if correlated else "box-height" if box_sigma else "fixed", xyxy, 1.0,
+            noise = foot_noise_options("correlated" if correlated else "box-height" if box_sigma else "fixed", people, 1.0,
                                        foot_tails)
             noise["split_mapping_error"] |= split
             noise["noise_scale"] *= foot_scale

@@ -33,11 +33,11 @@ import numpy as np
 
 from homocal.dataset import load_dataset
 from homocal.geometry import ViewTransformer, box_bottom_points
-from homocal.geometry.boxes import link_tracks
+from homocal.geometry.boxes import link_tracks, trim_boxes
 from homocal.measure import TrapezoidMapping, measure_tracks
 from homocal.measure.kalman import kalman_filter
 from homocal.measure.tracks import map_points, track_batches
-from measure_speeds import BANDS, WALKING_MPS, clicked_transformer, mappings, pedestrians, trimmed, truth, undistorted
+from measure_speeds import BANDS, WALKING_MPS, clicked_transformer, mappings, pedestrians, truth, undistorted
 
 
 GRID_Q = (0.01, 0.1, 0.5)
@@ -92,7 +92,7 @@ def margin_slope(ds, frames: np.ndarray, xyxy: np.ndarray, ids: np.ndarray) -> f
     clicked, rows = clicked_transformer(ds, 16.0), []
     for margin in (-0.5, 0.5):  # a negative margin: taller boxes
         try:
-            rows.append(pedestrians(ds, clicked, frames, trimmed(xyxy, margin), ids).horizon_row_)
+            rows.append(pedestrians(ds, clicked, frames, trim_boxes(xyxy, margin), ids).horizon_row_)
         except ValueError:
             return float("nan")
     return rows[0] - rows[1]

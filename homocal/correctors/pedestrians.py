@@ -88,7 +88,8 @@ import numpy as np
 from homocal.correctors.base import Corrector, check_calibration, check_camera_origin, improvement_percent, mean_error
 from homocal.correctors.serialization import float_or_none, integer, number
 from homocal.geometry import ViewTransformer, apply_homography, as_points
-from homocal.geometry.boxes import box_edges, hidden_feet, link_tracks, on_border, undistort_boxes
+from homocal.geometry.boxes import (MAX_BOX_MARGIN_PX, box_edges, hidden_feet, link_tracks, on_border, trim_boxes,
+                                    undistort_boxes)
 from homocal.geometry.camera import tilt_homography
 from homocal.geometry.lens import Lens
 from homocal.study.options import Number, Option, OptionError, YesNo
@@ -147,6 +148,10 @@ SETTINGS = {
                                "fit without them is not", metavar="{yes,no,auto}"),
     "camera_height_m": Option("--camera-height", Number(MIN_CAMERA_HEIGHT_M, MAX_CAMERA_HEIGHT_M), "the camera's "
                               "height over the ground", metavar="M", unit="m", none="from the clicked trapezoid with K"),
+    "box_margin_px": Option("--box-margin", Number(0.0, MAX_BOX_MARGIN_PX), "how much taller than their people the "
+                            "detector's boxes are, in the camera's pixels: half off each box's top and bottom edge "
+                            "before the fit (a box no taller: an outlier), kept in the correction for homocal measure",
+                            metavar="PX", unit="px"),
 }
 """The settings of a pedestrian fit, each declared once (homocal.study.options.Option: flag, bounds, unit, help):
 PedestrianCorrector's checks (an OptionError names the parameter), homocal fit's flags and their error
@@ -538,6 +543,13 @@ class PedestrianCorrector(Corrector):
             not refused, but of the twelve refused fits it fitted (docs/pedestrians.md, "Hidden feet") two are
             far off with sigmas five times smaller (24 px with 4 px, 13 px with 2.4 px), the confident far-off
             answers the refusal is for.
+        box_margin_px: how much taller than their people the detector's boxes are, px in the camera's frame
+            (SETTINGS' bounds; default 0: boxes as tight as the people): fit takes half of it off each box's top
+            and bottom edge (homocal.geometry.trim_boxes) after the border test, the hidden feet and the track
+            linking (on the boxes as given), before the undistortion and the fit; a box no taller keeps no height, an
+            outlier. Saved with the correction: homocal measure and GroundTracker take it off their boxes too. A
+            background subtractor at half resolution gives boxes some 2 px too tall (simgen's rgb detector,
+            docs/measure-accuracy.md), which the fit otherwise reads as a tilt (2 px of horizon per px).
         model: the corrected mapping (``transformer_``: the image trapezoid that maps with it onto the clicked
             map trapezoid, whose site-map frame is kept):
             "camera" (the default): the camera's own ground mapping (K, the camera height, the fitted tilt,
@@ -570,19 +582,20 @@ class PedestrianCorrector(Corrector):
     """
 
     method = "pedestrians"
-    param_names = ("height_mean_m", "height_sd_m", "model", "height_mean_sigma_m", "estimate_roll", "drop_hidden_feet")
+    param_names = ("height_mean_m", "height_sd_m", "model", "height_mean_sigma_m", "estimate_roll", "drop_hidden_feet",
+                   "box_margin_px")
 
     def __init__(self, height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
                  model: str = "camera", height_mean_sigma_m: float = DEFAULT_HEIGHT_MEAN_SIGMA_M,
-                 estimate_roll: bool = False, drop_hidden_feet: bool | str = False) -> None:
+                 estimate_roll: bool = False, drop_hidden_feet: bool | str = False, box_margin_px: float = 0.0) -> None:
         if model not in MODELS:
             raise ValueError(f"model {model!r}: expected one of {', '.join(MODELS)}")
         self.model, self.estimate_roll, self.drop_hidden_feet = model, *(
             SETTINGS[name].check(name, value) for name, value in (("estimate_roll", estimate_roll),
                                                                    ("drop_hidden_feet", drop_hidden_feet)))
-        self.height_mean_m, self.height_sd_m, self.height_mean_sigma_m = (
+        self.height_mean_m, self.height_sd_m, self.height_mean_sigma_m, self.box_margin_px = (
             float(SETTINGS[name].check(name, value)) for name, value in (("height_mean_m", height_mean_m), ("height_sd_m", height_sd_m),
-                                ("height_mean_sigma_m", height_mean_sigma_m)))
+                                ("height_mean_sigma_m", height_mean_sigma_m), ("box_margin_px", box_margin_px)))
         if self.height_sd_m > self.height_mean_m / 4:
             raise OptionError("height_sd_m", height_sd_m, f"expected at most height_mean_m / 4 = {self.height_mean_m / 4:g} m")
 
@@ -663,6 +676,7 @@ class PedestrianCorrector(Corrector):
                              "person's")
         if tracks is None:
             tracks = np.arange(n) if frames is None else link_tracks(frames, edges, max_gap=LINK_GAP)
+        edges = trim_boxes(edges, self.box_margin_px)  # after the border, the hidden feet and the tracks: the boxes' own
         if lens is not None:  # the camera's pixels to the undistorted image, as homocal.boxes.read_boxes does
             edges = undistort_boxes(edges, lens)
         self.hidden_feet_, self.first_refusal_ = "no frames" if auto and frames is None else "kept", None

@@ -49,6 +49,28 @@ def box_bottom_points(xyxy: np.ndarray, *, convention: str) -> np.ndarray:
     return np.column_stack([(edges[:, 0] + edges[:, 2]) / 2.0, edges[:, 3]])
 
 
+MAX_BOX_MARGIN_PX = 64.0
+"""The largest box margin taken (trim_boxes; homocal fit --box-margin): a detector's boxes taller than their
+people by more than this are not boxes of people."""
+
+
+def trim_boxes(edges: np.ndarray, margin_px: float) -> np.ndarray:
+    """Box edges (N, 4) homocal px (x1, y1, x2, y2) of a detector whose boxes are margin_px taller than their
+    people (px, in the camera's frame, in [0, MAX_BOX_MARGIN_PX]) -> the people's edges (N, 4) float64: margin_px / 2
+    off the top edge and off the bottom edge (the foot point margin_px / 2 up). A box no taller than margin_px
+    keeps no height (both edges on its middle row: ``short_boxes``). margin_px 0: a copy as they are."""
+    edges = np.array(edges, dtype=np.float64)
+    middle, half = (edges[:, 1] + edges[:, 3]) / 2.0, margin_px / 2.0
+    edges[:, 1], edges[:, 3] = np.minimum(edges[:, 1] + half, middle), np.maximum(edges[:, 3] - half, middle)
+    return edges
+
+
+def short_boxes(edges: np.ndarray, margin_px: float) -> np.ndarray:
+    """(N,) bool: the boxes edges (N, 4) homocal px that a margin of margin_px > 0 px leaves with no height
+    (trim_boxes); none for margin_px 0."""
+    return (edges[:, 3] - edges[:, 1] <= margin_px) if margin_px > 0 else np.zeros(len(edges), bool)
+
+
 def undistort_boxes(edges: np.ndarray, lens) -> np.ndarray:
     """Box edges (N, 4) homocal px in the camera's (distorted) pixels -> edges (N, 4) in the undistorted image of
     ``lens`` (homocal.geometry.Lens; None or an identity lens: a copy as they are). The foot point (the bottom

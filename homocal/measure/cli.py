@@ -13,17 +13,19 @@ from homocal.arguments import CAMERA_JSON_HELP, camera_json, number
 from homocal.boxes import DEFAULT_DETECTOR, MAX_FPS, boxes_fps, read_boxes
 from homocal.correctors.base import load_corrector
 from homocal.correctors.catalogue import label
+from homocal.correctors.pedestrians import SETTINGS as PEDESTRIAN_SETTINGS
 from homocal.correctors.serialization import FORMAT
 from homocal.files import check_output_file, json_format, write_atomic
 from homocal.geometry import read_trapezoid_file
 from homocal.geometry.lens import first_outside_frame
-from homocal.geometry.boxes import box_bottom_points, link_tracks, undistort_boxes
+from homocal.geometry.boxes import box_bottom_points, link_tracks, trim_boxes, undistort_boxes
 from homocal.measure.kalman import ACCEL_PSD, ACCEL_PSD_BOUNDS, IMM, IMM_ACCEL_PSD, IMM_SWITCH_PER_S
 from homocal.measure.tracks import (COLUMNS, FEET, FOOT, FOOT_CORRELATION_S, FOOT_NOISE, FOOT_SIGMA_PER_BOX_HEIGHT, FOOT_TAILS,
-                                    STUDENT_FOOT_NOISE, foot_noise_options, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
-                                    TrapezoidMapping, check_people_per_frame, check_tracks, fit_tracks_accel_psd, foot_status, measure_tracks, pair_distances,
+                                    STUDENT_FOOT_NOISE, box_margin_of, foot_noise_options, measured_feet, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
+                                    TrapezoidMapping, check_people_per_frame, check_tracks, fit_tracks_accel_psd, measure_tracks, pair_distances,
                                     summarise)
 from homocal.progress import add_progress_option, show_progress
+from homocal.study.options import flag_type
 
 """The highest frame rate taken (--fps, or the boxes' file's)."""
 INTEGER_COLUMNS = {"frame", "track_id", "frames", "first_frame", "last_frame", "track_a", "track_b"}
@@ -39,14 +41,15 @@ supervision's Detections.xyxy). Without track ids the boxes are linked into trac
 link_tracks: IoU >= 0.3, gaps up to 5 frames). A track's rows must come in increasing frame order, one box per
 track and frame; tracks of fewer than {MIN_TRACK_FRAMES} frames are left out (and counted).
 TRACKS.parquet, one row per track and frame, tracks in increasing id, frames in order:
-  frame, t (s, frame / fps), track_id, u, v (the foot point, px), x, y (its ground point, m), sigma_m (its
-  1-sigma radius, m), x_smooth, y_smooth (m), vx, vy (m/s), speed_mps and speed_sigma_mps (its 1-sigma):
+  frame, t (s, frame / fps), track_id, u, v (the foot point, px: the box's bottom edge's centre, --box-margin
+  / 2 up), x, y (its ground point, m), sigma_m (its 1-sigma radius, m), x_smooth, y_smooth (m), vx, vy (m/s), speed_mps and speed_sigma_mps (its 1-sigma):
   a constant-velocity Kalman filter with an RTS smoother per track, whose measurement noise is each point's
   own covariance (the mapping's error model at --click-sigma-px, --point-sigma-px) and whose process noise
   is a white acceleration of spectral density --accel-psd; foot ({" | ".join(FOOT)}): the foot point measured,
   or with --feet soles not, as a nearer person's box may hide the feet or the image border cuts the box's
-  bottom or a side (the image size of seqinfo.ini, camera.json or the correction's lens): the filter
-  predicts through that frame and the smoother fills it in (x, y stay the mapped foot point).
+  bottom or a side (the image size of seqinfo.ini, camera.json or the correction's lens), nor a box no taller
+  than --box-margin: the filter predicts through that frame and the smoother fills it in (x, y stay the
+  mapped foot point).
 --summary TRACKS_SUMMARY.parquet, one row per track: {", ".join(SUMMARY_COLUMNS)}
   (stationary: smoothed speed under {STATIONARY_MPS:g} m/s).
 --pairs PAIRS.parquet, one row per two people in one frame: {", ".join(PAIR_COLUMNS)}."""
@@ -95,6 +98,12 @@ def add_parser(subparsers) -> None:
                    help="the foot points measured: all; soles: not those whose bottom edge may not be the sole, a box "
                         "whose feet a nearer person's box may hide or whose bottom or side the image border cuts (the "
                         f"table's foot column; default {FEET[0]})")
+    margin = PEDESTRIAN_SETTINGS["box_margin_px"]
+    p.add_argument(margin.flag, dest="box_margin_px", type=flag_type(margin), metavar=margin.metavar,
+                   help=f"how much taller than their people the boxes are, in the camera's pixels: half off each box's "
+                        f"top and bottom edge before its foot point, a box no taller not measured (the foot column's "
+                        f"{FOOT[3]}): {margin.expected()} (default: the pedestrians correction's, homocal fit "
+                        f"{margin.flag}; 0 for any other)")
     add_progress_option(p)
     p.set_defaults(handler=handle_measure)
 
@@ -175,9 +184,10 @@ def handle_measure(args: argparse.Namespace) -> int:
     lens = getattr(mapping, "lens_", None)
     boxes = read_boxes(args.boxes, args.detector, lens, undistort=False)  # the camera's pixels: the border is there
     check_image_size(mapping, boxes.image_size, args)
+    margin = box_margin_of(mapping) if args.box_margin_px is None else args.box_margin_px
     xyxy = undistort_boxes(boxes.xyxy, lens)  # as the fit's
     if boxes.track_ids is None:
-        ids, source = link_tracks(boxes.frames, xyxy), "linked by IoU"
+        ids, source = link_tracks(boxes.frames, xyxy), "linked by IoU"  # the boxes as detected
     else:
         ids, source = boxes.track_ids, "tracks of the file"
         try:
@@ -192,9 +202,10 @@ def handle_measure(args: argparse.Namespace) -> int:
     if counts.max() > MAX_TRACK_FRAMES:
         raise ValueError(f"{args.boxes}: a track of {counts.max():,} frames: at most {MAX_TRACK_FRAMES:,} "
                          "(MAX_TRACK_FRAMES; split the recording)")
+    if margin:  # the camera's pixels, as the fit's (PedestrianCorrector.fit)
+        xyxy = undistort_boxes(trim_boxes(boxes.xyxy, margin), lens)
     frames, feet, ids = boxes.frames[keep], box_bottom_points(xyxy[keep], convention="homocal"), ids[keep]
-    foot = (foot_status(boxes.xyxy[keep], frames, boxes.image_size) if args.feet == "soles"
-            else np.full(len(frames), FOOT[0]))
+    foot = measured_feet(boxes.xyxy[keep], frames, boxes.image_size, args.feet, margin)
     if args.pairs is not None:
         try:
             check_people_per_frame(frames)
@@ -234,7 +245,8 @@ def handle_measure(args: argparse.Namespace) -> int:
     short = f"; {dropped:,} of one frame left out" if dropped else ""
     unused = ", ".join(f"{np.sum(foot == k):,} {k}" for k in FOOT[1:] if np.any(foot == k))
     unused = f" Feet not measured (predicted through): {unused}." if unused else ""
+    trimmed = f", {margin:g} px box margin" if margin else ""
     print(f"homocal measure: {len(frames):,} boxes in {len(summary['track_id']):,} tracks ({source}{short}) of "
-          f"{args.boxes} mapped with {what} of {args.correction} at {fps:g} fps, smoothed and written to {args.out}"
+          f"{args.boxes} mapped with {what} of {args.correction}{trimmed} at {fps:g} fps, smoothed and written to {args.out}"
           f"{pairs}. Median speed {np.nanmedian(summary['mean_speed_mps']):.2f} m/s over the tracks.{unused}{fitted}")
     return 0

@@ -8,11 +8,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from homocal.correctors.pedestrians import SETTINGS as PEDESTRIAN_SETTINGS
 from homocal.correctors.pedestrians import _check_image_size
-from homocal.geometry.boxes import box_bottom_points, box_edges
+from homocal.geometry.boxes import box_bottom_points, box_edges, trim_boxes
 from homocal.measure.kalman import ACCEL_PSD, correlated_noise, imm_start, imm_step, motion_model
-from homocal.measure.tracks import (FEET, FOOT, FOOT_NOISE, FOOT_TAILS, as_mapping, measurement_dof, foot_noise_options, foot_status, map_points,
-                                   point_noise, state_speed)
+from homocal.measure.tracks import (FEET, FOOT, FOOT_NOISE, FOOT_TAILS, as_mapping, box_margin_of, foot_noise_options,
+                                    map_points, measured_feet, measurement_dof, point_noise, state_speed)
 from homocal.uncertainty import sigma_radius
 
 MAX_AGE_S = 2.0
@@ -60,12 +61,15 @@ class GroundTracker:
             "soles": not a box whose feet a nearer box of the frame may hide, nor, with image_size, one whose
             bottom or side edge the image border cuts (homocal.measure.tracks.foot_status).
         image_size: (width, height) px of the frames the boxes are in (the camera's pixels), or None.
+        box_margin_px: how much taller than their people the boxes are, px (homocal measure --box-margin: half off
+            each box's top and bottom edge, a box no taller not measured, foot "short"); None: the mapping's
+            (a pedestrians correction's box_margin_px, else 0).
     """
 
     def __init__(self, mapping, fps: float, *, convention: str = "corners", accel_psd: float | str = ACCEL_PSD,
                  click_sigma_px: float = 1.5, point_sigma_px: float = 1.0, foot_noise: str = FOOT_NOISE[0],
-                 feet: str = FEET[0], image_size: tuple[int, int] | None = None, foot_tails: str = FOOT_TAILS[0]
-                 ) -> None:
+                 feet: str = FEET[0], image_size: tuple[int, int] | None = None, foot_tails: str = FOOT_TAILS[0],
+                 box_margin_px: float | None = None) -> None:
         if not (isinstance(fps, (int, float)) and math.isfinite(fps) and fps > 0):
             raise ValueError(f"fps: expected a finite number > 0, got {fps!r}")
         foot_noise_options(foot_noise, np.zeros((0, 4)), point_sigma_px, foot_tails)  # ValueError for an unknown model
@@ -75,6 +79,8 @@ class GroundTracker:
         self.accel_psd, self.click_sigma_px, self.point_sigma_px = accel_psd, click_sigma_px, point_sigma_px
         self.foot_noise, self.feet, self.image_size = foot_noise, feet, _check_image_size(image_size)
         self.foot_tails = foot_tails
+        self.box_margin_px = box_margin_of(mapping) if box_margin_px is None else float(
+            PEDESTRIAN_SETTINGS["box_margin_px"].check("box_margin_px", box_margin_px))
         self._motion = motion_model(accel_psd)
         self._tracks: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, int, bool]] = {}  # id -> each model's state
         # (M, d), covariance (M, d, d), the models' probabilities (M,), frame, a foot point measured yet
@@ -96,12 +102,12 @@ class GroundTracker:
             raise ValueError(f"frame: expected an integer larger than the last one ({self._frame}), got {frame!r}")
         self._frame = int(frame)
         self._tracks = {k: s for k, s in self._tracks.items() if (frame - s[3]) / self.fps <= MAX_AGE_S}
-        edges = box_edges(np.asarray(xyxy), convention=self.convention)
+        detected = box_edges(np.asarray(xyxy), convention=self.convention)
+        edges = trim_boxes(detected, self.box_margin_px)
         feet = box_bottom_points(edges, convention="homocal")
-        foot = (foot_status(edges, np.zeros(len(ids), np.int64), self.image_size) if self.feet == "soles"
-                else np.full(len(ids), FOOT[0]))
+        foot = measured_feet(detected, np.zeros(len(ids), np.int64), self.image_size, self.feet, self.box_margin_px)
         used = foot == FOOT[0]
-        noise = foot_noise_options(self.foot_noise, np.asarray(xyxy), self.point_sigma_px, self.foot_tails)
+        noise = foot_noise_options(self.foot_noise, edges, self.point_sigma_px, self.foot_tails)
         xy, cov = map_points(self.mapping, feet, self.click_sigma_px, noise["point_sigma_px"])
         R, correlated = correlated_noise(noise["noise_scale"]**2 * (point_noise(self.mapping, feet, noise["point_sigma_px"])
                                          if noise["split_mapping_error"] else cov), noise["foot_correlation_s"])

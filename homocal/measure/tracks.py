@@ -14,7 +14,7 @@ from typing import Protocol
 import numpy as np
 
 from homocal.geometry import Lens, ViewTransformer
-from homocal.geometry.boxes import cut_edges, hidden_feet
+from homocal.geometry.boxes import cut_edges, hidden_feet, short_boxes
 from homocal.measure.kalman import (ACCEL_PSD, correlated_noise, fit_accel_psd, mixture, mixture_speed,
                                    track_states)
 from homocal.uncertainty import STEP, click_jacobian, ground_uncertainty, point_jacobian, sigma_radius
@@ -75,6 +75,12 @@ def as_mapping(mapping) -> Mapping:
     return TrapezoidMapping(mapping) if isinstance(mapping, ViewTransformer) else mapping
 
 
+def box_margin_of(mapping) -> float:
+    """The box margin, px, that a mapping's correction was fitted with (a PedestrianCorrector's box_margin_px), 0
+    for any other (a ViewTransformer, a TrapezoidMapping, a correction of reference points)."""
+    return float(getattr(mapping, "box_margin_px", 0.0))
+
+
 def map_points(mapping: Mapping, feet: np.ndarray, click_sigma_px: float, point_sigma_px
                ) -> tuple[np.ndarray, np.ndarray]:
     """Ground points (N, 2) metres and their covariances (N, 2, 2) metres^2 of foot points (N, 2) px, point_sigma_px
@@ -127,11 +133,12 @@ scales, on simgen's scene1 and scene2, seed 0 (0.13 s segmentation, 0.19 s rgb b
 error in pixels, where the large boxes weigh most, gives 0.55-0.59 s)."""
 
 
-FOOT = ("used", "hidden", "border")
+FOOT = ("used", "hidden", "border", "short")
 """homocal measure's foot column: the box's foot point measured ("used"), or not, the filter predicting through
 that frame and the smoother filling it in, as its bottom edge may not be the sole: a nearer person's box may hide
 the feet ("hidden": geometry.boxes.hidden_feet) or the image border cuts the box's bottom or a side edge, which
-moves the bottom edge's centre ("border": geometry.boxes.cut_edges; a cut top edge leaves the feet as they are)."""
+moves the bottom edge's centre ("border": geometry.boxes.cut_edges; a cut top edge leaves the feet as they are),
+or the box is no taller than the box margin, which leaves it no person ("short": geometry.boxes.short_boxes)."""
 FEET = ("all", "soles")
 """The foot points measured (homocal measure --feet, GroundTracker's feet): all, every box's; soles, only those
 ``foot_status`` finds "used"."""
@@ -145,6 +152,17 @@ def foot_status(edges: np.ndarray, frames: np.ndarray, image_size: tuple[int, in
     status[hidden_feet(edges, frames)] = FOOT[1]
     if image_size is not None:
         status[cut_edges(edges, image_size)[:, [0, 2, 3]].any(axis=1)] = FOOT[2]
+    return status
+
+
+def measured_feet(edges: np.ndarray, frames: np.ndarray, image_size: tuple[int, int] | None, feet: str,
+                  margin_px: float) -> np.ndarray:
+    """(N,) str, one of FOOT, for box edges (N, 4) homocal px in the camera's raw pixels as detected, of video
+    frames (N,) int: with feet "soles" (one of FEET) foot_status's, else "used"; whatever feet, "short" for a box
+    that the box margin margin_px leaves with no height (geometry.boxes.short_boxes)."""
+    status = (foot_status(edges, frames, image_size) if feet == "soles"
+              else np.full(len(edges), FOOT[0], dtype=f"<U{max(map(len, FOOT))}"))
+    status[short_boxes(edges, margin_px)] = FOOT[3]
     return status
 
 

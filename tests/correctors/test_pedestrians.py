@@ -1105,3 +1105,43 @@ class TestRollAndLens:
         back = load_corrector(tmp_path / "c.json")
         assert back.roll_deg_ == c.roll_deg_ and back.roll_sigma_deg_ == c.roll_sigma_deg_
         np.testing.assert_allclose(back.ground_uncertainty(q), c.ground_uncertainty(q), rtol=1e-12)
+
+
+class TestBoxMargin:
+    """box_margin_px: a detector's boxes taller than their people by a known margin, half off each end."""
+
+    ARGS = dict(convention="homocal", K=CAM.K, camera_height_m=4.0, image_size=SIZE)
+
+    def test_taller_boxes_told_their_margin_fit_as_the_people(self):
+        """Boxes 2 px taller told box_margin_px=2 give the fit of the people's own boxes (to the fit's step
+        tolerance, 1e-9 rad: 1e-6 px); untold, the fit reads them as a tilt, the horizon some 2 px per px up."""
+        _, boxes, ids, _ = people(200, seed=21)
+        taller = boxes + [0.0, -1.0, 0.0, 1.0]
+        own = PedestrianCorrector().fit(clicked_mapping(), boxes, track_ids=ids, **self.ARGS)
+        told = PedestrianCorrector(box_margin_px=2.0).fit(clicked_mapping(), taller, track_ids=ids, **self.ARGS)
+        untold = PedestrianCorrector().fit(clicked_mapping(), taller, track_ids=ids, **self.ARGS)
+        assert told.horizon_row_ == pytest.approx(own.horizon_row_, abs=1e-4)
+        assert own.horizon_row_ - untold.horizon_row_ > 2.0  # two boxes' pixels of tilt, the horizon up
+        np.testing.assert_allclose(told.m, own.m, rtol=1e-6)
+
+    def test_a_box_no_taller_than_the_margin_is_an_outlier(self):
+        _, boxes, ids, _ = people(60, seed=22)
+        fragments = np.array([[600.0, 500.0, 610.0, 501.5], [300.0, 450.0, 305.0, 452.0]])  # 1.5 and 2 px tall
+        c = PedestrianCorrector(box_margin_px=2.0).fit(clicked_mapping(), np.vstack([boxes, fragments]),
+                                                        track_ids=np.arange(62), **self.ARGS)
+        assert list(c.box_status_[60:]) == ["outlier", "outlier"] and c.n_outliers_ >= 2
+
+    def test_saved_with_the_correction(self, tmp_path):
+        _, boxes, ids, _ = people(60, seed=23)
+        c = PedestrianCorrector(box_margin_px=3.0).fit(clicked_mapping(), boxes, track_ids=ids, **self.ARGS)
+        c.save(tmp_path / "c.json")
+        saved = json.loads((tmp_path / "c.json").read_text())
+        assert saved["params"]["box_margin_px"] == 3.0 and load_corrector(tmp_path / "c.json").box_margin_px == 3.0
+        del saved["params"]["box_margin_px"]  # a file written before the option: boxes as tight as the people
+        (tmp_path / "old.json").write_text(json.dumps(saved))
+        assert load_corrector(tmp_path / "old.json").box_margin_px == 0.0
+
+    @pytest.mark.parametrize("value", [float("nan"), float("inf"), -1.0, -1e-9, 64.5, 1e308, True, "2", None])
+    def test_bad_margin(self, value):
+        with pytest.raises(OptionError, match=r"box_margin_px .*expected a number in \[0, 64\]"):
+            PedestrianCorrector(box_margin_px=value)

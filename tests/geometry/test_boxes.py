@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 import simgen.detection
-from homocal.geometry.boxes import HIDDEN_FEET_PX, MAX_BOXES_PER_FRAME, box_iou, greedy_pairs, hidden_feet, link_tracks
+from homocal.geometry.boxes import (HIDDEN_FEET_PX, MAX_BOXES_PER_FRAME, box_iou, greedy_pairs, hidden_feet, link_tracks,
+                                    short_boxes, trim_boxes)
 
 BOX = [0.0, 0.0, 10.0, 10.0]
 FAR = [0.0, 0.0, 10.0, 50.0]  # a far person's box: feet at row 50
@@ -133,3 +134,16 @@ def test_link_tracks_a_full_crowd_on_one_spot():
     frames = np.repeat(np.arange(3), MAX_BOXES_PER_FRAME)
     ids = link_tracks(frames, np.tile(BOX, (len(frames), 1)))
     np.testing.assert_array_equal(ids, np.tile(np.arange(MAX_BOXES_PER_FRAME), 3))
+
+
+def test_trim_boxes_by_hand():
+    """trim_boxes: half the margin off the top and the bottom edge; a box no taller keeps none, on its middle row
+    (short_boxes); margin 0 leaves the edges as they are."""
+    edges = np.array([[10.0, 20.0, 30.0, 120.0], [0.0, 5.0, 4.0, 7.0], [1.0, 2.0, 3.0, 4.5]])
+    np.testing.assert_array_equal(trim_boxes(edges, 2.0), [[10.0, 21.0, 30.0, 119.0], [0.0, 6.0, 4.0, 6.0],
+                                                           [1.0, 3.0, 3.0, 3.5]])
+    np.testing.assert_array_equal(trim_boxes(edges, 3.0)[1], [0.0, 6.0, 4.0, 6.0])  # 2 px tall: its middle row
+    np.testing.assert_array_equal(short_boxes(edges, 2.0), [False, True, False])
+    np.testing.assert_array_equal(short_boxes(edges, 2.5), [False, True, True])
+    assert not short_boxes(edges, 0.0).any() and np.array_equal(trim_boxes(edges, 0.0), edges)
+    assert trim_boxes(edges, 0.0) is not edges

@@ -428,6 +428,9 @@ def _bad_pedestrian_inputs():
          "argument --height-mean-sigma: expected a number in [0, 0.5] (m), got '-1'"),
         ("height mean nan", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--height-mean", "nan"],
          "argument --height-mean: expected a number in [0.5, 2.5] (m), got 'nan'"),
+        *((f"box margin {v or 'empty'}", {"b.csv": head + rows}, [*ped, "--boxes", "b.csv", "--box-margin", v],
+           f"argument --box-margin: expected a number in [0, 64] (px), got '{v}'")
+          for v in ("nan", "inf", "-1", "65", "1e308", "two", "")),
         ("no image size", {"b.csv": head + rows}, ["--method", "pedestrians", "--boxes", "b.csv"], "--camera-json: needed"),
         ("camera json without width", {"b.csv": head + rows, "cam.json": json.dumps({"height": 720})}, [*ped, "--boxes", "b.csv"],
          "--camera-json cam.json: image_size: missing"),

@@ -174,20 +174,21 @@ def test_student_tails_measure_the_true_speeds_of_exact_foot_points(tmp_path):
     assert not np.allclose(p["student"]["sigma"], p["normal"]["sigma"])
 
 
-def test_box_margin_trims_each_box_and_leaves_out_those_no_taller(tmp_path, capsys):
-    """--box-margin PX: PX / 2 off each box's top and bottom edge, its columns kept; a box no taller than PX has
-    nothing left and is left out, counted on stderr."""
+def test_box_margin_as_homocal_measure_takes_it(tmp_path, capsys):
+    """--box-margin PX: homocal measure's trim (PX / 2 off each box's top and bottom edge: the foot points PX / 2
+    up) and its "short" feet, boxes no taller than PX not measured, their share on stderr (a track of short boxes
+    alone has no state)."""
     import pyarrow.parquet as pq
 
-    xyxy = np.array([[10.0, 20.0, 30.0, 120.0], [0.0, 5.0, 4.0, 7.0]])
-    np.testing.assert_array_equal(script.trimmed(xyxy, 2.0), [[10.0, 21.0, 30.0, 119.0], [0.0, 6.0, 4.0, 6.0]])
     path = walkers(tmp_path)
     det = pq.read_table(path / "detections.parquet")
     short = int(np.sum(np.asarray(det["y2"]) - np.asarray(det["y1"]) <= 150.0))
     assert 0 < short < det.num_rows  # the walkers' far boxes
-    p = script.evaluate([str(path)], "segmentation", 16, exact=True, box_margin_px=150.0)
-    assert f"{short:,} of {det.num_rows:,} boxes no taller than 150 px left out" in capsys.readouterr().err
-    assert len(p["exact, smoother"]["rel"]) <= det.num_rows - short
+    given = script.evaluate([str(path)], "segmentation", 16, exact=True)["exact, smoother"]
+    trimmed = script.evaluate([str(path)], "segmentation", 16, exact=True, box_margin_px=150.0)["exact, smoother"]
+    assert f"short {100 * short / det.num_rows:.1f} %" in capsys.readouterr().err
+    assert 0 < len(trimmed["rel"]) < len(given["rel"])
+    assert np.nanmedian(trimmed["rel"]) > 10 * np.nanmedian(given["rel"])  # the feet 75 px up: far off the truth
 
 
 def test_box_margin_is_refused_where_the_boxes_are_read_as_detected(capsys):
