@@ -290,7 +290,7 @@ def evaluate(paths: list[str], detector: str, shift: float, split: bool = False,
         foot = measured_feet(xyxy, frames, ds.camera.image_size, FEET[1] if soles else FEET[0], box_margin_px)
         if soles or box_margin_px:
             print(f"{Path(path).name}, {detector}: of {len(foot):,} boxes, " + ", ".join(
-                  f"{k} {100 * np.mean(foot == k):.1f} %" for k in FOOT[1:]), file=sys.stderr)
+                  f"{k} {np.sum(foot == k):,} ({100 * np.mean(foot == k):.1f} %)" for k in FOOT[1:]), file=sys.stderr)
         if exact:
             maps, rows = {"exact": TrapezoidMapping(exact_transformer(ds), ds.camera.lens)}, {}
         else:

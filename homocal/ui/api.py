@@ -42,7 +42,7 @@ from homocal.ui.errorbars import error_bars
 from homocal.ui.session import Session, undistorted, use_lens
 from homocal.watch import OnlineCalibrator
 from homocal.watch.calibrator import PERSON_BOXES, by_frame, camera_of, stretch_correction
-from homocal.watch.cli import PRIOR, WATCH_SETTINGS
+from homocal.watch.cli import CALIBRATOR_SETTINGS, WATCH_SETTINGS
 from homocal.watch.folder import correction_at
 
 TRAPEZOID_FILE, POINTS_FILE, CORRECTION_FILE = "trapezoid.json", "reference_points.csv", "correction.json"
@@ -303,10 +303,11 @@ def _watched(session: Session, req: dict) -> dict:
                          "start homocal ui with --fps")
     transformer = _complete_transformer(session, req)
     settings = _box_settings(session, req)
-    prior = PedestrianCorrector(**{k: req[k] for k in PRIOR if req.get(k) is not None})
+    prior = PedestrianCorrector(**{k: req[k] for k in CALIBRATOR_SETTINGS if req.get(k) is not None})
     K, height = camera_of(transformer, settings["image_size"], settings["K"], settings["camera_height_m"])
     calibrator = OnlineCalibrator(K, height, session.fps, settings["image_size"], prior.height_mean_m,
-                                  prior.height_sd_m, lens=session.lens, estimate_roll=prior.estimate_roll)
+                                  prior.height_sd_m, lens=session.lens, estimate_roll=prior.estimate_roll,
+                                  box_margin_px=prior.box_margin_px)
     boxes = settings["boxes"]
     states = [calibrator.update(*frame) for frame in by_frame(boxes.frames, boxes.xyxy, boxes.track_ids,
                                                               str(session.boxes))]

@@ -116,7 +116,8 @@ from homocal.correctors.pedestrians import (
 )
 from homocal.boxes import MAX_FPS
 from homocal.geometry import ViewTransformer
-from homocal.geometry.boxes import MAX_BOXES_PER_FRAME, TrackLinker, hidden_feet, on_border, undistort_boxes
+from homocal.geometry.boxes import (MAX_BOXES_PER_FRAME, TrackLinker, hidden_feet, on_border, short_boxes, trim_boxes,
+                                    undistort_boxes)
 from homocal.geometry.lens import Lens
 
 WINDOW_PEOPLE = 200  # people in the sliding estimate: the memory bound
@@ -352,13 +353,18 @@ class OnlineCalibrator:
             (undistort_boxes); the horizon rows are then the undistorted image's. None: a pinhole.
         drift_test: run the drift test (homocal.watch.drift: the people already in view; default True) with
             the row test, each at its share of arl0_people; False: the row test (and the roll's) alone.
+        box_margin_px: how much taller than their people the boxes are, px in the camera's pixels
+            (PedestrianCorrector's box_margin_px, kept in each stretch's correction): half off each box's top and
+            bottom edge after the border and hidden-feet tests, before the undistortion; a box no taller is not
+            measured.
     """
 
     def __init__(self, K, camera_height_m: float, fps: float, image_size: tuple[int, int] | None = None,
                  height_mean_m: float = DEFAULT_HEIGHT_MEAN_M, height_sd_m: float = DEFAULT_HEIGHT_SD_M,
                  arl0_people: float = DEFAULT_ARL0_PEOPLE, lens: Lens | None = None, estimate_roll: bool = False,
-                 drift_test: bool = True) -> None:
-        self.estimate_roll = PedestrianCorrector(height_mean_m, height_sd_m, estimate_roll=estimate_roll).estimate_roll
+                 drift_test: bool = True, box_margin_px: float = 0.0) -> None:
+        checked = PedestrianCorrector(height_mean_m, height_sd_m, estimate_roll=estimate_roll, box_margin_px=box_margin_px)
+        self.estimate_roll, self.box_margin_px = checked.estimate_roll, checked.box_margin_px
         K = intrinsics(None, None, K)
         if not (isinstance(camera_height_m, (int, float)) and 0 < camera_height_m <= 100):
             raise ValueError(f"camera_height_m must be in (0, 100] m, got {camera_height_m!r}")
@@ -412,11 +418,15 @@ class OnlineCalibrator:
         tracks = self._tracks
         for key in ids.tolist():  # every box keeps its track alive; only tracks yet to give a person are measured
             tracks.setdefault(key, [frame, [], [], [], []])[0] = frame
-        todo = np.array([i for i, key in enumerate(ids.tolist()) if tracks[key][1] is not None], dtype=np.int64)
-        undistorted = boxes  # the lens's undistortion where a box is measured: the drift test's every box, else todo's
-        if self.lens is not None and (self._drift is not None or len(todo)):  # its cost is mostly per call
+        short = short_boxes(boxes, self.box_margin_px)  # no person left in it: not measured
+        todo = np.array([i for i, key in enumerate(ids.tolist()) if tracks[key][1] is not None and not short[i]],
+                        dtype=np.int64)
+        # the people's edges, undistorted where a box is measured: the drift test's every box, else todo's (the
+        # lens's cost is mostly per call)
+        undistorted = trim_boxes(boxes, self.box_margin_px)
+        if self.lens is not None and (self._drift is not None or len(todo)):
             try:
-                undistorted = undistort_boxes(boxes, self.lens)
+                undistorted = undistort_boxes(undistorted, self.lens)
             except ValueError as e:
                 raise ValueError(f"frame {frame}: {e}") from None
         b = undistorted[todo]  # only the boxes still measured: a track's later boxes are skipped
@@ -446,8 +456,8 @@ class OnlineCalibrator:
             raise ValueError(f"frame {frame}: more than {MAX_TRACKS} people (tracks) at once")
         move, observed, zs = None, [], []
         if self._drift is not None:
-            move = self._drift_update(t, frame, ids, undistorted, ~hidden_all if self.image_size is None else
-                                      ~hidden_all & ~on_border(boxes, self.image_size), len(people))
+            move = self._drift_update(t, frame, ids, undistorted, ~hidden_all & ~short if self.image_size is None else
+                                      ~hidden_all & ~short & ~on_border(boxes, self.image_size), len(people))
         for person in people if move is None else ():
             observed.append(person)
             move, z = self._observe(person)
@@ -574,7 +584,8 @@ def stretch_correction(transformer: ViewTransformer, calibrator: OnlineCalibrato
     (``PedestrianCorrector.from_horizon``); ValueError, as fit refuses, when more than MAX_OUTLIER_SHARE of its
     n_people are outliers (n_outliers: ``Line.n_outliers``)."""
     fitted = math.isfinite(roll_sigma_deg)
-    return PedestrianCorrector(calibrator.height_mean_m, calibrator.height_sd_m).from_horizon(
+    return PedestrianCorrector(calibrator.height_mean_m, calibrator.height_sd_m,
+                               box_margin_px=calibrator.box_margin_px).from_horizon(
         transformer, row, sigma if math.isfinite(sigma) else 0.0, calibrator.K, calibrator.camera_height_m,
         n_people, camera_origin, roll_deg if fitted else None, roll_sigma_deg if fitted else 0.0, n_outliers)
 

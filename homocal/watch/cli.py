@@ -38,8 +38,8 @@ from homocal.watch.calibrator import (
 )
 from homocal.watch.folder import MARKER, REFUSED, TOOL
 
-PRIOR = ("height_mean_m", "height_sd_m", "estimate_roll")  # the people's height prior and the roll: with camera_height_m, watch's pedestrian settings
-WATCH_SETTINGS = ("camera_height_m", *PRIOR)  # the pedestrian settings (PEDESTRIAN_SETTINGS) homocal watch takes
+CALIBRATOR_SETTINGS = ("height_mean_m", "height_sd_m", "estimate_roll", "box_margin_px")  # OnlineCalibrator's pedestrian settings
+WATCH_SETTINGS = ("camera_height_m", *CALIBRATOR_SETTINGS)  # the pedestrian settings (PEDESTRIAN_SETTINGS) homocal watch takes
 DRIFT_TEST = Option("--drift-test", YesNo(), "also test for a move from the people already in view, each one's "
                     "implied horizon along their walk (homocal.watch.drift), sharing --arl0-people with the row test",
                     metavar="{yes,no}")  # OnlineCalibrator's drift_test
@@ -95,7 +95,7 @@ def handle_watch(args: argparse.Namespace) -> int:
     if K is None and size is None:
         raise ValueError(f"--camera-json: needed ({args.boxes} gives neither the image size nor K)")
     K, height = camera_of(transformer, size, K, args.camera_height_m)
-    prior = {name: getattr(args, name) for name in PRIOR if getattr(args, name) is not None}
+    prior = {name: getattr(args, name) for name in CALIBRATOR_SETTINGS if getattr(args, name) is not None}
     try:
         calibrator = OnlineCalibrator(K, height, fps, size, **prior, arl0_people=args.arl0_people, lens=lens,
                                       drift_test=args.drift_test)
@@ -103,8 +103,8 @@ def handle_watch(args: argparse.Namespace) -> int:
         raise pedestrian_flag_error(e) from None
     settings = {"format": TOOL, "boxes": str(args.boxes), "detector": args.detector, "fps": fps,
                 "camera_height_m": height, "K": K.tolist(), "image_size": None if size is None else list(size),
-                "height_mean_m": calibrator.height_mean_m, "height_sd_m": calibrator.height_sd_m,
-                "estimate_roll": calibrator.estimate_roll, "drift_test": args.drift_test, "arl0_people": args.arl0_people, "threshold": calibrator.threshold}
+                **{name: getattr(calibrator, name) for name in CALIBRATOR_SETTINGS}, "drift_test": args.drift_test,
+                "arl0_people": args.arl0_people, "threshold": calibrator.threshold}
     with output_folder(args.out, TOOL, resume=False, marker=MARKER, resumable=False) as folder:
         write_json_atomic(folder.marker, {**settings, "ended": None})
         (folder.path / "corrections").mkdir()

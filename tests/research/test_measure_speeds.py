@@ -186,7 +186,7 @@ def test_box_margin_as_homocal_measure_takes_it(tmp_path, capsys):
     assert 0 < short < det.num_rows  # the walkers' far boxes
     given = script.evaluate([str(path)], "segmentation", 16, exact=True)["exact, smoother"]
     trimmed = script.evaluate([str(path)], "segmentation", 16, exact=True, box_margin_px=150.0)["exact, smoother"]
-    assert f"short {100 * short / det.num_rows:.1f} %" in capsys.readouterr().err
+    assert f"short {short:,} ({100 * short / det.num_rows:.1f} %)" in capsys.readouterr().err
     assert 0 < len(trimmed["rel"]) < len(given["rel"])
     assert np.nanmedian(trimmed["rel"]) > 10 * np.nanmedian(given["rel"])  # the feet 75 px up: far off the truth
 

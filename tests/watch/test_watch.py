@@ -328,6 +328,20 @@ def test_steady_camera_tracks_its_horizon_in_bounded_memory():
     assert abs(last.horizon_row - horizon(0)) < 4 * last.horizon_sigma_px < 2.0
 
 
+def test_boxes_taller_by_a_told_margin_give_the_peoples_horizon():
+    """OnlineCalibrator(box_margin_px=3) on boxes 3 px taller, half at each end: the states of the people's own
+    boxes (to float rounding); untold, the horizon several px up; a box no taller than the margin is not measured."""
+    frames = list(stream(120, seed=4))
+    _, own = run(frames)
+    _, told = run([(f, b + [0.0, -1.5, 0.0, 1.5], i) for f, b, i in frames], box_margin_px=3.0)
+    _, untold = run([(f, b + [0.0, -1.5, 0.0, 1.5], i) for f, b, i in frames])
+    np.testing.assert_allclose([s.horizon_row for s in told], [s.horizon_row for s in own], rtol=1e-9)
+    assert own[-1].horizon_row - untold[-1].horizon_row > 3.0
+    f, b, i = frames[-1]
+    cal, _ = run([(f, np.vstack([b, [600.0, 500.0, 620.0, 502.0]]), np.append(i, 10**6))], box_margin_px=3.0)
+    assert 10**6 in cal._tracks and cal._tracks[10**6][1] == []  # its track kept alive, no height measured
+
+
 @pytest.mark.parametrize("roll", [1.5, -1.0])
 def test_a_rolled_camera_gives_its_horizon_line(roll):
     """A steady camera rolled by ``roll`` degrees, people spread over the width, estimate_roll: no move; the
@@ -688,12 +702,25 @@ def test_apply_at_needs_a_watch_folder(tmp_path, capsys, monkeypatch):
     assert r.returncode == 2 and "--at: for a homocal watch folder" in r.stderr
 
 
+def test_watch_keeps_the_box_margin_in_each_stretch(tmp_path, capsys, monkeypatch):
+    """homocal watch --box-margin 2: watch.json and every stretch's correction keep it (homocal measure's default)."""
+    flags = write_inputs(tmp_path, stream(40, seed=9))
+    r = homocal_main("watch", *flags, "--boxes", "boxes.csv", "--out", "out", "--box-margin", "2", cwd=tmp_path,
+                     capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    assert json.loads((tmp_path / "out/watch.json").read_text())["box_margin_px"] == 2.0
+    stretches = list((tmp_path / "out/corrections").glob("*.json"))
+    assert stretches and all(load_corrector(p).box_margin_px == 2.0 for p in stretches)
+
+
 @pytest.mark.parametrize("extra, message", [
     (["--height-mean", "9"], "argument --height-mean: expected a number in [0.5, 2.5] (m), got '9'"),
     (["--height-sd", "0.6"], "argument --height-sd: expected at most height_mean_m / 4 = 0.425 m, got 0.6"),
     (["--camera-height", "1e-9"], "argument --camera-height: expected a number in"),
     (["--estimate-roll", "maybe"], "argument --estimate-roll: expected yes or no, got 'maybe'"),
     (["--drift-test", "auto"], "argument --drift-test: expected yes or no, got 'auto'"),
+    *((["--box-margin", v], f"argument --box-margin: expected a number in [0, 64] (px), got '{v}'")
+      for v in ("nan", "inf", "-1", "65", "two", "")),
     (["--out", "full"], "full: exists and is not empty (use another output folder)"),
 ])
 def test_watch_refuses_its_settings_as_fit_does(tmp_path, capsys, monkeypatch, extra, message):
