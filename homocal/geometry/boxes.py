@@ -58,7 +58,8 @@ def trim_boxes(edges: np.ndarray, margin_px: float) -> np.ndarray:
     """Box edges (N, 4) homocal px (x1, y1, x2, y2) of a detector whose boxes are margin_px taller than their
     people (px, in the camera's frame, in [0, MAX_BOX_MARGIN_PX]) -> the people's edges (N, 4) float64: margin_px / 2
     off the top edge and off the bottom edge (the foot point margin_px / 2 up). A box no taller than margin_px
-    keeps no height (both edges on its middle row: ``short_boxes``). margin_px 0: a copy as they are."""
+    keeps no height (both edges on its middle row: ``short_boxes``). margin_px 0: a copy as they are; below 0 the
+    boxes grow (research/speeds_rgb.py's derivative)."""
     edges = np.array(edges, dtype=np.float64)
     middle, half = (edges[:, 1] + edges[:, 3]) / 2.0, margin_px / 2.0
     edges[:, 1], edges[:, 3] = np.minimum(edges[:, 1] + half, middle), np.maximum(edges[:, 3] - half, middle)

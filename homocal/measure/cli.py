@@ -20,10 +20,11 @@ from homocal.geometry import read_trapezoid_file
 from homocal.geometry.lens import first_outside_frame
 from homocal.geometry.boxes import box_bottom_points, link_tracks, trim_boxes, undistort_boxes
 from homocal.measure.kalman import ACCEL_PSD, ACCEL_PSD_BOUNDS, IMM, IMM_ACCEL_PSD, IMM_SWITCH_PER_S
-from homocal.measure.tracks import (COLUMNS, FEET, FOOT, FOOT_CORRELATION_S, FOOT_NOISE, FOOT_SIGMA_PER_BOX_HEIGHT, FOOT_TAILS,
-                                    STUDENT_FOOT_NOISE, box_margin_of, foot_noise_options, measured_feet, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS, SUMMARY_COLUMNS,
-                                    TrapezoidMapping, check_people_per_frame, check_tracks, fit_tracks_accel_psd, measure_tracks, pair_distances,
-                                    summarise)
+from homocal.measure.tracks import (COLUMNS, FEET, FOOT, FOOT_CORRELATION_S, FOOT_NOISE, FOOT_SIGMA_PER_BOX_HEIGHT,
+                                    FOOT_TAILS, MAX_TRACK_FRAMES, MIN_TRACK_FRAMES, PAIR_COLUMNS, STATIONARY_MPS,
+                                    STUDENT_FOOT_NOISE, SUMMARY_COLUMNS, TrapezoidMapping, box_margin_of,
+                                    check_people_per_frame, check_tracks, fit_tracks_accel_psd, foot_noise_options,
+                                    measure_tracks, measured_feet, pair_distances, summarise)
 from homocal.progress import add_progress_option, show_progress
 from homocal.study.options import flag_type
 
@@ -42,10 +43,11 @@ link_tracks: IoU >= 0.3, gaps up to 5 frames). A track's rows must come in incre
 track and frame; tracks of fewer than {MIN_TRACK_FRAMES} frames are left out (and counted).
 TRACKS.parquet, one row per track and frame, tracks in increasing id, frames in order:
   frame, t (s, frame / fps), track_id, u, v (the foot point, px: the box's bottom edge's centre, --box-margin
-  / 2 up), x, y (its ground point, m), sigma_m (its 1-sigma radius, m), x_smooth, y_smooth (m), vx, vy (m/s), speed_mps and speed_sigma_mps (its 1-sigma):
-  a constant-velocity Kalman filter with an RTS smoother per track, whose measurement noise is each point's
-  own covariance (the mapping's error model at --click-sigma-px, --point-sigma-px) and whose process noise
-  is a white acceleration of spectral density --accel-psd; foot ({" | ".join(FOOT)}): the foot point measured,
+  / 2 up), x, y (its ground point, m), sigma_m (its 1-sigma radius, m), x_smooth, y_smooth (m), vx, vy (m/s),
+  speed_mps and speed_sigma_mps (its 1-sigma): a constant-velocity Kalman filter with an RTS smoother per
+  track, whose measurement noise is each point's own covariance (the mapping's error model at
+  --click-sigma-px, --point-sigma-px) and whose process noise is a white acceleration of spectral density
+  --accel-psd; foot ({" | ".join(FOOT)}): the foot point measured,
   or with --feet soles not, as a nearer person's box may hide the feet or the image border cuts the box's
   bottom or a side (the image size of seqinfo.ini, camera.json or the correction's lens), nor a box no taller
   than --box-margin: the filter predicts through that frame and the smoother fills it in (x, y stay the
