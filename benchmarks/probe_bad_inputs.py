@@ -340,6 +340,7 @@ def cli_cases() -> list[Case]:
         # ---- homocal measure
         Case("measure writes, then replaces its own", [*MEASURE, "t.parquet"], expect="ok", setup=_measure_once, writes=("t.parquet",)),
         *[Case(f"measure fps {fps}", [*MEASURE[:5], "--fps", fps, "-o", "t.parquet"], message="--fps") for fps in ("0", "nan", "inf", "1e9", "-10")],
+        *[Case(f"measure box-margin {m}", [*MEASURE, "t.parquet", "--box-margin", m], message="--box-margin") for m in ("nan", "-1", "65", "1e308")],
         Case("measure boxes UTF-16", [*MEASURE[:3], "--boxes", "b.csv", *MEASURE[5:], "t.parquet"], setup=put(**{"b.csv": "frame,track_id,x1,y1,x2,y2\n0,1,1,2,3,4\n".encode("utf-16")}), message="b.csv"),
         Case("measure boxes binary", [*MEASURE[:3], "--boxes", "b.csv", *MEASURE[5:], "t.parquet"], setup=put(**{"b.csv": BINARY}), message="b.csv"),
         Case("measure boxes empty", [*MEASURE[:3], "--boxes", "b.csv", *MEASURE[5:], "t.parquet"], setup=put(**{"b.csv": ""}), message="b.csv"),
@@ -375,6 +376,7 @@ def cli_cases() -> list[Case]:
         *[Case(f"watch arl0-people {n}", [*WATCH, "w", "--arl0-people", n], message="--arl0-people") for n in ("0", "nan", "1e300")],
         Case("watch camera-height inf", [*WATCH, "w", "--camera-height", "inf"], message="--camera-height"),
         Case("watch fps nan", [*WATCH, "w", "--fps", "nan"], message="--fps"),
+        *[Case(f"watch box-margin {m}", [*WATCH, "w", "--box-margin", m], message="--box-margin") for m in ("inf", "-0.5", "64.5")],
         Case("apply at a watch's refused stretch", apply("--at", "1", c="w"), setup=_watch_refused("the people disagree"), message="t = 1 s has no correction in w: the people disagree"),
         Case("apply at a watch's refusal not ours", apply("--at", "1", c="w"), setup=_watch_refused(5), message="field refused: expected text"),
         Case("two watches at once", [*WATCH, "w"], fault="concurrent", first=[*WATCH, "w"], wait_for="w/watch.json", writes=("w",), message="locked by"),
