@@ -32,14 +32,19 @@ def measure(scene, capsys, monkeypatch, correction, boxes, *extra):  # noqa: F81
     return r.stdout, pq.read_table(scene / "t.parquet").to_pandas()
 
 
-def pedestrians_correction(path, margin):
-    """A pedestrians correction of the walkers' camera fitted with box_margin_px=margin (its own people's boxes
-    that much taller), saved to path."""
+def people_boxes(margin):
+    """80 standing people's boxes (80, 4) homocal edges seen by CAMERA, margin px taller than the people."""
     rng = np.random.default_rng(3)
     xy = np.column_stack([rng.uniform(-6, 6, 80), rng.uniform(8, 40, 80)])
     foot = CAMERA.project(np.column_stack([xy, np.zeros(80)]))
     head = CAMERA.project(np.column_stack([xy, rng.normal(1.65, 0.07, 80)]))
-    boxes = np.column_stack([foot[:, 0] - 10, head[:, 1] - margin / 2, foot[:, 0] + 10, foot[:, 1] + margin / 2])
+    return np.column_stack([foot[:, 0] - 10, head[:, 1] - margin / 2, foot[:, 0] + 10, foot[:, 1] + margin / 2])
+
+
+def pedestrians_correction(path, margin):
+    """A pedestrians correction of the walkers' camera fitted with box_margin_px=margin (its own people's boxes
+    that much taller), saved to path."""
+    boxes = people_boxes(margin)
     PedestrianCorrector(box_margin_px=margin).fit(
         ViewTransformer(CAMERA.project_ground(GROUND), GROUND), boxes, convention="homocal", track_ids=np.arange(80),
         K=CAMERA.K, camera_height_m=4.0, image_size=(CAMERA.width, CAMERA.height)).save(path)
@@ -55,6 +60,25 @@ def test_taller_boxes_told_their_margin_measure_as_the_people(scene, capsys, mon
     np.testing.assert_allclose(told[STATE + ["u", "v"]], own[STATE + ["u", "v"]], rtol=1e-9, atol=1e-12)
     _, untold = measure(scene, capsys, monkeypatch, "trap.json", "tall.csv")
     np.testing.assert_allclose(untold.v - own.v, 1.5, atol=1e-9)
+
+
+def test_fit_takes_the_margin_and_says_so(scene, capsys, monkeypatch):  # noqa: F811 (scene: the fixture)
+    """homocal fit --method pedestrians --box-margin 2 on boxes 2 px taller: the fit of the people's own boxes
+    (Python's, no margin), its line naming the margin, the correction keeping it."""
+    boxes = people_boxes(2.0)
+    rows = "".join(f"{k},{x1 + 0.5!r},{y1 + 0.5!r},{x2 + 0.5!r},{y2 + 0.5!r}\n" for k, (x1, y1, x2, y2) in enumerate(boxes.tolist()))
+    (scene / "people.csv").write_text("frame,x1,y1,x2,y2\n" + rows)  # corners: homocal's edges + 0.5
+    (scene / "cam.json").write_text(json.dumps({"width": CAMERA.width, "height": CAMERA.height, "K": CAMERA.K.tolist()}))
+    r = homocal_main("fit", "--trapezoid", "trap.json", "--method", "pedestrians", "--boxes", "people.csv",
+                     "--camera-json", "cam.json", "--camera-height", "4", "--box-margin", "2", "-o", "c.json",
+                     cwd=scene, capsys=capsys, monkeypatch=monkeypatch)
+    assert r.returncode == 0, r.stderr
+    assert "Boxes: 80 read (each less a 2 px box margin)" in r.stdout
+    fitted = load_corrector(scene / "c.json")
+    own = PedestrianCorrector().fit(ViewTransformer(CAMERA.project_ground(GROUND), GROUND), people_boxes(0.0),
+                                    convention="homocal", frames=np.arange(80), K=CAMERA.K, camera_height_m=4.0,
+                                    image_size=(CAMERA.width, CAMERA.height))
+    assert fitted.box_margin_px == 2.0 and fitted.horizon_row_ == pytest.approx(own.horizon_row_, abs=1e-4)
 
 
 def test_a_pedestrians_corrections_margin_is_the_default(scene, capsys, monkeypatch):  # noqa: F811 (scene: the fixture)
