@@ -79,7 +79,7 @@ the foot noise model of --box-sigma (default fixed), every box: homocal.measure.
 --foot-noise-tails normal|student: the foot noise's distribution (homocal measure --foot-noise-tails; student with
 the models STUDENT_FOOT_NOISE has: its scale and degrees of freedom, the scale times --foot-scale).
 --box-margin PX: the boxes' known excess height over the people's, as homocal fit --box-margin and homocal
-measure take it (PedestrianCorrector(box_margin_px), homocal.geometry.trim_boxes: PX / 2 px off each box's top
+measure take it (PedestrianCorrector(box_margin_px), homocal.geometry.boxes.trim_boxes: PX / 2 px off each box's top
 and bottom edge in the camera's pixels, for every mapping's foot points; a box no taller an outlier of the fit
 and its foot not measured, "short"); with --spread a dataset whose pedestrians' fit refuses the trimmed boxes is
 left out (its refusal printed to stderr). The speed tables only: refused with --draws, --fit-*, --horizons and

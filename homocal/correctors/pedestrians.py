@@ -545,7 +545,7 @@ class PedestrianCorrector(Corrector):
             answers the refusal is for.
         box_margin_px: how much taller than their people the detector's boxes are, px in the camera's frame
             (SETTINGS' bounds; default 0: boxes as tight as the people): fit takes half of it off each box's top
-            and bottom edge (homocal.geometry.trim_boxes) after the border test, the hidden feet and the track
+            and bottom edge (homocal.geometry.boxes.trim_boxes) after the border test, the hidden feet and the track
             linking (on the boxes as given), before the undistortion and the fit; a box no taller keeps no height, an
             outlier. Saved with the correction: homocal measure and GroundTracker take it off their boxes too. A
             background subtractor at half resolution gives boxes some 2 px too tall (simgen's rgb detector,
