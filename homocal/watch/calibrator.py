@@ -456,8 +456,10 @@ class OnlineCalibrator:
             raise ValueError(f"frame {frame}: more than {MAX_TRACKS} people (tracks) at once")
         move, observed, zs = None, [], []
         if self._drift is not None:
-            move = self._drift_update(t, frame, ids, undistorted, ~hidden_all & ~short if self.image_size is None else
-                                      ~hidden_all & ~short & ~on_border(boxes, self.image_size), len(people))
+            usable_all = ~hidden_all & ~short
+            if self.image_size is not None:  # cut by the frame: in the camera's pixels
+                usable_all &= ~on_border(boxes, self.image_size)
+            move = self._drift_update(t, frame, ids, undistorted, usable_all, len(people))
         for person in people if move is None else ():
             observed.append(person)
             move, z = self._observe(person)
